@@ -1,0 +1,96 @@
+#include "mrroc/ecp/generators/joint_poses.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::ecp {
+
+namespace {
+// Peak velocity and acceleration of the quintic scaling for a unit move in unit time.
+constexpr double kPeakVelocity = 1.875;
+constexpr double kPeakAcceleration = 5.773502691896258;  // 10 / sqrt(3)
+}  // namespace
+
+double JointPosesGenerator::scaling(double tau) {
+  tau = std::clamp(tau, 0.0, 1.0);
+  return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+}
+
+double JointPosesGenerator::segment_duration(double distance, double max_velocity,
+                                             double max_acceleration) {
+  distance = std::abs(distance);
+  return std::max(kPeakVelocity * distance / max_velocity,
+                  std::sqrt(kPeakAcceleration * distance / max_acceleration));
+}
+
+JointPosesGenerator::JointPosesGenerator(const RobotModel& model,
+                                         std::vector<std::vector<double>> poses,
+                                         JointPosesOptions options)
+    : model_(model), poses_(std::move(poses)), options_(options) {
+  if (!(options_.velocity_scale > 0.0 && options_.velocity_scale <= 1.0))
+    throw Error(fmt::format("velocity_scale {} is outside (0, 1]", options_.velocity_scale));
+  if (!(options_.acceleration_scale > 0.0 && options_.acceleration_scale <= 1.0))
+    throw Error(
+        fmt::format("acceleration_scale {} is outside (0, 1]", options_.acceleration_scale));
+  if (options_.motion_steps < 2 || options_.motion_steps > 1000)
+    throw Error(fmt::format("motion_steps {} is outside 2..1000", options_.motion_steps));
+  for (std::size_t i = 0; i < poses_.size(); ++i)
+    model_.check_joint_limits(poses_[i], fmt::format("pose {}", i + 1).c_str());
+}
+
+void JointPosesGenerator::begin_segment(const std::vector<double>& from) {
+  from_ = from;
+  const auto& to = poses_[pose_];
+  double duration = 0.0;
+  for (std::size_t j = 0; j < to.size(); ++j)
+    duration = std::max(duration, segment_duration(to[j] - from_[j],
+                                                   model_.max_velocity[j] * options_.velocity_scale,
+                                                   model_.max_acceleration[j] *
+                                                       options_.acceleration_scale));
+  const double macro_step_s = options_.motion_steps * options_.servo_period_s;
+  segment_steps_ = std::max(1, static_cast<int>(std::ceil(duration / macro_step_s - 1e-9)));
+  macro_step_ = 0;
+}
+
+void JointPosesGenerator::command(RobotImage& robot) {
+  ++macro_step_;
+  const auto& to = poses_[pose_];
+  const double s = scaling(static_cast<double>(macro_step_) / segment_steps_);
+  edp::Instruction& c = robot.command;
+  c = edp::Instruction{};
+  c.type = edp::InstructionType::set;
+  c.set = edp::item::arm;
+  c.set_arm_type = edp::ArmRepresentation::joint;
+  c.motion_type = edp::MotionType::absolute;
+  c.motion_steps = options_.motion_steps;
+  const bool last = pose_ + 1 == poses_.size() && macro_step_ == segment_steps_;
+  // One step early keeps consecutive macro-steps seamless; the very last one reads after the stop.
+  c.value_in_step_no = last ? options_.motion_steps + 1 : options_.motion_steps - 1;
+  c.arm.resize(to.size());
+  for (std::size_t j = 0; j < to.size(); ++j) c.arm[j] = from_[j] + (to[j] - from_[j]) * s;
+}
+
+bool JointPosesGenerator::first_step(RobotImage& robot, const SensorList&) {
+  if (poses_.empty()) return false;
+  if (robot.desired_joints.size() != model_.axes())
+    throw Error("robot image has no desired joint position (read the robot state first)");
+  pose_ = 0;
+  begin_segment(robot.desired_joints);
+  command(robot);
+  return true;
+}
+
+bool JointPosesGenerator::next_step(RobotImage& robot, const SensorList&) {
+  if (macro_step_ >= segment_steps_) {
+    if (++pose_ >= poses_.size()) return false;
+    begin_segment(poses_[pose_ - 1]);
+  }
+  command(robot);
+  return true;
+}
+
+}  // namespace mrroc::ecp

@@ -1,0 +1,46 @@
+// Stock ECP task "visit_joint_poses": synchronise the robot, then visit the poses given in the
+// config ([robot.ecp.args] poses = [[...], ...], in rad), reporting each pose reached.
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "mrroc/ecp/generators/joint_poses.hpp"
+#include "mrroc/ecp/task.hpp"
+
+namespace mrroc::ecp {
+
+class VisitJointPoses : public EcpTask {
+ public:
+  explicit VisitJointPoses(TaskContext& context) : context_(context) {
+    const Params& args = context.args;
+    poses_ = args.get_double_rows("poses");
+    options_.velocity_scale = args.get_double("velocity_scale", 0.5);
+    options_.acceleration_scale = args.get_double("acceleration_scale", 0.5);
+    options_.motion_steps = static_cast<int>(args.get_int("motion_steps", 10));
+    options_.servo_period_s = context.servo_period_s;
+    args.reject_unread("robot.ecp.args");
+    // Validate every pose before anything moves (throws CommandError naming joint and limit).
+    JointPosesGenerator check(context.robot.model(), poses_, options_);
+  }
+
+  void main_task() override {
+    Robot& robot = context_.robot;
+    robot.synchronise();
+    context_.reporter.info(
+        fmt::format("synchronised at [{:.4f}]", fmt::join(robot.image().joints, ", ")));
+    for (std::size_t i = 0; i < poses_.size(); ++i) {
+      JointPosesGenerator generator(robot.model(), {poses_[i]}, options_);
+      Move(robot, {}, generator);
+      context_.reporter.info(fmt::format("pose {}/{} reached: joints [{:.4f}] rad", i + 1,
+                                         poses_.size(), fmt::join(robot.image().joints, ", ")));
+    }
+  }
+
+ private:
+  TaskContext& context_;
+  std::vector<std::vector<double>> poses_;
+  JointPosesOptions options_;
+};
+
+MRROC_REGISTER_ECP_TASK("visit_joint_poses", VisitJointPoses);
+
+}  // namespace mrroc::ecp

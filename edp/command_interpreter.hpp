@@ -1,0 +1,49 @@
+#pragma once
+/// @file
+/// The EDP's command interpreter: the MRROC++ instruction state machine on top of the servo loop.
+///
+/// - SET, GET, SET_GET and SYNCHRO are answered at once with ACKNOWLEDGE (accepted) or ERROR
+///   (refused: nothing moves). An accepted instruction must be followed by QUERY, whose reply
+///   carries the result: for SET ARM the reading taken in step `value_in_step_no`, for SYNCHRO
+///   the state after synchronisation, for GET the current reading.
+/// - Any other instruction while a QUERY is due is refused with "query expected"; a QUERY with
+///   nothing due is refused with "query unexpected".
+/// - Motion before SYNCHRO is refused ("not synchronised"); a second SYNCHRO is refused
+///   ("already synchronised").
+/// - Every SET ARM target is checked against the joint limits before anything moves.
+
+#include <optional>
+#include <string>
+
+#include "mrroc/edp/instruction.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "servo_loop.hpp"
+
+namespace mrroc::edp {
+
+class CommandInterpreter {
+ public:
+  CommandInterpreter(ServoLoop& servo, const RobotModel& model, double servo_period_s);
+
+  /// Executes one instruction and returns the reply to send. Blocks for a QUERY until its
+  /// reading is ready. Never throws: refusals become ERROR replies.
+  Reply execute(const Instruction& instruction);
+
+ private:
+  enum class Due { nothing, arm_reading, synchro, get };
+  Reply accept(const Instruction& instruction);
+  Reply query();
+  Reply reading_reply(const Reading& reading) const;
+  static Reply error(int code, const std::string& text);
+
+  ServoLoop& servo_;
+  const RobotModel& model_;
+  double period_s_;
+  Due due_ = Due::nothing;
+  std::uint64_t due_macro_step_ = 0;
+  int due_steps_ = 0;
+  ArmRepresentation due_arm_type_ = ArmRepresentation::joint;
+  std::uint8_t due_get_ = 0;
+};
+
+}  // namespace mrroc::edp

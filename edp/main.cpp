@@ -1,0 +1,126 @@
+// mrroc-edp: the Effector Driver Process of one robot.
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "command_interpreter.hpp"
+#include "mrroc/comm/links.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/core/process.hpp"
+#include "mrroc/core/reporter.hpp"
+#include "mrroc/edp/hardware.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "servo_loop.hpp"
+
+namespace {
+
+int run(const std::string& config_path, const std::string& robot_name) {
+  using namespace mrroc;
+  const ProcessSetConfig config = load_process_set(config_path);
+  const RobotConfig& robot = config.robot(robot_name);
+  apply_cpu_affinity(robot.edp.options.cpus);
+  const std::string process = "edp/" + robot.name;
+
+  comm::Bus bus(config.lcm_url);
+  bus.start();
+  Reporter reporter(bus, process, robot.name);
+  try {
+    const RobotModel model = load_robot_model(robot.model_dir);
+    std::unique_ptr<edp::Hardware> hardware;
+    try {
+      hardware = edp::make_hardware(robot.edp.plugin);
+    } catch (const ConfigError& e) {
+      throw ConfigError(fmt::format("{}: error: {}", robot.edp.where.str(), e.what()));
+    }
+    edp::HardwareSetup setup;
+    setup.robot = robot.name;
+    setup.model_dir = robot.model_dir;
+    setup.servo_period_s = robot.edp.servo_period_s;
+    setup.synchro_positions = model.synchro_joint_positions;
+    setup.params = robot.edp.params;
+    hardware->configure(setup);
+
+    const std::string memory = lock_memory();
+    edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
+    servo.start();
+    edp::CommandInterpreter interpreter(servo, model, robot.edp.servo_period_s);
+    comm::EdpServer server(bus, process, channels::edp_command(robot.name),
+                           channels::edp_reply(robot.name));
+
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // let the loop settle its policy
+    reporter.info(fmt::format("ready: plugin '{}', {} axes, servo period {:.3f} ms, {}, {}",
+                              hardware->name(), model.axes(), robot.edp.servo_period_s * 1e3,
+                              servo.timing().scheduling, memory));
+    reporter.set_state(ProcessState::ready);
+
+    bool hardware_fault_reported = false;
+    std::thread commands([&] {
+      while (!stop_requested()) {
+        auto in = server.wait_request(std::chrono::milliseconds(100));
+        if (servo.faulted() && !hardware_fault_reported) {
+          hardware_fault_reported = true;
+          reporter.report(Severity::error, edp::error_code::hardware_fault,
+                          "servo loop stopped the robot: " + servo.fault_text());
+        }
+        if (!in) continue;
+        if (!in->request) {
+          edp::Reply r;
+          r.type = edp::ReplyType::error;
+          r.error_code = edp::error_code::malformed;
+          r.error_text = "malformed instruction dropped: " + in->decode_error;
+          reporter.report(Severity::warning, r.error_code, r.error_text);
+          in->responder.reply(r);
+          continue;
+        }
+        const edp::Reply reply = interpreter.execute(*in->request);
+        if (reply.type == edp::ReplyType::error)
+          reporter.report(Severity::warning, reply.error_code, reply.error_text);
+        else if (in->request->type == edp::InstructionType::synchro)
+          reporter.info("synchronising");
+        in->responder.reply(reply);
+      }
+    });
+    reporter.set_state(ProcessState::running);
+    while (!stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    reporter.set_state(ProcessState::stopping);
+    servo.stop();  // wakes a command waiting for a reading
+    commands.join();
+    const edp::TimingStats t = servo.timing();
+    reporter.info(fmt::format(
+        "servo loop: {} cycles of {:.0f} us, lateness p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us, "
+        "{} overruns",
+        t.cycles, t.period_us, t.lateness_p50_us, t.lateness_p99_us, t.lateness_max_us,
+        t.overruns));
+    reporter.set_state(ProcessState::finished);
+  } catch (const std::exception& e) {
+    reporter.report(Severity::fatal, 0, e.what());
+    reporter.set_state(ProcessState::failed, e.what());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "mrroc-edp: Effector Driver Process. Interprets SET/GET/SET_GET/SYNCHRO/QUERY from its ECP, "
+      "runs the servo loop and drives the robot through a hardware plugin. Normally started by "
+      "mrroc-launch."};
+  std::string config;
+  std::string robot;
+  app.add_option("-c,--config", config, "process-set config file (TOML)")->required();
+  app.add_option("-r,--robot", robot, "name of the robot ([[robot]] name in the config)")
+      ->required();
+  CLI11_PARSE(app, argc, argv);
+  mrroc::install_stop_handlers();
+  try {
+    return run(config, robot);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mrroc-edp: %s\n", e.what());
+    return 2;
+  }
+}

@@ -1,0 +1,309 @@
+#include "servo_loop.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/prctl.h>
+#include <time.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include <fmt/format.h>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::edp {
+
+namespace {
+constexpr double kSynchroSpeed = 0.1;        // joint speed while searching a switch [rad/s]
+constexpr double kSynchroSearchRange = 0.4;  // farthest a switch may be from the start [rad]
+constexpr std::size_t kLatenessSamples = 1 << 16;
+
+std::int64_t to_ns(const timespec& t) {
+  return static_cast<std::int64_t>(t.tv_sec) * 1000000000LL + t.tv_nsec;
+}
+timespec from_ns(std::int64_t ns) {
+  timespec t{};
+  t.tv_sec = static_cast<time_t>(ns / 1000000000LL);
+  t.tv_nsec = static_cast<long>(ns % 1000000000LL);
+  return t;
+}
+}  // namespace
+
+ServoLoop::ServoLoop(Hardware& hardware, const RobotModel& model, double period_s)
+    : hardware_(hardware), model_(model), axes_(model.axes()), period_s_(period_s) {
+  if (axes_ == 0 || axes_ > kMaxAxes)
+    throw HardwareError(fmt::format("robot '{}' has {} axes; the EDP supports 1..{}", model.name,
+                                    axes_, kMaxAxes));
+  if (hardware_.axis_count() != axes_)
+    throw HardwareError(fmt::format("hardware plugin '{}' has {} axes, robot model '{}' has {}",
+                                    hardware_.name(), hardware_.axis_count(), model.name, axes_));
+  lateness_us_.assign(kLatenessSamples, 0.0F);
+}
+
+ServoLoop::~ServoLoop() { stop(); }
+
+void ServoLoop::start() {
+  if (running_.exchange(true)) return;
+  hardware_.activate();
+  if (hardware_.read(std::span(feedback_.data(), axes_)) != CycleStatus::ok)
+    throw HardwareError("hardware plugin '" + hardware_.name() +
+                        "' failed its first read: " + hardware_.fault_text());
+  for (std::size_t i = 0; i < axes_; ++i) desired_[i] = feedback_[i].position;
+  thread_ = std::thread([this] { run(); });
+}
+
+void ServoLoop::stop() {
+  if (!running_.exchange(false)) return;
+  if (thread_.joinable()) thread_.join();
+  hardware_.deactivate();
+  cv_.notify_all();
+}
+
+void ServoLoop::run() {
+  sched_param sp{};
+  sp.sched_priority = 80;
+  if (pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0) {
+    scheduling_ = "SCHED_FIFO 80";
+  } else {
+    prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
+    scheduling_ = "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)";
+  }
+  const auto period_ns = static_cast<std::int64_t>(std::llround(period_s_ * 1e9));
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);
+  std::int64_t deadline = to_ns(now) + period_ns;
+  while (running_.load(std::memory_order_relaxed)) {
+    const timespec wake = from_ns(deadline);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &wake, nullptr) == EINTR) {
+    }
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    const std::int64_t late_ns = to_ns(now) - deadline;
+    cycle();
+    {
+      std::lock_guard lock(mutex_);
+      const double late_us = static_cast<double>(late_ns) / 1000.0;
+      lateness_us_[lateness_next_] = static_cast<float>(late_us);
+      lateness_next_ = (lateness_next_ + 1) % kLatenessSamples;
+      lateness_max_us_ = std::max(lateness_max_us_, late_us);
+      ++cycles_;
+      if (late_ns > period_ns) ++overruns_;
+    }
+    deadline += period_ns;
+    // After an overrun, skip the periods already missed instead of running a burst of cycles.
+    if (late_ns > period_ns) deadline += (late_ns / period_ns) * period_ns;
+  }
+}
+
+void ServoLoop::set_fault(const char* text) {
+  std::snprintf(fault_, sizeof fault_, "%s", text);
+  faulted_ = true;
+  current_.reset();
+  next_.reset();
+  mode_ = Mode::hold;
+}
+
+void ServoLoop::store_reading(std::uint64_t id, int step_no) {
+  delivered_ = latest_;
+  delivered_.macro_step = id;
+  delivered_.step_no = step_no;
+  cv_.notify_all();
+}
+
+void ServoLoop::cycle() {
+  const std::span<AxisFeedback> fb(feedback_.data(), axes_);
+  const CycleStatus read_status = hardware_.read(fb);
+  std::lock_guard lock(mutex_);
+  if (read_status != CycleStatus::ok && !faulted_) set_fault(hardware_.fault_text().c_str());
+  const bool synced = synchronised_.load(std::memory_order_relaxed);
+  latest_.cycle = cycles_;
+  latest_.synchronised = synced;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    latest_.joints[i] = fb[i].position + (synced ? offset_[i] : 0.0);
+    latest_.velocities[i] = fb[i].velocity;
+  }
+
+  if (faulted_) {
+    // Hold still where the axes are.
+    for (std::size_t i = 0; i < axes_; ++i) desired_[i] = latest_.joints[i];
+  } else if (mode_ != Mode::hold) {
+    synchro_cycle();
+  } else {
+    if (after_stop_id_ != 0) {
+      store_reading(after_stop_id_, after_stop_step_);
+      after_stop_id_ = 0;
+    }
+    if (!current_ && next_) {
+      current_ = next_;
+      next_.reset();
+      current_->start = desired_;
+      cv_.notify_all();  // the queue slot is free
+    }
+    if (current_) {
+      Motion& m = *current_;
+      ++m.step;
+      const double s = static_cast<double>(m.step) / static_cast<double>(m.steps);
+      for (std::size_t i = 0; i < axes_; ++i)
+        desired_[i] = m.start[i] + (m.target[i] - m.start[i]) * s;
+      latest_.desired = desired_;
+      if (m.step == m.value_in_step_no) store_reading(m.id, m.step);
+      if (m.step >= m.steps) {
+        if (m.value_in_step_no > m.steps) {
+          after_stop_id_ = m.id;
+          after_stop_step_ = m.steps + 1;
+        }
+        current_.reset();
+      }
+    }
+  }
+  latest_.desired = desired_;
+  const bool use_offset = synchronised_.load(std::memory_order_relaxed);
+  for (std::size_t i = 0; i < axes_; ++i)
+    raw_setpoints_[i] = desired_[i] - (use_offset ? offset_[i] : 0.0);
+  if (hardware_.write(std::span<const double>(raw_setpoints_.data(), axes_)) != CycleStatus::ok &&
+      !faulted_)
+    set_fault(hardware_.fault_text().c_str());
+}
+
+void ServoLoop::synchro_cycle() {
+  const double step = kSynchroSpeed * period_s_;
+  if (mode_ == Mode::synchro_search) {
+    bool all_found = true;
+    for (std::size_t i = 0; i < axes_; ++i) {
+      if (switch_found_[i]) continue;
+      if (feedback_[i].synchro_switch != switch_initial_[i]) {
+        // The switch toggled: here the axis is at its synchronisation position.
+        switch_found_[i] = true;
+        offset_[i] = model_.synchro_joint_positions[i] - feedback_[i].position;
+        desired_[i] = feedback_[i].position;  // stop searching on this axis
+        continue;
+      }
+      all_found = false;
+      desired_[i] += search_direction_[i] * step;
+      if (std::abs(desired_[i] - search_start_[i]) > kSynchroSearchRange) {
+        char text[200];
+        std::snprintf(text, sizeof text,
+                      "synchronisation: axis %zu (%s) switch not found within %.2f rad", i,
+                      model_.joint_names[i].c_str(), kSynchroSearchRange);
+        set_fault(text);
+        cv_.notify_all();
+        return;
+      }
+    }
+    if (all_found) {
+      // Switch to joint coordinates and approach the synchronisation pose exactly.
+      double longest = 0;
+      for (std::size_t i = 0; i < axes_; ++i) {
+        desired_[i] += offset_[i];
+        longest = std::max(longest, std::abs(model_.synchro_joint_positions[i] - desired_[i]));
+      }
+      approach_steps_left_ = 1 + static_cast<int>(std::ceil(longest / step));
+      for (std::size_t i = 0; i < axes_; ++i)
+        approach_step_[i] =
+            (model_.synchro_joint_positions[i] - desired_[i]) / approach_steps_left_;
+      synchronised_ = true;
+      mode_ = Mode::synchro_approach;
+    }
+  } else if (mode_ == Mode::synchro_approach) {
+    for (std::size_t i = 0; i < axes_; ++i) desired_[i] += approach_step_[i];
+    if (--approach_steps_left_ <= 0) {
+      for (std::size_t i = 0; i < axes_; ++i) desired_[i] = model_.synchro_joint_positions[i];
+      mode_ = Mode::hold;
+      cv_.notify_all();
+    }
+  }
+}
+
+std::uint64_t ServoLoop::submit(const std::vector<double>& target, int steps,
+                                int value_in_step_no) {
+  std::unique_lock lock(mutex_);
+  cv_.wait(lock, [&] { return !next_ || faulted_ || !running_; });
+  if (faulted_) throw HardwareError(fault_);
+  if (!running_) throw HardwareError("the servo loop is not running");
+  Motion m;
+  m.id = next_id_++;
+  for (std::size_t i = 0; i < axes_; ++i) m.target[i] = target[i];
+  m.steps = steps;
+  m.value_in_step_no = value_in_step_no;
+  next_ = m;
+  return m.id;
+}
+
+std::vector<double> ServoLoop::planned_end() const {
+  std::lock_guard lock(mutex_);
+  const AxisArray& end = next_ ? next_->target : current_ ? current_->target : desired_;
+  return {end.begin(), end.begin() + static_cast<std::ptrdiff_t>(axes_)};
+}
+
+std::optional<Reading> ServoLoop::wait_reading(std::uint64_t id, double timeout_s) {
+  std::unique_lock lock(mutex_);
+  const bool ok = cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [&] {
+    return delivered_.macro_step >= id || faulted_ || !running_;
+  });
+  if (!ok || delivered_.macro_step != id) return std::nullopt;
+  return delivered_;
+}
+
+Reading ServoLoop::latest() const {
+  std::lock_guard lock(mutex_);
+  return latest_;
+}
+
+bool ServoLoop::moving() const {
+  std::lock_guard lock(mutex_);
+  return current_.has_value() || next_.has_value() || mode_ != Mode::hold;
+}
+
+void ServoLoop::begin_synchronisation() {
+  std::lock_guard lock(mutex_);
+  for (std::size_t i = 0; i < axes_; ++i) {
+    switch_found_[i] = false;
+    switch_initial_[i] = feedback_[i].synchro_switch;
+    // A pressed switch is released by moving down, a released one pressed by moving up.
+    search_direction_[i] = feedback_[i].synchro_switch ? -1.0 : 1.0;
+    search_start_[i] = desired_[i];
+  }
+  mode_ = Mode::synchro_search;
+}
+
+bool ServoLoop::wait_synchronised(double timeout_s) {
+  std::unique_lock lock(mutex_);
+  cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+               [&] { return mode_ == Mode::hold || faulted_ || !running_; });
+  return mode_ == Mode::hold && synchronised_ && !faulted_;
+}
+
+std::string ServoLoop::fault_text() const {
+  std::lock_guard lock(mutex_);
+  return fault_;
+}
+
+TimingStats ServoLoop::timing() const {
+  std::vector<float> samples;
+  TimingStats t;
+  {
+    std::lock_guard lock(mutex_);
+    const std::size_t n =
+        std::min<std::size_t>(static_cast<std::size_t>(cycles_), lateness_us_.size());
+    samples.assign(lateness_us_.begin(), lateness_us_.begin() + static_cast<std::ptrdiff_t>(n));
+    t.cycles = cycles_;
+    t.overruns = overruns_;
+    t.lateness_max_us = lateness_max_us_;
+    t.scheduling = scheduling_;
+  }
+  t.period_us = period_s_ * 1e6;
+  if (!samples.empty()) {
+    std::sort(samples.begin(), samples.end());
+    auto pct = [&](double p) {
+      return static_cast<double>(
+          samples[static_cast<std::size_t>(p * static_cast<double>(samples.size() - 1))]);
+    };
+    t.lateness_p50_us = pct(0.50);
+    t.lateness_p99_us = pct(0.99);
+  }
+  return t;
+}
+
+}  // namespace mrroc::edp

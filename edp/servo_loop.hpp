@@ -1,0 +1,150 @@
+#pragma once
+/// @file
+/// The EDP's servo loop: a periodic thread (absolute-time clock_nanosleep) that reads the axes,
+/// interpolates the current macro-step, runs synchronisation, and writes the setpoints.
+///
+/// Macro-step semantics (paper, section 5): a SET ARM is divided into `steps` interpolation steps,
+/// one per servo period; the reading for the QUERY reply is taken in step `value_in_step_no`
+/// (1..steps; steps+1 means "after the motion stopped"). A macro-step submitted while another runs
+/// is queued and starts in the servo cycle right after the current one ends, so a continuous
+/// trajectory has no idle servo step.
+///
+/// Threads: the servo thread owns the hardware; the command thread calls the public methods.
+/// The cycle neither allocates nor blocks on anything but a short mutex.
+
+#include <array>
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mrroc/edp/hardware.hpp"
+#include "mrroc/robot/robot_model.hpp"
+
+namespace mrroc::edp {
+
+inline constexpr std::size_t kMaxAxes = 16;
+using AxisArray = std::array<double, kMaxAxes>;
+
+/// One reading of the arm, taken in a given step of a macro-step.
+struct Reading {
+  std::uint64_t macro_step = 0;  ///< id of the macro-step (0: none)
+  int step_no = 0;
+  std::int64_t cycle = 0;  ///< servo cycle counter
+  bool synchronised = false;
+  AxisArray joints{};      ///< measured [rad] (raw axis positions before synchronisation)
+  AxisArray desired{};     ///< commanded [rad]
+  AxisArray velocities{};  ///< [rad/s]
+};
+
+/// Lateness of the servo wake-ups against their absolute deadlines.
+struct TimingStats {
+  std::int64_t cycles = 0;
+  std::int64_t overruns = 0;  ///< cycles woken more than one period late
+  double period_us = 0;
+  double lateness_p50_us = 0;
+  double lateness_p99_us = 0;
+  double lateness_max_us = 0;
+  std::string scheduling;  ///< "SCHED_FIFO 80" or "SCHED_OTHER, timer slack 1 ns"
+};
+
+class ServoLoop {
+ public:
+  ServoLoop(Hardware& hardware, const RobotModel& model, double period_s);
+  ~ServoLoop();
+  ServoLoop(const ServoLoop&) = delete;
+  ServoLoop& operator=(const ServoLoop&) = delete;
+
+  /// Activates the hardware and starts the servo thread. @throws HardwareError.
+  void start();
+  /// Stops the thread (holding the last setpoint) and deactivates the hardware. Idempotent.
+  void stop();
+
+  /// Queues a macro-step towards `target` (joint coordinates, already limit-checked). Blocks
+  /// while another macro-step is already queued. Returns its id.
+  std::uint64_t submit(const std::vector<double>& target, int steps, int value_in_step_no);
+  /// Desired joint position at the end of everything queued.
+  [[nodiscard]] std::vector<double> planned_end() const;
+  /// Waits for the reading of macro-step `id`. Returns nothing on timeout or fault.
+  std::optional<Reading> wait_reading(std::uint64_t id, double timeout_s);
+  /// The reading of the latest cycle.
+  [[nodiscard]] Reading latest() const;
+
+  /// Starts synchronisation (searching every axis' switch, then moving to the synchronisation
+  /// pose). Returns at once; `wait_synchronised` waits for the end.
+  void begin_synchronisation();
+  bool wait_synchronised(double timeout_s);
+  [[nodiscard]] bool synchronised() const { return synchronised_.load(); }
+  [[nodiscard]] bool moving() const;
+
+  /// Set when the hardware reported a fault or synchronisation failed; the loop then holds still.
+  [[nodiscard]] bool faulted() const { return faulted_.load(); }
+  [[nodiscard]] std::string fault_text() const;
+
+  [[nodiscard]] TimingStats timing() const;
+  [[nodiscard]] std::size_t axes() const { return axes_; }
+
+ private:
+  enum class Mode { hold, synchro_search, synchro_approach };
+  struct Motion {
+    std::uint64_t id = 0;
+    AxisArray start{};
+    AxisArray target{};
+    int steps = 1;
+    int value_in_step_no = 1;
+    int step = 0;
+  };
+
+  void run();
+  void cycle();
+  void synchro_cycle();
+  void set_fault(const char* text);
+  void store_reading(std::uint64_t id, int step_no);
+
+  Hardware& hardware_;
+  const RobotModel& model_;
+  std::size_t axes_;
+  double period_s_;
+
+  std::thread thread_;
+  std::atomic<bool> running_{false};
+  std::atomic<bool> synchronised_{false};
+  std::atomic<bool> faulted_{false};
+
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  Mode mode_ = Mode::hold;
+  std::optional<Motion> current_;
+  std::optional<Motion> next_;
+  std::uint64_t next_id_ = 1;
+  std::uint64_t after_stop_id_ = 0;  ///< macro-step whose reading is due after it stopped
+  int after_stop_step_ = 0;
+  Reading latest_;
+  Reading delivered_;  ///< the last reading requested by a macro-step
+  AxisArray desired_{};  ///< joint coordinates (raw before synchronisation)
+  AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
+  std::array<AxisFeedback, kMaxAxes> feedback_{};
+  std::array<double, kMaxAxes> raw_setpoints_{};
+  // synchronisation
+  std::array<bool, kMaxAxes> switch_found_{};
+  std::array<bool, kMaxAxes> switch_initial_{};
+  std::array<double, kMaxAxes> search_direction_{};
+  AxisArray search_start_{};
+  int approach_steps_left_ = 0;
+  AxisArray approach_step_{};
+  char fault_[256] = {};
+
+  // timing
+  std::int64_t cycles_ = 0;
+  std::int64_t overruns_ = 0;
+  std::vector<float> lateness_us_;  ///< ring of the last samples, preallocated
+  std::size_t lateness_next_ = 0;
+  double lateness_max_us_ = 0;
+  std::string scheduling_;
+};
+
+}  // namespace mrroc::edp

@@ -1,0 +1,88 @@
+#pragma once
+/// @file
+/// Typed links: request/reply with plain C++ values on both ends (the LCM types stay inside).
+///
+///   EdpClient  (ECP side)  <-> EdpServer (EDP side)   channels <robot>/edp/cmd, <robot>/edp/reply
+///   EcpClient  (MP side)   <-> EcpServer (ECP side)   channels <robot>/ecp/cmd, <robot>/ecp/reply
+
+#include <chrono>
+#include <optional>
+#include <string>
+
+#include "mrroc/comm/codec.hpp"
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc/config/process_set.hpp"
+
+namespace mrroc::comm {
+
+template <class PlainReq, class PlainRep, class LcmReq, class LcmRep>
+class PlainClient {
+ public:
+  PlainClient(Bus& bus, const std::string& name, const std::string& peer,
+              const std::string& request_channel, const std::string& reply_channel,
+              ClientOptions options = {})
+      : client_(bus, unique_endpoint_name(name), peer, request_channel, reply_channel, options) {}
+
+  /// @throws TimeoutError, DecodeError (a reply that does not decode).
+  PlainRep call(const PlainReq& request) { return decode(client_.call(encode(request))); }
+  [[nodiscard]] LinkStats stats() const { return client_.stats(); }
+
+ private:
+  Client<LcmReq, LcmRep> client_;
+};
+
+template <class PlainReq, class PlainRep, class LcmReq, class LcmRep>
+class PlainServer {
+  using Raw = Server<LcmReq, LcmRep>;
+
+ public:
+  class Responder {
+   public:
+    Responder() = default;
+    explicit Responder(typename Raw::Responder raw) : raw_(std::move(raw)) {}
+    void reply(const PlainRep& rep) const { raw_.reply(encode(rep)); }
+    [[nodiscard]] const std::string& client() const { return raw_.client(); }
+
+   private:
+    typename Raw::Responder raw_;
+  };
+
+  /// A request as received: either decoded, or the reason it could not be decoded.
+  struct Incoming {
+    std::optional<PlainReq> request;
+    std::string decode_error;
+    Responder responder;
+  };
+
+  PlainServer(Bus& bus, const std::string& name, const std::string& request_channel,
+              const std::string& reply_channel, ServerOptions options = {})
+      : server_(bus, name, request_channel, reply_channel, {}, options) {}
+
+  std::optional<Incoming> wait_request(std::chrono::milliseconds timeout) {
+    auto raw = server_.wait_request(timeout);
+    if (!raw) return std::nullopt;
+    Incoming in;
+    in.responder = Responder(raw->responder);
+    try {
+      in.request = decode(raw->request);
+    } catch (const DecodeError& e) {
+      in.decode_error = e.what();
+    }
+    return in;
+  }
+  [[nodiscard]] LinkStats stats() const { return server_.stats(); }
+
+ private:
+  Raw server_;
+};
+
+using EdpClient = PlainClient<edp::Instruction, edp::Reply, mrroc_lcm::edp_instruction_t,
+                              mrroc_lcm::edp_reply_t>;
+using EdpServer = PlainServer<edp::Instruction, edp::Reply, mrroc_lcm::edp_instruction_t,
+                              mrroc_lcm::edp_reply_t>;
+using EcpClient = PlainClient<ecp::MpCommand, ecp::EcpReply, mrroc_lcm::mp_ecp_command_t,
+                              mrroc_lcm::ecp_mp_reply_t>;
+using EcpServer = PlainServer<ecp::MpCommand, ecp::EcpReply, mrroc_lcm::mp_ecp_command_t,
+                              mrroc_lcm::ecp_mp_reply_t>;
+
+}  // namespace mrroc::comm

@@ -1,0 +1,344 @@
+#pragma once
+/// @file
+/// Request/reply on top of LCM publish/subscribe. Every link between processes uses it.
+///
+/// Protocol (see docs/messages.md):
+/// - A request carries `header.sender` (a name unique to the client) and `header.seq`, increasing
+///   by one per new request of that client.
+/// - The client waits `attempt_timeout` for the reply whose `header.recipient` is its name and whose
+///   `header.seq` equals the request's; otherwise it re-sends the *same* request (same seq). After
+///   `max_attempts` silent attempts it throws `TimeoutError` naming the peer, the channel, the
+///   sequence number and the time waited.
+/// - The server remembers, per client, the last sequence it accepted. A repeated sequence is never
+///   executed twice: if its reply is ready, the cached reply is sent again; if it is still being
+///   executed, an IN_PROGRESS reply tells the client to keep waiting (long requests such as
+///   START_TASK or SYNCHRO stay alive without an arbitrary time limit). Older sequences are dropped.
+///
+/// Message types are LCM types with a `header` field of type `mrroc_lcm::header_t`.
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/faults.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/time.hpp"
+#include "mrroc_lcm/header_t.hpp"
+
+namespace mrroc::comm {
+
+struct ClientOptions {
+  std::chrono::milliseconds attempt_timeout{250};  ///< wait per attempt before re-sending
+  int max_attempts = 12;  ///< silent attempts (no reply, no IN_PROGRESS) before TimeoutError
+  LinkFaults faults;      ///< injected on this client's outgoing requests
+};
+
+struct ServerOptions {
+  LinkFaults faults;  ///< injected on this server's outgoing replies
+};
+
+/// Counters of one endpoint (for tests, SRP and benchmarks).
+struct LinkStats {
+  std::uint64_t requests = 0;           ///< new requests (client: sent; server: accepted)
+  std::uint64_t resends = 0;            ///< client: re-sent requests
+  std::uint64_t duplicates = 0;         ///< server: repeated sequences answered from the cache
+  std::uint64_t in_progress = 0;        ///< server: IN_PROGRESS replies sent
+  std::uint64_t stale = 0;              ///< dropped: old sequences / replies nobody waits for
+  std::uint64_t malformed = 0;          ///< dropped: could not be decoded
+};
+
+namespace detail {
+template <class Msg>
+void publish_with_faults(lcm::LCM& lcm, FaultDice& dice, const std::string& channel,
+                         const Msg& msg) {
+  const int copies = dice.copies();
+  for (int i = 0; i < copies; ++i) lcm.publish(channel, &msg);
+}
+}  // namespace detail
+
+/// The requesting side of a link. `call` is thread-safe (calls are serialised).
+template <class Req, class Rep>
+class Client {
+ public:
+  /// @param name  unique client name (the process name is made unique with the pid).
+  /// @param peer  human-readable name of the server for error messages, e.g. "EDP irb6".
+  Client(Bus& bus, std::string name, std::string peer, std::string request_channel,
+         std::string reply_channel, ClientOptions options = {})
+      : bus_(bus),
+        name_(std::move(name)),
+        peer_(std::move(peer)),
+        request_channel_(std::move(request_channel)),
+        reply_channel_(std::move(reply_channel)),
+        options_(options),
+        dice_(options.faults) {
+    subscription_ = bus_.lcm().subscribe(reply_channel_, &Client::on_reply, this);
+  }
+  ~Client() { bus_.lcm().unsubscribe(subscription_); }
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+
+  /// Sends `request` and returns the matching reply.
+  /// @throws TimeoutError after `max_attempts` attempts without any sign of life from the server.
+  Rep call(Req request) {
+    if (bus_.on_bus_thread())
+      throw Error("request/reply call on '" + request_channel_ + "' from the bus thread");
+    std::lock_guard call_lock(call_mutex_);
+    std::unique_lock lock(mutex_);
+    const std::int64_t seq = ++last_seq_;
+    waiting_seq_ = seq;
+    reply_.reset();
+    in_progress_ = false;
+    request.header.utime = now_utime();
+    request.header.sender = name_;
+    request.header.recipient = "";
+    request.header.seq = seq;
+    request.header.kind = mrroc_lcm::header_t::REQUEST;
+    ++stats_.requests;
+    send(lock, request);
+    int silent_attempts = 1;
+    const auto started = std::chrono::steady_clock::now();
+    for (;;) {
+      const bool woke = cv_.wait_for(lock, options_.attempt_timeout,
+                                     [&] { return reply_.has_value() || in_progress_; });
+      if (reply_) {
+        waiting_seq_ = -1;
+        Rep out = std::move(*reply_);
+        reply_.reset();
+        return out;
+      }
+      if (woke && in_progress_) {
+        in_progress_ = false;
+        silent_attempts = 0;
+        continue;
+      }
+      if (silent_attempts >= options_.max_attempts) {
+        waiting_seq_ = -1;
+        const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(
+            std::chrono::steady_clock::now() - started);
+        throw TimeoutError(fmt::format(
+            "no reply from {} on channel '{}' to request {} after {} attempts of {} ms "
+            "({} ms in all)",
+            peer_, request_channel_, seq, silent_attempts, options_.attempt_timeout.count(),
+            waited.count()));
+      }
+      ++silent_attempts;
+      ++stats_.resends;
+      request.header.utime = now_utime();
+      send(lock, request);
+    }
+  }
+
+  [[nodiscard]] LinkStats stats() const {
+    std::lock_guard lock(mutex_);
+    return stats_;
+  }
+  [[nodiscard]] const std::string& name() const { return name_; }
+
+ private:
+  void send(std::unique_lock<std::mutex>& lock, const Req& request) {
+    lock.unlock();
+    detail::publish_with_faults(bus_.lcm(), dice_, request_channel_, request);
+    lock.lock();
+  }
+
+  void on_reply(const lcm::ReceiveBuffer*, const std::string&, const Rep* reply) {
+    if (reply->header.recipient != name_) return;  // another client's reply on a shared channel
+    std::lock_guard lock(mutex_);
+    if (reply->header.seq != waiting_seq_ || reply_) {
+      ++stats_.stale;
+      return;
+    }
+    if (reply->header.kind == mrroc_lcm::header_t::IN_PROGRESS) {
+      in_progress_ = true;
+    } else {
+      reply_ = *reply;
+    }
+    cv_.notify_all();
+  }
+
+  Bus& bus_;
+  std::string name_;
+  std::string peer_;
+  std::string request_channel_;
+  std::string reply_channel_;
+  ClientOptions options_;
+  FaultDice dice_;
+  lcm::Subscription* subscription_ = nullptr;
+
+  std::mutex call_mutex_;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::int64_t last_seq_ = 0;
+  std::int64_t waiting_seq_ = -1;
+  std::optional<Rep> reply_;
+  bool in_progress_ = false;
+  LinkStats stats_;
+};
+
+/// The serving side of a link.
+///
+/// New requests either go to a handler (called on the bus thread; it must not block) or, when no
+/// handler is given, into a queue read with `wait_request`. Either way each request comes with a
+/// `Responder` that may be used from any thread, at any later time, exactly once.
+template <class Req, class Rep>
+class Server {
+  struct PeerState {
+    std::int64_t seq = 0;
+    bool done = false;
+    std::optional<Rep> cached;
+  };
+  struct State {
+    Bus* bus;
+    std::string name;
+    std::string reply_channel;
+    FaultDice dice;
+    std::mutex mutex;
+    std::map<std::string, PeerState> peers;
+    LinkStats stats;
+    State(Bus* b, std::string n, std::string ch, const LinkFaults& f)
+        : bus(b), name(std::move(n)), reply_channel(std::move(ch)), dice(f) {}
+  };
+
+ public:
+  /// Replies to one request; copyable; `reply` takes effect once.
+  class Responder {
+   public:
+    Responder() = default;
+    void reply(Rep rep) const {
+      if (!state_) return;
+      {
+        std::lock_guard lock(state_->mutex);
+        auto& peer = state_->peers[client_];
+        if (peer.seq != seq_ || peer.done) return;  // superseded or already answered
+        rep.header.utime = now_utime();
+        rep.header.sender = state_->name;
+        rep.header.recipient = client_;
+        rep.header.seq = seq_;
+        rep.header.kind = mrroc_lcm::header_t::REPLY;
+        peer.done = true;
+        peer.cached = rep;
+      }
+      detail::publish_with_faults(state_->bus->lcm(), state_->dice, state_->reply_channel, rep);
+    }
+    [[nodiscard]] const std::string& client() const { return client_; }
+    [[nodiscard]] std::int64_t seq() const { return seq_; }
+
+   private:
+    friend class Server;
+    Responder(std::shared_ptr<State> state, std::string client, std::int64_t seq)
+        : state_(std::move(state)), client_(std::move(client)), seq_(seq) {}
+    std::shared_ptr<State> state_;
+    std::string client_;
+    std::int64_t seq_ = 0;
+  };
+
+  struct Incoming {
+    Req request;
+    Responder responder;
+  };
+  using Handler = std::function<void(const Req&, Responder)>;
+
+  Server(Bus& bus, std::string name, std::string request_channel, std::string reply_channel,
+         Handler handler = {}, ServerOptions options = {})
+      : bus_(bus),
+        handler_(std::move(handler)),
+        state_(std::make_shared<State>(&bus, std::move(name), std::move(reply_channel),
+                                       options.faults)) {
+    subscription_ = bus_.lcm().subscribe(request_channel, &Server::on_request, this);
+  }
+  ~Server() {
+    bus_.lcm().unsubscribe(subscription_);
+    std::lock_guard lock(queue_mutex_);
+    closed_ = true;
+    queue_cv_.notify_all();
+  }
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  /// Next queued request (queue mode), or nothing after `timeout`.
+  std::optional<Incoming> wait_request(std::chrono::milliseconds timeout) {
+    std::unique_lock lock(queue_mutex_);
+    if (!queue_cv_.wait_for(lock, timeout, [&] { return !queue_.empty() || closed_; }))
+      return std::nullopt;
+    if (queue_.empty()) return std::nullopt;
+    Incoming in = std::move(queue_.front());
+    queue_.pop_front();
+    return in;
+  }
+
+  [[nodiscard]] LinkStats stats() const {
+    std::lock_guard lock(state_->mutex);
+    return state_->stats;
+  }
+
+ private:
+  void on_request(const lcm::ReceiveBuffer*, const std::string&, const Req* request) {
+    const std::string& client = request->header.sender;
+    const std::int64_t seq = request->header.seq;
+    std::optional<Rep> resend;
+    {
+      std::lock_guard lock(state_->mutex);
+      auto& peer = state_->peers[client];
+      if (seq == peer.seq) {
+        if (peer.done && peer.cached) {
+          ++state_->stats.duplicates;
+          resend = *peer.cached;
+        } else {
+          ++state_->stats.in_progress;
+          Rep progress{};
+          progress.header.utime = now_utime();
+          progress.header.sender = state_->name;
+          progress.header.recipient = client;
+          progress.header.seq = seq;
+          progress.header.kind = mrroc_lcm::header_t::IN_PROGRESS;
+          resend = std::move(progress);
+        }
+      } else if (seq < peer.seq) {
+        ++state_->stats.stale;
+        return;
+      } else {
+        peer.seq = seq;
+        peer.done = false;
+        peer.cached.reset();
+        ++state_->stats.requests;
+      }
+    }
+    if (resend) {
+      detail::publish_with_faults(bus_.lcm(), state_->dice, state_->reply_channel, *resend);
+      return;
+    }
+    Responder responder(state_, client, seq);
+    if (handler_) {
+      handler_(*request, std::move(responder));
+      return;
+    }
+    std::lock_guard lock(queue_mutex_);
+    queue_.push_back(Incoming{*request, std::move(responder)});
+    queue_cv_.notify_one();
+  }
+
+  Bus& bus_;
+  Handler handler_;
+  std::shared_ptr<State> state_;
+  lcm::Subscription* subscription_ = nullptr;
+  std::mutex queue_mutex_;
+  std::condition_variable queue_cv_;
+  std::deque<Incoming> queue_;
+  bool closed_ = false;
+};
+
+/// A unique endpoint name: "<base>#<pid>".
+std::string unique_endpoint_name(const std::string& base);
+
+}  // namespace mrroc::comm

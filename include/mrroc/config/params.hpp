@@ -1,0 +1,86 @@
+#pragma once
+/// @file
+/// Plain key/value parameters handed from a config file to plugins and tasks.
+///
+/// Plugins and tasks never see the config file's syntax: they read typed values from a `Params`
+/// and every error names the config file and line where the value was (or should have been) written.
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc {
+
+/// Where a value was written: `file:line`. Empty file when the value did not come from a file.
+struct SourceLocation {
+  std::string file;
+  int line = 0;
+
+  /// "file:line" (or "<no file>" when unknown).
+  [[nodiscard]] std::string str() const;
+};
+
+/// One parameter value. Lists of numbers and lists of lists of numbers cover poses and pose lists.
+using ParamValue = std::variant<bool, std::int64_t, double, std::string, std::vector<double>,
+                                std::vector<std::vector<double>>, std::vector<std::string>>;
+
+/// A table of typed parameters with the location of each.
+///
+/// Every getter throws `ConfigError` with "file:line: error: ..." when the key is missing (for the
+/// required getters) or has the wrong type. Keys that were never read can be listed with
+/// `unread_keys()` so that callers can reject unknown keys.
+class Params {
+ public:
+  Params() = default;
+  explicit Params(SourceLocation table_location) : location_(std::move(table_location)) {}
+
+  void set(const std::string& key, ParamValue value, SourceLocation where);
+
+  [[nodiscard]] bool has(const std::string& key) const;
+  [[nodiscard]] const SourceLocation& location() const { return location_; }
+  [[nodiscard]] SourceLocation location_of(const std::string& key) const;
+
+  /// Required values. @throws ConfigError when missing or of another type.
+  [[nodiscard]] double get_double(const std::string& key) const;
+  [[nodiscard]] std::int64_t get_int(const std::string& key) const;
+  [[nodiscard]] bool get_bool(const std::string& key) const;
+  [[nodiscard]] std::string get_string(const std::string& key) const;
+  [[nodiscard]] std::vector<double> get_doubles(const std::string& key) const;
+  [[nodiscard]] std::vector<std::vector<double>> get_double_rows(const std::string& key) const;
+  [[nodiscard]] std::vector<std::string> get_strings(const std::string& key) const;
+
+  /// Optional values with a default. @throws ConfigError when present with another type.
+  [[nodiscard]] double get_double(const std::string& key, double fallback) const;
+  [[nodiscard]] std::int64_t get_int(const std::string& key, std::int64_t fallback) const;
+  [[nodiscard]] bool get_bool(const std::string& key, bool fallback) const;
+  [[nodiscard]] std::string get_string(const std::string& key, const std::string& fallback) const;
+  [[nodiscard]] std::vector<double> get_doubles(const std::string& key,
+                                                const std::vector<double>& fallback) const;
+
+  /// Keys present in the table but never read by any getter.
+  [[nodiscard]] std::vector<std::string> unread_keys() const;
+  /// @throws ConfigError naming the first unread key ("unknown key 'x' in [robot.edp.params]").
+  void reject_unread(const std::string& table_name) const;
+
+  [[nodiscard]] const std::map<std::string, ParamValue>& values() const { return values_; }
+
+ private:
+  struct Entry {
+    ParamValue value;
+    SourceLocation where;
+  };
+  const Entry* find(const std::string& key) const;
+  [[noreturn]] void type_error(const std::string& key, const char* expected) const;
+  [[noreturn]] void missing(const std::string& key) const;
+
+  SourceLocation location_;
+  std::map<std::string, ParamValue> values_;
+  std::map<std::string, SourceLocation> where_;
+  mutable std::map<std::string, bool> read_;
+};
+
+}  // namespace mrroc

@@ -1,0 +1,76 @@
+#pragma once
+/// @file
+/// The process-set config file: one TOML file describes a whole controller (LCM URL, robots with
+/// their EDP hardware plugin and ECP task, the MP task, per-process options). Every process of the
+/// set reads the same file. See docs/configs.md for the schema.
+///
+/// Errors are `ConfigError`s reading "file:line: error: ..."; unknown keys are errors; missing
+/// files and folders are named.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mrroc/config/params.hpp"
+
+namespace mrroc {
+
+/// Options every process of the set accepts.
+struct ProcessOptions {
+  std::vector<int> cpus;      ///< CPU affinity (empty: any CPU)
+  double stop_grace_s = 3.0;  ///< SIGTERM to SIGKILL grace period when stopping [s]
+};
+
+struct EdpConfig {
+  std::string plugin;            ///< hardware plugin name, e.g. "mujoco"
+  double servo_period_s = 0.002; ///< servo period [s]
+  Params params;                 ///< the plugin's own parameters ([robot.edp.params])
+  ProcessOptions options;
+  SourceLocation where;
+};
+
+/// A task (MP or ECP): a name registered by a task plugin, its optional library, its arguments.
+struct TaskConfig {
+  std::string name;
+  std::filesystem::path library;  ///< shared library to load before looking the name up (optional)
+  Params args;                    ///< the task's own arguments ([...args])
+  ProcessOptions options;
+  SourceLocation where;
+};
+
+struct RobotConfig {
+  std::string name;                 ///< e.g. "irb6"; used in channel and process names
+  std::filesystem::path model_dir;  ///< absolute path of robots/<name>/
+  EdpConfig edp;
+  TaskConfig ecp;
+  SourceLocation where;
+};
+
+struct ProcessSetConfig {
+  std::filesystem::path file;  ///< absolute path of the config file
+  std::string name;            ///< name of the set (for messages)
+  std::string lcm_url;         ///< empty: $LCM_DEFAULT_URL or the ttl=0 default
+  double ready_timeout_s = 10.0;  ///< how long the launcher waits for each process to be ready [s]
+  TaskConfig mp;
+  ProcessOptions srp;
+  std::vector<RobotConfig> robots;
+
+  /// @throws ConfigError when no robot has this name.
+  [[nodiscard]] const RobotConfig& robot(const std::string& name) const;
+};
+
+/// Loads and validates a process-set file. @throws ConfigError ("file:line: error: ...").
+ProcessSetConfig load_process_set(const std::filesystem::path& file);
+
+/// Channel names of the links (at most 63 characters, as LCM requires).
+namespace channels {
+inline std::string edp_command(const std::string& robot) { return robot + "/edp/cmd"; }
+inline std::string edp_reply(const std::string& robot) { return robot + "/edp/reply"; }
+inline std::string ecp_command(const std::string& robot) { return robot + "/ecp/cmd"; }
+inline std::string ecp_reply(const std::string& robot) { return robot + "/ecp/reply"; }
+inline constexpr const char* srp = "mrroc/srp";
+inline constexpr const char* status = "mrroc/status";
+}  // namespace channels
+
+}  // namespace mrroc

@@ -1,0 +1,17 @@
+#pragma once
+/// @file
+/// Clock helpers.
+
+#include <cstdint>
+#include <string>
+
+namespace mrroc {
+
+/// Wall-clock time [us since the Unix epoch] (message stamps).
+std::int64_t now_utime();
+/// Monotonic time [ns] (timeouts, loops).
+std::int64_t monotonic_ns();
+/// "HH:MM:SS.mmm" (local time) of a utime, for consoles.
+std::string format_utime(std::int64_t utime);
+
+}  // namespace mrroc

@@ -1,0 +1,55 @@
+#pragma once
+/// @file
+/// The user's extension points on the ECP level (paper, sections 3-4): generators for Move and
+/// conditions for Wait, plus sensor images.
+///
+/// Move(robot, sensors, generator), after the paper's figure 4:
+///   refresh sensor images; if (!first_step) return;
+///   do { execute the robot's command (EDP exchange); refresh sensor images; }
+///   while (next_step);
+/// Errors are exceptions thrown from anywhere; the shell handles them.
+
+#include <vector>
+
+#include "mrroc/ecp/robot.hpp"
+
+namespace mrroc::ecp {
+
+/// Image of a virtual sensor, kept current by the shell around each step.
+class Sensor {
+ public:
+  virtual ~Sensor() = default;
+  /// Asks the virtual sensor for a new reading (does not wait).
+  virtual void initiate_reading() = 0;
+  /// Collects the reading into the image.
+  virtual void get_reading() = 0;
+};
+using SensorList = std::vector<Sensor*>;
+
+/// A motion generator: computes the next command from the robot and sensor images and decides
+/// the terminal condition.
+class Generator {
+ public:
+  virtual ~Generator() = default;
+  /// Prepares the first command in `robot.command`. Returns false when there is nothing to do.
+  virtual bool first_step(RobotImage& robot, const SensorList& sensors) = 0;
+  /// Called after each exchange with the EDP: prepares the next command, or returns false when
+  /// the terminal condition holds.
+  virtual bool next_step(RobotImage& robot, const SensorList& sensors) = 0;
+};
+
+/// An initial condition for Wait.
+class Condition {
+ public:
+  virtual ~Condition() = default;
+  /// True when the waiting is over.
+  virtual bool check(const SensorList& sensors) = 0;
+};
+
+/// Runs a motion. @throws whatever the generator, the EDP link or a stop request throws.
+void Move(Robot& robot, const SensorList& sensors, Generator& generator);
+
+/// Waits until `condition` holds, refreshing the sensor images every `period_s` [s].
+void Wait(Robot& robot, const SensorList& sensors, Condition& condition, double period_s = 0.01);
+
+}  // namespace mrroc::ecp

@@ -1,0 +1,51 @@
+#pragma once
+/// @file
+/// Stock generator: visits a list of joint poses, each segment with a quintic (minimum-jerk-like)
+/// time scaling, so velocity and acceleration are continuous and zero at every pose.
+
+#include <vector>
+
+#include "mrroc/ecp/generator.hpp"
+#include "mrroc/robot/robot_model.hpp"
+
+namespace mrroc::ecp {
+
+struct JointPosesOptions {
+  double velocity_scale = 0.5;      ///< fraction of the model's max joint velocity (0..1]
+  double acceleration_scale = 0.5;  ///< fraction of the model's max joint acceleration (0..1]
+  int motion_steps = 10;            ///< servo steps per macro-step (>= 2)
+  double servo_period_s = 0.002;    ///< EDP servo period [s]
+};
+
+class JointPosesGenerator : public Generator {
+ public:
+  /// @throws CommandError when a pose has the wrong size or leaves the joint limits, and
+  /// ConfigError-like `Error` for options out of range; nothing moves in either case.
+  JointPosesGenerator(const RobotModel& model, std::vector<std::vector<double>> poses,
+                      JointPosesOptions options = {});
+
+  bool first_step(RobotImage& robot, const SensorList& sensors) override;
+  bool next_step(RobotImage& robot, const SensorList& sensors) override;
+
+  /// Quintic time scaling s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5, tau in [0, 1].
+  static double scaling(double tau);
+  /// Shortest duration [s] of a quintic move by `distance` [rad] under the limits.
+  static double segment_duration(double distance, double max_velocity, double max_acceleration);
+
+  /// Number of macro-steps of the segment being executed.
+  [[nodiscard]] int segment_macro_steps() const { return segment_steps_; }
+
+ private:
+  void begin_segment(const std::vector<double>& from);
+  void command(RobotImage& robot);
+
+  const RobotModel& model_;
+  std::vector<std::vector<double>> poses_;
+  JointPosesOptions options_;
+  std::size_t pose_ = 0;
+  std::vector<double> from_;
+  int segment_steps_ = 0;
+  int macro_step_ = 0;
+};
+
+}  // namespace mrroc::ecp

@@ -1,0 +1,49 @@
+#pragma once
+/// @file
+/// MP -> ECP commands and ECP -> MP replies as plain C++ values.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "mrroc/edp/instruction.hpp"
+
+namespace mrroc::ecp {
+
+enum class MpCommandType : std::int8_t {
+  start_task = 1,
+  next_pose = 2,
+  end_motion = 3,
+  next_state = 4,
+  stop = 5,
+  pause = 6,
+  resume = 7
+};
+const char* to_string(MpCommandType t);
+
+struct MpCommand {
+  MpCommandType type = MpCommandType::start_task;
+  std::string state_name;  ///< NEXT_STATE: sub-task name
+  std::string arguments;   ///< NEXT_STATE / START_TASK arguments
+  // NEXT_POSE
+  edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
+  edp::MotionType motion_type = edp::MotionType::absolute;
+  int motion_steps = 1;
+  int value_in_step_no = 2;
+  std::vector<double> arm;
+};
+
+enum class EcpReplyType : std::int8_t { acknowledge = 1, task_terminated = 2, error = 3 };
+/// Error classes, as the task API's exceptions (non-fatal, fatal, system).
+enum class ErrorClass : std::int8_t { none = 0, non_fatal = 1, fatal = 2, system = 3 };
+
+struct EcpReply {
+  EcpReplyType type = EcpReplyType::acknowledge;
+  int error_code = 0;
+  ErrorClass error_class = ErrorClass::none;
+  std::string error_text;
+  bool synchronised = false;
+  std::vector<double> joints;  ///< measured joint positions [rad]
+};
+
+}  // namespace mrroc::ecp

@@ -1,0 +1,74 @@
+#pragma once
+/// @file
+/// The ECP's robot: its image (the state the user's generators read and the command they write)
+/// and the link to the robot's EDP that keeps the image current (paper, section 4).
+
+#include <atomic>
+#include <string>
+#include <vector>
+
+#include "mrroc/comm/links.hpp"
+#include "mrroc/edp/instruction.hpp"
+#include "mrroc/robot/robot_model.hpp"
+
+namespace mrroc::ecp {
+
+/// What generators see of a robot. Joint values in rad.
+struct RobotImage {
+  bool synchronised = false;
+  std::vector<double> joints;            ///< measured (from the EDP's last reply)
+  std::vector<double> desired_joints;    ///< commanded (from the EDP's last reply)
+  std::vector<double> joint_velocities;  ///< measured [rad/s]
+  int step_no = 0;                       ///< step of the macro-step the reading was taken in
+  std::int64_t servo_cycle = 0;
+
+  /// The instruction the next exchange sends (a generator fills it in each step).
+  edp::Instruction command;
+};
+
+/// Thrown when the EDP refuses an instruction (code and text are the EDP's).
+class EdpRefused : public RemoteError {
+ public:
+  using RemoteError::RemoteError;
+};
+
+/// Thrown inside Move/Wait when the task is asked to stop.
+class TaskStopped : public Error {
+ public:
+  using Error::Error;
+};
+
+class Robot {
+ public:
+  Robot(comm::Bus& bus, const std::string& process_name, RobotModel model,
+        comm::ClientOptions options = {});
+
+  [[nodiscard]] const std::string& name() const { return model_.name; }
+  [[nodiscard]] const RobotModel& model() const { return model_; }
+  [[nodiscard]] RobotImage& image() { return image_; }
+  [[nodiscard]] const RobotImage& image() const { return image_; }
+
+  /// Sends `image().command` and then QUERY; updates the image from the QUERY reply.
+  /// @throws EdpRefused (the EDP refused; nothing moved), TimeoutError.
+  void execute();
+  /// Reads the arm (GET ARM JOINT + QUERY) into the image.
+  void read_state();
+  /// SYNCHRO + QUERY unless the EDP is already synchronised.
+  void synchronise();
+
+  /// Makes Move/Wait throw TaskStopped at their next step.
+  void request_stop() { stop_.store(true); }
+  void clear_stop() { stop_.store(false); }
+  [[nodiscard]] bool stop_requested() const { return stop_.load(); }
+
+ private:
+  edp::Reply exchange(const edp::Instruction& instruction);
+  void update_image(const edp::Reply& reply);
+
+  RobotModel model_;
+  comm::EdpClient client_;
+  RobotImage image_;
+  std::atomic<bool> stop_{false};
+};
+
+}  // namespace mrroc::ecp

@@ -1,0 +1,50 @@
+#pragma once
+/// @file
+/// ECP tasks: the user's code run by the ECP shell on START_TASK. A task is a class with
+/// `main_task()`, registered under a name with MRROC_REGISTER_ECP_TASK and chosen in the config
+/// (`[robot.ecp] task = "name"`).
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mrroc/config/params.hpp"
+#include "mrroc/core/reporter.hpp"
+#include "mrroc/ecp/robot.hpp"
+
+namespace mrroc::ecp {
+
+struct TaskContext {
+  Robot& robot;
+  Reporter& reporter;
+  const Params& args;     ///< [robot.ecp.args]
+  double servo_period_s;  ///< the EDP's servo period [s]
+};
+
+class EcpTask {
+ public:
+  virtual ~EcpTask() = default;
+  /// Runs the task; returns when done. Throw to report an error.
+  virtual void main_task() = 0;
+};
+
+using EcpTaskFactory = std::function<std::unique_ptr<EcpTask>(TaskContext&)>;
+void register_ecp_task(const std::string& name, EcpTaskFactory factory);
+/// @throws ConfigError listing the known task names.
+std::unique_ptr<EcpTask> make_ecp_task(const std::string& name, TaskContext& context);
+
+namespace detail {
+struct EcpTaskRegistrar {
+  EcpTaskRegistrar(const char* name, EcpTaskFactory f) { register_ecp_task(name, std::move(f)); }
+};
+}  // namespace detail
+
+}  // namespace mrroc::ecp
+
+/// Registers an ECP task class (constructor taking `TaskContext&`) under a name.
+#define MRROC_REGISTER_ECP_TASK(NAME, CLASS)                                              \
+  static const ::mrroc::ecp::detail::EcpTaskRegistrar mrroc_ecp_task_registrar_##CLASS{ \
+      NAME, [](::mrroc::ecp::TaskContext& c) {                                          \
+        return std::unique_ptr<::mrroc::ecp::EcpTask>(new CLASS(c));                    \
+      }}

@@ -1,0 +1,94 @@
+#pragma once
+/// @file
+/// The EDP's hardware plugin interface: what the servo loop needs from a robot's axes.
+///
+/// Units: joint positions in rad (revolute) or m (prismatic), velocities per second.
+/// Positions handed across this interface are *raw axis positions*: what incremental encoders
+/// report, with their zero wherever the axis was at power-on. The EDP learns the offset to joint
+/// coordinates during SYNCHRO from each axis' synchronisation switch (`AxisFeedback::synchro_switch`).
+///
+/// Lifecycle (called by the EDP, never concurrently):
+///   configure(params) -> activate() -> { read(); write(); }* -> deactivate()
+/// `read` and `write` are called once per servo cycle from the servo thread; they must not allocate,
+/// block on the network, or throw (they report through `CycleStatus`).
+
+#include <cstddef>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "mrroc/config/params.hpp"
+
+namespace mrroc::edp {
+
+/// Result of one servo-cycle call into a plugin.
+enum class CycleStatus { ok, fault };
+
+/// What the servo loop learns about one axis each cycle.
+struct AxisFeedback {
+  double position = 0.0;        ///< raw axis position (encoder zero at power-on) [rad]
+  double velocity = 0.0;        ///< [rad/s]
+  bool synchro_switch = false;  ///< state of the axis' synchronisation switch
+};
+
+/// What a plugin is given at configure time.
+struct HardwareSetup {
+  std::string robot;                      ///< robot name from the config, e.g. "irb6"
+  std::filesystem::path model_dir;        ///< robots/<name>/ folder (URDF, MJCF, parameters)
+  double servo_period_s = 0.002;          ///< servo period [s]
+  std::vector<double> synchro_positions;  ///< joint position at which each axis' switch toggles [rad]
+  Params params;                          ///< the plugin's own table from the config
+};
+
+/// Base class of every EDP hardware plugin.
+class Hardware {
+ public:
+  virtual ~Hardware() = default;
+
+  /// Plugin name as written in the config (`plugin = "mujoco"`).
+  [[nodiscard]] virtual std::string name() const = 0;
+  /// Number of axes; valid after configure().
+  [[nodiscard]] virtual std::size_t axis_count() const = 0;
+
+  /// Load models, open devices. @throws HardwareError or ConfigError with a clear message.
+  virtual void configure(const HardwareSetup& setup) = 0;
+  /// Power the drives; after this, read/write are called every cycle.
+  virtual void activate() = 0;
+  /// Stop and power down. Must be safe to call more than once.
+  virtual void deactivate() = 0;
+
+  /// Sample the axes (beginning of a cycle). `out.size() == axis_count()`.
+  virtual CycleStatus read(std::span<AxisFeedback> out) = 0;
+  /// Command the axes for the coming period (raw axis positions). For simulated hardware this also
+  /// advances simulated time by one servo period. `setpoints.size() == axis_count()`.
+  virtual CycleStatus write(std::span<const double> setpoints) = 0;
+
+  /// Text of the last fault (read after a `CycleStatus::fault`).
+  [[nodiscard]] virtual std::string fault_text() const { return {}; }
+};
+
+using HardwareFactory = std::function<std::unique_ptr<Hardware>()>;
+
+/// Registry of hardware plugins by name.
+void register_hardware(const std::string& name, HardwareFactory factory);
+/// @throws ConfigError listing the known plugins when `name` is unknown.
+std::unique_ptr<Hardware> make_hardware(const std::string& name);
+std::vector<std::string> hardware_names();
+
+namespace detail {
+struct HardwareRegistrar {
+  HardwareRegistrar(const char* name, HardwareFactory factory) {
+    register_hardware(name, std::move(factory));
+  }
+};
+}  // namespace detail
+
+}  // namespace mrroc::edp
+
+/// Registers a hardware plugin class under a name: `MRROC_REGISTER_HARDWARE("mujoco", MujocoHardware)`.
+#define MRROC_REGISTER_HARDWARE(NAME, CLASS)                                          \
+  static const ::mrroc::edp::detail::HardwareRegistrar mrroc_hardware_registrar_##CLASS{ \
+      NAME, [] { return std::unique_ptr<::mrroc::edp::Hardware>(new CLASS()); }}

@@ -1,0 +1,107 @@
+#pragma once
+/// @file
+/// ECP -> EDP instructions and EDP replies as plain C++ values (paper, section 5).
+/// Units: rad and m; arm and tool vectors are laid out as described for each representation.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace mrroc::edp {
+
+enum class InstructionType : std::int8_t { set = 1, get = 2, set_get = 3, synchro = 4, query = 5 };
+
+/// What a SET changes or a GET reads (bit mask).
+namespace item {
+inline constexpr std::uint8_t arm = 1;
+inline constexpr std::uint8_t tool = 2;
+inline constexpr std::uint8_t model = 4;    ///< kinematic model and local corrector
+inline constexpr std::uint8_t servo = 8;    ///< servo algorithm and parameters
+inline constexpr std::uint8_t outputs = 16; ///< binary outputs (SET)
+inline constexpr std::uint8_t inputs = 32;  ///< binary inputs (GET)
+}  // namespace item
+
+/// Arm and tool representations.
+/// - frame: 12 values, the 3x4 homogeneous matrix [R | p] row by row [-, m]
+/// - xyz_euler_zyz: x, y, z [m], then Euler Z-Y-Z angles [rad]
+/// - xyz_angle_axis: x, y, z [m], then the rotation vector (axis * angle) [rad]
+/// - joint: one joint coordinate per axis [rad or m]
+/// - motor: one motor shaft angle per axis [rad]
+enum class ArmRepresentation : std::int8_t {
+  frame = 1,
+  xyz_euler_zyz = 2,
+  xyz_angle_axis = 3,
+  joint = 4,
+  motor = 5
+};
+
+enum class MotionType : std::int8_t { absolute = 1, relative = 2 };
+
+/// Name of a representation for messages ("JOINT", "MOTOR", ...).
+const char* to_string(ArmRepresentation r);
+const char* to_string(InstructionType t);
+
+struct Instruction {
+  InstructionType type = InstructionType::query;
+  std::uint8_t set = 0;  ///< item:: bits changed by SET / SET_GET
+  std::uint8_t get = 0;  ///< item:: bits read by GET / SET_GET
+
+  ArmRepresentation set_arm_type = ArmRepresentation::joint;
+  ArmRepresentation get_arm_type = ArmRepresentation::joint;
+  MotionType motion_type = MotionType::absolute;
+  int motion_steps = 1;      ///< servo steps of the macro-step (>= 1)
+  int value_in_step_no = 2;  ///< step producing the QUERY reply (1..motion_steps+1)
+  std::vector<double> arm;
+
+  ArmRepresentation tool_type = ArmRepresentation::frame;
+  std::vector<double> tool;
+
+  int kinematic_model_no = 0;
+  int corrector_no = 0;
+
+  std::vector<std::int8_t> servo_algorithm;
+  std::vector<std::int8_t> servo_parameters_no;
+
+  std::uint32_t output_values = 0;
+};
+
+enum class ReplyType : std::int8_t { acknowledge = 1, data = 2, error = 3 };
+
+/// Error codes of EDP replies (docs/messages.md).
+namespace error_code {
+inline constexpr int none = 0;
+inline constexpr int malformed = 1;          ///< the instruction could not be decoded
+inline constexpr int query_expected = 2;     ///< a QUERY must follow every other instruction
+inline constexpr int query_unexpected = 3;   ///< QUERY without a preceding instruction
+inline constexpr int not_synchronised = 4;   ///< motion before SYNCHRO
+inline constexpr int already_synchronised = 5;
+inline constexpr int out_of_limits = 6;      ///< the path leaves a joint or motor limit
+inline constexpr int bad_argument = 7;       ///< wrong size, steps, representation not supported
+inline constexpr int hardware_fault = 8;     ///< the hardware plugin reported a fault
+inline constexpr int not_supported = 9;      ///< valid instruction that this EDP does not support
+}  // namespace error_code
+
+struct Reply {
+  ReplyType type = ReplyType::acknowledge;
+  int error_code = 0;
+  std::string error_text;
+  bool synchronised = false;
+  int step_no = 0;               ///< step of the macro-step in which the reading was taken
+  std::int64_t servo_cycle = 0;  ///< servo cycle counter at the reading
+
+  ArmRepresentation arm_type = ArmRepresentation::joint;
+  std::vector<double> arm;               ///< in arm_type
+  std::vector<double> joints;            ///< measured joint positions [rad]
+  std::vector<double> desired_joints;    ///< commanded joint positions [rad]
+  std::vector<double> joint_velocities;  ///< measured joint velocities [rad/s]
+
+  ArmRepresentation tool_type = ArmRepresentation::frame;
+  std::vector<double> tool;
+  int kinematic_model_no = 0;
+  int corrector_no = 0;
+  std::vector<std::int8_t> servo_algorithm;
+  std::vector<std::int8_t> servo_parameters_no;
+  std::uint32_t input_values = 0;
+};
+
+}  // namespace mrroc::edp

@@ -1,0 +1,59 @@
+#pragma once
+/// @file
+/// MP tasks: the user's coordinating code run by the MP shell. Registered with
+/// MRROC_REGISTER_MP_TASK and chosen in the config (`[mp] task = "name"`).
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "mrroc/comm/links.hpp"
+#include "mrroc/config/params.hpp"
+#include "mrroc/core/reporter.hpp"
+
+namespace mrroc::mp {
+
+/// The MP's link to one robot's ECP.
+struct RobotLink {
+  std::string name;
+  comm::EcpClient* ecp;
+};
+
+struct TaskContext {
+  std::vector<RobotLink> robots;
+  Reporter& reporter;
+  const Params& args;  ///< [mp.args]
+};
+
+/// Thrown by an MP task when an ECP reported an error.
+class EcpFailed : public RemoteError {
+ public:
+  using RemoteError::RemoteError;
+};
+
+class MpTask {
+ public:
+  virtual ~MpTask() = default;
+  /// Runs the task. Returns normally on success; throws on failure.
+  virtual void main_task() = 0;
+};
+
+using MpTaskFactory = std::function<std::unique_ptr<MpTask>(TaskContext&)>;
+void register_mp_task(const std::string& name, MpTaskFactory factory);
+/// @throws ConfigError listing the known task names.
+std::unique_ptr<MpTask> make_mp_task(const std::string& name, TaskContext& context);
+
+namespace detail {
+struct MpTaskRegistrar {
+  MpTaskRegistrar(const char* name, MpTaskFactory f) { register_mp_task(name, std::move(f)); }
+};
+}  // namespace detail
+
+}  // namespace mrroc::mp
+
+#define MRROC_REGISTER_MP_TASK(NAME, CLASS)                                             \
+  static const ::mrroc::mp::detail::MpTaskRegistrar mrroc_mp_task_registrar_##CLASS{ \
+      NAME, [](::mrroc::mp::TaskContext& c) {                                         \
+        return std::unique_ptr<::mrroc::mp::MpTask>(new CLASS(c));                    \
+      }}

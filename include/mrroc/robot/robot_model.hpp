@@ -1,0 +1,35 @@
+#pragma once
+/// @file
+/// A robot's model as the controller needs it: axes, joint names, joint limits (from the URDF),
+/// velocity/acceleration limits and synchronisation positions (from parameters.toml).
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace mrroc {
+
+struct RobotModel {
+  std::string name;
+  std::filesystem::path folder;
+  std::filesystem::path urdf;  ///< absolute path
+  std::filesystem::path mjcf;  ///< absolute path
+  std::vector<std::string> joint_names;
+  std::vector<double> lower_limits;            ///< [rad]
+  std::vector<double> upper_limits;            ///< [rad]
+  std::vector<double> max_velocity;            ///< [rad/s]
+  std::vector<double> max_acceleration;        ///< [rad/s^2]
+  std::vector<double> synchro_joint_positions; ///< [rad]
+
+  [[nodiscard]] std::size_t axes() const { return joint_names.size(); }
+
+  /// Checks one joint vector. @throws CommandError (code out_of_limits) such as
+  /// "joint 2 (upper_arm) target 0.81 rad exceeds upper limit 0.70 rad".
+  void check_joint_limits(const std::vector<double>& q, const char* what = "target") const;
+};
+
+/// Loads `folder/parameters.toml` and the URDF it names.
+/// @throws ConfigError naming the file (and line, for TOML errors).
+RobotModel load_robot_model(const std::filesystem::path& folder);
+
+}  // namespace mrroc

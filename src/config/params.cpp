@@ -1,0 +1,130 @@
+#include "mrroc/config/params.hpp"
+
+#include <fmt/format.h>
+
+namespace mrroc {
+
+std::string SourceLocation::str() const {
+  if (file.empty()) return "<no file>";
+  return fmt::format("{}:{}", file, line);
+}
+
+void Params::set(const std::string& key, ParamValue value, SourceLocation where) {
+  values_[key] = std::move(value);
+  where_[key] = std::move(where);
+  read_[key] = false;
+}
+
+bool Params::has(const std::string& key) const { return values_.count(key) != 0; }
+
+SourceLocation Params::location_of(const std::string& key) const {
+  auto it = where_.find(key);
+  return it == where_.end() ? location_ : it->second;
+}
+
+const Params::Entry* Params::find(const std::string& key) const {
+  static thread_local Entry entry;
+  auto it = values_.find(key);
+  if (it == values_.end()) return nullptr;
+  read_[key] = true;
+  entry = Entry{it->second, where_.at(key)};
+  return &entry;
+}
+
+void Params::type_error(const std::string& key, const char* expected) const {
+  throw ConfigError(
+      fmt::format("{}: error: '{}' must be {}", location_of(key).str(), key, expected));
+}
+
+void Params::missing(const std::string& key) const {
+  throw ConfigError(fmt::format("{}: error: missing required key '{}'", location_.str(), key));
+}
+
+namespace {
+template <class T>
+const T* as(const ParamValue& v) {
+  return std::get_if<T>(&v);
+}
+}  // namespace
+
+double Params::get_double(const std::string& key) const {
+  const Entry* e = find(key);
+  if (e == nullptr) missing(key);
+  if (auto d = as<double>(e->value)) return *d;
+  if (auto i = as<std::int64_t>(e->value)) return static_cast<double>(*i);
+  type_error(key, "a number");
+}
+
+std::int64_t Params::get_int(const std::string& key) const {
+  const Entry* e = find(key);
+  if (e == nullptr) missing(key);
+  if (auto i = as<std::int64_t>(e->value)) return *i;
+  type_error(key, "an integer");
+}
+
+bool Params::get_bool(const std::string& key) const {
+  const Entry* e = find(key);
+  if (e == nullptr) missing(key);
+  if (auto b = as<bool>(e->value)) return *b;
+  type_error(key, "true or false");
+}
+
+std::string Params::get_string(const std::string& key) const {
+  const Entry* e = find(key);
+  if (e == nullptr) missing(key);
+  if (auto s = as<std::string>(e->value)) return *s;
+  type_error(key, "a string");
+}
+
+std::vector<double> Params::get_doubles(const std::string& key) const {
+  const Entry* e = find(key);
+  if (e == nullptr) missing(key);
+  if (auto v = as<std::vector<double>>(e->value)) return *v;
+  type_error(key, "a list of numbers");
+}
+
+std::vector<std::vector<double>> Params::get_double_rows(const std::string& key) const {
+  const Entry* e = find(key);
+  if (e == nullptr) missing(key);
+  if (auto v = as<std::vector<std::vector<double>>>(e->value)) return *v;
+  type_error(key, "a list of lists of numbers");
+}
+
+std::vector<std::string> Params::get_strings(const std::string& key) const {
+  const Entry* e = find(key);
+  if (e == nullptr) missing(key);
+  if (auto v = as<std::vector<std::string>>(e->value)) return *v;
+  type_error(key, "a list of strings");
+}
+
+double Params::get_double(const std::string& key, double fallback) const {
+  return has(key) ? get_double(key) : fallback;
+}
+std::int64_t Params::get_int(const std::string& key, std::int64_t fallback) const {
+  return has(key) ? get_int(key) : fallback;
+}
+bool Params::get_bool(const std::string& key, bool fallback) const {
+  return has(key) ? get_bool(key) : fallback;
+}
+std::string Params::get_string(const std::string& key, const std::string& fallback) const {
+  return has(key) ? get_string(key) : fallback;
+}
+std::vector<double> Params::get_doubles(const std::string& key,
+                                        const std::vector<double>& fallback) const {
+  return has(key) ? get_doubles(key) : fallback;
+}
+
+std::vector<std::string> Params::unread_keys() const {
+  std::vector<std::string> out;
+  for (const auto& [key, was_read] : read_)
+    if (!was_read) out.push_back(key);
+  return out;
+}
+
+void Params::reject_unread(const std::string& table_name) const {
+  for (const auto& key : unread_keys())
+    throw ConfigError(fmt::format("{}: error: unknown key '{}' in [{}]", location_of(key).str(),
+                                  key, table_name));
+}
+
+}  // namespace mrroc

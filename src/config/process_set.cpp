@@ -1,0 +1,267 @@
+#include "mrroc/config/process_set.hpp"
+
+#include <fmt/format.h>
+
+#include <regex>
+#include <set>
+#include <toml++/toml.h>
+
+namespace mrroc {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+class Reader {
+ public:
+  explicit Reader(fs::path file) : file_(std::move(file)) {}
+
+  SourceLocation where(const toml::node& node) const {
+    return SourceLocation{file_.string(), static_cast<int>(node.source().begin.line)};
+  }
+
+  [[noreturn]] void fail(const toml::node& node, const std::string& text) const {
+    throw ConfigError(fmt::format("{}: error: {}", where(node).str(), text));
+  }
+
+  /// Rejects keys of `table` not in `allowed`.
+  void only_keys(const toml::table& table, const std::string& table_name,
+                 std::initializer_list<const char*> allowed) const {
+    for (const auto& [key, node] : table) {
+      bool known = false;
+      for (const char* a : allowed) known = known || key.str() == a;
+      if (!known) {
+        std::string list;
+        for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+        fail(node, fmt::format("unknown key '{}' in [{}] (allowed: {})", key.str(), table_name,
+                               list));
+      }
+    }
+  }
+
+  const toml::table& table(const toml::table& parent, const char* key,
+                           const std::string& parent_name) const {
+    const toml::node* node = parent.get(key);
+    if (node == nullptr)
+      throw ConfigError(fmt::format("{}: error: missing table [{}{}{}]", where(parent).str(),
+                                    parent_name, parent_name.empty() ? "" : ".", key));
+    if (!node->is_table()) fail(*node, fmt::format("'{}' must be a table", key));
+    return *node->as_table();
+  }
+
+  std::string string(const toml::table& t, const char* key, const std::string& table_name,
+                     std::optional<std::string> fallback = std::nullopt) const {
+    const toml::node* node = t.get(key);
+    if (node == nullptr) {
+      if (fallback) return *fallback;
+      throw ConfigError(fmt::format("{}: error: missing key '{}' in [{}]", where(t).str(), key,
+                                    table_name));
+    }
+    if (!node->is_string()) fail(*node, fmt::format("'{}' must be a string", key));
+    return **node->as_string();
+  }
+
+  double number(const toml::table& t, const char* key, double fallback, double min, double max,
+                const char* unit) const {
+    const toml::node* node = t.get(key);
+    if (node == nullptr) return fallback;
+    double v = 0;
+    if (node->is_floating_point())
+      v = **node->as_floating_point();
+    else if (node->is_integer())
+      v = static_cast<double>(**node->as_integer());
+    else
+      fail(*node, fmt::format("'{}' must be a number [{}]", key, unit));
+    if (!(v >= min && v <= max))
+      fail(*node, fmt::format("'{}' = {} {} is outside {}..{} {}", key, v, unit, min, max, unit));
+    return v;
+  }
+
+  ProcessOptions options(const toml::table& t) const {
+    ProcessOptions o;
+    o.stop_grace_s = number(t, "stop_grace_s", 3.0, 0.0, 60.0, "s");
+    if (const toml::node* cpus = t.get("cpus")) {
+      const toml::array* arr = cpus->as_array();
+      if (arr == nullptr) fail(*cpus, "'cpus' must be a list of CPU numbers");
+      for (const auto& c : *arr) {
+        if (!c.is_integer() || c.as_integer()->get() < 0)
+          fail(c, "'cpus' must be a list of CPU numbers (integers >= 0)");
+        o.cpus.push_back(static_cast<int>(c.as_integer()->get()));
+      }
+    }
+    return o;
+  }
+
+  Params params(const toml::table& t, const std::string& table_name) const {
+    Params p(where(t));
+    for (const auto& [key, node] : t) {
+      const std::string k(key.str());
+      const SourceLocation at = where(node);
+      if (node.is_boolean()) {
+        p.set(k, **node.as_boolean(), at);
+      } else if (node.is_integer()) {
+        p.set(k, static_cast<std::int64_t>(**node.as_integer()), at);
+      } else if (node.is_floating_point()) {
+        p.set(k, **node.as_floating_point(), at);
+      } else if (node.is_string()) {
+        p.set(k, std::string(**node.as_string()), at);
+      } else if (node.is_array()) {
+        p.set(k, array_value(*node.as_array(), k), at);
+      } else {
+        fail(node, fmt::format("'{}' in [{}] must be a boolean, number, string or list", k,
+                               table_name));
+      }
+    }
+    return p;
+  }
+
+  ParamValue array_value(const toml::array& arr, const std::string& key) const {
+    if (arr.empty()) return std::vector<double>{};
+    if (arr.is_homogeneous(toml::node_type::string)) {
+      std::vector<std::string> out;
+      for (const auto& n : arr) out.emplace_back(**n.as_string());
+      return out;
+    }
+    if (arr[0].is_array()) {
+      std::vector<std::vector<double>> rows;
+      for (const auto& n : arr) {
+        if (!n.is_array()) fail(n, fmt::format("'{}' must be a list of lists of numbers", key));
+        rows.push_back(numbers(*n.as_array(), key));
+      }
+      return rows;
+    }
+    return numbers(arr, key);
+  }
+
+  std::vector<double> numbers(const toml::array& arr, const std::string& key) const {
+    std::vector<double> out;
+    for (const auto& n : arr) {
+      if (n.is_floating_point())
+        out.push_back(**n.as_floating_point());
+      else if (n.is_integer())
+        out.push_back(static_cast<double>(**n.as_integer()));
+      else
+        fail(n, fmt::format("'{}' must contain only numbers", key));
+    }
+    return out;
+  }
+
+  TaskConfig task(const toml::table& t, const std::string& table_name) const {
+    only_keys(t, table_name, {"task", "library", "args", "cpus", "stop_grace_s"});
+    TaskConfig c;
+    c.where = where(t);
+    c.name = string(t, "task", table_name);
+    const std::string lib = string(t, "library", table_name, std::string{});
+    if (!lib.empty()) {
+      c.library = resolve(lib);
+      if (!fs::exists(c.library))
+        fail(*t.get("library"), fmt::format("task library '{}' not found", c.library.string()));
+    }
+    if (const toml::node* args = t.get("args")) {
+      if (!args->is_table()) fail(*args, "'args' must be a table");
+      c.args = params(*args->as_table(), table_name + ".args");
+    } else {
+      c.args = Params(where(t));
+    }
+    c.options = options(t);
+    return c;
+  }
+
+  fs::path resolve(const std::string& path) const {
+    fs::path p(path);
+    if (p.is_relative()) p = file_.parent_path() / p;
+    return p.lexically_normal();
+  }
+
+ private:
+  fs::path file_;
+};
+
+}  // namespace
+
+const RobotConfig& ProcessSetConfig::robot(const std::string& robot_name) const {
+  for (const auto& r : robots)
+    if (r.name == robot_name) return r;
+  std::string known;
+  for (const auto& r : robots) known += (known.empty() ? "" : ", ") + r.name;
+  throw ConfigError(fmt::format("{}: error: no robot named '{}' (robots: {})", file.string(),
+                                robot_name, known.empty() ? "none" : known));
+}
+
+ProcessSetConfig load_process_set(const fs::path& path) {
+  if (!fs::exists(path))
+    throw ConfigError(fmt::format("{}: error: config file not found", path.string()));
+  ProcessSetConfig config;
+  config.file = fs::absolute(path).lexically_normal();
+  Reader r(config.file);
+  toml::table root;
+  try {
+    root = toml::parse_file(config.file.string());
+  } catch (const toml::parse_error& e) {
+    throw ConfigError(fmt::format("{}:{}: error: {}", config.file.string(),
+                                  e.source().begin.line, e.description()));
+  }
+  r.only_keys(root, "top level", {"system", "srp", "mp", "robot"});
+
+  const toml::table& system = r.table(root, "system", "");
+  r.only_keys(system, "system", {"name", "lcm_url", "ready_timeout_s"});
+  config.name = r.string(system, "name", "system");
+  config.lcm_url = r.string(system, "lcm_url", "system", std::string{});
+  if (!config.lcm_url.empty() && config.lcm_url.find("://") == std::string::npos)
+    r.fail(*system.get("lcm_url"),
+           fmt::format("lcm_url '{}' is not a URL (expected e.g. udpm://239.255.76.67:7667?ttl=0)",
+                       config.lcm_url));
+  config.ready_timeout_s = r.number(system, "ready_timeout_s", 10.0, 0.1, 600.0, "s");
+
+  if (const toml::node* srp = root.get("srp")) {
+    if (!srp->is_table()) r.fail(*srp, "'srp' must be a table");
+    r.only_keys(*srp->as_table(), "srp", {"cpus", "stop_grace_s"});
+    config.srp = r.options(*srp->as_table());
+  }
+
+  config.mp = r.task(r.table(root, "mp", ""), "mp");
+
+  const toml::node* robots = root.get("robot");
+  if (robots == nullptr)
+    throw ConfigError(fmt::format("{}: error: no [[robot]] defined", config.file.string()));
+  const toml::array* list = robots->as_array();
+  if (list == nullptr || !list->is_array_of_tables())
+    r.fail(*robots, "'robot' must be an array of tables ([[robot]])");
+  static const std::regex name_re("[a-z][a-z0-9_]{0,30}");
+  std::set<std::string> names;
+  for (const auto& node : *list) {
+    const toml::table& t = *node.as_table();
+    r.only_keys(t, "robot", {"name", "model", "edp", "ecp"});
+    RobotConfig robot;
+    robot.where = r.where(t);
+    robot.name = r.string(t, "name", "robot");
+    if (!std::regex_match(robot.name, name_re))
+      r.fail(*t.get("name"), fmt::format("robot name '{}' must match [a-z][a-z0-9_]* and have at "
+                                         "most 31 characters",
+                                         robot.name));
+    if (!names.insert(robot.name).second)
+      r.fail(*t.get("name"), fmt::format("robot name '{}' is used twice", robot.name));
+    robot.model_dir = r.resolve(r.string(t, "model", "robot"));
+    if (!fs::is_directory(robot.model_dir))
+      r.fail(*t.get("model"),
+             fmt::format("robot model folder '{}' not found", robot.model_dir.string()));
+
+    const toml::table& edp = r.table(t, "edp", "robot");
+    r.only_keys(edp, "robot.edp", {"plugin", "servo_period_ms", "params", "cpus", "stop_grace_s"});
+    robot.edp.where = r.where(edp);
+    robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
+    robot.edp.servo_period_s = r.number(edp, "servo_period_ms", 2.0, 0.1, 100.0, "ms") / 1000.0;
+    if (const toml::node* p = edp.get("params")) {
+      if (!p->is_table()) r.fail(*p, "'params' must be a table");
+      robot.edp.params = r.params(*p->as_table(), "robot.edp.params");
+    } else {
+      robot.edp.params = Params(r.where(edp));
+    }
+    robot.edp.options = r.options(edp);
+    robot.ecp = r.task(r.table(t, "ecp", "robot"), "robot.ecp");
+    config.robots.push_back(std::move(robot));
+  }
+  return config;
+}
+
+}  // namespace mrroc

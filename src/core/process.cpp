@@ -1,0 +1,48 @@
+#include "mrroc/core/process.hpp"
+
+#include <sched.h>
+#include <sys/mman.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstring>
+
+#include <fmt/format.h>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc {
+
+namespace {
+std::atomic<bool> g_stop{false};
+extern "C" void on_stop_signal(int) { g_stop.store(true); }
+}  // namespace
+
+void install_stop_handlers() {
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  std::signal(SIGPIPE, SIG_IGN);
+}
+
+bool stop_requested() { return g_stop.load(); }
+void request_stop() { g_stop.store(true); }
+
+void apply_cpu_affinity(const std::vector<int>& cpus) {
+  if (cpus.empty()) return;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (int c : cpus) CPU_SET(static_cast<std::size_t>(c), &set);
+  if (sched_setaffinity(0, sizeof set, &set) != 0)
+    throw Error(fmt::format("cannot pin the process to CPUs {}: {}", fmt::join(cpus, ","),
+                            std::strerror(errno)));
+}
+
+std::string lock_memory() {
+  if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return "memory locked (mlockall)";
+  return fmt::format("memory not locked (mlockall: {})", std::strerror(errno));
+}
+
+}  // namespace mrroc

@@ -1,0 +1,59 @@
+#include "mrroc/ecp/robot.hpp"
+
+#include <fmt/format.h>
+
+namespace mrroc::ecp {
+
+Robot::Robot(comm::Bus& bus, const std::string& process_name, RobotModel model,
+             comm::ClientOptions options)
+    : model_(std::move(model)),
+      client_(bus, process_name, "EDP " + model_.name, channels::edp_command(model_.name),
+              channels::edp_reply(model_.name), options) {}
+
+edp::Reply Robot::exchange(const edp::Instruction& instruction) {
+  const edp::Reply reply = client_.call(instruction);
+  if (reply.type == edp::ReplyType::error)
+    throw EdpRefused(reply.error_code, fmt::format("EDP {} refused {}: {}", model_.name,
+                                                   edp::to_string(instruction.type),
+                                                   reply.error_text));
+  return reply;
+}
+
+void Robot::update_image(const edp::Reply& reply) {
+  image_.synchronised = reply.synchronised;
+  image_.joints = reply.joints;
+  image_.desired_joints = reply.desired_joints;
+  image_.joint_velocities = reply.joint_velocities;
+  image_.step_no = reply.step_no;
+  image_.servo_cycle = reply.servo_cycle;
+}
+
+void Robot::execute() {
+  exchange(image_.command);
+  edp::Instruction query;
+  query.type = edp::InstructionType::query;
+  update_image(exchange(query));
+}
+
+void Robot::read_state() {
+  edp::Instruction get;
+  get.type = edp::InstructionType::get;
+  get.get = edp::item::arm;
+  get.get_arm_type = edp::ArmRepresentation::joint;
+  const edp::Instruction saved = image_.command;
+  image_.command = get;
+  execute();
+  image_.command = saved;
+}
+
+void Robot::synchronise() {
+  read_state();
+  if (image_.synchronised) return;
+  const edp::Instruction saved = image_.command;
+  image_.command = edp::Instruction{};
+  image_.command.type = edp::InstructionType::synchro;
+  execute();
+  image_.command = saved;
+}
+
+}  // namespace mrroc::ecp

@@ -1,0 +1,112 @@
+#include "mrroc/robot/robot_model.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <toml++/toml.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include "mrroc/core/error.hpp"
+#include "mrroc/edp/instruction.hpp"
+
+namespace mrroc {
+
+namespace fs = std::filesystem;
+
+void RobotModel::check_joint_limits(const std::vector<double>& q, const char* what) const {
+  if (q.size() != axes())
+    throw CommandError(edp::error_code::bad_argument,
+                       fmt::format("{} has {} joint values, robot '{}' has {} axes", what,
+                                   q.size(), name, axes()));
+  for (std::size_t i = 0; i < q.size(); ++i) {
+    if (!std::isfinite(q[i]))
+      throw CommandError(edp::error_code::bad_argument,
+                         fmt::format("joint {} ({}) {} {} is not a finite number", i,
+                                     joint_names[i], what, q[i]));
+    if (q[i] > upper_limits[i])
+      throw CommandError(edp::error_code::out_of_limits,
+                         fmt::format("joint {} ({}) {} {:.6f} rad exceeds upper limit {:.6f} rad",
+                                     i, joint_names[i], what, q[i], upper_limits[i]));
+    if (q[i] < lower_limits[i])
+      throw CommandError(edp::error_code::out_of_limits,
+                         fmt::format("joint {} ({}) {} {:.6f} rad is below lower limit {:.6f} rad",
+                                     i, joint_names[i], what, q[i], lower_limits[i]));
+  }
+}
+
+namespace {
+
+std::vector<double> numbers(const toml::table& t, const char* key, const fs::path& file,
+                            std::size_t n) {
+  const toml::node* node = t.get(key);
+  if (node == nullptr)
+    throw ConfigError(fmt::format("{}:{}: error: missing key '{}' in [robot]", file.string(),
+                                  t.source().begin.line, key));
+  const toml::array* arr = node->as_array();
+  if (arr == nullptr || arr->size() != n)
+    throw ConfigError(fmt::format("{}:{}: error: '{}' must be a list of {} numbers", file.string(),
+                                  node->source().begin.line, key, n));
+  std::vector<double> out;
+  for (const auto& v : *arr) {
+    auto d = v.value<double>();
+    if (!d)
+      throw ConfigError(fmt::format("{}:{}: error: '{}' must contain only numbers", file.string(),
+                                    v.source().begin.line, key));
+    out.push_back(*d);
+  }
+  return out;
+}
+
+}  // namespace
+
+RobotModel load_robot_model(const fs::path& folder) {
+  const fs::path file = folder / "parameters.toml";
+  if (!fs::exists(file))
+    throw ConfigError(fmt::format("{}: error: robot parameters file not found", file.string()));
+  toml::table root;
+  try {
+    root = toml::parse_file(file.string());
+  } catch (const toml::parse_error& e) {
+    throw ConfigError(fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line,
+                                  e.description()));
+  }
+  const toml::table* robot = root["robot"].as_table();
+  if (robot == nullptr)
+    throw ConfigError(fmt::format("{}:1: error: missing table [robot]", file.string()));
+  RobotModel m;
+  m.folder = folder;
+  m.name = robot->get_as<std::string>("name") ? **robot->get_as<std::string>("name") : "";
+  const toml::array* names = robot->get_as<toml::array>("joint_names");
+  if (names == nullptr)
+    throw ConfigError(fmt::format("{}:{}: error: missing 'joint_names' in [robot]", file.string(),
+                                  robot->source().begin.line));
+  for (const auto& n : *names) m.joint_names.push_back(n.value_or(std::string{}));
+  const std::size_t axes = m.joint_names.size();
+  const auto urdf_name = robot->get_as<std::string>("urdf");
+  const auto mjcf_name = robot->get_as<std::string>("mjcf");
+  if (urdf_name == nullptr)
+    throw ConfigError(fmt::format("{}:{}: error: missing 'urdf' in [robot]", file.string(),
+                                  robot->source().begin.line));
+  m.urdf = folder / std::string(**urdf_name);
+  if (mjcf_name != nullptr) m.mjcf = folder / std::string(**mjcf_name);
+  m.max_velocity = numbers(*robot, "max_joint_velocity", file, axes);
+  m.max_acceleration = numbers(*robot, "max_joint_acceleration", file, axes);
+  m.synchro_joint_positions = numbers(*robot, "synchro_joint_positions", file, axes);
+
+  if (!fs::exists(m.urdf))
+    throw ConfigError(fmt::format("{}: error: URDF file not found", m.urdf.string()));
+  urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDFFile(m.urdf.string());
+  if (!urdf)
+    throw ConfigError(fmt::format("{}: error: the URDF does not parse", m.urdf.string()));
+  for (const auto& jn : m.joint_names) {
+    auto joint = urdf->getJoint(jn);
+    if (!joint || !joint->limits)
+      throw ConfigError(fmt::format("{}: error: joint '{}' (from {}) missing or without <limit>",
+                                    m.urdf.string(), jn, file.string()));
+    m.lower_limits.push_back(joint->limits->lower);
+    m.upper_limits.push_back(joint->limits->upper);
+  }
+  return m;
+}
+
+}  // namespace mrroc

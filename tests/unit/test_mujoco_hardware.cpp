@@ -1,0 +1,472 @@
+/// @file
+/// The `mujoco` EDP hardware plugin driving the IRb-6 model (robots/irb6).
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <new>
+#include <numbers>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <mujoco/mujoco.h>
+#include <unistd.h>
+
+#include "mrroc/config/params.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/edp/hardware.hpp"
+#include "plugins/mujoco_hardware.hpp"
+
+#ifndef MRROC_SOURCE_DIR
+#error "MRROC_SOURCE_DIR must be defined (absolute path of the source tree)"
+#endif
+
+// ---- Heap allocation counter: read() and write() must not allocate. ----
+namespace {
+std::atomic<bool> g_count_allocations{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+// Replacements of the global allocation functions (kept out of line so that the compiler does not
+// pair an inlined free() with operator new at call sites).
+[[gnu::noinline]] void* operator new(std::size_t size) {
+  if (g_count_allocations.load(std::memory_order_relaxed)) {
+    g_allocations.fetch_add(1, std::memory_order_relaxed);
+  }
+  if (void* p = std::malloc(size == 0 ? 1 : size)) {
+    return p;
+  }
+  throw std::bad_alloc();
+}
+[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace {
+
+using mrroc::ConfigError;
+using mrroc::HardwareError;
+using mrroc::Params;
+using mrroc::SourceLocation;
+using mrroc::edp::AxisFeedback;
+using mrroc::edp::CycleStatus;
+using mrroc::edp::HardwareSetup;
+using mrroc::edp::MujocoHardware;
+
+constexpr double kPi = std::numbers::pi;
+constexpr std::size_t kAxes = 5;
+constexpr double kPeriod = 0.002;  // servo period [s]
+
+std::filesystem::path robot_dir() {
+  return std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / "irb6";
+}
+
+HardwareSetup irb6_setup() {
+  HardwareSetup setup;
+  setup.robot = "irb6";
+  setup.model_dir = robot_dir();
+  setup.servo_period_s = kPeriod;
+  setup.synchro_positions = {0.0, -kPi / 2, 0.0, 0.0, 0.0};
+  setup.params = Params(SourceLocation{"test.toml", 10});
+  return setup;
+}
+
+/// Quintic rest-to-rest profile 0 -> 1 over tau in [0, 1].
+double quintic(double tau) {
+  tau = std::clamp(tau, 0.0, 1.0);
+  return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+}
+
+/// Captures MuJoCo warnings (instead of the default print + MUJOCO_LOG.TXT) while alive.
+class WarningCapture {
+ public:
+  WarningCapture() : previous_(mju_user_warning) {
+    count_ = 0;
+    mju_user_warning = &WarningCapture::handler;
+  }
+  ~WarningCapture() { mju_user_warning = previous_; }
+  WarningCapture(const WarningCapture&) = delete;
+  WarningCapture& operator=(const WarningCapture&) = delete;
+  [[nodiscard]] int count() const { return count_; }
+
+ private:
+  static void handler(const char*) { ++count_; }
+  static inline int count_ = 0;
+  void (*previous_)(const char*);
+};
+
+TEST(MujocoHardware, IsRegisteredAsMujoco) {
+  const auto names = mrroc::edp::hardware_names();
+  EXPECT_NE(std::find(names.begin(), names.end(), "mujoco"), names.end());
+  auto hw = mrroc::edp::make_hardware("mujoco");
+  ASSERT_TRUE(hw);
+  EXPECT_EQ(hw->name(), "mujoco");
+  EXPECT_NE(dynamic_cast<MujocoHardware*>(hw.get()), nullptr);
+}
+
+TEST(MujocoHardware, ConfiguresTheIrb6Model) {
+  MujocoHardware hw;
+  hw.configure(irb6_setup());
+  EXPECT_EQ(hw.axis_count(), kAxes);
+  EXPECT_EQ(hw.substeps(), 2);
+  ASSERT_NE(hw.model(), nullptr);
+  ASSERT_NE(hw.data(), nullptr);
+  EXPECT_EQ(hw.mjcf_path(), robot_dir() / "irb6.xml");
+  // Default power-on pose: synchronisation pose + 0.05 rad on every axis (inside all limits).
+  const std::vector<double> expected = {0.05, -kPi / 2 + 0.05, 0.05, 0.05, 0.05};
+  ASSERT_EQ(hw.power_on_positions().size(), kAxes);
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    EXPECT_DOUBLE_EQ(hw.power_on_positions()[i], expected[i]) << "axis " << i;
+  }
+  hw.activate();
+  const auto q = hw.true_joint_positions();
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    EXPECT_DOUBLE_EQ(q[i], expected[i]) << "axis " << i;
+  }
+  std::array<AxisFeedback, kAxes> fb{};
+  ASSERT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    EXPECT_EQ(fb[i].position, 0.0) << "raw position is zero at power-on, axis " << i;
+    EXPECT_EQ(fb[i].velocity, 0.0);
+    EXPECT_TRUE(fb[i].synchro_switch) << "power-on pose is above the synchro position, axis " << i;
+  }
+  hw.deactivate();
+  hw.deactivate();  // idempotent
+}
+
+TEST(MujocoHardware, MjcfNameFromParams) {
+  HardwareSetup setup = irb6_setup();
+  setup.params.set("mjcf", std::string("irb6.xml"), SourceLocation{"test.toml", 11});
+  setup.params.set("gravity_compensation", true, SourceLocation{"test.toml", 12});
+  MujocoHardware hw;
+  hw.configure(setup);
+  EXPECT_EQ(hw.axis_count(), kAxes);
+}
+
+TEST(MujocoHardware, TracksASmoothTrajectoryAndSwitchesAtTheSynchroPosition) {
+  HardwareSetup setup = irb6_setup();
+  MujocoHardware hw;
+  hw.configure(setup);
+  hw.activate();
+  const std::vector<double> power_on = hw.power_on_positions();
+  const mjModel* m = hw.model();
+  const mjData* d = hw.data();
+
+  // Raw setpoints 0 -> -0.2 rad over 2 s on every axis (true pose sync+0.05 -> sync-0.15), so
+  // every synchronisation switch opens once on the way.
+  constexpr double kAmplitude = -0.2;
+  constexpr double kMoveTime = 2.0;
+  constexpr double kSettleTime = 0.5;
+  const auto reference = [&](double t) { return kAmplitude * quintic(t / kMoveTime); };
+  const int total_cycles = static_cast<int>(std::lround((kMoveTime + kSettleTime) / kPeriod));
+
+  std::array<AxisFeedback, kAxes> fb{};
+  std::array<double, kAxes> setpoint{};
+  std::array<double, kAxes> max_error{};
+  std::array<int, kAxes> toggles{};
+  std::array<bool, kAxes> previous_switch{};
+  std::array<double, kAxes> previous_true{};
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    previous_switch[i] = true;
+    previous_true[i] = power_on[i];
+  }
+
+  // The counter works.
+  g_allocations = 0;
+  g_count_allocations = true;
+  ::operator delete(::operator new(16));
+  g_count_allocations = false;
+  ASSERT_EQ(g_allocations.load(), 1);
+
+  const auto started = std::chrono::steady_clock::now();
+  g_allocations = 0;
+  for (int k = 0; k <= total_cycles; ++k) {
+    const double t = k * kPeriod;
+    g_count_allocations = true;
+    const CycleStatus read_status = hw.read(fb);
+    g_count_allocations = false;
+    ASSERT_EQ(read_status, CycleStatus::ok) << hw.fault_text();
+    ASSERT_NEAR(d->time, t, 1e-9) << "one write() = one servo period";
+
+    for (std::size_t i = 0; i < kAxes; ++i) {
+      const int j = static_cast<int>(i);
+      const double true_q = d->qpos[m->jnt_qposadr[j]];
+      ASSERT_EQ(fb[i].position, true_q - power_on[i]);
+      ASSERT_EQ(fb[i].velocity, d->qvel[m->jnt_dofadr[j]]);
+      // The switch is a cam whose edge is exactly at the synchronisation position.
+      ASSERT_EQ(fb[i].synchro_switch, true_q > setup.synchro_positions[i])
+          << "axis " << i << " at t = " << t;
+      if (fb[i].synchro_switch != previous_switch[i]) {
+        ++toggles[i];
+        EXPECT_GT(previous_true[i], setup.synchro_positions[i]);
+        EXPECT_LE(true_q, setup.synchro_positions[i]);
+      }
+      previous_switch[i] = fb[i].synchro_switch;
+      previous_true[i] = true_q;
+      max_error[i] = std::max(max_error[i], std::abs(reference(t) - fb[i].position));
+    }
+
+    for (std::size_t i = 0; i < kAxes; ++i) {
+      setpoint[i] = reference((k + 1) * kPeriod);
+    }
+    g_count_allocations = true;
+    const CycleStatus write_status = hw.write(setpoint);
+    g_count_allocations = false;
+    ASSERT_EQ(write_status, CycleStatus::ok) << hw.fault_text();
+  }
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  EXPECT_EQ(g_allocations.load(), 0) << "read()/write() allocated on the heap";
+
+  ASSERT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
+  const std::array<const char*, kAxes> names = {"column", "lower_arm", "upper_arm", "wrist_pitch",
+                                                "wrist_roll"};
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    const double final_error = std::abs(kAmplitude - fb[i].position);
+    std::printf("%-12s max tracking error %.3e rad, final error after %.1f s settling %.3e rad\n",
+                names[i], max_error[i], kSettleTime, final_error);
+    // Velocity lag of a stiff P servo with viscous damping (~ d/kp * vmax ~ 2e-3 rad at
+    // vmax = 0.1875 rad/s).
+    EXPECT_LT(max_error[i], 3e-3) << names[i];
+    EXPECT_LT(final_error, 1e-3) << names[i];
+    EXPECT_LT(std::abs(fb[i].velocity), 1e-3) << names[i];
+    EXPECT_EQ(toggles[i], 1) << names[i] << ": the switch must open exactly once";
+    EXPECT_FALSE(fb[i].synchro_switch) << names[i];
+  }
+  std::printf("simulated %.1f s in %.3f s wall time\n", kMoveTime + kSettleTime, elapsed);
+  hw.deactivate();
+}
+
+TEST(MujocoHardware, InitialJointPositionsSetThePowerOnPose) {
+  HardwareSetup setup = irb6_setup();
+  const std::vector<double> initial = {0.3, -1.4, 0.2, -0.5, 1.0};
+  setup.params.set("initial_joint_positions", initial, SourceLocation{"test.toml", 11});
+  MujocoHardware hw;
+  hw.configure(setup);
+  hw.activate();
+  EXPECT_EQ(hw.true_joint_positions(), initial);
+  std::array<AxisFeedback, kAxes> fb{};
+  std::array<double, kAxes> hold{};
+  // Hold the raw zero for 0.5 s: the arm must stay at its power-on pose.
+  for (int k = 0; k < 250; ++k) {
+    ASSERT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
+    ASSERT_EQ(hw.write(hold), CycleStatus::ok) << hw.fault_text();
+  }
+  ASSERT_EQ(hw.read(fb), CycleStatus::ok);
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    EXPECT_NEAR(fb[i].position, 0.0, 1e-6) << "axis " << i;
+    EXPECT_NEAR(hw.true_joint_positions()[i], initial[i], 1e-6) << "axis " << i;
+  }
+  // Switches: axis 0 (0.3 > 0), axis 1 (-1.4 > -pi/2), axis 2 (0.2 > 0), axis 3 (-0.5 < 0),
+  // axis 4 (1.0 > 0).
+  EXPECT_TRUE(fb[0].synchro_switch);
+  EXPECT_TRUE(fb[1].synchro_switch);
+  EXPECT_TRUE(fb[2].synchro_switch);
+  EXPECT_FALSE(fb[3].synchro_switch);
+  EXPECT_TRUE(fb[4].synchro_switch);
+
+  // activate() again returns to the power-on pose.
+  std::array<double, kAxes> moved{};
+  moved.fill(0.05);
+  for (int k = 0; k < 100; ++k) {
+    ASSERT_EQ(hw.write(moved), CycleStatus::ok);
+  }
+  hw.deactivate();
+  hw.activate();
+  EXPECT_EQ(hw.true_joint_positions(), initial);
+  EXPECT_EQ(hw.data()->time, 0.0);
+}
+
+TEST(MujocoHardware, WithoutGravityCompensationTheArmSags) {
+  HardwareSetup setup = irb6_setup();
+  setup.params.set("gravity_compensation", false, SourceLocation{"test.toml", 11});
+  MujocoHardware hw;
+  hw.configure(setup);
+  hw.activate();
+  std::array<AxisFeedback, kAxes> fb{};
+  std::array<double, kAxes> hold{};
+  for (int k = 0; k < 250; ++k) {
+    ASSERT_EQ(hw.write(hold), CycleStatus::ok) << hw.fault_text();
+  }
+  ASSERT_EQ(hw.read(fb), CycleStatus::ok);
+  // Gravity torque ~62 N m on the upper arm against kp = 1.9e5 N m/rad: a few 1e-4 rad.
+  EXPECT_GT(std::abs(fb[2].position), 1e-4);
+  EXPECT_LT(std::abs(fb[2].position), 2e-3);
+}
+
+TEST(MujocoHardware, BadMjcfPathNamesThePath) {
+  HardwareSetup setup = irb6_setup();
+  setup.params.set("mjcf", std::string("no_such_model.xml"), SourceLocation{"test.toml", 11});
+  MujocoHardware hw;
+  const std::string path = (robot_dir() / "no_such_model.xml").string();
+  try {
+    hw.configure(setup);
+    FAIL() << "configure() accepted a missing MJCF file";
+  } catch (const HardwareError& e) {
+    std::printf("%s\n", e.what());
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(hw.model(), nullptr);
+  EXPECT_EQ(hw.axis_count(), 0U);
+}
+
+TEST(MujocoHardware, MissingParameterFileNamesTheFile) {
+  HardwareSetup setup = irb6_setup();
+  setup.model_dir = std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / "no_such_robot";
+  MujocoHardware hw;
+  try {
+    hw.configure(setup);
+    FAIL() << "configure() accepted a missing parameters.toml";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find((setup.model_dir / "parameters.toml").string()),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(MujocoHardware, ServoPeriodMustBeAMultipleOfTheTimestep) {
+  for (const double period : {0.0025, 0.0005, 0.0}) {
+    HardwareSetup setup = irb6_setup();
+    setup.servo_period_s = period;
+    MujocoHardware hw;
+    try {
+      hw.configure(setup);
+      FAIL() << "servo period " << period << " s accepted";
+    } catch (const HardwareError& e) {
+      const std::string what = e.what();
+      std::printf("%s\n", what.c_str());
+      char number[32];
+      std::snprintf(number, sizeof number, "%.9g s", period);
+      EXPECT_NE(what.find(number), std::string::npos) << what;
+      EXPECT_NE(what.find("0.001 s"), std::string::npos) << what;
+    }
+  }
+  HardwareSetup setup = irb6_setup();
+  setup.servo_period_s = 0.001;
+  MujocoHardware hw;
+  hw.configure(setup);
+  EXPECT_EQ(hw.substeps(), 1);
+}
+
+TEST(MujocoHardware, RejectsBadParameters) {
+  {
+    HardwareSetup setup = irb6_setup();
+    setup.params.set("no_such_key", 1.0, SourceLocation{"test.toml", 13});
+    MujocoHardware hw;
+    EXPECT_THROW(hw.configure(setup), ConfigError);
+  }
+  {
+    HardwareSetup setup = irb6_setup();
+    setup.params.set("initial_joint_positions", std::vector<double>{0.0, 0.0, 0.0, 0.0, 0.0},
+                     SourceLocation{"test.toml", 14});
+    MujocoHardware hw;
+    try {
+      hw.configure(setup);
+      FAIL() << "lower_arm = 0 rad is outside -130..-50 deg";
+    } catch (const ConfigError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("test.toml:14"), std::string::npos) << what;
+      EXPECT_NE(what.find("lower_arm"), std::string::npos) << what;
+    }
+  }
+  {
+    HardwareSetup setup = irb6_setup();
+    setup.params.set("initial_joint_positions", std::vector<double>{0.0, -1.5},
+                     SourceLocation{"test.toml", 15});
+    MujocoHardware hw;
+    EXPECT_THROW(hw.configure(setup), ConfigError);
+  }
+  {
+    HardwareSetup setup = irb6_setup();
+    setup.synchro_positions = {0.0, 0.0};
+    MujocoHardware hw;
+    EXPECT_THROW(hw.configure(setup), HardwareError);
+  }
+}
+
+TEST(MujocoHardware, SynchroPositionsDefaultToTheParameterFile) {
+  HardwareSetup setup = irb6_setup();
+  setup.synchro_positions.clear();
+  MujocoHardware hw;
+  hw.configure(setup);
+  const std::vector<double> expected = {0.0, -kPi / 2, 0.0, 0.0, 0.0};
+  EXPECT_EQ(hw.synchro_positions(), expected);
+}
+
+TEST(MujocoHardware, CycleCallsReportMisuseWithoutThrowing) {
+  MujocoHardware hw;
+  std::array<AxisFeedback, kAxes> fb{};
+  std::array<double, kAxes> sp{};
+  EXPECT_EQ(hw.read(fb), CycleStatus::fault);
+  EXPECT_FALSE(hw.fault_text().empty());
+  EXPECT_THROW(hw.activate(), HardwareError);
+  hw.configure(irb6_setup());
+  EXPECT_EQ(hw.write(sp), CycleStatus::fault) << "write() before activate()";
+  hw.activate();
+  std::array<AxisFeedback, 3> short_fb{};
+  EXPECT_EQ(hw.read(short_fb), CycleStatus::fault);
+  std::array<double, 3> short_sp{};
+  EXPECT_EQ(hw.write(short_sp), CycleStatus::fault);
+  sp[1] = std::nan("");
+  EXPECT_EQ(hw.write(sp), CycleStatus::fault);
+  EXPECT_NE(hw.fault_text().find("axis 1"), std::string::npos) << hw.fault_text();
+  hw.deactivate();
+  EXPECT_EQ(hw.write(sp), CycleStatus::fault);
+}
+
+TEST(MujocoHardware, UnstableSimulationIsAFault) {
+  // A stiff servo on a tiny inertia, explicitly integrated: diverges within a few steps.
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("mrroc_unstable_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream out(dir / "unstable.xml");
+    out << R"(<mujoco model="unstable">
+  <option timestep="0.001"/>
+  <worldbody>
+    <body name="link">
+      <inertial pos="0.1 0 0" mass="0.001" diaginertia="1e-6 1e-6 1e-6"/>
+      <joint name="j" type="hinge" axis="0 0 1" limited="false"/>
+    </body>
+  </worldbody>
+  <actuator><position name="j" joint="j" kp="1e6" ctrllimited="true" ctrlrange="-3 3"/></actuator>
+</mujoco>
+)";
+  }
+  HardwareSetup setup;
+  setup.robot = "unstable";
+  setup.model_dir = dir;
+  setup.servo_period_s = 0.002;
+  setup.synchro_positions = {0.0};
+  setup.params.set("mjcf", std::string("unstable.xml"), SourceLocation{"test.toml", 11});
+  setup.params.set("gravity_compensation", false, SourceLocation{"test.toml", 12});
+  MujocoHardware hw;
+  hw.configure(setup);
+  hw.activate();
+
+  const WarningCapture capture;
+  std::array<AxisFeedback, 1> fb{};
+  const std::array<double, 1> sp = {1.0};
+  bool faulted = false;
+  for (int k = 0; k < 1000 && !faulted; ++k) {
+    faulted = hw.write(sp) == CycleStatus::fault || hw.read(fb) == CycleStatus::fault;
+  }
+  EXPECT_TRUE(faulted);
+  EXPECT_NE(hw.fault_text().find("unstable"), std::string::npos) << hw.fault_text();
+  EXPECT_GT(capture.count(), 0);
+  std::printf("fault text: %s\n", hw.fault_text().c_str());
+  EXPECT_EQ(hw.read(fb), CycleStatus::fault) << "the fault is latched until activate()";
+  hw.activate();
+  EXPECT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace

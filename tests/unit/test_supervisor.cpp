@@ -1,0 +1,526 @@
+#include "supervisor.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <mutex>
+#include <ostream>
+#include <regex>
+#include <sstream>
+#include <streambuf>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::launch {
+namespace {
+
+using namespace std::chrono_literals;
+using std::chrono::milliseconds;
+using testing::HasSubstr;
+
+/// An ostream target that can be read while the supervisor's thread writes to it.
+class CaptureBuf : public std::streambuf {
+ public:
+  [[nodiscard]] std::string text() const {
+    std::lock_guard lock(mu_);
+    return data_;
+  }
+
+ protected:
+  int_type overflow(int_type ch) override {
+    if (!traits_type::eq_int_type(ch, traits_type::eof())) {
+      std::lock_guard lock(mu_);
+      data_ += traits_type::to_char_type(ch);
+    }
+    return traits_type::not_eof(ch);
+  }
+  std::streamsize xsputn(const char* s, std::streamsize n) override {
+    std::lock_guard lock(mu_);
+    data_.append(s, static_cast<std::size_t>(n));
+    return n;
+  }
+
+ private:
+  mutable std::mutex mu_;
+  std::string data_;
+};
+
+class Capture {
+ public:
+  std::ostream& stream() { return os_; }
+  [[nodiscard]] std::string text() const { return buf_.text(); }
+  /// Waits until a line "[name] content" (with any padding after the name) was written.
+  bool wait_for_line(const std::string& name, const std::string& content,
+                     milliseconds timeout = 5000ms) const {
+    const std::regex re("(^|\n)\\[" + name + "\\] +" + content + "\n");
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (std::regex_search(text(), re)) return true;
+      std::this_thread::sleep_for(5ms);
+    }
+    return false;
+  }
+  /// Waits until the output contains `needle`.
+  bool wait_for(const std::string& needle, milliseconds timeout = 5000ms) const {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (text().find(needle) != std::string::npos) return true;
+      std::this_thread::sleep_for(5ms);
+    }
+    return false;
+  }
+
+ private:
+  CaptureBuf buf_;
+  std::ostream os_{&buf_};
+};
+
+ChildSpec sh(const std::string& name, const std::string& script,
+             milliseconds grace = milliseconds(3000)) {
+  ChildSpec spec;
+  spec.name = name;
+  spec.argv = {"/bin/sh", "-c", script};
+  spec.stop_grace = grace;
+  return spec;
+}
+
+/// Collects exits until there are `n` of them (or the timeout passes).
+std::vector<ChildExit> collect(Supervisor& s, std::size_t n, milliseconds timeout = 5000ms) {
+  std::vector<ChildExit> got;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (got.size() < n && std::chrono::steady_clock::now() < deadline) {
+    for (auto& e : s.wait_events(100ms)) got.push_back(std::move(e));
+  }
+  return got;
+}
+
+const ChildExit* find_exit(const std::vector<ChildExit>& exits, const std::string& name) {
+  for (const auto& e : exits) {
+    if (e.name == name) return &e;
+  }
+  return nullptr;
+}
+
+bool alive(pid_t pid) { return ::kill(pid, 0) == 0 || errno != ESRCH; }
+
+bool group_gone(pid_t pgid) { return ::kill(-pgid, 0) == -1 && errno == ESRCH; }
+
+std::size_t position(const std::string& text, const std::string& needle) {
+  const std::size_t pos = text.find(needle);
+  EXPECT_NE(pos, std::string::npos) << "missing \"" << needle << "\" in:\n" << text;
+  return pos;
+}
+
+TEST(Supervisor, PrefixesOutputOfEachChildIncludingStderrAndPartialLines) {
+  Capture cap;
+  {
+    Supervisor s(cap.stream());
+    s.start(sh("one", "echo hello from one; echo oops >&2; printf partial-one"));
+    s.start(sh("two", "echo hello from two; printf 'no newline' >&2"));
+    const auto exits = collect(s, 2);
+    ASSERT_EQ(exits.size(), 2u);
+  }
+  const std::string text = cap.text();
+  EXPECT_THAT(text, HasSubstr("[one] hello from one\n"));
+  EXPECT_THAT(text, HasSubstr("[one] oops\n"));
+  EXPECT_THAT(text, HasSubstr("[one] partial-one\n"));
+  EXPECT_THAT(text, HasSubstr("[two] hello from two\n"));
+  EXPECT_THAT(text, HasSubstr("[two] no newline\n"));
+  // The partial line comes before the exit line.
+  EXPECT_LT(position(text, "[one] partial-one"), position(text, "one exited with code 0"));
+}
+
+TEST(Supervisor, PadsNamesAndNeverMixesLines) {
+  Capture cap;
+  {
+    Supervisor s(cap.stream());
+    s.reserve_name_width(6);
+    const std::string loop =
+        "i=0; while [ $i -lt 300 ]; do echo \"line $i of $0\"; echo \"err $i of $0\" >&2; "
+        "i=$((i+1)); done";
+    ChildSpec a = sh("a", loop);
+    a.argv.push_back("a");  // $0
+    ChildSpec b = sh("bb", loop);
+    b.argv.push_back("bb");
+    s.start(a);
+    s.start(b);
+    ASSERT_EQ(collect(s, 2).size(), 2u);
+  }
+  const std::string text = cap.text();
+  // "[a]" padded to the reserved width + 2 brackets, then one space.
+  EXPECT_THAT(text, HasSubstr("[a]      line 0 of a\n"));
+  EXPECT_THAT(text, HasSubstr("[bb]     err 299 of bb\n"));
+
+  const std::regex child_line(R"(\[(a|bb)\] +(line|err) \d+ of (a|bb))");
+  std::istringstream lines(text);
+  std::string line;
+  int child_lines = 0;
+  while (std::getline(lines, line)) {
+    if (line.empty() || line.front() != '[') continue;
+    std::smatch m;
+    ASSERT_TRUE(std::regex_match(line, m, child_line)) << line;
+    EXPECT_EQ(m[1], m[3]) << line;
+    ++child_lines;
+  }
+  EXPECT_EQ(child_lines, 4 * 300);
+}
+
+TEST(Supervisor, ReportsExitCodesAndSignals) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  const pid_t ok_pid = s.start(sh("ok", "exit 0"));
+  s.start(sh("three", "exit 3"));
+  s.start(sh("usr1", "kill -USR1 $$; sleep 5"));
+  const auto exits = collect(s, 3);
+  ASSERT_EQ(exits.size(), 3u);
+
+  const ChildExit* ok = find_exit(exits, "ok");
+  ASSERT_NE(ok, nullptr);
+  EXPECT_EQ(ok->exit_code, 0);
+  EXPECT_EQ(ok->signal, 0);
+  EXPECT_EQ(ok->pid, ok_pid);
+  EXPECT_EQ(ok->state(), ChildState::exited);
+  EXPECT_FALSE(ok->forced);
+
+  const ChildExit* three = find_exit(exits, "three");
+  ASSERT_NE(three, nullptr);
+  EXPECT_EQ(three->exit_code, 3);
+  EXPECT_EQ(three->signal, 0);
+
+  const ChildExit* usr1 = find_exit(exits, "usr1");
+  ASSERT_NE(usr1, nullptr);
+  EXPECT_EQ(usr1->signal, SIGUSR1);
+  EXPECT_EQ(usr1->exit_code, 128 + SIGUSR1);
+  EXPECT_EQ(usr1->state(), ChildState::killed);
+
+  EXPECT_EQ(s.state_of("three"), ChildState::exited);
+  EXPECT_EQ(s.state_of("usr1"), ChildState::killed);
+  EXPECT_EQ(s.state_of("nobody"), std::nullopt);
+  EXPECT_FALSE(s.is_running("ok"));
+  EXPECT_FALSE(s.pid_of("ok").has_value());
+  EXPECT_FALSE(s.any_running());
+  EXPECT_EQ(s.exits().size(), 3u);
+  EXPECT_TRUE(s.wait_events(0ms).empty());  // already returned once
+
+  const std::string text = cap.text();
+  EXPECT_THAT(text, HasSubstr("three exited with code 3\n"));
+  EXPECT_THAT(text, HasSubstr("usr1 killed by signal 10 (SIGUSR1)\n"));
+}
+
+TEST(Supervisor, StopAllStopsInReverseStartOrder) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  std::vector<pid_t> pids;
+  for (const std::string name : {"a", "b", "c"}) {
+    pids.push_back(s.start(
+        sh(name, "trap 'echo bye " + name + "; exit 0' TERM; echo ready; sleep 100 & wait")));
+  }
+  for (const std::string name : {"a", "b", "c"}) {
+    ASSERT_TRUE(cap.wait_for_line(name, "ready")) << cap.text();
+    EXPECT_TRUE(s.is_running(name));
+  }
+  EXPECT_EQ(s.pid_of("b"), pids[1]);
+  EXPECT_EQ(::getpgid(pids[1]), pids[1]);  // own process group
+
+  s.stop_all();
+  const std::string text = cap.text();
+  EXPECT_LT(position(text, "stopping c (pid"), position(text, "[c] bye c"));
+  EXPECT_LT(position(text, "[c] bye c"), position(text, "c exited with code 0"));
+  EXPECT_LT(position(text, "c exited with code 0"), position(text, "stopping b (pid"));
+  EXPECT_LT(position(text, "[b] bye b"), position(text, "[a] bye a"));
+  EXPECT_LT(position(text, "b exited with code 0"), position(text, "stopping a (pid"));
+
+  const auto exits = s.exits();
+  ASSERT_EQ(exits.size(), 3u);
+  EXPECT_EQ(exits[0].name, "c");
+  EXPECT_EQ(exits[1].name, "b");
+  EXPECT_EQ(exits[2].name, "a");
+  for (const auto& e : exits) {
+    EXPECT_EQ(e.exit_code, 0);
+    EXPECT_FALSE(e.forced);
+  }
+  for (pid_t pid : pids) EXPECT_TRUE(group_gone(pid));
+  EXPECT_EQ(s.wait_events(0ms).size(), 3u);  // stop_all's exits are collected too
+}
+
+TEST(Supervisor, KillsChildIgnoringTermAfterGrace) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  const pid_t pid = s.start(sh("stubborn", "trap '' TERM; echo ready; sleep 100", 200ms));
+  ASSERT_TRUE(cap.wait_for("[stubborn] ready\n"));
+
+  const auto t0 = std::chrono::steady_clock::now();
+  s.stop_all();
+  const auto took = std::chrono::steady_clock::now() - t0;
+  EXPECT_GE(took, 200ms);
+  EXPECT_LT(took, 3000ms);
+
+  const auto exits = s.exits();
+  ASSERT_EQ(exits.size(), 1u);
+  EXPECT_EQ(exits[0].signal, SIGKILL);
+  EXPECT_TRUE(exits[0].forced);
+  EXPECT_EQ(exits[0].state(), ChildState::killed);
+  EXPECT_EQ(s.state_of("stubborn"), ChildState::killed);
+  EXPECT_THAT(cap.text(), HasSubstr("killed stubborn after 200 ms\n"));
+  EXPECT_TRUE(group_gone(pid));
+}
+
+TEST(Supervisor, LeavesNoProcessOfAChildsGroup) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  // The grandchild dies with the group's SIGTERM.
+  const pid_t plain = s.start(sh("plain", "sleep 100 & echo ready; wait"));
+  // The grandchild ignores SIGTERM while the child exits on it.
+  const pid_t stubborn = s.start(
+      sh("stubborn", "(trap '' TERM; sleep 100) & trap 'exit 0' TERM; echo ready; wait", 200ms));
+  // The child is gone already, its background grandchild is not.
+  const pid_t orphan = s.start(sh("orphan", "sleep 100 & echo ready"));
+  for (const std::string name : {"plain", "stubborn", "orphan"}) {
+    ASSERT_TRUE(cap.wait_for_line(name, "ready")) << cap.text();
+  }
+  ASSERT_EQ(collect(s, 1).size(), 1u);  // orphan's leader
+  EXPECT_FALSE(group_gone(orphan));
+
+  s.stop_all();
+  EXPECT_TRUE(group_gone(plain));
+  EXPECT_TRUE(group_gone(stubborn));
+  EXPECT_TRUE(group_gone(orphan));
+  const std::string text = cap.text();
+  EXPECT_THAT(text, HasSubstr("stubborn exited with code 0\n"));
+  EXPECT_THAT(text, HasSubstr("killed the remaining processes of stubborn"));
+  EXPECT_THAT(text, HasSubstr("stopping the remaining processes of orphan"));
+}
+
+TEST(Supervisor, MissingExecutableThrowsNamingThePath) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  try {
+    s.start(ChildSpec{.name = "edp/none", .argv = {"/nonexistent/mrroc-no-such-program"}});
+    FAIL() << "no exception";
+  } catch (const mrroc::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/mrroc-no-such-program"));
+    EXPECT_THAT(e.what(), HasSubstr("No such file or directory"));
+    EXPECT_THAT(e.what(), HasSubstr("edp/none"));
+  }
+  try {
+    s.start(ChildSpec{.name = "bare", .argv = {"mrroc-no-such-program-in-path"}});
+    FAIL() << "no exception";
+  } catch (const mrroc::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("mrroc-no-such-program-in-path"));
+  }
+  // exec itself fails (not executable): reported through the close-on-exec pipe.
+  char path[] = "/tmp/mrroc-test-noexec-XXXXXX";
+  const int fd = ::mkstemp(path);  // mode 0600
+  ASSERT_GE(fd, 0);
+  ::close(fd);
+  try {
+    s.start(ChildSpec{.name = "noexec", .argv = {path}});
+    ADD_FAILURE() << "no exception";
+  } catch (const mrroc::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr(std::string(path) + ": Permission denied"));
+  }
+  ::unlink(path);
+  EXPECT_THROW(s.start(ChildSpec{.name = "empty"}), mrroc::Error);
+  EXPECT_FALSE(s.any_running());
+  EXPECT_TRUE(s.exits().empty());
+}
+
+TEST(Supervisor, RejectsADuplicateRunningName) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  s.start(sh("dup", "sleep 100", 200ms));
+  EXPECT_THROW(s.start(sh("dup", "true")), mrroc::Error);
+}
+
+TEST(Supervisor, SearchesPathAndPassesEnvironmentAndDevNullStdin) {
+  Capture cap;
+  {
+    Supervisor s(cap.stream());
+    s.start(ChildSpec{.name = "env",
+                      .argv = {"sh", "-c", "echo \"var=$MRROC_TEST_VAR\"; cat; echo after-cat"},
+                      .env = {"MRROC_TEST_VAR=42"}});
+    // Only 0, 1 and 2 are open in the child: no pipe of the launcher or of other children.
+    s.start(sh("fds", "sleep 0.2; ls /proc/$$/fd | tr '\\n' ' '; echo"));
+    ASSERT_EQ(collect(s, 2).size(), 2u);
+  }
+  const std::string text = cap.text();
+  EXPECT_THAT(text, HasSubstr("[env] var=42\n"));
+  EXPECT_THAT(text, HasSubstr("[env] after-cat\n"));
+  EXPECT_THAT(text, HasSubstr("[fds] 0 1 2 \n"));
+}
+
+TEST(Supervisor, WaitEventsTimesOutAndWakesOnStopRequest) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  auto t0 = std::chrono::steady_clock::now();
+  EXPECT_TRUE(s.wait_events(100ms).empty());
+  EXPECT_GE(std::chrono::steady_clock::now() - t0, 100ms);
+  EXPECT_FALSE(s.stop_requested());
+
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(50ms);
+    s.request_stop();
+  });
+  t0 = std::chrono::steady_clock::now();
+  EXPECT_TRUE(s.wait_events(5000ms).empty());
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 2000ms);
+  stopper.join();
+  EXPECT_TRUE(s.stop_requested());
+  EXPECT_TRUE(s.wait_events(5000ms).empty());  // returns at once while stop is requested
+
+  s.start(sh("quick", "exit 7"));
+  const auto exits = s.wait_events(5000ms);  // an exit is noticed promptly
+  if (exits.empty()) {
+    EXPECT_EQ(collect(s, 1).at(0).exit_code, 7);
+  } else {
+    EXPECT_EQ(exits.at(0).exit_code, 7);
+  }
+}
+
+TEST(Supervisor, DestructorLeavesNoChildAlive) {
+  Capture cap;
+  std::vector<pid_t> pids;
+  {
+    Supervisor s(cap.stream());
+    pids.push_back(s.start(sh("sleeper", "echo ready; sleep 100")));
+    pids.push_back(s.start(sh("stubborn", "trap '' TERM; echo ready; sleep 100", 200ms)));
+    pids.push_back(s.start(sh("done", "echo ready")));
+    pids.push_back(s.start(sh("bg", "sleep 100 & echo ready; wait")));
+    for (const std::string name : {"sleeper", "stubborn", "done", "bg"}) {
+      ASSERT_TRUE(cap.wait_for_line(name, "ready")) << cap.text();
+    }
+    for (pid_t pid : pids) EXPECT_EQ(::getpgid(pid) == pid || !alive(pid), true);
+  }
+  for (pid_t pid : pids) {
+    EXPECT_FALSE(alive(pid)) << pid;
+    EXPECT_TRUE(group_gone(pid)) << pid;
+  }
+}
+
+/// True if `pid` is gone or a zombie (reaping it if it became our child).
+bool dead_or_zombie(pid_t pid) {
+  int status = 0;
+  ::waitpid(pid, &status, WNOHANG);
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(stat, line)) return true;
+  const std::size_t paren = line.rfind(')');
+  return paren != std::string::npos && paren + 2 < line.size() && line[paren + 2] == 'Z';
+}
+
+TEST(Supervisor, ChildrenDieWithAKilledLauncher) {
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const pid_t launcher = ::fork();
+  ASSERT_GE(launcher, 0);
+  if (launcher == 0) {
+    ::close(fds[0]);
+    Capture cap;
+    Supervisor s(cap.stream());
+    const pid_t child = s.start(ChildSpec{.name = "sleeper", .argv = {"/bin/sleep", "100"}});
+    [[maybe_unused]] const ssize_t n = ::write(fds[1], &child, sizeof child);
+    ::pause();
+    ::_exit(1);
+  }
+  ::close(fds[1]);
+  pid_t child = -1;
+  ASSERT_EQ(::read(fds[0], &child, sizeof child), static_cast<ssize_t>(sizeof child));
+  ::close(fds[0]);
+  EXPECT_FALSE(dead_or_zombie(child));
+  ::kill(launcher, SIGKILL);
+  int status = 0;
+  ASSERT_EQ(::waitpid(launcher, &status, 0), launcher);
+
+  const auto deadline = std::chrono::steady_clock::now() + 3000ms;
+  while (!dead_or_zombie(child) && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(dead_or_zombie(child));
+  if (!dead_or_zombie(child)) ::kill(child, SIGKILL);
+}
+
+/// Runs `body` in a forked copy of this (single-threaded) test process, so that the signal
+/// handlers and the process-wide stop flag do not affect the other tests. `body` returns an
+/// empty string on success, else a description of the failure.
+std::string in_subprocess(std::string (*body)()) {
+  int fds[2];
+  if (::pipe(fds) != 0) return "pipe failed";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::close(fds[0]);
+    std::string failure;
+    try {
+      failure = body();
+    } catch (const std::exception& e) {
+      failure = std::string("exception: ") + e.what();
+    }
+    if (!failure.empty()) {
+      [[maybe_unused]] const ssize_t n = ::write(fds[1], failure.data(), failure.size());
+    }
+    ::_exit(failure.empty() ? 0 : 1);
+  }
+  ::close(fds[1]);
+  std::string failure;
+  char buf[512];
+  ssize_t n = 0;
+  while ((n = ::read(fds[0], buf, sizeof buf)) > 0)
+    failure.append(buf, static_cast<std::size_t>(n));
+  ::close(fds[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  if (failure.empty() && !(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
+    failure = "subprocess failed with status " + std::to_string(status);
+  }
+  return failure;
+}
+
+TEST(Supervisor, StopSignalsWakeWaitEventsAndASecondOneSkipsTheGrace) {
+  const std::string failure = in_subprocess(+[]() -> std::string {
+    install_stop_signal_handlers();
+    Capture cap;
+    Supervisor s(cap.stream());
+    s.start(sh("stubborn", "trap '' TERM; echo ready; sleep 100", 10000ms));
+    if (!cap.wait_for("[stubborn] ready\n")) return "child not ready";
+    if (s.stop_requested() || stop_signal() != 0) return "stop requested too early";
+
+    std::thread first([] {
+      std::this_thread::sleep_for(50ms);
+      ::kill(::getpid(), SIGINT);
+    });
+    auto t0 = std::chrono::steady_clock::now();
+    s.wait_events(5000ms);
+    first.join();
+    if (std::chrono::steady_clock::now() - t0 > 2000ms) return "SIGINT did not wake wait_events";
+    if (!s.stop_requested()) return "stop not requested after SIGINT";
+    if (stop_signal() != SIGINT || stop_signal_count() != 1) return "wrong stop signal";
+
+    std::thread second([] {
+      std::this_thread::sleep_for(300ms);
+      ::kill(::getpid(), SIGTERM);
+    });
+    t0 = std::chrono::steady_clock::now();
+    s.stop_all();
+    second.join();
+    if (std::chrono::steady_clock::now() - t0 > 3000ms) return "second signal did not hurry";
+    const auto exits = s.exits();
+    if (exits.size() != 1 || exits[0].signal != SIGKILL || !exits[0].forced) {
+      return "stubborn child not killed:\n" + cap.text();
+    }
+    if (cap.text().find("another stop signal") == std::string::npos) return cap.text();
+    return "";
+  });
+  EXPECT_EQ(failure, "");
+}
+
+}  // namespace
+}  // namespace mrroc::launch

@@ -38,6 +38,8 @@ constexpr int kIdleTickMs = 200;
 constexpr milliseconds kStopSlice{10};
 /// How long stop_all waits for a group to vanish after SIGKILL.
 constexpr milliseconds kKillWait{5000};
+/// Longer waits and grace periods are cut to this (it keeps time arithmetic from overflowing).
+constexpr milliseconds kMaxWait{std::chrono::hours(24 * 365)};
 /// Bytes read from one pipe per poll round (so a chatty child cannot starve the others).
 constexpr std::size_t kReadPerRound = 256 * 1024;
 /// Bytes read from a child's pipes when it is reaped (whatever is in the pipe buffer).
@@ -643,7 +645,7 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   auto child = std::make_unique<Child>();
   child->name = spec.name;
   child->pid = pid;
-  child->grace = spec.stop_grace;
+  child->grace = std::clamp(spec.stop_grace, milliseconds(0), kMaxWait);
   child->out.fd = out_r.release();
   child->err.fd = err_r.release();
   {
@@ -657,7 +659,7 @@ pid_t Supervisor::start(const ChildSpec& spec) {
 
 std::vector<ChildExit> Supervisor::wait_events(std::chrono::milliseconds timeout) {
   std::unique_lock lock(impl_->mu);
-  impl_->cv.wait_for(lock, timeout, [&] {
+  impl_->cv.wait_for(lock, std::clamp(timeout, milliseconds(0), kMaxWait), [&] {
     impl_->check_signals();
     return !impl_->pending.empty() || impl_->stop_requested_locked();
   });

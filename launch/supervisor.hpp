@@ -11,7 +11,8 @@
 ///    reaches only the launcher, which then stops the children in order;
 ///  - gets `PR_SET_PDEATHSIG = SIGKILL`, so it dies with the launcher even when the launcher
 ///    is SIGKILLed (Linux ties this to the *thread* that forked: call `start()` from a thread
-///    that lives as long as the children, normally the main thread);
+///    that lives as long as the children, normally the main thread). This covers the child
+///    only, not processes it forks: wrapper scripts should `exec` the real program;
 ///  - has stdin from /dev/null, stdout and stderr in pipes read by the supervisor, default
 ///    signal dispositions and an empty signal mask, and inherits no other descriptor of the
 ///    launcher (all of them are made close-on-exec in the child).
@@ -56,7 +57,7 @@ struct ChildSpec {
   /// Extra environment entries "NAME=value", added to (or replacing in) the inherited
   /// environment of the child.
   std::vector<std::string> env{};
-  /// Time between SIGTERM and SIGKILL in `stop_all()`.
+  /// Time between SIGTERM and SIGKILL in `stop_all()` (negative counts as 0).
   std::chrono::milliseconds stop_grace{3000};
 };
 
@@ -113,7 +114,7 @@ class Supervisor {
   /// Waits until a child exits, a stop is requested (`stop_requested()`), or `timeout`
   /// passes, whichever is first. Returns the exits collected since the previous call
   /// (possibly empty), in the order they were reaped; returns at once if some are pending or
-  /// a stop is requested. Exits seen by `stop_all()` are collected too.
+  /// a stop is requested (or `timeout` <= 0). Exits seen by `stop_all()` are collected too.
   std::vector<ChildExit> wait_events(std::chrono::milliseconds timeout);
 
   /// True after `request_stop()` or after SIGINT/SIGTERM/SIGHUP arrived (the latter needs

@@ -1,0 +1,177 @@
+// The process-set config: the demo loads; every kind of mistake gets "file:line: error: ...".
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+
+#include "mrroc/config/process_set.hpp"
+
+using namespace mrroc;
+namespace fs = std::filesystem;
+
+namespace {
+
+class ConfigTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mrroc-config-test-" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path write(const std::string& text) {
+    const fs::path p = dir_ / "set.toml";
+    std::ofstream(p) << text;
+    return p;
+  }
+
+  /// Loads `text` and returns the error message (fails the test if it loads).
+  std::string error_of(const std::string& text) {
+    const fs::path p = write(text);
+    try {
+      load_process_set(p);
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "config loaded although it is wrong:\n" << text;
+    return {};
+  }
+
+  std::string valid(const std::string& extra_robot_edp = "",
+                    const std::string& extra_system = "") {
+    return "[system]\nname = \"t\"\n" + extra_system + "\n[mp]\ntask = \"start_and_wait\"\n\n" +
+           "[[robot]]\nname = \"irb6\"\nmodel = \"" + std::string(MRROC_SOURCE_DIR) +
+           "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\n" + extra_robot_edp +
+           "\n[robot.ecp]\ntask = \"visit_joint_poses\"\n";
+  }
+
+  fs::path dir_;
+};
+
+/// 1-based line of the first occurrence of `needle` in `text` (the n-th with `nth`).
+int line_of(const std::string& text, const std::string& needle, int nth = 1) {
+  std::size_t at = std::string::npos;
+  for (int i = 0; i < nth; ++i) at = text.find(needle, at == std::string::npos ? 0 : at + 1);
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+}
+
+void expect_located(const std::string& message, const fs::path& file, int line,
+                    const std::string& words) {
+  const std::string prefix = file.string() + ":" + std::to_string(line) + ": error: ";
+  EXPECT_EQ(message.rfind(prefix, 0), 0U) << "expected prefix '" << prefix << "' in: " << message;
+  EXPECT_NE(message.find(words), std::string::npos) << message;
+}
+
+}  // namespace
+
+TEST_F(ConfigTest, DemoConfigLoads) {
+  const ProcessSetConfig c = load_process_set(fs::path(MRROC_SOURCE_DIR) / "configs/demo-irb6.toml");
+  EXPECT_EQ(c.name, "demo-irb6");
+  ASSERT_EQ(c.robots.size(), 1U);
+  EXPECT_EQ(c.robots[0].name, "irb6");
+  EXPECT_EQ(c.robots[0].edp.plugin, "mujoco");
+  EXPECT_DOUBLE_EQ(c.robots[0].edp.servo_period_s, 0.002);
+  EXPECT_TRUE(fs::is_directory(c.robots[0].model_dir));
+  EXPECT_EQ(c.robots[0].ecp.name, "visit_joint_poses");
+  EXPECT_EQ(c.robots[0].ecp.args.get_double_rows("poses").size(), 3U);
+  EXPECT_EQ(c.mp.name, "start_and_wait");
+  EXPECT_EQ(&c.robot("irb6"), &c.robots[0]);
+  EXPECT_THROW((void)c.robot("nope"), ConfigError);
+}
+
+TEST_F(ConfigTest, UnknownKeyIsAnErrorWithItsLine) {
+  const std::string text = valid("pluginn = \"mujoco\"\n");
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "pluginn"),
+                 "unknown key 'pluginn' in [robot.edp]");
+}
+
+TEST_F(ConfigTest, UnknownTopLevelTable) {
+  const std::string text = valid() + "\n[mpp]\ntask = \"x\"\n";
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "[mpp]"), "unknown key 'mpp'");
+}
+
+TEST_F(ConfigTest, SyntaxErrorHasLine) {
+  expect_located(error_of("[system]\nname = \"t\n"), dir_ / "set.toml", 2, "");
+}
+
+TEST_F(ConfigTest, MissingFileIsNamed) {
+  try {
+    load_process_set(dir_ / "absent.toml");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("absent.toml: error: config file not found"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST_F(ConfigTest, MissingModelFolderIsNamed) {
+  std::string text = valid();
+  text.replace(text.find("/robots/irb6"), 12, "/robots/irb7");
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "model ="),
+                 "robots/irb7' not found");
+}
+
+TEST_F(ConfigTest, WrongTypeAndRangeNameValueAndUnit) {
+  const std::string text = valid("servo_period_ms = \"2\"\n");
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "servo_period_ms"),
+                 "'servo_period_ms' must be a number [ms]");
+  const std::string text2 = valid("servo_period_ms = 500\n");
+  expect_located(error_of(text2), dir_ / "set.toml", line_of(text2, "servo_period_ms"),
+                 "'servo_period_ms' = 500 ms is outside 0.1..100 ms");
+}
+
+TEST_F(ConfigTest, DuplicateRobotAndBadName) {
+  std::string text = valid();
+  const std::string robot = text.substr(text.find("[[robot]]"));
+  const std::string twice = text + "\n" + robot;
+  expect_located(error_of(twice), dir_ / "set.toml", line_of(twice, "name = \"irb6\"", 2),
+                 "used twice");
+  std::string bad = valid();
+  bad.replace(bad.find("name = \"irb6\""), 13, "name = \"IRB 6\"");
+  EXPECT_NE(error_of(bad).find("must match"), std::string::npos);
+}
+
+TEST_F(ConfigTest, MissingRequiredKeysAndTables) {
+  EXPECT_NE(error_of("[system]\nname = \"t\"\n").find("missing table [mp]"), std::string::npos);
+  std::string no_plugin = valid();
+  no_plugin.replace(no_plugin.find("plugin = \"mujoco\"\n"), 18, "");
+  EXPECT_NE(error_of(no_plugin).find("missing key 'plugin' in [robot.edp]"), std::string::npos);
+  EXPECT_NE(error_of("[system]\nname = \"t\"\n[mp]\ntask = \"x\"\n").find("no [[robot]]"),
+            std::string::npos);
+}
+
+TEST_F(ConfigTest, BadLcmUrl) {
+  const std::string text = valid("", "lcm_url = \"239.255.76.67:7667\"\n");
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "lcm_url"), "is not a URL");
+}
+
+TEST_F(ConfigTest, ParamsReportUnreadAndWrongTypes) {
+  const std::string text = valid() + "[robot.ecp.args]\nposes = [[0.0, 1.0]]\nspeed = 2\n";
+  const fs::path p = write(text);
+  const std::string speed_at = "set.toml:" + std::to_string(line_of(text, "speed"));
+  const std::string poses_at = "set.toml:" + std::to_string(line_of(text, "poses ="));
+  const ProcessSetConfig c = load_process_set(p);
+  const Params& args = c.robots[0].ecp.args;
+  EXPECT_EQ(args.get_double_rows("poses").size(), 1U);
+  try {
+    args.reject_unread("robot.ecp.args");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(speed_at + ": error: unknown key 'speed'"),
+              std::string::npos)
+        << e.what();
+  }
+  try {
+    (void)args.get_string("poses");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(poses_at + ": error: 'poses' must be a string"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_DOUBLE_EQ(args.get_double("speed"), 2.0);
+  EXPECT_THROW((void)args.get_double("absent"), ConfigError);
+  EXPECT_DOUBLE_EQ(args.get_double("absent", 1.5), 1.5);
+}

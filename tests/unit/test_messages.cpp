@@ -1,0 +1,168 @@
+// Message round trips: plain values -> LCM type -> bytes -> LCM type -> plain values, and
+// malformed messages rejected with the field named.
+#include <gtest/gtest.h>
+
+#include "mrroc/comm/codec.hpp"
+
+using namespace mrroc;
+
+namespace {
+template <class Msg>
+Msg through_bytes(const Msg& m) {
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
+  EXPECT_EQ(m.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+  Msg out;
+  EXPECT_EQ(out.decode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+  return out;
+}
+}  // namespace
+
+TEST(Messages, EdpInstructionRoundTrip) {
+  edp::Instruction in;
+  in.type = edp::InstructionType::set_get;
+  in.set = edp::item::arm | edp::item::tool | edp::item::outputs;
+  in.get = edp::item::arm | edp::item::inputs;
+  in.set_arm_type = edp::ArmRepresentation::xyz_euler_zyz;
+  in.get_arm_type = edp::ArmRepresentation::motor;
+  in.motion_type = edp::MotionType::relative;
+  in.motion_steps = 25;
+  in.value_in_step_no = 24;
+  in.arm = {0.1, 0.2, 0.3, -1.0, 0.5, 2.0};
+  in.tool_type = edp::ArmRepresentation::xyz_angle_axis;
+  in.tool = {0, 0, 0.25, 0, 0, 0};
+  in.kinematic_model_no = 1;
+  in.corrector_no = 2;
+  in.servo_algorithm = {1, 2, 1, 1, 0};
+  in.servo_parameters_no = {0, 1, 0, 3, 0};
+  in.output_values = 0xA5;
+  const edp::Instruction out = comm::decode(through_bytes(comm::encode(in)));
+  EXPECT_EQ(out.type, in.type);
+  EXPECT_EQ(out.set, in.set);
+  EXPECT_EQ(out.get, in.get);
+  EXPECT_EQ(out.set_arm_type, in.set_arm_type);
+  EXPECT_EQ(out.get_arm_type, in.get_arm_type);
+  EXPECT_EQ(out.motion_type, in.motion_type);
+  EXPECT_EQ(out.motion_steps, in.motion_steps);
+  EXPECT_EQ(out.value_in_step_no, in.value_in_step_no);
+  EXPECT_EQ(out.arm, in.arm);
+  EXPECT_EQ(out.tool_type, in.tool_type);
+  EXPECT_EQ(out.tool, in.tool);
+  EXPECT_EQ(out.kinematic_model_no, 1);
+  EXPECT_EQ(out.corrector_no, 2);
+  EXPECT_EQ(out.servo_algorithm, in.servo_algorithm);
+  EXPECT_EQ(out.servo_parameters_no, in.servo_parameters_no);
+  EXPECT_EQ(out.output_values, 0xA5U);
+}
+
+TEST(Messages, EdpReplyRoundTrip) {
+  edp::Reply in;
+  in.type = edp::ReplyType::data;
+  in.synchronised = true;
+  in.step_no = 9;
+  in.servo_cycle = 123456789;
+  in.arm_type = edp::ArmRepresentation::frame;
+  in.arm = {1, 0, 0, 0.5, 0, 1, 0, 0.1, 0, 0, 1, 0.9};
+  in.joints = {0.1, -1.5, 0.2, 0.3, 0.4};
+  in.desired_joints = {0.11, -1.51, 0.21, 0.31, 0.41};
+  in.joint_velocities = {0, 0.1, 0, 0, -0.1};
+  in.input_values = 7;
+  const edp::Reply out = comm::decode(through_bytes(comm::encode(in)));
+  EXPECT_EQ(out.type, in.type);
+  EXPECT_TRUE(out.synchronised);
+  EXPECT_EQ(out.step_no, 9);
+  EXPECT_EQ(out.servo_cycle, 123456789);
+  EXPECT_EQ(out.arm_type, in.arm_type);
+  EXPECT_EQ(out.arm, in.arm);
+  EXPECT_EQ(out.joints, in.joints);
+  EXPECT_EQ(out.desired_joints, in.desired_joints);
+  EXPECT_EQ(out.joint_velocities, in.joint_velocities);
+  EXPECT_EQ(out.input_values, 7U);
+}
+
+TEST(Messages, EdpErrorReplyRoundTrip) {
+  edp::Reply in;
+  in.type = edp::ReplyType::error;
+  in.error_code = edp::error_code::out_of_limits;
+  in.error_text = "joint 2 (upper_arm) target 0.81 rad exceeds upper limit 0.70 rad";
+  const edp::Reply out = comm::decode(through_bytes(comm::encode(in)));
+  EXPECT_EQ(out.type, edp::ReplyType::error);
+  EXPECT_EQ(out.error_code, edp::error_code::out_of_limits);
+  EXPECT_EQ(out.error_text, in.error_text);
+}
+
+TEST(Messages, MpCommandAndEcpReplyRoundTrip) {
+  ecp::MpCommand c;
+  c.type = ecp::MpCommandType::next_pose;
+  c.state_name = "place";
+  c.arguments = "slot=3";
+  c.arm_type = edp::ArmRepresentation::joint;
+  c.motion_type = edp::MotionType::absolute;
+  c.motion_steps = 10;
+  c.value_in_step_no = 9;
+  c.arm = {0, -1.57, 0, 0, 0};
+  const ecp::MpCommand c2 = comm::decode(through_bytes(comm::encode(c)));
+  EXPECT_EQ(c2.type, c.type);
+  EXPECT_EQ(c2.state_name, "place");
+  EXPECT_EQ(c2.arguments, "slot=3");
+  EXPECT_EQ(c2.motion_steps, 10);
+  EXPECT_EQ(c2.value_in_step_no, 9);
+  EXPECT_EQ(c2.arm, c.arm);
+
+  ecp::EcpReply r;
+  r.type = ecp::EcpReplyType::error;
+  r.error_class = ecp::ErrorClass::fatal;
+  r.error_code = 6;
+  r.error_text = "boom";
+  r.synchronised = true;
+  r.joints = {1, 2, 3};
+  const ecp::EcpReply r2 = comm::decode(through_bytes(comm::encode(r)));
+  EXPECT_EQ(r2.type, r.type);
+  EXPECT_EQ(r2.error_class, ecp::ErrorClass::fatal);
+  EXPECT_EQ(r2.error_code, 6);
+  EXPECT_EQ(r2.error_text, "boom");
+  EXPECT_TRUE(r2.synchronised);
+  EXPECT_EQ(r2.joints, r.joints);
+}
+
+TEST(Messages, MalformedInstructionNamesTheField) {
+  auto expect_rejected = [](mrroc_lcm::edp_instruction_t m, const std::string& field) {
+    try {
+      comm::decode(m);
+      FAIL() << "accepted a malformed '" << field << "'";
+    } catch (const comm::DecodeError& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  const mrroc_lcm::edp_instruction_t good = comm::encode(edp::Instruction{});
+  auto m = good;
+  m.instruction = 42;
+  expect_rejected(m, "instruction");
+  m = good;
+  m.set_arm_type = 0;
+  expect_rejected(m, "set_arm_type");
+  m = good;
+  m.motion_type = 3;
+  expect_rejected(m, "motion_type");
+  m = good;
+  m.n_arm = 2;  // length field disagrees with the data
+  expect_rejected(m, "arm");
+  m = good;
+  m.set_mask = static_cast<std::int8_t>(0x40);
+  expect_rejected(m, "set_mask");
+}
+
+TEST(Messages, TruncatedBytesDoNotDecode) {
+  const auto m = comm::encode(edp::Instruction{});
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  mrroc_lcm::edp_instruction_t out;
+  EXPECT_LT(out.decode(buf.data(), 0, static_cast<int>(buf.size()) - 5), 0);
+  buf[0] ^= 0xFF;  // wrong fingerprint
+  EXPECT_LT(out.decode(buf.data(), 0, static_cast<int>(buf.size())), 0);
+}
+
+TEST(Messages, OversizedVectorIsRefusedBeforeSending) {
+  edp::Instruction in;
+  in.arm.assign(comm::kMaxVector + 1, 0.0);
+  EXPECT_THROW(comm::encode(in), Error);
+}

@@ -1,0 +1,184 @@
+// Request/reply over LCM (in-process memq:// transport): sequence numbers, resend on timeout,
+// duplicate suppression, IN_PROGRESS for long requests, clear timeout errors.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <thread>
+
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc_lcm/ecp_mp_reply_t.hpp"
+#include "mrroc_lcm/mp_ecp_command_t.hpp"
+
+using namespace mrroc;
+using namespace std::chrono_literals;
+using Req = mrroc_lcm::mp_ecp_command_t;
+using Rep = mrroc_lcm::ecp_mp_reply_t;
+
+namespace {
+
+// Echo server: replies with error_code = the request's motion_steps; counts executions.
+struct EchoServer {
+  std::atomic<int> executions{0};
+  std::map<int, int> per_value;  // value -> times executed (bus thread only)
+  std::unique_ptr<comm::Server<Req, Rep>> server;
+  EchoServer(comm::Bus& bus, comm::ServerOptions options = {}) {
+    server = std::make_unique<comm::Server<Req, Rep>>(
+        bus, "server", "t/cmd", "t/reply",
+        [this](const Req& r, comm::Server<Req, Rep>::Responder responder) {
+          ++executions;
+          ++per_value[r.motion_steps];
+          Rep rep{};
+          rep.reply = Rep::ACKNOWLEDGE;
+          rep.error_code = r.motion_steps;
+          responder.reply(rep);
+        },
+        options);
+  }
+};
+
+Req request(int value) {
+  Req r{};
+  r.command = Req::START_TASK;
+  r.motion_steps = value;
+  return r;
+}
+
+}  // namespace
+
+TEST(RequestReply, EchoesWithMatchingSequence) {
+  comm::Bus bus("memq://");
+  EchoServer echo(bus);
+  comm::Client<Req, Rep> client(bus, "client", "echo server", "t/cmd", "t/reply");
+  bus.start();
+  for (int i = 1; i <= 50; ++i) {
+    const Rep rep = client.call(request(i));
+    EXPECT_EQ(rep.error_code, i);
+    EXPECT_EQ(rep.header.seq, i);
+    EXPECT_EQ(rep.header.recipient, "client");
+    EXPECT_EQ(rep.header.kind, std::int8_t{mrroc_lcm::header_t::REPLY});
+  }
+  EXPECT_EQ(echo.executions, 50);
+  EXPECT_EQ(client.stats().resends, 0U);
+}
+
+TEST(RequestReply, SurvivesDropAndDuplicateWithoutExecutingTwice) {
+  comm::Bus bus("memq://");
+  comm::ServerOptions server_options;
+  server_options.faults = comm::LinkFaults{0.3, 0.3, 7};
+  EchoServer echo(bus, server_options);
+  comm::ClientOptions client_options;
+  client_options.attempt_timeout = 5ms;
+  client_options.max_attempts = 50;
+  client_options.faults = comm::LinkFaults{0.3, 0.3, 11};
+  comm::Client<Req, Rep> client(bus, "client", "echo server", "t/cmd", "t/reply", client_options);
+  bus.start();
+  constexpr int kCalls = 300;
+  for (int i = 1; i <= kCalls; ++i) ASSERT_EQ(client.call(request(i)).error_code, i);
+  std::this_thread::sleep_for(20ms);
+  bus.stop();
+  // Every request executed exactly once although requests and replies were lost and repeated.
+  EXPECT_EQ(echo.executions, kCalls);
+  for (const auto& [value, times] : echo.per_value) EXPECT_EQ(times, 1) << "request " << value;
+  const comm::LinkStats cs = client.stats();
+  const comm::LinkStats ss = echo.server->stats();
+  EXPECT_GT(cs.resends, 0U) << "faults were injected, resends must have happened";
+  EXPECT_GT(ss.duplicates, 0U) << "repeated requests must have been answered from the cache";
+  std::printf("resends %llu, duplicates answered from cache %llu, stale %llu\n",
+              static_cast<unsigned long long>(cs.resends),
+              static_cast<unsigned long long>(ss.duplicates),
+              static_cast<unsigned long long>(ss.stale + cs.stale));
+}
+
+TEST(RequestReply, LongRequestStaysAliveThroughInProgressReplies) {
+  comm::Bus bus("memq://");
+  // Queue-mode server: the reply comes 400 ms later from another thread.
+  comm::Server<Req, Rep> server(bus, "server", "t/cmd", "t/reply");
+  comm::ClientOptions options;
+  options.attempt_timeout = 50ms;
+  options.max_attempts = 3;  // 150 ms of silence would be a timeout
+  comm::Client<Req, Rep> client(bus, "client", "slow server", "t/cmd", "t/reply", options);
+  bus.start();
+  std::atomic<int> executions{0};
+  std::thread worker([&] {
+    auto in = server.wait_request(2000ms);
+    ASSERT_TRUE(in);
+    ++executions;
+    std::this_thread::sleep_for(400ms);
+    Rep rep{};
+    rep.reply = Rep::TASK_TERMINATED;
+    in->responder.reply(rep);
+    EXPECT_FALSE(server.wait_request(100ms)) << "a re-sent request must not be queued again";
+  });
+  const Rep rep = client.call(request(1));
+  worker.join();
+  EXPECT_EQ(rep.reply, std::int8_t{Rep::TASK_TERMINATED});
+  EXPECT_EQ(executions, 1);
+  EXPECT_GT(server.stats().in_progress, 0U);
+}
+
+TEST(RequestReply, TimeoutNamesPeerChannelAndAttempts) {
+  comm::Bus bus("memq://");
+  comm::ClientOptions options;
+  options.attempt_timeout = 20ms;
+  options.max_attempts = 3;
+  comm::Client<Req, Rep> client(bus, "client", "EDP nowhere", "nobody/cmd", "nobody/reply",
+                                options);
+  bus.start();
+  try {
+    client.call(request(1));
+    FAIL() << "expected a TimeoutError";
+  } catch (const TimeoutError& e) {
+    const std::string text = e.what();
+    EXPECT_NE(text.find("EDP nowhere"), std::string::npos) << text;
+    EXPECT_NE(text.find("nobody/cmd"), std::string::npos) << text;
+    EXPECT_NE(text.find("3 attempts of 20 ms"), std::string::npos) << text;
+  }
+  EXPECT_EQ(client.stats().resends, 2U);
+}
+
+TEST(RequestReply, RepliesGoOnlyToTheirClient) {
+  comm::Bus bus("memq://");
+  EchoServer echo(bus);
+  comm::Client<Req, Rep> a(bus, "a", "echo", "t/cmd", "t/reply");
+  comm::Client<Req, Rep> b(bus, "b", "echo", "t/cmd", "t/reply");
+  bus.start();
+  std::thread ta([&] {
+    for (int i = 0; i < 100; ++i) EXPECT_EQ(a.call(request(1000 + i)).error_code, 1000 + i);
+  });
+  std::thread tb([&] {
+    for (int i = 0; i < 100; ++i) EXPECT_EQ(b.call(request(2000 + i)).error_code, 2000 + i);
+  });
+  ta.join();
+  tb.join();
+  EXPECT_EQ(echo.executions, 200);
+}
+
+TEST(RequestReply, CallFromBusThreadIsRefused) {
+  comm::Bus bus("memq://");
+  comm::Client<Req, Rep> client(bus, "client", "x", "t/cmd", "t/reply");
+  std::atomic<bool> refused{false};
+  comm::Server<Req, Rep> server(bus, "s", "t/other", "t/other_reply",
+                                [&](const Req&, comm::Server<Req, Rep>::Responder) {
+                                  try {
+                                    client.call(request(1));
+                                  } catch (const Error&) {
+                                    refused = true;
+                                  }
+                                });
+  comm::Client<Req, Rep> trigger(bus, "trigger", "s", "t/other", "t/other_reply",
+                                 comm::ClientOptions{10ms, 1, {}});
+  bus.start();
+  EXPECT_THROW(trigger.call(request(1)), TimeoutError);
+  EXPECT_TRUE(refused);
+}
+
+TEST(Bus, BadUrlIsNamed) {
+  try {
+    comm::Bus bus("nonsense://what");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nonsense://what"), std::string::npos);
+  }
+}

@@ -240,6 +240,7 @@ int main(int argc, char** argv) {
                  "where the mrroc-* executables are (default: beside mrroc-launch)");
   app.add_option("--srp-log", srp_log, "file the SRP appends every message to");
   CLI11_PARSE(app, argc, argv);
+  std::signal(SIGPIPE, SIG_IGN);  // a closed stdout must not kill the launcher before its children
   try {
     return run(config, check, bin_dir, srp_log);
   } catch (const std::exception& e) {

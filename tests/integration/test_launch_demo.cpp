@@ -1,0 +1,252 @@
+// End-to-end: mrroc-launch runs real process sets (SRP, EDP with MuJoCo, ECP, MP) over LCM.
+// Runs inside a private network and PID namespace (scripts/netns-run), so "no mrroc- process is
+// left" can be checked exactly and no packet leaves the machine.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/codec.hpp"
+#include "mrroc/config/process_set.hpp"
+
+namespace fs = std::filesystem;
+using namespace mrroc;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+const fs::path kBin = MRROC_BIN_DIR;
+const fs::path kSource = MRROC_SOURCE_DIR;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;
+  double seconds = 0;
+  bool timed_out = false;
+};
+
+/// Runs a command, collecting stdout+stderr. `on_line` may return true to send SIGINT once.
+RunResult run(const std::vector<std::string>& argv, double timeout_s,
+              const std::function<bool(const std::string&)>& on_line = {}) {
+  int fds[2];
+  EXPECT_EQ(pipe(fds), 0);
+  const auto t0 = Clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    dup2(fds[1], 1);
+    dup2(fds[1], 2);
+    close(fds[0]);
+    close(fds[1]);
+    std::vector<char*> args;
+    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    execv(args[0], args.data());
+    _exit(127);
+  }
+  close(fds[1]);
+  RunResult r;
+  std::string pending;
+  bool signalled = false;
+  FILE* in = fdopen(fds[0], "r");
+  char buf[4096];
+  // The child's output ends when every process of the set has closed it.
+  while (std::fgets(buf, sizeof buf, in) != nullptr) {
+    const std::string line = buf;
+    r.output += line;
+    if (on_line && !signalled && on_line(line)) {
+      signalled = true;
+      kill(pid, SIGINT);
+    }
+    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_s && !r.timed_out) {
+      r.timed_out = true;
+      kill(pid, SIGKILL);
+    }
+  }
+  std::fclose(in);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+/// mrroc- processes alive in this PID namespace.
+std::vector<std::string> mrroc_processes() {
+  std::vector<std::string> found;
+  for (const auto& entry : fs::directory_iterator("/proc")) {
+    const std::string name = entry.path().filename();
+    if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::ifstream comm(entry.path() / "comm");
+    std::string c;
+    std::getline(comm, c);
+    if (c.rfind("mrroc-", 0) == 0) found.push_back(name + " " + c);
+  }
+  return found;
+}
+
+/// Records every EDP reply of a robot, decoded, as the EDP sent it.
+class EdpReplyRecorder {
+ public:
+  EdpReplyRecorder(comm::Bus& bus, const std::string& robot) {
+    bus.lcm().subscribe(channels::edp_reply(robot), &EdpReplyRecorder::on_reply, this);
+  }
+  void on_reply(const lcm::ReceiveBuffer*, const std::string&,
+                const mrroc_lcm::edp_reply_t* msg) {
+    if (msg->header.kind != mrroc_lcm::header_t::REPLY) return;
+    std::lock_guard lock(mutex_);
+    replies_.push_back(comm::decode(*msg));
+  }
+  std::vector<edp::Reply> replies() {
+    std::lock_guard lock(mutex_);
+    return replies_;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<edp::Reply> replies_;
+};
+
+std::string launcher() { return (kBin / "mrroc-launch").string(); }
+std::string demo_config() { return (kSource / "configs/demo-irb6.toml").string(); }
+
+}  // namespace
+
+TEST(LaunchDemo, RunsToTheEndAndReachesTheTargets) {
+  const ProcessSetConfig config = load_process_set(demo_config());
+  const auto poses = config.robots[0].ecp.args.get_double_rows("poses");
+  comm::Bus bus(config.lcm_url);
+  EdpReplyRecorder recorder(bus, "irb6");
+  bus.start();
+
+  const RunResult r = run({launcher(), demo_config()}, 60.0);
+  bus.stop();
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(r.seconds, 30.0) << "the demo must finish within 30 s";
+  std::printf("demo finished in %.2f s\n", r.seconds);
+
+  // Progress printed, child output prefixed with the process name.
+  for (const char* expected :
+       {"mrroc-launch: started srp", "mrroc-launch: edp/irb6 ready", "[ecp/irb6]", "[mp]",
+        "[edp/irb6]", "pose 1/3 reached", "pose 3/3 reached", "task finished"})
+    EXPECT_NE(r.output.find(expected), std::string::npos) << "missing '" << expected << "'\n"
+                                                          << r.output;
+
+  // Final joints read back from the EDP's own replies.
+  const auto replies = recorder.replies();
+  ASSERT_FALSE(replies.empty()) << "no EDP reply observed";
+  const edp::Reply* last = nullptr;
+  for (const auto& reply : replies)
+    if (reply.type == edp::ReplyType::data) last = &reply;
+  ASSERT_NE(last, nullptr);
+  EXPECT_TRUE(last->synchronised);
+  const auto& target = poses.back();
+  ASSERT_EQ(last->joints.size(), target.size());
+  for (std::size_t j = 0; j < target.size(); ++j)
+    EXPECT_NEAR(last->joints[j], target[j], 2e-3) << "joint " << j;
+  // Every macro-step of the demo stayed inside the joint limits (EDP refuses otherwise).
+  for (const auto& reply : replies) EXPECT_NE(reply.type, edp::ReplyType::error) << reply.error_text;
+
+  // SRP received messages from every process.
+  const auto summary_at = r.output.find("srp summary:");
+  ASSERT_NE(summary_at, std::string::npos) << r.output;
+  const std::string summary = r.output.substr(summary_at, r.output.find('\n', summary_at) - summary_at);
+  for (const char* process : {"mp (", "ecp/irb6 (", "edp/irb6 ("})
+    EXPECT_NE(summary.find(process), std::string::npos) << summary;
+
+  EXPECT_TRUE(mrroc_processes().empty()) << "left behind: " << mrroc_processes().front();
+}
+
+TEST(LaunchDemo, SigintMidMotionStopsEverythingInReverseOrder) {
+  const RunResult r = run({launcher(), demo_config()}, 60.0, [](const std::string& line) {
+    return line.find("pose 1/3 reached") != std::string::npos;
+  });
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 128 + SIGINT) << r.output;
+  EXPECT_EQ(r.output.find("pose 3/3 reached"), std::string::npos) << "the task went on";
+  const auto mp = r.output.find("stopping mp");
+  const auto ecp = r.output.find("stopping ecp/irb6");
+  const auto edp = r.output.find("stopping edp/irb6");
+  const auto srp = r.output.find("stopping srp");
+  ASSERT_NE(srp, std::string::npos) << r.output;
+  EXPECT_LT(ecp, edp) << r.output;
+  EXPECT_LT(edp, srp) << r.output;
+  if (mp != std::string::npos) {
+    EXPECT_LT(mp, ecp);
+  }
+  EXPECT_EQ(r.output.find("killed"), std::string::npos) << "a process needed SIGKILL:\n" << r.output;
+  EXPECT_TRUE(mrroc_processes().empty()) << "left behind: " << mrroc_processes().front();
+}
+
+TEST(LaunchDemo, ConfigTypoStartsNothing) {
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-typo-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::ifstream demo(demo_config());
+  std::stringstream text;
+  text << demo.rdbuf();
+  std::string config = text.str();
+  config.replace(config.find("servo_period_ms"), 15, "servo_period_sm");
+  // Point the model folder at the real one from the temporary place.
+  config.replace(config.find("\"../robots/irb6\""), 16, "\"" + (kSource / "robots/irb6").string() + "\"");
+  const fs::path file = dir / "typo.toml";
+  std::ofstream(file) << config;
+  const RunResult r = run({launcher(), file.string()}, 20.0);
+  fs::remove_all(dir);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(file.string() + ":"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(": error: unknown key 'servo_period_sm' in [robot.edp]"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("mrroc-launch: started"), std::string::npos) << r.output;
+}
+
+TEST(LaunchDemo, CheckPrintsThePlanAndStartsNothing) {
+  const RunResult r = run({launcher(), "--check", demo_config()}, 20.0);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* expected : {"1. srp", "2. edp/irb6", "3. ecp/irb6", "4. mp", "config is valid"})
+    EXPECT_NE(r.output.find(expected), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("mrroc-launch: started"), std::string::npos) << r.output;
+}
+
+TEST(LaunchDemo, EveryBinaryAnswersHelp) {
+  for (const char* name : {"mrroc-launch", "mrroc-mp", "mrroc-ecp", "mrroc-edp", "mrroc-srp",
+                           "mrroc-vsp", "mrroc-ui"}) {
+    const RunResult r = run({(kBin / name).string(), "--help"}, 10.0);
+    EXPECT_EQ(r.exit_code, 0) << name << "\n" << r.output;
+    EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("--help"), std::string::npos) << r.output;
+  }
+}
+
+TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-plugin-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::ifstream demo(demo_config());
+  std::stringstream text;
+  text << demo.rdbuf();
+  std::string config = text.str();
+  config.replace(config.find("\"mujoco\""), 8, "\"mujocoo\"");
+  config.replace(config.find("\"../robots/irb6\""), 16, "\"" + (kSource / "robots/irb6").string() + "\"");
+  const fs::path file = dir / "plugin.toml";
+  std::ofstream(file) << config;
+  const RunResult r = run({launcher(), file.string()}, 30.0);
+  fs::remove_all(dir);
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_NE(r.output.find("unknown hardware plugin 'mujocoo' (known: mujoco)"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find(file.string() + ":"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("started mp"), std::string::npos) << r.output;
+  EXPECT_TRUE(mrroc_processes().empty());
+}

@@ -159,6 +159,12 @@ void ServoLoop::cycle() {
     }
   }
   latest_.desired = desired_;
+  if (trace_count_ < trace_.size()) {
+    TraceSample& t = trace_[trace_count_++];
+    t.cycle = cycles_;
+    t.desired = desired_;
+    t.measured = latest_.joints;
+  }
   const bool use_offset = synchronised_.load(std::memory_order_relaxed);
   for (std::size_t i = 0; i < axes_; ++i)
     raw_setpoints_[i] = desired_[i] - (use_offset ? offset_[i] : 0.0);
@@ -273,6 +279,17 @@ bool ServoLoop::wait_synchronised(double timeout_s) {
   cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
                [&] { return mode_ == Mode::hold || faulted_ || !running_; });
   return mode_ == Mode::hold && synchronised_ && !faulted_;
+}
+
+void ServoLoop::enable_trace(std::size_t capacity) {
+  std::lock_guard lock(mutex_);
+  trace_.assign(capacity, TraceSample{});
+  trace_count_ = 0;
+}
+
+std::vector<TraceSample> ServoLoop::trace() const {
+  std::lock_guard lock(mutex_);
+  return {trace_.begin(), trace_.begin() + static_cast<std::ptrdiff_t>(trace_count_)};
 }
 
 std::string ServoLoop::fault_text() const {

@@ -41,6 +41,13 @@ struct Reading {
   AxisArray velocities{};  ///< [rad/s]
 };
 
+/// One servo cycle as recorded by the trace (see ServoLoop::enable_trace).
+struct TraceSample {
+  std::int64_t cycle = 0;
+  AxisArray desired{};   ///< commanded joint position written in this cycle [rad]
+  AxisArray measured{};  ///< measured joint position read in this cycle [rad]
+};
+
 /// Lateness of the servo wake-ups against their absolute deadlines.
 struct TimingStats {
   std::int64_t cycles = 0;
@@ -87,6 +94,14 @@ class ServoLoop {
 
   [[nodiscard]] TimingStats timing() const;
   [[nodiscard]] std::size_t axes() const { return axes_; }
+
+  /// Records the next `capacity` cycles into preallocated memory (diagnostics and tests).
+  /// Call before start().
+  void enable_trace(std::size_t capacity);
+  /// The cycles recorded so far.
+  [[nodiscard]] std::vector<TraceSample> trace() const;
+  /// Id of the servo thread (valid after start()).
+  [[nodiscard]] std::thread::id servo_thread_id() const { return thread_.get_id(); }
 
  private:
   enum class Mode { hold, synchro_search, synchro_approach };
@@ -138,6 +153,8 @@ class ServoLoop {
   AxisArray approach_step_{};
   char fault_[256] = {};
 
+  std::vector<TraceSample> trace_;  ///< preallocated by enable_trace
+  std::size_t trace_count_ = 0;
   // timing
   std::int64_t cycles_ = 0;
   std::int64_t overruns_ = 0;

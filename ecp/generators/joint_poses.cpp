@@ -72,6 +72,7 @@ void JointPosesGenerator::command(RobotImage& robot) {
   c.value_in_step_no = last ? options_.motion_steps + 1 : options_.motion_steps - 1;
   c.arm.resize(to.size());
   for (std::size_t j = 0; j < to.size(); ++j) c.arm[j] = from_[j] + (to[j] - from_[j]) * s;
+  if (macro_step_ == segment_steps_) c.arm = to;  // exactly the pose, free of rounding
 }
 
 bool JointPosesGenerator::first_step(RobotImage& robot, const SensorList&) {

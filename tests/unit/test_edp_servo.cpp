@@ -1,0 +1,240 @@
+// The EDP's servo loop and command interpreter on the real MuJoCo plugin (no LCM): the MRROC++
+// state machine, synchronisation, limits refused before anything moves, macro-steps that follow
+// each other without an idle servo step, and no heap allocation inside the servo cycle.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+#include <thread>
+
+#include "command_interpreter.hpp"
+#include "mrroc/edp/hardware.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "servo_loop.hpp"
+
+// Allocation counting: every operator new on the watched thread is counted.
+namespace {
+std::atomic<long> g_allocations{0};
+std::atomic<std::thread::id> g_watched{};
+}  // namespace
+
+// The replacements pair malloc with free; gcc cannot see that they match.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+void* operator new(std::size_t size) {
+  if (g_watched.load(std::memory_order_relaxed) == std::this_thread::get_id()) ++g_allocations;
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+using namespace mrroc;
+using namespace mrroc::edp;
+
+namespace {
+
+constexpr double kPeriod = 0.002;
+
+class EdpTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    model_ = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+    hardware_ = make_hardware("mujoco");
+    HardwareSetup setup;
+    setup.robot = "irb6";
+    setup.model_dir = model_.folder;
+    setup.servo_period_s = kPeriod;
+    setup.synchro_positions = model_.synchro_joint_positions;
+    hardware_->configure(setup);
+    servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
+    servo_->enable_trace(20000);
+    servo_->start();
+    interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, kPeriod);
+  }
+  void TearDown() override {
+    g_watched = std::thread::id{};
+    servo_->stop();
+  }
+
+  Reply exec(const Instruction& in) { return interpreter_->execute(in); }
+  Reply query() {
+    Instruction q;
+    q.type = InstructionType::query;
+    return exec(q);
+  }
+  Reply synchronise() {
+    Instruction s;
+    s.type = InstructionType::synchro;
+    EXPECT_EQ(exec(s).type, ReplyType::acknowledge);
+    return query();
+  }
+  static Instruction set_joints(std::vector<double> q, int steps, int value_in_step_no,
+                                MotionType motion = MotionType::absolute) {
+    Instruction in;
+    in.type = InstructionType::set;
+    in.set = item::arm;
+    in.set_arm_type = ArmRepresentation::joint;
+    in.motion_type = motion;
+    in.motion_steps = steps;
+    in.value_in_step_no = value_in_step_no;
+    in.arm = std::move(q);
+    return in;
+  }
+
+  RobotModel model_;
+  std::unique_ptr<Hardware> hardware_;
+  std::unique_ptr<ServoLoop> servo_;
+  std::unique_ptr<CommandInterpreter> interpreter_;
+};
+
+}  // namespace
+
+TEST_F(EdpTest, StateMachineErrors) {
+  // QUERY with nothing due.
+  Reply r = query();
+  EXPECT_EQ(r.type, ReplyType::error);
+  EXPECT_EQ(r.error_code, error_code::query_unexpected);
+  // Motion before SYNCHRO.
+  r = exec(set_joints(model_.synchro_joint_positions, 10, 11));
+  EXPECT_EQ(r.error_code, error_code::not_synchronised) << r.error_text;
+  EXPECT_FALSE(r.synchronised);
+  // SYNCHRO, then another instruction before its QUERY.
+  Instruction s;
+  s.type = InstructionType::synchro;
+  EXPECT_EQ(exec(s).type, ReplyType::acknowledge);
+  Instruction get;
+  get.type = InstructionType::get;
+  get.get = item::arm;
+  r = exec(get);
+  EXPECT_EQ(r.error_code, error_code::query_expected) << r.error_text;
+  r = query();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_TRUE(r.synchronised);
+  for (std::size_t j = 0; j < model_.axes(); ++j)
+    EXPECT_NEAR(r.joints[j], model_.synchro_joint_positions[j], 2e-3) << "joint " << j;
+  // Second SYNCHRO.
+  r = exec(s);
+  EXPECT_EQ(r.error_code, error_code::already_synchronised);
+  // GET works and needs its QUERY.
+  EXPECT_EQ(exec(get).type, ReplyType::acknowledge);
+  EXPECT_EQ(query().type, ReplyType::data);
+}
+
+TEST_F(EdpTest, SynchronisationFindsTheSwitchEdges) {
+  const Reply r = synchronise();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  // Settle, then the measured pose is the synchronisation pose: the offset found at the switch
+  // edge is right to within one search step (0.1 rad/s * 2 ms) plus servo lag.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const Reading now = servo_->latest();
+  for (std::size_t j = 0; j < model_.axes(); ++j)
+    EXPECT_NEAR(now.joints[j], model_.synchro_joint_positions[j], 5e-4) << "joint " << j;
+}
+
+TEST_F(EdpTest, LimitsAreRefusedBeforeAnythingMoves) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  const Reading before = servo_->latest();
+  std::vector<double> q = model_.synchro_joint_positions;
+  q[2] = 0.81;  // upper arm upper limit is 40 deg = 0.698 rad
+  Reply r = exec(set_joints(q, 10, 11));
+  EXPECT_EQ(r.type, ReplyType::error);
+  EXPECT_EQ(r.error_code, error_code::out_of_limits);
+  EXPECT_NE(r.error_text.find("joint 2 (upper_arm) target 0.810000 rad exceeds upper limit 0.698132 rad"),
+            std::string::npos)
+      << r.error_text;
+  // Relative motion is checked on its absolute target too.
+  r = exec(set_joints({0, -1.0, 0, 0, 0}, 10, 11, MotionType::relative));
+  EXPECT_EQ(r.error_code, error_code::out_of_limits) << r.error_text;
+  // Bad macro-step arguments.
+  EXPECT_EQ(exec(set_joints(model_.synchro_joint_positions, 0, 1)).error_code,
+            error_code::bad_argument);
+  EXPECT_EQ(exec(set_joints(model_.synchro_joint_positions, 10, 12)).error_code,
+            error_code::bad_argument);
+  EXPECT_EQ(exec(set_joints({0, 0}, 10, 11)).error_code, error_code::bad_argument);
+  std::vector<double> nan = model_.synchro_joint_positions;
+  nan[0] = std::nan("");
+  EXPECT_EQ(exec(set_joints(nan, 10, 11)).error_code, error_code::bad_argument);
+  // Nothing was commanded: the desired pose did not change, and no QUERY is due.
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const Reading after = servo_->latest();
+  for (std::size_t j = 0; j < model_.axes(); ++j) EXPECT_EQ(after.desired[j], before.desired[j]);
+  EXPECT_EQ(query().error_code, error_code::query_unexpected);
+}
+
+TEST_F(EdpTest, ReadingComesInTheRequestedStep) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  std::vector<double> q = model_.synchro_joint_positions;
+  q[0] = 0.02;
+  ASSERT_EQ(exec(set_joints(q, 20, 5)).type, ReplyType::acknowledge);
+  Reply r = query();
+  ASSERT_EQ(r.type, ReplyType::data);
+  EXPECT_EQ(r.step_no, 5);
+  EXPECT_NEAR(r.desired_joints[0], 0.02 * 5.0 / 20.0, 1e-12);
+  // Let the motion end: motion_steps + 1 reads after the stop, at the target.
+  q[0] = 0.04;
+  ASSERT_EQ(exec(set_joints(q, 20, 21)).type, ReplyType::acknowledge);
+  r = query();
+  ASSERT_EQ(r.type, ReplyType::data);
+  EXPECT_EQ(r.step_no, 21);
+  EXPECT_DOUBLE_EQ(r.desired_joints[0], 0.04);
+  // Relative motion from the last target.
+  ASSERT_EQ(exec(set_joints({0.01, 0, 0, 0, 0}, 10, 11, MotionType::relative)).type,
+            ReplyType::acknowledge);
+  r = query();
+  EXPECT_NEAR(r.desired_joints[0], 0.05, 1e-12);
+}
+
+TEST_F(EdpTest, ConsecutiveMacroStepsHaveNoIdleServoStep) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  constexpr int kSteps = 10;
+  constexpr int kSegments = 40;
+  // A constant-velocity joint motion cut into macro-steps; each SET goes out as soon as the
+  // reading of the previous one (step N-1) arrives, as a generator does.
+  const std::int64_t first_cycle = servo_->latest().cycle;
+  std::vector<double> q = model_.synchro_joint_positions;
+  for (int k = 1; k <= kSegments; ++k) {
+    q[0] = 0.0002 * kSteps * k;  // 0.1 rad/s on the column
+    const int value = k == kSegments ? kSteps + 1 : kSteps - 3;  // 6 ms of margin
+    ASSERT_EQ(exec(set_joints(q, kSteps, value)).type, ReplyType::acknowledge);
+    ASSERT_EQ(query().type, ReplyType::data);
+  }
+  // Commanded velocity of every servo step from the first macro-step's start to the last's end.
+  const auto trace = servo_->trace();
+  std::vector<double> velocity;
+  for (std::size_t i = 1; i < trace.size(); ++i)
+    if (trace[i].cycle > first_cycle)
+      velocity.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
+  std::size_t start = 0;
+  while (start < velocity.size() && velocity[start] == 0.0) ++start;
+  ASSERT_LT(start + kSteps * kSegments, velocity.size() + 1);
+  int idle = 0;
+  for (std::size_t i = start; i < start + kSteps * kSegments; ++i) {
+    if (std::abs(velocity[i] - 0.1) > 1e-9) ++idle;
+  }
+  EXPECT_EQ(idle, 0) << "servo steps with a velocity other than the commanded 0.1 rad/s";
+  std::printf("%d macro-steps, %d servo steps, all at 0.1 rad/s\n", kSegments, kSteps * kSegments);
+}
+
+TEST_F(EdpTest, ServoCycleDoesNotAllocate) {
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  g_watched = servo_->servo_thread_id();
+  g_allocations = 0;
+  ASSERT_EQ(synchronise().type, ReplyType::data);  // synchronisation runs in the servo cycle
+  std::vector<double> q = model_.synchro_joint_positions;
+  for (int k = 1; k <= 20; ++k) {
+    q[1] = -1.5708 + 0.001 * k;
+    ASSERT_EQ(exec(set_joints(q, 10, k == 20 ? 11 : 9)).type, ReplyType::acknowledge);
+    ASSERT_EQ(query().type, ReplyType::data);
+  }
+  const std::int64_t cycles = servo_->latest().cycle;
+  g_watched = std::thread::id{};
+  EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in the servo thread";
+  EXPECT_GT(cycles, 200);
+  const TimingStats t = servo_->timing();
+  std::printf("servo: %lld cycles, lateness p50 %.1f us p99 %.1f us, %lld overruns (%s)\n",
+              static_cast<long long>(t.cycles), t.lateness_p50_us, t.lateness_p99_us,
+              static_cast<long long>(t.overruns), t.scheduling.c_str());
+}

@@ -9,6 +9,7 @@
 
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
 #include "mrroc/ecp/task.hpp"
@@ -37,9 +38,11 @@ int run(const std::string& config_path, const std::string& robot_name) {
   bus.start();
   Reporter reporter(bus, process, robot_config.name);
   try {
-    ecp::Robot robot(bus, process, load_robot_model(robot_config.model_dir));
+    ecp::Robot robot(bus, process, robot_config.name, load_robot_model(robot_config.model_dir));
     ecp::TaskContext context{robot, reporter, robot_config.ecp.args,
                              robot_config.edp.servo_period_s};
+    if (!robot_config.ecp.library.empty())
+      load_plugin_library(robot_config.ecp.library, robot_config.ecp.where);
     std::unique_ptr<ecp::EcpTask> task;
     try {
       task = ecp::make_ecp_task(robot_config.ecp.name, context);
@@ -59,8 +62,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
       auto in = server.wait_request(std::chrono::milliseconds(100));
       if (!in) continue;
       if (!in->request) {
-        reporter.report(Severity::warning, 1, "malformed MP command dropped: " + in->decode_error);
-        in->responder.reply(error_reply(ecp::ErrorClass::non_fatal, 1,
+        reporter.report(Severity::warning, ecp::error_code::malformed,
+                        "malformed MP command dropped: " + in->decode_error);
+        in->responder.reply(error_reply(ecp::ErrorClass::non_fatal, ecp::error_code::malformed,
                                         "malformed command: " + in->decode_error));
         continue;
       }
@@ -69,10 +73,12 @@ int run(const std::string& config_path, const std::string& robot_name) {
         case ecp::MpCommandType::start_task: {
           if (task_running) {
             in->responder.reply(
-                error_reply(ecp::ErrorClass::non_fatal, 2, "START_TASK refused: task running"));
+                error_reply(ecp::ErrorClass::non_fatal, ecp::error_code::task_running,
+                            "START_TASK refused: task running"));
             break;
           }
           if (task_thread.joinable()) task_thread.join();
+          robot.clear_stop();  // a STOP ends one task run, not the next one
           task_running = true;
           reporter.set_state(ProcessState::running);
           reporter.info(fmt::format("task '{}' started", robot_config.ecp.name));
@@ -85,17 +91,17 @@ int run(const std::string& config_path, const std::string& robot_name) {
               reply.type = ecp::EcpReplyType::task_terminated;
               reporter.info(fmt::format("task '{}' terminated", robot_config.ecp.name));
             } catch (const ecp::TaskStopped& e) {
-              reply = error_reply(ecp::ErrorClass::non_fatal, 3, e.what());
-              reporter.report(Severity::warning, 3, e.what());
+              reply = error_reply(ecp::ErrorClass::non_fatal, ecp::error_code::stopped, e.what());
+              reporter.report(Severity::warning, ecp::error_code::stopped, e.what());
             } catch (const TimeoutError& e) {
-              reply = error_reply(ecp::ErrorClass::system, 4, e.what());
-              reporter.report(Severity::error, 4, e.what());
+              reply = error_reply(ecp::ErrorClass::system, ecp::error_code::timeout, e.what());
+              reporter.report(Severity::error, ecp::error_code::timeout, e.what());
             } catch (const RemoteError& e) {
               reply = error_reply(ecp::ErrorClass::fatal, e.code(), e.what());
               reporter.report(Severity::error, e.code(), e.what());
             } catch (const std::exception& e) {
-              reply = error_reply(ecp::ErrorClass::fatal, 5, e.what());
-              reporter.report(Severity::error, 5, e.what());
+              reply = error_reply(ecp::ErrorClass::fatal, ecp::error_code::task_error, e.what());
+              reporter.report(Severity::error, ecp::error_code::task_error, e.what());
             }
             reply.synchronised = robot.image().synchronised;
             reply.joints = robot.image().joints;
@@ -111,7 +117,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
           break;
         default:
           in->responder.reply(error_reply(
-              ecp::ErrorClass::non_fatal, 6,
+              ecp::ErrorClass::non_fatal, ecp::error_code::not_supported,
               fmt::format("{} is not supported by this ECP shell yet", to_string(command.type))));
       }
     }

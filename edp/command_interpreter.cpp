@@ -56,58 +56,99 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     due_ = Due::synchro;
     return Reply{};
   }
-  if (sets) {
-    if ((in.set & ~item::arm) != 0)
-      throw CommandError(error_code::not_supported,
-                         fmt::format("SET of items {:#x} is not supported by this EDP yet (only "
-                                     "ARM)",
-                                     in.set & ~item::arm));
-  }
-  if (gets && (in.get & ~item::arm) != 0)
+  constexpr std::uint8_t settable = item::arm | item::servo | item::outputs;
+  constexpr std::uint8_t gettable = item::arm | item::servo | item::inputs | item::timing;
+  if (sets && (in.set & ~settable) != 0)
     throw CommandError(error_code::not_supported,
-                       fmt::format("GET of items {:#x} is not supported by this EDP yet (only "
-                                   "ARM)",
-                                   in.get & ~item::arm));
-  if (gets && in.get_arm_type != ArmRepresentation::joint)
+                       fmt::format("SET of items {:#x} is not supported by this EDP (supported: "
+                                   "ARM, SERVO, OUTPUTS)",
+                                   in.set & ~settable));
+  if (gets && (in.get & ~gettable) != 0)
+    throw CommandError(error_code::not_supported,
+                       fmt::format("GET of items {:#x} is not supported by this EDP (supported: "
+                                   "ARM, SERVO, INPUTS, TIMING)",
+                                   in.get & ~gettable));
+  if (gets && (in.get & item::arm) != 0 && in.get_arm_type != ArmRepresentation::joint)
     throw CommandError(error_code::not_supported,
                        fmt::format("GET ARM in {} is not supported by this EDP yet (only JOINT)",
                                    to_string(in.get_arm_type)));
+
+  // Validate every item first: a refused SET changes nothing.
+  std::vector<double> target;
+  if (sets && (in.set & item::servo) != 0) validate_servo(in);
+  if (sets && (in.set & item::arm) != 0) target = validate_arm(in);
+
+  if (sets && (in.set & item::outputs) != 0) servo_.request_outputs(in.output_values);
+  if (sets && (in.set & item::servo) != 0)
+    servo_.request_servo(in.servo_algorithm, in.servo_parameters_no);
   due_arm_type_ = in.get_arm_type;
   due_get_ = gets ? in.get : 0;
-  if (sets && (in.set & item::arm) != 0) {
-    if (!servo_.synchronised())
-      throw CommandError(error_code::not_synchronised,
-                         "SET ARM refused: robot not synchronised (send SYNCHRO first)");
-    if (in.set_arm_type != ArmRepresentation::joint)
-      throw CommandError(error_code::not_supported,
-                         fmt::format("SET ARM in {} is not supported by this EDP yet (only JOINT)",
-                                     to_string(in.set_arm_type)));
-    if (in.motion_steps < 1 || in.motion_steps > 100000)
-      throw CommandError(error_code::bad_argument,
-                         fmt::format("motion_steps {} is outside 1..100000", in.motion_steps));
-    if (in.value_in_step_no < 1 || in.value_in_step_no > in.motion_steps + 1)
-      throw CommandError(error_code::bad_argument,
-                         fmt::format("value_in_step_no {} is outside 1..{} (motion_steps + 1)",
-                                     in.value_in_step_no, in.motion_steps + 1));
-    if (in.arm.size() != model_.axes())
-      throw CommandError(error_code::bad_argument,
-                         fmt::format("SET ARM JOINT has {} values, robot '{}' has {} axes",
-                                     in.arm.size(), model_.name, model_.axes()));
-    std::vector<double> target = in.arm;
-    if (in.motion_type == MotionType::relative) {
-      const std::vector<double> base = servo_.planned_end();
-      for (std::size_t i = 0; i < target.size(); ++i) target[i] += base[i];
-    }
-    // The interpolation is linear in joint space from a pose inside the limits, so the whole
-    // path is inside the limits exactly when the target is.
-    model_.check_joint_limits(target, "target");
+  if (!target.empty()) {
     due_macro_step_ = servo_.submit(target, in.motion_steps, in.value_in_step_no);
+    // The new macro-step may start only after the one submitted before it.
+    steps_ahead_ = due_steps_;
     due_steps_ = in.motion_steps;
     due_ = Due::arm_reading;
     return Reply{};
   }
   due_ = Due::get;
   return Reply{};
+}
+
+void CommandInterpreter::validate_servo(const Instruction& in) const {
+  Hardware& hw = servo_.hardware();
+  if (in.servo_algorithm.size() != model_.axes() || in.servo_parameters_no.size() != model_.axes())
+    throw CommandError(error_code::bad_argument,
+                       fmt::format("SET SERVO needs one algorithm and one parameter set per axis "
+                                   "({}), got {} and {}",
+                                   model_.axes(), in.servo_algorithm.size(),
+                                   in.servo_parameters_no.size()));
+  for (std::size_t i = 0; i < model_.axes(); ++i) {
+    const int algorithm = in.servo_algorithm[i];
+    const int set = in.servo_parameters_no[i];
+    if (algorithm < 0 || algorithm >= hw.servo_algorithm_count())
+      throw CommandError(error_code::bad_argument,
+                         fmt::format("axis {} ({}): servo algorithm {} is outside 0..{} of plugin "
+                                     "'{}'",
+                                     i, model_.joint_names[i], algorithm,
+                                     hw.servo_algorithm_count() - 1, hw.name()));
+    if (set < 0 || set >= hw.servo_parameter_set_count(algorithm))
+      throw CommandError(error_code::bad_argument,
+                         fmt::format("axis {} ({}): servo parameter set {} is outside 0..{} for "
+                                     "algorithm {}",
+                                     i, model_.joint_names[i], set,
+                                     hw.servo_parameter_set_count(algorithm) - 1, algorithm));
+  }
+}
+
+std::vector<double> CommandInterpreter::validate_arm(const Instruction& in) const {
+  if (!servo_.synchronised())
+    throw CommandError(error_code::not_synchronised,
+                       "SET ARM refused: robot not synchronised (send SYNCHRO first)");
+  if (in.set_arm_type != ArmRepresentation::joint)
+    throw CommandError(error_code::not_supported,
+                       fmt::format("SET ARM in {} is not supported by this EDP yet (only JOINT)",
+                                   to_string(in.set_arm_type)));
+  if (in.motion_steps < 1 || in.motion_steps > 100000)
+    throw CommandError(error_code::bad_argument,
+                       fmt::format("motion_steps {} is outside 1..100000", in.motion_steps));
+  if (in.value_in_step_no < 1 || in.value_in_step_no > in.motion_steps + 1)
+    throw CommandError(error_code::bad_argument,
+                       fmt::format("value_in_step_no {} is outside 1..{} (motion_steps + 1)",
+                                   in.value_in_step_no, in.motion_steps + 1));
+  if (in.arm.size() != model_.axes())
+    throw CommandError(error_code::bad_argument,
+                       fmt::format("SET ARM JOINT has {} values, robot '{}' has {} axes",
+                                   in.arm.size(), model_.name, model_.axes()));
+  std::vector<double> target = in.arm;
+  if (in.motion_type == MotionType::relative) {
+    const std::vector<double> base = servo_.planned_end();
+    for (std::size_t i = 0; i < target.size(); ++i) target[i] += base[i];
+  }
+  // The interpolation is linear in joint space from a pose inside the limits, so the whole
+  // path is inside the limits exactly when the target is.
+  model_.check_joint_limits(target, "target");
+  return target;
 }
 
 Reply CommandInterpreter::query() {
@@ -126,8 +167,8 @@ Reply CommandInterpreter::query() {
     case Due::get:
       return reading_reply(servo_.latest());
     case Due::arm_reading: {
-      // Generous bound: the queued macro-step plus the current one, plus a second.
-      const double timeout = 2.0 * (due_steps_ + 2) * period_s_ + 1.0;
+      // Generous bound: the macro-step that may still run ahead of it, this one, plus a second.
+      const double timeout = 2.0 * (steps_ahead_ + due_steps_ + 2) * period_s_ + 1.0;
       auto reading = servo_.wait_reading(due_macro_step_, timeout);
       if (!reading)
         return error(error_code::hardware_fault,
@@ -152,6 +193,19 @@ Reply CommandInterpreter::reading_reply(const Reading& reading) const {
   r.joint_velocities.assign(reading.velocities.begin(), reading.velocities.begin() + n);
   r.arm_type = ArmRepresentation::joint;
   r.arm = r.joints;
+  r.input_values = reading.inputs;
+  r.servo_algorithm.assign(reading.servo_algorithm.begin(), reading.servo_algorithm.begin() + n);
+  r.servo_parameters_no.assign(reading.servo_parameter_set.begin(),
+                               reading.servo_parameter_set.begin() + n);
+  if ((due_get_ & item::timing) != 0) {
+    const TimingStats t = servo_.timing();
+    r.servo_cycles = t.cycles;
+    r.servo_overruns = t.overruns;
+    r.servo_period_us = t.period_us;
+    r.lateness_p50_us = t.lateness_p50_us;
+    r.lateness_p99_us = t.lateness_p99_us;
+    r.lateness_max_us = t.lateness_max_us;
+  }
   return r;
 }
 

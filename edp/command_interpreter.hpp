@@ -33,6 +33,8 @@ class CommandInterpreter {
   enum class Due { nothing, arm_reading, synchro, get };
   Reply accept(const Instruction& instruction);
   Reply query();
+  void validate_servo(const Instruction& instruction) const;
+  std::vector<double> validate_arm(const Instruction& instruction) const;
   Reply reading_reply(const Reading& reading) const;
   static Reply error(int code, const std::string& text);
 
@@ -42,6 +44,7 @@ class CommandInterpreter {
   Due due_ = Due::nothing;
   std::uint64_t due_macro_step_ = 0;
   int due_steps_ = 0;
+  int steps_ahead_ = 0;  ///< steps of the macro-step submitted before the due one
   ArmRepresentation due_arm_type_ = ArmRepresentation::joint;
   std::uint8_t due_get_ = 0;
 };

@@ -9,6 +9,7 @@
 #include "command_interpreter.hpp"
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
 #include "mrroc/edp/hardware.hpp"
@@ -29,6 +30,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
   Reporter reporter(bus, process, robot.name);
   try {
     const RobotModel model = load_robot_model(robot.model_dir);
+    if (!robot.edp.library.empty()) load_plugin_library(robot.edp.library, robot.edp.where);
     std::unique_ptr<edp::Hardware> hardware;
     try {
       hardware = edp::make_hardware(robot.edp.plugin);

@@ -125,6 +125,20 @@ void ServoLoop::cycle() {
     latest_.velocities[i] = fb[i].velocity;
   }
 
+  latest_.inputs = hardware_.read_inputs();
+  if (outputs_pending_) {
+    hardware_.write_outputs(outputs_);
+    outputs_pending_ = false;
+  }
+  latest_.outputs = outputs_;
+  if (servo_pending_) {
+    for (std::size_t i = 0; i < axes_; ++i)
+      hardware_.set_servo(i, servo_algorithm_[i], servo_parameter_set_[i]);
+    servo_pending_ = false;
+  }
+  latest_.servo_algorithm = servo_algorithm_;
+  latest_.servo_parameter_set = servo_parameter_set_;
+
   if (faulted_) {
     // Hold still where the axes are.
     for (std::size_t i = 0; i < axes_; ++i) desired_[i] = latest_.joints[i];
@@ -279,6 +293,22 @@ bool ServoLoop::wait_synchronised(double timeout_s) {
   cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
                [&] { return mode_ == Mode::hold || faulted_ || !running_; });
   return mode_ == Mode::hold && synchronised_ && !faulted_;
+}
+
+void ServoLoop::request_outputs(std::uint32_t values) {
+  std::lock_guard lock(mutex_);
+  outputs_ = values;
+  outputs_pending_ = true;
+}
+
+void ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
+                             const std::vector<std::int8_t>& parameter_set) {
+  std::lock_guard lock(mutex_);
+  for (std::size_t i = 0; i < axes_ && i < algorithm.size(); ++i) {
+    servo_algorithm_[i] = algorithm[i];
+    servo_parameter_set_[i] = parameter_set[i];
+  }
+  servo_pending_ = true;
 }
 
 void ServoLoop::enable_trace(std::size_t capacity) {

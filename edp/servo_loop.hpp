@@ -39,6 +39,10 @@ struct Reading {
   AxisArray joints{};      ///< measured [rad] (raw axis positions before synchronisation)
   AxisArray desired{};     ///< commanded [rad]
   AxisArray velocities{};  ///< [rad/s]
+  std::uint32_t inputs = 0;   ///< binary inputs
+  std::uint32_t outputs = 0;  ///< binary outputs as last written
+  std::array<std::int8_t, kMaxAxes> servo_algorithm{};
+  std::array<std::int8_t, kMaxAxes> servo_parameter_set{};
 };
 
 /// One servo cycle as recorded by the trace (see ServoLoop::enable_trace).
@@ -87,6 +91,14 @@ class ServoLoop {
   bool wait_synchronised(double timeout_s);
   [[nodiscard]] bool synchronised() const { return synchronised_.load(); }
   [[nodiscard]] bool moving() const;
+
+  /// Binary outputs to write from the next cycle on.
+  void request_outputs(std::uint32_t values);
+  /// Servo algorithm and parameter set per axis, switched in the next cycle (validated by the
+  /// caller against the plugin's counts).
+  void request_servo(const std::vector<std::int8_t>& algorithm,
+                     const std::vector<std::int8_t>& parameter_set);
+  [[nodiscard]] Hardware& hardware() { return hardware_; }
 
   /// Set when the hardware reported a fault or synchronisation failed; the loop then holds still.
   [[nodiscard]] bool faulted() const { return faulted_.load(); }
@@ -153,6 +165,11 @@ class ServoLoop {
   AxisArray approach_step_{};
   char fault_[256] = {};
 
+  bool outputs_pending_ = false;
+  std::uint32_t outputs_ = 0;
+  bool servo_pending_ = false;
+  std::array<std::int8_t, kMaxAxes> servo_algorithm_{};
+  std::array<std::int8_t, kMaxAxes> servo_parameter_set_{};
   std::vector<TraceSample> trace_;  ///< preallocated by enable_trace
   std::size_t trace_count_ = 0;
   // timing

@@ -29,6 +29,8 @@ using Clock = std::chrono::steady_clock;
 constexpr int kExitConfig = 2;        // the config is wrong: nothing was started
 constexpr int kExitStartFailed = 3;   // a process failed to start or to become ready
 constexpr int kExitProcessDied = 4;   // a process other than the MP ended while the task ran
+constexpr int kExitTaskFailed = 1;    // the MP reported that the task failed
+constexpr int kExitInternal = 5;      // the launcher itself failed (e.g. LCM would not open)
 
 struct Stage {
   std::string name;  // process name, as in its status messages
@@ -176,7 +178,7 @@ int run(const std::string& config_path, bool check_only, const std::string& bin_
     }
     if (!state || *state == ProcessState::failed) {
       supervisor.log(fmt::format(
-          "mrroc-launch: {} {} ", stage.name,
+          "mrroc-launch: {} {}", stage.name,
           !supervisor.is_running(stage.spec.name) ? "ended before it was ready"
           : state                                 ? "failed while starting"
                                                   : fmt::format("was not ready within {:.1f} s",
@@ -195,9 +197,10 @@ int run(const std::string& config_path, bool check_only, const std::string& bin_
     while (!done) {
       for (const auto& e : supervisor.wait_events(std::chrono::milliseconds(200))) {
         if (e.name == "mp") {
-          outcome = describe_exit(e);
+          const int mp_code = describe_exit(e);
+          outcome = mp_code == 0 ? 0 : kExitTaskFailed;
           supervisor.log(fmt::format("mrroc-launch: task {} (mp exit code {}) after {} ms",
-                                     outcome == 0 ? "finished" : "FAILED", outcome, since()));
+                                     outcome == 0 ? "finished" : "FAILED", mp_code, since()));
           done = true;
         } else if (!done) {
           supervisor.log(fmt::format("mrroc-launch: {} ended while the task was running "
@@ -227,8 +230,8 @@ int main(int argc, char** argv) {
       "mrroc-launch: starts a process set (SRP, EDPs, ECPs, then MP) from one config file, waits "
       "for each process to be ready, prefixes each process' output with its name, and exits "
       "with the task's outcome: 0 task finished, 1 task failed, 2 config error (nothing "
-      "started), 3 a process failed to start, 4 a process died during the task, 128+N stopped "
-      "by signal N. SIGINT/SIGTERM stop every process in reverse order (SIGTERM, then SIGKILL "
+      "started), 3 a process failed to start, 4 a process died during the task, 5 the launcher "
+      "itself failed, 128+N stopped by signal N. SIGINT/SIGTERM stop every process in reverse order (SIGTERM, then SIGKILL "
       "after its grace period)."};
   std::string config;
   std::string bin_dir;
@@ -245,6 +248,6 @@ int main(int argc, char** argv) {
     return run(config, check, bin_dir, srp_log);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mrroc-launch: %s\n", e.what());
-    return 1;
+    return kExitInternal;
   }
 }

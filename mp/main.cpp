@@ -10,6 +10,7 @@
 
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
 #include "mrroc/mp/task.hpp"
@@ -33,6 +34,7 @@ int run(const std::string& config_path) {
                                                           channels::ecp_reply(robot.name)));
       context.robots.push_back(mp::RobotLink{robot.name, clients.back().get()});
     }
+    if (!config.mp.library.empty()) load_plugin_library(config.mp.library, config.mp.where);
     std::unique_ptr<mp::MpTask> task;
     try {
       task = mp::make_mp_task(config.mp.name, context);
@@ -84,7 +86,7 @@ int run(const std::string& config_path) {
     reporter.set_state(ProcessState::finished);
     return 0;
   } catch (const std::exception& e) {
-    reporter.report(Severity::error, 0, e.what());
+    reporter.report(Severity::fatal, 0, e.what());
     reporter.set_state(ProcessState::failed, e.what());
     return 1;
   }

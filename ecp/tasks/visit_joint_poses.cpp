@@ -18,8 +18,12 @@ class VisitJointPoses : public EcpTask {
     options_.motion_steps = static_cast<int>(args.get_int("motion_steps", 10));
     options_.servo_period_s = context.servo_period_s;
     args.reject_unread("robot.ecp.args");
-    // Validate every pose before anything moves (throws CommandError naming joint and limit).
-    JointPosesGenerator check(context.robot.model(), poses_, options_);
+    // Validate every pose and option before anything moves, naming where they were written.
+    try {
+      JointPosesGenerator check(context.robot.model(), poses_, options_);
+    } catch (const Error& e) {
+      throw ConfigError(fmt::format("{}: error: {}", args.location_of("poses").str(), e.what()));
+    }
   }
 
   void main_task() override {

@@ -2,33 +2,58 @@
 /// @file
 /// The `mujoco` EDP hardware plugin: a robot's axes simulated with MuJoCo 2.2.
 ///
-/// The model is an MJCF file in the robot's model folder with one hinge joint and one position
-/// actuator per axis (axis order = joint order in the model). Each `write()` sets the actuators'
-/// targets and advances the simulation by exactly one servo period (an integer number of MuJoCo
-/// steps). Optional gravity/Coriolis feed-forward: `qfrc_applied = qfrc_bias` before each step.
+/// Axes are the model's *actuators*: one axis per actuator, in actuator order, and each actuator
+/// is a position servo on one hinge or slide joint (its *actuator joint*). Other joints are
+/// passive; they may belong to closed kinematic loops that the model closes with equality
+/// constraints (e.g. a parallelogram `<connect>`). Each `write()` sets the actuators' targets and
+/// advances the simulation by exactly one servo period (an integer number of MuJoCo steps).
+/// Optional gravity/Coriolis feed-forward: `qfrc_applied = qfrc_bias` on every degree of freedom
+/// before each step (in a closed loop this equals the motor torques that balance gravity, since
+/// the loop reactions are internal forces).
+///
+/// Joint coordinates and the coupling. The EDP works in joint coordinates q (the serial-equivalent
+/// chain of the URDF). `<model_dir>/parameters.toml` may declare a linear coupling between them
+/// and the actuator joints' positions a:
+///     [robot.transmission]
+///     coupling = [[...], ...]     # n x n matrix M (n = number of actuators), a = M q
+/// (default: identity). The plugin commands actuator i with (M q_setpoint)_i and reports
+/// q = M^-1 a, velocities likewise. Example (RNT parallelogram): the elbow actuator drives the
+/// absolute forearm angle a2 = q1 + q2, so its row is (0, 1, 1, 0, ...) and the reported elbow
+/// joint is a2 - a1.
 ///
 /// Raw positions behave like incremental encoders zeroed at power-on:
-///   raw = true joint position - true joint position at power-on.
-/// The synchronisation switch of axis i is closed (true) while the true joint position is strictly
+///   raw = joint position q - joint position at power-on.
+/// The synchronisation switch of axis i is closed (true) while the joint position q_i is strictly
 /// above `HardwareSetup::synchro_positions[i]`.
 ///
 /// Plugin parameters (the `Params` table of `HardwareSetup`; unknown keys are rejected):
 ///   - `mjcf` (string, optional): MJCF file name relative to the model folder; default is
 ///     `robot.mjcf` of `<model_dir>/parameters.toml`.
-///   - `initial_joint_positions` (list of numbers, rad, optional): true joint pose at power-on;
+///   - `initial_joint_positions` (list of numbers, rad, optional): joint pose q at power-on;
 ///     default = synchronisation pose + 0.05 rad on every axis, clamped into the joint range.
 ///   - `gravity_compensation` (bool, default true).
 /// Unknown keys throw `ConfigError` ("unknown key 'x' in [robot.edp.params]").
 ///
 /// `HardwareSetup::synchro_positions` may be left empty: the plugin then uses
 /// `robot.synchro_joint_positions` of `<model_dir>/parameters.toml`. When that file exists and
-/// lists `robot.joint_names`, they must equal the model's joint names.
+/// lists `robot.joint_names`, they must equal the axis names (the actuator names; an unnamed
+/// actuator is named after its joint).
+///
+/// Joint ranges: an axis' range is that of the model joint with the axis' name when there is one
+/// (for a coupled axis, normally its passive serial joint), else that of its actuator joint when
+/// the axis is uncoupled. The power-on pose must lie in those ranges, and M q in the actuator
+/// joints' ranges. At configure time the plugin closes every kinematic loop at the power-on pose:
+/// it holds the actuator joints at M q and solves the equality constraints for the passive joints
+/// (Gauss-Newton from the model's qpos0, continued in small steps). It then checks that the loops
+/// are closed (violation below `kLoopClosureTolerance`), that the passive joints are inside their
+/// ranges and that a joint named like a coupled axis is at that axis' position (so the coupling
+/// matches the model).
 ///
 /// Cycle calls: `read()` works once configured (also while inactive, reporting the frozen state);
-/// `write()` needs `activate()`. An unstable simulation (non-finite state or a MuJoCo warning) is
-/// reported as `CycleStatus::fault` by every later `read()`/`write()` until `activate()` resets the
-/// simulation to the power-on pose. Setpoints outside the joint range are clamped by the
-/// actuators' `ctrlrange`.
+/// `write()` needs `activate()`. An unstable simulation (non-finite state, a MuJoCo warning, or a
+/// closed loop opening by more than `kLoopOpenFault`) is reported as `CycleStatus::fault` by every
+/// later `read()`/`write()` until `activate()` resets the simulation to the power-on pose.
+/// Setpoints outside an actuator's range are clamped by its `ctrlrange`.
 
 #include <array>
 #include <cstddef>
@@ -47,6 +72,12 @@ class MujocoHardware : public Hardware {
  public:
   /// Offset of the default power-on pose from the synchronisation pose on every axis [rad].
   static constexpr double kDefaultPowerOnOffset = 0.05;
+  /// Largest equality-constraint violation accepted after closing the loops at power-on [m or rad].
+  static constexpr double kLoopClosureTolerance = 1e-9;
+  /// Largest coupling error accepted between a coupled axis and the joint of the same name [rad].
+  static constexpr double kCouplingTolerance = 1e-6;
+  /// An equality-constraint violation above this during the simulation is a fault [m or rad].
+  static constexpr double kLoopOpenFault = 1e-3;
 
   MujocoHardware() = default;
   ~MujocoHardware() override;
@@ -71,8 +102,19 @@ class MujocoHardware : public Hardware {
   [[nodiscard]] const mjModel* model() const { return model_; }
   [[nodiscard]] const mjData* data() const { return data_; }
 
-  /// True (simulated) joint positions [rad]; empty before configure().
+  /// True (simulated) joint positions q = M^-1 a [rad]; empty before configure().
   [[nodiscard]] std::vector<double> true_joint_positions() const;
+  /// True positions a of the actuator joints, in axis order [rad]; empty before configure().
+  [[nodiscard]] std::vector<double> actuator_joint_positions() const;
+  /// Model joint id of each axis' actuator joint.
+  [[nodiscard]] const std::vector<int>& actuator_joints() const { return actuator_joint_; }
+  /// The coupling M (a = M q), row-major n x n; identity unless parameters.toml declares one.
+  [[nodiscard]] const std::vector<double>& coupling() const { return coupling_; }
+  /// True when M is not the identity.
+  [[nodiscard]] bool coupled() const { return coupled_; }
+  /// Largest |violation| of the equality constraints [m or rad], as computed at the beginning of
+  /// the last MuJoCo step (0 for a model without equality constraints).
+  [[nodiscard]] double equality_violation() const noexcept;
   /// True joint positions at power-on (raw position zero) [rad].
   [[nodiscard]] const std::vector<double>& power_on_positions() const { return power_on_; }
   /// Joint positions at which the synchronisation switches toggle [rad].
@@ -100,12 +142,18 @@ class MujocoHardware : public Hardware {
   bool gravity_compensation_ = true;
   bool active_ = false;
 
-  // Per axis (axis i = joint i of the model); all sized in configure().
-  std::vector<int> qpos_adr_;
-  std::vector<int> dof_adr_;
-  std::vector<int> actuator_;
-  std::vector<double> power_on_;
+  // Per axis (axis i = actuator i of the model); all sized in configure().
+  std::vector<int> actuator_joint_;  // joint id driven by actuator i
+  std::vector<int> qpos_adr_;        // of the actuator joint
+  std::vector<int> dof_adr_;         // of the actuator joint
+  std::vector<double> power_on_;     // joint coordinates q at power-on
   std::vector<double> synchro_;
+  std::vector<double> power_on_qpos_;  // the whole model state at power-on (loops closed)
+
+  // Coupling a = M q (row-major n x n) and its inverse.
+  bool coupled_ = false;
+  std::vector<double> coupling_;
+  std::vector<double> inverse_coupling_;
 
   int warnings_at_activate_ = 0;
   std::array<char, 512> fault_{};

@@ -18,8 +18,9 @@ E checked_enum(std::int8_t raw, std::int8_t lo, std::int8_t hi, const char* fiel
 template <class T>
 std::vector<T> checked_vector(const std::vector<T>& v, std::int32_t n, const char* field) {
   if (n < 0 || n > kMaxVector || static_cast<std::size_t>(n) != v.size())
-    throw DecodeError(fmt::format("field '{}' has {} elements (length field {}), at most {}", field,
-                                  v.size(), n, kMaxVector));
+    throw DecodeError(fmt::format("field '{}' has {} elements but its length field says {} "
+                                  "(at most {} allowed)",
+                                  field, v.size(), n, kMaxVector));
   return v;
 }
 
@@ -67,7 +68,7 @@ mrroc_lcm::edp_instruction_t encode(const edp::Instruction& in) {
 edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   edp::Instruction in;
   in.type = checked_enum<edp::InstructionType>(m.instruction, L::SET, L::QUERY, "instruction");
-  constexpr int all_items = 63;
+  constexpr int all_items = 127;
   if ((m.set_mask & ~all_items) != 0 || (m.get_mask & ~all_items) != 0)
     throw DecodeError(fmt::format("set_mask {} / get_mask {} has unknown bits", m.set_mask,
                                   m.get_mask));
@@ -120,6 +121,12 @@ mrroc_lcm::edp_reply_t encode(const edp::Reply& in) {
   m.servo_parameters_no = in.servo_parameters_no;
   m.servo_parameters_no.resize(in.servo_algorithm.size(), 0);
   m.input_values = static_cast<std::int32_t>(in.input_values);
+  m.servo_cycles = in.servo_cycles;
+  m.servo_overruns = in.servo_overruns;
+  m.servo_period_us = in.servo_period_us;
+  m.lateness_p50_us = in.lateness_p50_us;
+  m.lateness_p99_us = in.lateness_p99_us;
+  m.lateness_max_us = in.lateness_max_us;
   return m;
 }
 
@@ -144,6 +151,12 @@ edp::Reply decode(const mrroc_lcm::edp_reply_t& m) {
   out.servo_algorithm = checked_vector(m.servo_algorithm, m.n_servo, "servo_algorithm");
   out.servo_parameters_no = checked_vector(m.servo_parameters_no, m.n_servo, "servo_parameters_no");
   out.input_values = static_cast<std::uint32_t>(m.input_values);
+  out.servo_cycles = m.servo_cycles;
+  out.servo_overruns = m.servo_overruns;
+  out.servo_period_us = m.servo_period_us;
+  out.lateness_p50_us = m.lateness_p50_us;
+  out.lateness_p99_us = m.lateness_p99_us;
+  out.lateness_max_us = m.lateness_max_us;
   return out;
 }
 

@@ -247,9 +247,16 @@ ProcessSetConfig load_process_set(const fs::path& path) {
              fmt::format("robot model folder '{}' not found", robot.model_dir.string()));
 
     const toml::table& edp = r.table(t, "edp", "robot");
-    r.only_keys(edp, "robot.edp", {"plugin", "servo_period_ms", "params", "cpus", "stop_grace_s"});
+    r.only_keys(edp, "robot.edp", {"plugin", "library", "servo_period_ms", "params", "cpus",
+                                   "stop_grace_s"});
     robot.edp.where = r.where(edp);
     robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
+    if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{}); !lib.empty()) {
+      robot.edp.library = r.resolve(lib);
+      if (!fs::exists(robot.edp.library))
+        r.fail(*edp.get("library"),
+               fmt::format("hardware plugin library '{}' not found", robot.edp.library.string()));
+    }
     robot.edp.servo_period_s = r.number(edp, "servo_period_ms", 2.0, 0.1, 100.0, "ms") / 1000.0;
     if (const toml::node* p = edp.get("params")) {
       if (!p->is_table()) r.fail(*p, "'params' must be a table");

@@ -4,16 +4,17 @@
 
 namespace mrroc::ecp {
 
-Robot::Robot(comm::Bus& bus, const std::string& process_name, RobotModel model,
-             comm::ClientOptions options)
-    : model_(std::move(model)),
-      client_(bus, process_name, "EDP " + model_.name, channels::edp_command(model_.name),
-              channels::edp_reply(model_.name), options) {}
+Robot::Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
+             RobotModel model, comm::ClientOptions options)
+    : name_(robot_name),
+      model_(std::move(model)),
+      client_(bus, process_name, "EDP " + robot_name, channels::edp_command(robot_name),
+              channels::edp_reply(robot_name), options) {}
 
 edp::Reply Robot::exchange(const edp::Instruction& instruction) {
   const edp::Reply reply = client_.call(instruction);
   if (reply.type == edp::ReplyType::error)
-    throw EdpRefused(reply.error_code, fmt::format("EDP {} refused {}: {}", model_.name,
+    throw EdpRefused(reply.error_code, fmt::format("EDP {} refused {}: {}", name_,
                                                    edp::to_string(instruction.type),
                                                    reply.error_text));
   return reply;

@@ -238,3 +238,35 @@ TEST_F(EdpTest, ServoCycleDoesNotAllocate) {
               static_cast<long long>(t.cycles), t.lateness_p50_us, t.lateness_p99_us,
               static_cast<long long>(t.overruns), t.scheduling.c_str());
 }
+
+TEST_F(EdpTest, ServoAlgorithmOutputsAndTiming) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  Instruction in;
+  in.type = InstructionType::set_get;
+  in.set = item::servo | item::outputs;
+  in.get = item::servo | item::inputs | item::timing;
+  in.servo_algorithm.assign(model_.axes(), 0);
+  in.servo_parameters_no.assign(model_.axes(), 0);
+  in.output_values = 0x5;
+  ASSERT_EQ(exec(in).type, ReplyType::acknowledge);
+  Reply r = query();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_EQ(r.servo_algorithm.size(), model_.axes());
+  EXPECT_GT(r.servo_cycles, 100);
+  EXPECT_DOUBLE_EQ(r.servo_period_us, 2000.0);
+  EXPECT_GE(r.lateness_p99_us, r.lateness_p50_us);
+  EXPECT_GE(r.lateness_max_us, r.lateness_p99_us);
+  // An algorithm the plugin does not have is refused, naming the axis.
+  in.type = InstructionType::set;
+  in.set = item::servo;
+  in.servo_algorithm[3] = 7;
+  r = exec(in);
+  EXPECT_EQ(r.error_code, error_code::bad_argument);
+  EXPECT_NE(r.error_text.find("axis 3 (wrist_pitch): servo algorithm 7"), std::string::npos)
+      << r.error_text;
+  // Unknown items are refused by name.
+  Instruction tool;
+  tool.type = InstructionType::set;
+  tool.set = item::inputs;
+  EXPECT_EQ(exec(tool).error_code, error_code::not_supported);
+}

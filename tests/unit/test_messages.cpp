@@ -66,6 +66,12 @@ TEST(Messages, EdpReplyRoundTrip) {
   in.desired_joints = {0.11, -1.51, 0.21, 0.31, 0.41};
   in.joint_velocities = {0, 0.1, 0, 0, -0.1};
   in.input_values = 7;
+  in.servo_cycles = 1000;
+  in.servo_overruns = 2;
+  in.servo_period_us = 2000;
+  in.lateness_p50_us = 12.5;
+  in.lateness_p99_us = 80.25;
+  in.lateness_max_us = 900;
   const edp::Reply out = comm::decode(through_bytes(comm::encode(in)));
   EXPECT_EQ(out.type, in.type);
   EXPECT_TRUE(out.synchronised);
@@ -77,6 +83,12 @@ TEST(Messages, EdpReplyRoundTrip) {
   EXPECT_EQ(out.desired_joints, in.desired_joints);
   EXPECT_EQ(out.joint_velocities, in.joint_velocities);
   EXPECT_EQ(out.input_values, 7U);
+  EXPECT_EQ(out.servo_cycles, 1000);
+  EXPECT_EQ(out.servo_overruns, 2);
+  EXPECT_DOUBLE_EQ(out.servo_period_us, 2000);
+  EXPECT_DOUBLE_EQ(out.lateness_p50_us, 12.5);
+  EXPECT_DOUBLE_EQ(out.lateness_p99_us, 80.25);
+  EXPECT_DOUBLE_EQ(out.lateness_max_us, 900);
 }
 
 TEST(Messages, EdpErrorReplyRoundTrip) {
@@ -147,7 +159,7 @@ TEST(Messages, MalformedInstructionNamesTheField) {
   m.n_arm = 2;  // length field disagrees with the data
   expect_rejected(m, "arm");
   m = good;
-  m.set_mask = static_cast<std::int8_t>(0x40);
+  m.set_mask = static_cast<std::int8_t>(0x80);
   expect_rejected(m, "set_mask");
 }
 

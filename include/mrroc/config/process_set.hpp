@@ -24,6 +24,7 @@ struct ProcessOptions {
 
 struct EdpConfig {
   std::string plugin;            ///< hardware plugin name, e.g. "mujoco"
+  std::filesystem::path library; ///< shared library registering the plugin (optional)
   double servo_period_s = 0.002; ///< servo period [s]
   Params params;                 ///< the plugin's own parameters ([robot.edp.params])
   ProcessOptions options;

@@ -37,6 +37,17 @@ enum class EcpReplyType : std::int8_t { acknowledge = 1, task_terminated = 2, er
 /// Error classes, as the task API's exceptions (non-fatal, fatal, system).
 enum class ErrorClass : std::int8_t { none = 0, non_fatal = 1, fatal = 2, system = 3 };
 
+/// Error codes of ECP replies. Errors the EDP reported are passed on with the EDP's code
+/// (edp::error_code, 1..99); the ECP's own codes start at 101.
+namespace error_code {
+inline constexpr int malformed = 101;      ///< the MP command could not be decoded
+inline constexpr int task_running = 102;   ///< START_TASK while the task runs
+inline constexpr int stopped = 103;        ///< the task was stopped on request
+inline constexpr int timeout = 104;        ///< a link (EDP) did not answer
+inline constexpr int task_error = 105;     ///< any other error thrown by the task
+inline constexpr int not_supported = 106;  ///< a command this ECP shell does not handle
+}  // namespace error_code
+
 struct EcpReply {
   EcpReplyType type = EcpReplyType::acknowledge;
   int error_code = 0;

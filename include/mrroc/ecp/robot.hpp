@@ -40,10 +40,11 @@ class TaskStopped : public Error {
 
 class Robot {
  public:
-  Robot(comm::Bus& bus, const std::string& process_name, RobotModel model,
-        comm::ClientOptions options = {});
+  /// @param robot_name  the robot's name in the process set (channels are named after it).
+  Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
+        RobotModel model, comm::ClientOptions options = {});
 
-  [[nodiscard]] const std::string& name() const { return model_.name; }
+  [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] const RobotModel& model() const { return model_; }
   [[nodiscard]] RobotImage& image() { return image_; }
   [[nodiscard]] const RobotImage& image() const { return image_; }
@@ -65,6 +66,7 @@ class Robot {
   edp::Reply exchange(const edp::Instruction& instruction);
   void update_image(const edp::Reply& reply);
 
+  std::string name_;
   RobotModel model_;
   comm::EdpClient client_;
   RobotImage image_;

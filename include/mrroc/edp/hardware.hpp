@@ -13,6 +13,7 @@
 /// block on the network, or throw (they report through `CycleStatus`).
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -65,6 +66,26 @@ class Hardware {
   /// Command the axes for the coming period (raw axis positions). For simulated hardware this also
   /// advances simulated time by one servo period. `setpoints.size() == axis_count()`.
   virtual CycleStatus write(std::span<const double> setpoints) = 0;
+
+  /// Binary outputs of the robot controller (bit i = line i). Called from the servo thread.
+  virtual void write_outputs(std::uint32_t values) { (void)values; }
+  /// Binary inputs of the robot controller (bit i = line i). Called from the servo thread.
+  [[nodiscard]] virtual std::uint32_t read_inputs() const { return 0; }
+
+  /// Servo algorithms the plugin offers (numbered 0..n-1; 0 is the default).
+  [[nodiscard]] virtual int servo_algorithm_count() const { return 1; }
+  /// Parameter sets of one algorithm (numbered 0..n-1; 0 is the default).
+  [[nodiscard]] virtual int servo_parameter_set_count(int algorithm) const {
+    (void)algorithm;
+    return 1;
+  }
+  /// Switches one axis to an algorithm and parameter set (already validated against the counts).
+  /// Called from the servo thread; must not allocate.
+  virtual void set_servo(std::size_t axis, int algorithm, int parameter_set) {
+    (void)axis;
+    (void)algorithm;
+    (void)parameter_set;
+  }
 
   /// Text of the last fault (read after a `CycleStatus::fault`).
   [[nodiscard]] virtual std::string fault_text() const { return {}; }

@@ -19,6 +19,7 @@ inline constexpr std::uint8_t model = 4;    ///< kinematic model and local corre
 inline constexpr std::uint8_t servo = 8;    ///< servo algorithm and parameters
 inline constexpr std::uint8_t outputs = 16; ///< binary outputs (SET)
 inline constexpr std::uint8_t inputs = 32;  ///< binary inputs (GET)
+inline constexpr std::uint8_t timing = 64;  ///< servo-loop timing statistics (GET)
 }  // namespace item
 
 /// Arm and tool representations.
@@ -102,6 +103,14 @@ struct Reply {
   std::vector<std::int8_t> servo_algorithm;
   std::vector<std::int8_t> servo_parameters_no;
   std::uint32_t input_values = 0;
+
+  /// Servo-loop timing (filled for GET with item::timing).
+  std::int64_t servo_cycles = 0;
+  std::int64_t servo_overruns = 0;  ///< cycles woken more than one period late
+  double servo_period_us = 0;
+  double lateness_p50_us = 0;
+  double lateness_p99_us = 0;
+  double lateness_max_us = 0;
 };
 
 }  // namespace mrroc::edp

@@ -10,8 +10,9 @@
 /// - FRAME: the 3x4 matrix [R | p] row by row: r00 r01 r02 px r10 r11 r12 py r20 r21 r22 pz.
 /// - XYZ_EULER_ZYZ: x y z alpha beta gamma with R = Rz(alpha) Ry(beta) Rz(gamma),
 ///   beta in [0, pi], alpha and gamma in (-pi, pi]. At the singular cases (sin beta below
-///   `kEulerSingularity`, i.e. beta = 0 or beta = pi) alpha = 0 and the whole rotation about z is
-///   in gamma: beta = 0 gives R = Rz(gamma); beta = pi gives R = Ry(pi) Rz(gamma) = Rz(-gamma) Ry(pi).
+///   `kEulerSingularity`) beta is exactly 0 or pi, alpha = 0 and the whole rotation about z is in
+///   gamma: beta = 0 gives R = Rz(gamma); beta = pi gives R = Ry(pi) Rz(gamma) = Rz(-gamma) Ry(pi).
+///   (So (a, 0, g) comes back as (0, 0, a + g) and (a, pi, g) as (0, pi, g - a), wrapped.)
 /// - XYZ_ANGLE_AXIS: x y z rx ry rz, the rotation vector axis * angle with angle in [0, pi];
 ///   angle 0 gives the zero vector. At angle pi (axis and -axis are the same rotation; applied when
 ///   the angle is within about 1e-13 rad of pi) the sign is canonical: the first of the axis

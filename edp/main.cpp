@@ -18,6 +18,9 @@
 
 namespace {
 
+/// How often the EDP sends its servo timing statistics to the SRP.
+constexpr std::chrono::seconds kTimingReportPeriod{10};
+
 int run(const std::string& config_path, const std::string& robot_name) {
   using namespace mrroc;
   const ProcessSetConfig config = load_process_set(config_path);
@@ -86,16 +89,27 @@ int run(const std::string& config_path, const std::string& robot_name) {
       }
     });
     reporter.set_state(ProcessState::running);
-    while (!stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    auto report_timing = [&] {
+      const edp::TimingStats t = servo.timing();
+      reporter.report(t.overruns > 0 ? Severity::warning : Severity::info, 0,
+                      fmt::format("servo loop: {} cycles of {:.0f} us, lateness p50 {:.1f} us, "
+                                  "p99 {:.1f} us, max {:.1f} us, {} overruns",
+                                  t.cycles, t.period_us, t.lateness_p50_us, t.lateness_p99_us,
+                                  t.lateness_max_us, t.overruns));
+    };
+    // Timing statistics go to the SRP every kTimingReportPeriod and when the EDP stops.
+    auto next_report = std::chrono::steady_clock::now() + kTimingReportPeriod;
+    while (!stop_requested()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (std::chrono::steady_clock::now() >= next_report) {
+        report_timing();
+        next_report += kTimingReportPeriod;
+      }
+    }
     reporter.set_state(ProcessState::stopping);
     servo.stop();  // wakes a command waiting for a reading
     commands.join();
-    const edp::TimingStats t = servo.timing();
-    reporter.info(fmt::format(
-        "servo loop: {} cycles of {:.0f} us, lateness p50 {:.1f} us, p99 {:.1f} us, max {:.1f} us, "
-        "{} overruns",
-        t.cycles, t.period_us, t.lateness_p50_us, t.lateness_p99_us, t.lateness_max_us,
-        t.overruns));
+    report_timing();
     reporter.set_state(ProcessState::finished);
   } catch (const std::exception& e) {
     reporter.report(Severity::fatal, 0, e.what());

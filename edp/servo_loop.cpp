@@ -176,6 +176,7 @@ void ServoLoop::cycle() {
   if (trace_count_ < trace_.size()) {
     TraceSample& t = trace_[trace_count_++];
     t.cycle = cycles_;
+    t.synchronised = synced;
     t.desired = desired_;
     t.measured = latest_.joints;
   }

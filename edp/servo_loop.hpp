@@ -48,6 +48,7 @@ struct Reading {
 /// One servo cycle as recorded by the trace (see ServoLoop::enable_trace).
 struct TraceSample {
   std::int64_t cycle = 0;
+  bool synchronised = false;  ///< false: positions are raw axis positions, not joint coordinates
   AxisArray desired{};   ///< commanded joint position written in this cycle [rad]
   AxisArray measured{};  ///< measured joint position read in this cycle [rad]
 };

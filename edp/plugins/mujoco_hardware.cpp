@@ -11,6 +11,7 @@
 #include <optional>
 #include <utility>
 
+#include <Eigen/Dense>
 #include <toml++/toml.h>
 
 #include "mrroc/core/error.hpp"
@@ -39,6 +40,9 @@ struct RobotFile {
   std::optional<std::string> mjcf;
   std::optional<std::vector<double>> synchro;
   std::optional<std::vector<std::string>> joint_names;
+  /// robot.transmission.coupling, row by row, and where it is.
+  std::optional<std::vector<std::vector<double>>> coupling;
+  std::string coupling_where;
 };
 
 RobotFile read_robot_file(const std::filesystem::path& path) {
@@ -91,6 +95,37 @@ RobotFile read_robot_file(const std::filesystem::path& path) {
       values.push_back(*value);
     }
     out.joint_names = std::move(values);
+  }
+  if (const toml::node* node = robot["transmission"]["coupling"].node()) {
+    out.coupling_where = where(node->source(), path);
+    const std::string shape_error =
+        out.coupling_where +
+        ": error: robot.transmission.coupling must be a list of rows, each a list of numbers";
+    const toml::array* rows = node->as_array();
+    if (rows == nullptr) {
+      throw ConfigError(shape_error);
+    }
+    std::vector<std::vector<double>> matrix;
+    for (const toml::node& row_node : *rows) {
+      const toml::array* row = row_node.as_array();
+      if (row == nullptr) {
+        throw ConfigError(where(row_node.source(), path) +
+                          ": error: robot.transmission.coupling must be a list of rows, each a "
+                          "list of numbers");
+      }
+      std::vector<double> values;
+      for (const toml::node& element : *row) {
+        const auto value = element.value<double>();
+        if (!value || !std::isfinite(*value)) {
+          throw ConfigError(where(element.source(), path) +
+                            ": error: robot.transmission.coupling must contain only finite "
+                            "numbers");
+        }
+        values.push_back(*value);
+      }
+      matrix.push_back(std::move(values));
+    }
+    out.coupling = std::move(matrix);
   }
   return out;
 }
@@ -150,6 +185,106 @@ void MujocoHardware::release() noexcept {
   substeps_ = 0;
 }
 
+namespace {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// Largest |efc_pos| over the equality-constraint rows of the last constraint computation.
+double equality_rows_violation(const mjData* d) noexcept {
+  double worst = 0.0;
+  for (int r = 0; r < d->nefc; ++r) {
+    if (d->efc_type[r] == mjCNSTR_EQUALITY) {
+      worst = std::max(worst, std::abs(d->efc_pos[r]));
+    }
+  }
+  return worst;
+}
+
+/// Closes the model's kinematic loops: with the actuator joints held at `targets`, moves the
+/// passive degrees of freedom (Gauss-Newton on the equality constraints, in `continuation` steps
+/// from the current state) until the constraints hold. Every joint is a hinge or a slide, so
+/// qpos and qvel addresses correspond. Returns the remaining violation.
+double close_loops(const mjModel* m, mjData* d, const std::vector<int>& actuator_qpos,
+                   const std::vector<double>& targets) {
+  const std::size_t nv = index(m->nv);
+  std::vector<bool> actuated(nv, false);
+  for (const int adr : actuator_qpos) {
+    actuated[index(adr)] = true;
+  }
+  std::vector<int> passive;
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (!actuated[v]) {
+      passive.push_back(static_cast<int>(v));
+    }
+  }
+  std::vector<double> start(targets.size());
+  double largest_move = 0.0;
+  for (std::size_t i = 0; i < targets.size(); ++i) {
+    start[i] = d->qpos[actuator_qpos[i]];
+    largest_move = std::max(largest_move, std::abs(targets[i] - start[i]));
+  }
+  // Continuation steps of at most 0.05 rad (or m) keep Gauss-Newton on the branch of qpos0.
+  const int steps = std::max(1, static_cast<int>(std::ceil(largest_move / 0.05)));
+  const bool sparse = mj_isSparse(m) != 0;
+  for (int k = 1; k <= steps; ++k) {
+    const double s = static_cast<double>(k) / static_cast<double>(steps);
+    for (std::size_t i = 0; i < targets.size(); ++i) {
+      d->qpos[actuator_qpos[i]] = start[i] + (targets[i] - start[i]) * s;
+    }
+    for (int iteration = 0; iteration < 100; ++iteration) {
+      mj_fwdPosition(m, d);
+      std::vector<int> rows;
+      for (int r = 0; r < d->nefc; ++r) {
+        if (d->efc_type[r] == mjCNSTR_EQUALITY) {
+          rows.push_back(r);
+        }
+      }
+      if (rows.empty() || passive.empty()) {
+        break;
+      }
+      Eigen::MatrixXd jacobian = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rows.size()),
+                                                       static_cast<Eigen::Index>(passive.size()));
+      Eigen::VectorXd residual(static_cast<Eigen::Index>(rows.size()));
+      double worst = 0.0;
+      for (std::size_t r = 0; r < rows.size(); ++r) {
+        const int row = rows[r];
+        const auto er = static_cast<Eigen::Index>(r);
+        residual(er) = d->efc_pos[row];
+        worst = std::max(worst, std::abs(d->efc_pos[row]));
+        std::vector<double> dense(nv, 0.0);
+        if (sparse) {
+          const int adr = d->efc_J_rowadr[row];
+          for (int n = 0; n < d->efc_J_rownnz[row]; ++n) {
+            dense[index(d->efc_J_colind[adr + n])] = d->efc_J[adr + n];
+          }
+        } else {
+          for (std::size_t v = 0; v < nv; ++v) {
+            dense[v] = d->efc_J[index(row) * nv + v];
+          }
+        }
+        for (std::size_t c = 0; c < passive.size(); ++c) {
+          jacobian(er, static_cast<Eigen::Index>(c)) = dense[index(passive[c])];
+        }
+      }
+      if (worst < 1e-13) {
+        break;
+      }
+      // Least-squares step; the rank deficiency of planar loops (a 3-D connect closing a planar
+      // loop has a redundant row) is handled by the complete orthogonal decomposition.
+      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> solver(jacobian);
+      solver.setThreshold(1e-10);
+      const Eigen::VectorXd step = solver.solve(residual);
+      for (std::size_t c = 0; c < passive.size(); ++c) {
+        d->qpos[passive[c]] -= step(static_cast<Eigen::Index>(c));
+      }
+    }
+  }
+  mj_fwdPosition(m, d);
+  return equality_rows_violation(d);
+}
+
+}  // namespace
+
 void MujocoHardware::configure(const HardwareSetup& setup) {
   release();
   fault_[0] = '\0';
@@ -202,59 +337,94 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   }
   const mjModel* m = model.get();
 
-  // One hinge joint and one joint actuator per axis.
+  // Every joint is a hinge or a slide (one coordinate each); one axis per actuator, each a
+  // position servo on its own joint.
   if (m->njnt <= 0) {
     throw HardwareError("mujoco: model " + quoted(mjcf_path) + " has no joints");
   }
   for (int j = 0; j < m->njnt; ++j) {
-    if (m->jnt_type[j] != mjJNT_HINGE) {
+    if (m->jnt_type[j] != mjJNT_HINGE && m->jnt_type[j] != mjJNT_SLIDE) {
       throw HardwareError("mujoco: model " + quoted(mjcf_path) + ": joint '" + joint_name(m, j) +
-                          "' is not a hinge joint (only hinge joints are supported as axes)");
+                          "' is neither a hinge nor a slide joint (only those are supported)");
     }
   }
   if (m->nq != m->njnt || m->nv != m->njnt) {
     throw HardwareError("mujoco: model " + quoted(mjcf_path) + ": nq = " + std::to_string(m->nq) +
                         ", nv = " + std::to_string(m->nv) + " differ from the " +
-                        std::to_string(m->njnt) + " hinge joints");
+                        std::to_string(m->njnt) + " joints");
   }
-  if (m->nu != m->njnt) {
-    throw HardwareError("mujoco: model " + quoted(mjcf_path) + " has " + std::to_string(m->nu) +
-                        " actuators for " + std::to_string(m->njnt) +
-                        " hinge joints (one position actuator per joint is required)");
+  if (m->nu <= 0) {
+    throw HardwareError("mujoco: model " + quoted(mjcf_path) +
+                        " has no actuators (one position actuator per axis is required)");
   }
-  const std::size_t axes = index(m->njnt);
-  std::vector<int> actuator(axes, -1);
+  const std::size_t axes = index(m->nu);
+  std::vector<int> actuator_joint(axes, -1);
+  std::vector<int> driven_by(index(m->njnt), -1);
+  std::vector<std::string> axis_names(axes);
   for (int a = 0; a < m->nu; ++a) {
     const int joint = m->actuator_trnid[2 * a];
+    const char* aname = mj_id2name(m, mjOBJ_ACTUATOR, a);
     if (m->actuator_trntype[a] != mjTRN_JOINT || joint < 0 || joint >= m->njnt) {
-      const char* aname = mj_id2name(m, mjOBJ_ACTUATOR, a);
       throw HardwareError("mujoco: model " + quoted(mjcf_path) + ": actuator '" +
                           (aname != nullptr ? aname : std::to_string(a)) +
                           "' does not drive a joint");
     }
-    if (actuator[index(joint)] >= 0) {
+    if (driven_by[index(joint)] >= 0) {
       throw HardwareError("mujoco: model " + quoted(mjcf_path) + ": joint '" +
                           joint_name(m, joint) + "' has more than one actuator");
     }
-    actuator[index(joint)] = a;
+    driven_by[index(joint)] = a;
+    actuator_joint[index(a)] = joint;
+    axis_names[index(a)] = aname != nullptr ? std::string(aname) : joint_name(m, joint);
+  }
+  const auto name_list = [](const std::vector<std::string>& names) {
+    std::string text;
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      text += (i == 0 ? "" : ", ") + names[i];
+    }
+    return text;
+  };
+
+  // Axis names must agree with parameters.toml when it lists them.
+  if (robot_file && robot_file->joint_names && *robot_file->joint_names != axis_names) {
+    throw HardwareError("mujoco: actuators of " + quoted(mjcf_path) + " (" +
+                        name_list(axis_names) + ") do not match robot.joint_names of " +
+                        quoted(robot_file_path) + " (" + name_list(*robot_file->joint_names) +
+                        ")");
   }
 
-  // Joint names must agree with parameters.toml when it lists them.
-  if (robot_file && robot_file->joint_names) {
-    const auto& names = *robot_file->joint_names;
-    bool same = names.size() == axes;
-    for (std::size_t i = 0; same && i < axes; ++i) {
-      same = names[i] == joint_name(m, static_cast<int>(i));
+  // Coupling a = M q (default identity) and its inverse.
+  RowMatrix coupling = RowMatrix::Identity(static_cast<Eigen::Index>(axes),
+                                           static_cast<Eigen::Index>(axes));
+  if (robot_file && robot_file->coupling) {
+    const auto& rows = *robot_file->coupling;
+    bool square = rows.size() == axes;
+    for (const auto& row : rows) {
+      square = square && row.size() == axes;
     }
-    if (!same) {
-      std::string model_names;
-      for (std::size_t i = 0; i < axes; ++i) {
-        model_names += (i == 0 ? "" : ", ") + joint_name(m, static_cast<int>(i));
+    if (!square) {
+      throw ConfigError(robot_file->coupling_where + ": error: robot.transmission.coupling must be a " +
+                        std::to_string(axes) + " x " + std::to_string(axes) +
+                        " matrix (one row and one column per actuator of " + quoted(mjcf_path) +
+                        ")");
+    }
+    for (std::size_t r = 0; r < axes; ++r) {
+      for (std::size_t c = 0; c < axes; ++c) {
+        coupling(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = rows[r][c];
       }
-      throw HardwareError("mujoco: joints of " + quoted(mjcf_path) + " (" + model_names +
-                          ") do not match robot.joint_names of " + quoted(robot_file_path));
     }
   }
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(coupling);
+  const Eigen::VectorXd singular = svd.singularValues();
+  const double rcond = singular(singular.size() - 1) / singular(0);
+  if (!(rcond > 1e-9)) {
+    throw ConfigError(robot_file->coupling_where +
+                      ": error: robot.transmission.coupling is singular (smallest / largest "
+                      "singular value " +
+                      num(rcond) + "): joints cannot be computed from the actuators");
+  }
+  const RowMatrix inverse = coupling.inverse();
+  const bool coupled = !coupling.isIdentity(0.0);
 
   // Servo period = an integer number of MuJoCo steps.
   const double timestep = m->opt.timestep;
@@ -285,35 +455,77 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
                         std::to_string(axes) + " axes of " + quoted(mjcf_path));
   }
 
-  // Power-on pose.
+  // The joint whose range is an axis' range: the joint with the axis' name, else the actuator
+  // joint of an uncoupled axis (row i of M = unit row), else none.
+  std::vector<int> range_joint(axes, -1);
+  for (std::size_t i = 0; i < axes; ++i) {
+    const int named = mj_name2id(m, mjOBJ_JOINT, axis_names[i].c_str());
+    bool unit_row = true;
+    for (std::size_t c = 0; c < axes; ++c) {
+      const double expected = c == i ? 1.0 : 0.0;
+      unit_row = unit_row &&
+                 coupling(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) == expected;
+    }
+    range_joint[i] = named >= 0 ? named : (unit_row ? actuator_joint[i] : -1);
+  }
+
+  // Power-on pose (joint coordinates).
   std::vector<double> power_on(axes);
+  const std::string initial_where =
+      initial ? params.location_of("initial_joint_positions").str() : std::string();
   if (initial) {
-    const std::string loc = params.location_of("initial_joint_positions").str();
     if (initial->size() != axes) {
-      throw ConfigError(loc + ": error: initial_joint_positions has " +
+      throw ConfigError(initial_where + ": error: initial_joint_positions has " +
                         std::to_string(initial->size()) + " values for " + std::to_string(axes) +
                         " axes");
     }
     for (std::size_t i = 0; i < axes; ++i) {
       const double q = (*initial)[i];
-      const int j = static_cast<int>(i);
-      const double lo = m->jnt_range[2 * j];
-      const double hi = m->jnt_range[2 * j + 1];
-      if (!std::isfinite(q) || (m->jnt_limited[j] != 0 && (q < lo || q > hi))) {
-        throw ConfigError(loc + ": error: initial_joint_positions[" + std::to_string(i) +
-                          "] = " + num(q) + " rad is outside the range [" + num(lo) + ", " +
-                          num(hi) + "] rad of joint '" + joint_name(m, j) + "'");
+      const int j = range_joint[i];
+      if (!std::isfinite(q)) {
+        throw ConfigError(initial_where + ": error: initial_joint_positions[" +
+                          std::to_string(i) + "] is not a finite number");
+      }
+      if (j >= 0 && m->jnt_limited[j] != 0 &&
+          (q < m->jnt_range[2 * j] || q > m->jnt_range[2 * j + 1])) {
+        throw ConfigError(initial_where + ": error: initial_joint_positions[" +
+                          std::to_string(i) + "] = " + num(q) + " rad is outside the range [" +
+                          num(m->jnt_range[2 * j]) + ", " + num(m->jnt_range[2 * j + 1]) +
+                          "] rad of joint '" + joint_name(m, j) + "'");
       }
       power_on[i] = q;
     }
   } else {
     for (std::size_t i = 0; i < axes; ++i) {
-      const int j = static_cast<int>(i);
+      const int j = range_joint[i];
       double q = synchro[i] + kDefaultPowerOnOffset;
-      if (m->jnt_limited[j] != 0) {
+      if (j >= 0 && m->jnt_limited[j] != 0) {
         q = std::clamp(q, m->jnt_range[2 * j], m->jnt_range[2 * j + 1]);
       }
       power_on[i] = q;
+    }
+  }
+  // Errors of the power-on pose: the configuration's when it was given, else the model's.
+  const auto fail = [&](const std::string& text) {
+    if (initial) {
+      throw ConfigError(initial_where + ": error: initial_joint_positions " + text);
+    }
+    throw HardwareError("mujoco: " + quoted(mjcf_path) + ": the default power-on pose " + text);
+  };
+  Eigen::VectorXd q_on(static_cast<Eigen::Index>(axes));
+  for (std::size_t i = 0; i < axes; ++i) {
+    q_on(static_cast<Eigen::Index>(i)) = power_on[i];
+  }
+  const Eigen::VectorXd a_on = coupling * q_on;
+  std::vector<double> actuator_targets(axes);
+  for (std::size_t i = 0; i < axes; ++i) {
+    const double a = a_on(static_cast<Eigen::Index>(i));
+    const int j = actuator_joint[i];
+    actuator_targets[i] = a;
+    if (m->jnt_limited[j] != 0 && (a < m->jnt_range[2 * j] || a > m->jnt_range[2 * j + 1])) {
+      fail("puts joint '" + joint_name(m, j) + "' (actuator '" + axis_names[i] + "') at " +
+           num(a) + " rad, outside its range [" + num(m->jnt_range[2 * j]) + ", " +
+           num(m->jnt_range[2 * j + 1]) + "] rad");
     }
   }
 
@@ -322,16 +534,59 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
     throw HardwareError("mujoco: cannot allocate the simulation data of " + quoted(mjcf_path));
   }
 
-  // Commit.
-  qpos_adr_.assign(axes, 0);
-  dof_adr_.assign(axes, 0);
+  // The whole state at power-on: actuator joints at M q, passive joints closing the loops.
+  std::vector<int> qpos_adr(axes);
+  std::vector<int> dof_adr(axes);
   for (std::size_t i = 0; i < axes; ++i) {
-    qpos_adr_[i] = m->jnt_qposadr[i];
-    dof_adr_[i] = m->jnt_dofadr[i];
+    qpos_adr[i] = m->jnt_qposadr[actuator_joint[i]];
+    dof_adr[i] = m->jnt_dofadr[actuator_joint[i]];
   }
-  actuator_ = std::move(actuator);
+  mjData* d = data.get();
+  mj_resetData(m, d);
+  const double violation = close_loops(m, d, qpos_adr, actuator_targets);
+  if (!(violation <= kLoopClosureTolerance)) {
+    fail("cannot be reached with closed kinematic loops: equality constraint violation " +
+         num(violation) + " after solving for the passive joints (tolerance " +
+         num(kLoopClosureTolerance) + ")");
+  }
+  for (int j = 0; j < m->njnt; ++j) {
+    if (driven_by[index(j)] >= 0 || m->jnt_limited[j] == 0) {
+      continue;
+    }
+    const double value = d->qpos[m->jnt_qposadr[j]];
+    if (value < m->jnt_range[2 * j] - 1e-9 || value > m->jnt_range[2 * j + 1] + 1e-9) {
+      fail("puts the passive joint '" + joint_name(m, j) + "' at " + num(value) +
+           ", outside its range [" + num(m->jnt_range[2 * j]) + ", " +
+           num(m->jnt_range[2 * j + 1]) + "]");
+    }
+  }
+  for (std::size_t i = 0; i < axes; ++i) {
+    const int j = range_joint[i];
+    if (j < 0 || j == actuator_joint[i]) {
+      continue;
+    }
+    const double value = d->qpos[m->jnt_qposadr[j]];
+    if (std::abs(value - power_on[i]) > kCouplingTolerance) {
+      throw HardwareError("mujoco: robot.transmission.coupling of " + quoted(robot_file_path) +
+                          " does not match " + quoted(mjcf_path) + ": at the power-on pose axis '" +
+                          axis_names[i] + "' is at " + num(power_on[i]) + " but joint '" +
+                          joint_name(m, j) + "' at " + num(value));
+    }
+  }
+  std::vector<double> power_on_qpos(d->qpos, d->qpos + m->nq);
+
+  // Commit.
+  actuator_joint_ = std::move(actuator_joint);
+  qpos_adr_ = std::move(qpos_adr);
+  dof_adr_ = std::move(dof_adr);
   power_on_ = std::move(power_on);
   synchro_ = std::move(synchro);
+  power_on_qpos_ = std::move(power_on_qpos);
+  coupled_ = coupled;
+  coupling_.assign(coupling.data(), coupling.data() + coupling.size());
+  inverse_coupling_.assign(inverse.data(), inverse.data() + inverse.size());
+  scratch_a_.assign(axes, 0.0);
+  scratch_q_.assign(axes, 0.0);
   mjcf_path_ = mjcf_path;
   gravity_compensation_ = gravity_compensation;
   substeps_ = static_cast<int>(steps);
@@ -341,15 +596,33 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   reset_to_power_on();
 }
 
+void MujocoHardware::joints_from_actuators(const double* a, double* q) const noexcept {
+  if (!coupled_) {
+    for (std::size_t i = 0; i < axes_; ++i) {
+      q[i] = a[i];
+    }
+    return;
+  }
+  for (std::size_t r = 0; r < axes_; ++r) {
+    double sum = 0.0;
+    for (std::size_t c = 0; c < axes_; ++c) {
+      sum += inverse_coupling_[r * axes_ + c] * a[c];
+    }
+    q[r] = sum;
+  }
+}
+
 void MujocoHardware::reset_to_power_on() noexcept {
   mj_resetData(model_, data_);
+  for (int i = 0; i < model_->nq; ++i) {
+    data_->qpos[i] = power_on_qpos_[index(i)];
+  }
   for (std::size_t i = 0; i < axes_; ++i) {
-    data_->qpos[qpos_adr_[i]] = power_on_[i];
-    data_->ctrl[actuator_[i]] = power_on_[i];
+    data_->ctrl[i] = data_->qpos[qpos_adr_[i]];
   }
   mj_forward(model_, data_);
-  for (std::size_t i = 0; i < axes_; ++i) {
-    data_->qfrc_applied[dof_adr_[i]] = gravity_compensation_ ? data_->qfrc_bias[dof_adr_[i]] : 0.0;
+  for (int v = 0; v < model_->nv; ++v) {
+    data_->qfrc_applied[v] = gravity_compensation_ ? data_->qfrc_bias[v] : 0.0;
   }
 }
 
@@ -387,6 +660,13 @@ bool MujocoHardware::state_is_finite() const noexcept {
   return true;
 }
 
+double MujocoHardware::equality_violation() const noexcept {
+  if (model_ == nullptr || data_ == nullptr) {
+    return 0.0;
+  }
+  return equality_rows_violation(data_);
+}
+
 void MujocoHardware::set_fault(const char* format, ...) noexcept {
   va_list args;
   va_start(args, format);
@@ -414,6 +694,13 @@ bool MujocoHardware::check_stable() noexcept {
     set_fault("mujoco: simulation of '%s' unstable (MuJoCo warning)", mjcf_path_.c_str());
     return false;
   }
+  if (const double violation = equality_violation(); violation > kLoopOpenFault) {
+    set_fault(
+        "mujoco: simulation of '%s' unstable: a closed kinematic loop opened by %.3g (limit "
+        "%.3g) at t = %.6f s",
+        mjcf_path_.c_str(), violation, kLoopOpenFault, data_->time);
+    return false;
+  }
   return true;
 }
 
@@ -431,11 +718,22 @@ CycleStatus MujocoHardware::read(std::span<AxisFeedback> out) {
   if (!check_stable()) {
     return CycleStatus::fault;
   }
+  double* a = scratch_a_.data();
+  double* q = scratch_q_.data();
   for (std::size_t i = 0; i < axes_; ++i) {
-    const double q = data_->qpos[qpos_adr_[i]];
-    out[i].position = q - power_on_[i];
-    out[i].velocity = data_->qvel[dof_adr_[i]];
-    out[i].synchro_switch = q > synchro_[i];
+    a[i] = data_->qpos[qpos_adr_[i]];
+  }
+  joints_from_actuators(a, q);
+  for (std::size_t i = 0; i < axes_; ++i) {
+    out[i].position = q[i] - power_on_[i];
+    out[i].synchro_switch = q[i] > synchro_[i];
+  }
+  for (std::size_t i = 0; i < axes_; ++i) {
+    a[i] = data_->qvel[dof_adr_[i]];
+  }
+  joints_from_actuators(a, q);
+  for (std::size_t i = 0; i < axes_; ++i) {
+    out[i].velocity = q[i];
   }
   return CycleStatus::ok;
 }
@@ -455,16 +753,28 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
       set_fault("mujoco: write(): setpoint of axis %zu is not a finite number", i);
       return CycleStatus::fault;
     }
-    // The actuator's ctrlrange (= joint range) clamps the target.
-    data_->ctrl[actuator_[i]] = setpoints[i] + power_on_[i];
+  }
+  // Actuator targets a = M q; the actuators' ctrlrange clamps them.
+  if (coupled_) {
+    for (std::size_t r = 0; r < axes_; ++r) {
+      double sum = 0.0;
+      for (std::size_t c = 0; c < axes_; ++c) {
+        sum += coupling_[r * axes_ + c] * (setpoints[c] + power_on_[c]);
+      }
+      data_->ctrl[r] = sum;
+    }
+  } else {
+    for (std::size_t i = 0; i < axes_; ++i) {
+      data_->ctrl[i] = setpoints[i] + power_on_[i];
+    }
   }
   for (int s = 0; s < substeps_; ++s) {
     if (gravity_compensation_) {
       // Gravity and Coriolis feed-forward evaluated at the state of this step: mj_step1 computes
       // qfrc_bias from the current positions and velocities, mj_step2 integrates.
       mj_step1(model_, data_);
-      for (std::size_t i = 0; i < axes_; ++i) {
-        data_->qfrc_applied[dof_adr_[i]] = data_->qfrc_bias[dof_adr_[i]];
+      for (int v = 0; v < model_->nv; ++v) {
+        data_->qfrc_applied[v] = data_->qfrc_bias[v];
       }
       mj_step2(model_, data_);
     } else {
@@ -478,11 +788,18 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
 }
 
 std::vector<double> MujocoHardware::true_joint_positions() const {
+  std::vector<double> a = actuator_joint_positions();
   std::vector<double> q(axes_);
-  for (std::size_t i = 0; i < axes_; ++i) {
-    q[i] = data_->qpos[qpos_adr_[i]];
-  }
+  joints_from_actuators(a.data(), q.data());
   return q;
+}
+
+std::vector<double> MujocoHardware::actuator_joint_positions() const {
+  std::vector<double> a(axes_);
+  for (std::size_t i = 0; i < axes_; ++i) {
+    a[i] = data_->qpos[qpos_adr_[i]];
+  }
+  return a;
 }
 
 MRROC_REGISTER_HARDWARE("mujoco", MujocoHardware);

@@ -133,6 +133,8 @@ class MujocoHardware : public Hardware {
   /// False (with the fault text set) when the simulation went unstable.
   [[nodiscard]] bool check_stable() noexcept;
   [[nodiscard]] int warning_total() const noexcept;
+  /// q = M^-1 a (n values each; `a` and `q` must not overlap).
+  void joints_from_actuators(const double* a, double* q) const noexcept;
 
   mjModel* model_ = nullptr;
   mjData* data_ = nullptr;
@@ -154,6 +156,9 @@ class MujocoHardware : public Hardware {
   bool coupled_ = false;
   std::vector<double> coupling_;
   std::vector<double> inverse_coupling_;
+  // Scratch buffers of the cycle calls (sized in configure(), so read/write do not allocate).
+  std::vector<double> scratch_a_;
+  std::vector<double> scratch_q_;
 
   int warnings_at_activate_ = 0;
   std::array<char, 512> fault_{};

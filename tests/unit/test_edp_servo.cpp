@@ -270,3 +270,32 @@ TEST_F(EdpTest, ServoAlgorithmOutputsAndTiming) {
   tool.set = item::inputs;
   EXPECT_EQ(exec(tool).error_code, error_code::not_supported);
 }
+
+TEST_F(EdpTest, EveryServoStepStaysInsideTheLimits) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  // Drive every joint to 99% of its range on one side, then the other, in few macro-steps.
+  for (double side : {1.0, -1.0}) {
+    std::vector<double> q(model_.axes());
+    for (std::size_t j = 0; j < q.size(); ++j) {
+      const double mid = 0.5 * (model_.lower_limits[j] + model_.upper_limits[j]);
+      const double half = 0.5 * (model_.upper_limits[j] - model_.lower_limits[j]);
+      q[j] = mid + side * 0.99 * half;
+    }
+    ASSERT_EQ(exec(set_joints(q, 500, 501)).type, ReplyType::acknowledge);
+    ASSERT_EQ(query().type, ReplyType::data);
+  }
+  const auto trace = servo_->trace();
+  ASSERT_GT(trace.size(), 1000U);
+  std::size_t checked = 0;
+  for (const auto& t : trace) {
+    if (!t.synchronised) continue;  // raw encoder positions before SYNCHRO
+    for (std::size_t j = 0; j < model_.axes(); ++j) {
+      ASSERT_GE(t.desired[j], model_.lower_limits[j]) << "cycle " << t.cycle << " joint " << j;
+      ASSERT_LE(t.desired[j], model_.upper_limits[j]) << "cycle " << t.cycle << " joint " << j;
+      ASSERT_GE(t.measured[j], model_.lower_limits[j]) << "cycle " << t.cycle << " joint " << j;
+      ASSERT_LE(t.measured[j], model_.upper_limits[j]) << "cycle " << t.cycle << " joint " << j;
+    }
+    ++checked;
+  }
+  std::printf("%zu servo steps checked against the joint limits\n", checked);
+}

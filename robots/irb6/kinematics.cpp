@@ -65,10 +65,10 @@ struct Screw {
 
 Screw make_screw(const ScrewLinkage& f, const char* name, const char* fed_angle, std::size_t axis,
                  double synchro_fed_angle) {
-  Screw s{&f, name, fed_angle, axis, std::hypot(f.mu, f.nu), std::atan2(f.nu, f.mu),
-          synchro_fed_angle, 0.0, 0.0};
-  s.triangle_at_l0 =
-      s.triangle_angle((f.synchro_length * f.synchro_length - f.s) / s.radius);
+  Screw s{
+      &f,  name, fed_angle, axis, std::hypot(f.mu, f.nu), std::atan2(f.nu, f.mu), synchro_fed_angle,
+      0.0, 0.0};
+  s.triangle_at_l0 = s.triangle_angle((f.synchro_length * f.synchro_length - f.s) / s.radius);
   s.length_at_triangle = s.triangle_length(s.triangle_at_l0);
   return s;
 }
@@ -79,9 +79,9 @@ const Screw& lower_screw() {
   return screw;
 }
 const Screw& upper_screw() {
-  static const Screw screw = make_screw(
-      kUpperArmScrew, "upper-arm", "q1 + q2 + pi/2", 2,
-      kSynchroJointPositions[1] + kSynchroJointPositions[2] + kHalfPi);
+  static const Screw screw =
+      make_screw(kUpperArmScrew, "upper-arm", "q1 + q2 + pi/2", 2,
+                 kSynchroJointPositions[1] + kSynchroJointPositions[2] + kHalfPi);
   return screw;
 }
 
@@ -90,8 +90,8 @@ constexpr double kMmPerMotorRad = kScrewLead / (2.0 * kPi);
 // Fed angle [rad] from the motor position; checks the triangle and the linkage range.
 double fed_angle_from_motor(const Screw& screw, double motor) {
   const ScrewLinkage& f = *screw.figures;
-  const double length = (motor - kSynchroMotorPositions[screw.axis]) * kMmPerMotorRad +
-                        f.synchro_length;
+  const double length =
+      (motor - kSynchroMotorPositions[screw.axis]) * kMmPerMotorRad + f.synchro_length;
   const double cosine = (length * length - f.s) / screw.radius;
   if (!(length > 0.0 && cosine >= -1.0 && cosine <= 1.0))
     out_of_limits(fmt::format(
@@ -130,9 +130,17 @@ double motor_from_fed_angle(const Screw& screw, double angle) {
          (screw.triangle_length(triangle) - screw.length_at_triangle) / kMmPerMotorRad;
 }
 
-bool within_limits(const JointPosition& q) {
+// Solutions this close outside a joint limit are put onto it (round-off of targets at a limit).
+constexpr double kLimitRoundOff = 1e-9;
+
+// Puts joints within kLimitRoundOff of a limit onto it; false if a joint or linkage limit is
+// exceeded by more.
+bool within_limits(JointPosition& q) {
   for (std::size_t i = 0; i < kAxes; ++i) {
-    if (!(q[i] >= kJointLowerLimits[i] && q[i] <= kJointUpperLimits[i])) return false;
+    if (!(q[i] >= kJointLowerLimits[i] - kLimitRoundOff &&
+          q[i] <= kJointUpperLimits[i] + kLimitRoundOff))
+      return false;
+    q[i] = std::clamp(q[i], kJointLowerLimits[i], kJointUpperLimits[i]);
   }
   const double upper_fed = q[1] + q[2] + kHalfPi;
   return q[1] >= kLowerArmScrew.min_angle && q[1] <= kLowerArmScrew.max_angle &&
@@ -201,8 +209,7 @@ bool solve_in_plane(const Eigen::Isometry3d& flange, const Irb6Geometry& g, doub
   const double x = c0 * wrist.x() + s0 * wrist.y();
   const double y = g.d1 - wrist.z();
   wrist_distance = std::hypot(x, y);
-  const double cos_elbow =
-      (x * x + y * y - g.a2 * g.a2 - g.a3 * g.a3) / (2.0 * g.a2 * g.a3);
+  const double cos_elbow = (x * x + y * y - g.a2 * g.a2 - g.a3 * g.a3) / (2.0 * g.a2 * g.a3);
   if (!(std::abs(cos_elbow) <= 1.0 + kElbowSlack)) return false;
   const double elbow = elbow_side * std::acos(std::clamp(cos_elbow, -1.0, 1.0));  // t2 - t1
   const double t1 =
@@ -219,17 +226,15 @@ JointPosition solve(const Eigen::Isometry3d& flange, const JointPosition& seed,
                     const Irb6Geometry& g) {
   const Eigen::Vector3d wrist = flange.translation() - g.d5 * flange.linear().col(2);
   const double wrist_off_axis = std::hypot(wrist.x(), wrist.y());
-  const double azimuth = wrist_off_axis > kOnColumnAxis ? std::atan2(wrist.y(), wrist.x())
-                                                        : seed[0];
+  const double azimuth =
+      wrist_off_axis > kOnColumnAxis ? std::atan2(wrist.y(), wrist.x()) : seed[0];
   struct Choice {
     double q0;
     double elbow_side;
   };
   // The first one is the IRb-6's configuration (wrist centre in front, elbow as in the model).
-  const std::array<Choice, 4> choices = {{{azimuth, 1.0},
-                                          {azimuth, -1.0},
-                                          {wrap(azimuth + kPi), 1.0},
-                                          {wrap(azimuth + kPi), -1.0}}};
+  const std::array<Choice, 4> choices = {
+      {{azimuth, 1.0}, {azimuth, -1.0}, {wrap(azimuth + kPi), 1.0}, {wrap(azimuth + kPi), -1.0}}};
   JointPosition best{};
   double best_distance = std::numeric_limits<double>::infinity();
   JointPosition primary{};
@@ -268,8 +273,8 @@ void check_frame(const Eigen::Isometry3d& frame, const JointPosition& seed) {
   if (!frame.matrix().allFinite()) bad_argument("inverse kinematics: target frame is not finite");
   for (std::size_t i = 0; i < kAxes; ++i) {
     if (!std::isfinite(seed[i]))
-      bad_argument(fmt::format("inverse kinematics: seed joint {} ({}) is not finite", i,
-                               kJointNames[i]));
+      bad_argument(
+          fmt::format("inverse kinematics: seed joint {} ({}) is not finite", i, kJointNames[i]));
   }
 }
 
@@ -277,8 +282,8 @@ void check_frame(const Eigen::Isometry3d& frame, const JointPosition& seed) {
 
 std::array<double, kAxes> axes_from_values(std::span<const double> values, const char* what) {
   if (values.size() != kAxes)
-    bad_argument(fmt::format("{} has {} values, the IRb-6 has {} axes", what, values.size(),
-                             kAxes));
+    bad_argument(
+        fmt::format("{} has {} values, the IRb-6 has {} axes", what, values.size(), kAxes));
   std::array<double, kAxes> out{};
   std::copy(values.begin(), values.end(), out.begin());
   return out;
@@ -331,8 +336,8 @@ MotorPosition motors_from_joints(const JointPosition& joints) {
 void check_joint_limits(const JointPosition& q, const char* what) {
   for (std::size_t i = 0; i < kAxes; ++i) {
     if (!std::isfinite(q[i]))
-      bad_argument(fmt::format("joint {} ({}) {} {} is not a finite number", i, kJointNames[i],
-                               what, q[i]));
+      bad_argument(
+          fmt::format("joint {} ({}) {} {} is not a finite number", i, kJointNames[i], what, q[i]));
     if (q[i] > kJointUpperLimits[i])
       out_of_limits(fmt::format("joint {} ({}) {} {:.6f} rad exceeds upper limit {:.6f} rad", i,
                                 kJointNames[i], what, q[i], kJointUpperLimits[i]));
@@ -347,8 +352,8 @@ void check_joint_limits(const JointPosition& q, const char* what) {
 void check_motor_limits(const MotorPosition& m, const char* what) {
   for (std::size_t i = 0; i < kAxes; ++i) {
     if (!std::isfinite(m[i]))
-      bad_argument(fmt::format("motor {} ({}) {} {} is not a finite number", i, kJointNames[i],
-                               what, m[i]));
+      bad_argument(
+          fmt::format("motor {} ({}) {} {} is not a finite number", i, kJointNames[i], what, m[i]));
     if (m[i] > kMotorUpperLimits[i])
       out_of_limits(fmt::format("motor {} ({}) {} {} rad exceeds upper limit {} rad", i,
                                 kJointNames[i], what, number(m[i]), number(kMotorUpperLimits[i])));
@@ -360,13 +365,17 @@ void check_motor_limits(const MotorPosition& m, const char* what) {
 
 Irb6Geometry kinematic_model(int model_no) {
   switch (model_no) {
-    case kNominalModel: return Irb6Geometry::nominal();
-    case kCalibratedModel: return Irb6Geometry::calibrated();
-    default: break;
+    case kNominalModel:
+      return Irb6Geometry::nominal();
+    case kCalibratedModel:
+      return Irb6Geometry::calibrated();
+    default:
+      break;
   }
-  bad_argument(fmt::format("kinematic model {} does not exist for the IRb-6 (0 = nominal, "
-                           "1 = calibrated)",
-                           model_no));
+  bad_argument(
+      fmt::format("kinematic model {} does not exist for the IRb-6 (0 = nominal, "
+                  "1 = calibrated)",
+                  model_no));
 }
 
 Eigen::Isometry3d forward_kinematics(const JointPosition& q, const Irb6Geometry& g) {
@@ -409,9 +418,10 @@ JointPosition inverse_kinematics(const Eigen::Isometry3d& flange, const JointPos
   check_frame(flange, seed);
   const PlaneProjection projection = project_to_arm_plane(flange, seed, pivot);
   if (!(projection.deviation <= orientation_tolerance))
-    out_of_limits(fmt::format("orientation not reachable by a 5-axis arm: approach deviates {:.3g} "
-                              "rad from the arm plane (tolerance {:.3g} rad)",
-                              projection.deviation, orientation_tolerance));
+    out_of_limits(
+        fmt::format("orientation not reachable by a 5-axis arm: approach deviates {:.3g} "
+                    "rad from the arm plane (tolerance {:.3g} rad)",
+                    projection.deviation, orientation_tolerance));
   return solve(projection.flange, seed, geometry);
 }
 

@@ -124,7 +124,15 @@ struct SystemListener::Impl {
   lcm::Subscription* srp_sub = nullptr;
   lcm::Subscription* status_sub = nullptr;
 
-  void message(const lcm::ReceiveBuffer*, const std::string&, const mrroc_lcm::srp_message_t* m) {
+  static void on_srp(const lcm::ReceiveBuffer*, const std::string&,
+                     const mrroc_lcm::srp_message_t* m, Impl* self) {
+    self->message(m);
+  }
+  static void on_status_message(const lcm::ReceiveBuffer*, const std::string&,
+                        const mrroc_lcm::process_status_t* m, Impl* self) {
+    self->status(m);
+  }
+  void message(const mrroc_lcm::srp_message_t* m) {
     if (!on_message) return;
     if (m->severity < 0 || m->severity > 4) {
       ++*malformed;
@@ -133,8 +141,7 @@ struct SystemListener::Impl {
     on_message(SrpMessage{m->utime, m->process, m->robot, static_cast<Severity>(m->severity),
                           m->code, m->text});
   }
-  void status(const lcm::ReceiveBuffer*, const std::string&,
-              const mrroc_lcm::process_status_t* m) {
+  void status(const mrroc_lcm::process_status_t* m) {
     if (!on_status) return;
     if (m->state < 1 || m->state > 6) {
       ++*malformed;
@@ -148,8 +155,8 @@ struct SystemListener::Impl {
 SystemListener::SystemListener(comm::Bus& bus, MessageHandler on_message, StatusHandler on_status)
     : impl_(std::make_unique<Impl>(
           Impl{bus, std::move(on_message), std::move(on_status), &malformed_})) {
-  impl_->srp_sub = bus.lcm().subscribe(channels::srp, &Impl::message, impl_.get());
-  impl_->status_sub = bus.lcm().subscribe(channels::status, &Impl::status, impl_.get());
+  impl_->srp_sub = bus.lcm().subscribeFunction(channels::srp, &Impl::on_srp, impl_.get());
+  impl_->status_sub = bus.lcm().subscribeFunction(channels::status, &Impl::on_status_message, impl_.get());
 }
 
 SystemListener::~SystemListener() {

@@ -46,8 +46,8 @@ void check_finite(std::span<const double> values, const char* representation,
 void check_size(std::size_t got, edp::ArmRepresentation representation) {
   const std::size_t expected = representation_size(representation);
   if (got != expected)
-    bad_argument(fmt::format("{} needs {} values, got {}", edp::to_string(representation),
-                             expected, got));
+    bad_argument(
+        fmt::format("{} needs {} values, got {}", edp::to_string(representation), expected, got));
 }
 
 }  // namespace
@@ -68,9 +68,10 @@ Eigen::Matrix3d checked_rotation(const Eigen::Matrix3d& rotation, double toleran
   const double orthonormality =
       (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
   if (!(orthonormality <= tolerance))
-    bad_argument(fmt::format("{} is not orthonormal: max |R^T R - I| = {:.3g} exceeds the "
-                             "tolerance {:.3g}",
-                             what, orthonormality, tolerance));
+    bad_argument(
+        fmt::format("{} is not orthonormal: max |R^T R - I| = {:.3g} exceeds the "
+                    "tolerance {:.3g}",
+                    what, orthonormality, tolerance));
   const double det = rotation.determinant();
   if (!(std::abs(det - 1.0) <= tolerance))
     bad_argument(fmt::format("{} is not a rotation: det R = {:.6g} (must be 1 within {:.3g}{})",
@@ -109,8 +110,7 @@ Eigen::Vector3d euler_zyz_from_rotation(const Eigen::Matrix3d& r) {
   // itself is poorly determined; the product Rz(alpha) Ry(beta) Rz(gamma) stays accurate.
   const double ca = std::cos(alpha);
   const double sa = std::sin(alpha);
-  const double gamma =
-      std::atan2(-sa * r(0, 0) + ca * r(1, 0), -sa * r(0, 1) + ca * r(1, 1));
+  const double gamma = std::atan2(-sa * r(0, 0) + ca * r(1, 0), -sa * r(0, 1) + ca * r(1, 1));
   return {half_open(alpha), beta, half_open(gamma)};
 }
 
@@ -165,15 +165,20 @@ double rotation_distance(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
 
 std::size_t representation_size(edp::ArmRepresentation representation) {
   switch (representation) {
-    case edp::ArmRepresentation::frame: return kFrameValues;
-    case edp::ArmRepresentation::xyz_euler_zyz: return kXyzEulerZyzValues;
-    case edp::ArmRepresentation::xyz_angle_axis: return kXyzAngleAxisValues;
+    case edp::ArmRepresentation::frame:
+      return kFrameValues;
+    case edp::ArmRepresentation::xyz_euler_zyz:
+      return kXyzEulerZyzValues;
+    case edp::ArmRepresentation::xyz_angle_axis:
+      return kXyzAngleAxisValues;
     case edp::ArmRepresentation::joint:
-    case edp::ArmRepresentation::motor: break;
+    case edp::ArmRepresentation::motor:
+      break;
   }
-  bad_argument(fmt::format("{} is not a Cartesian representation (expected FRAME, "
-                           "XYZ_EULER_ZYZ or XYZ_ANGLE_AXIS)",
-                           edp::to_string(representation)));
+  bad_argument(
+      fmt::format("{} is not a Cartesian representation (expected FRAME, "
+                  "XYZ_EULER_ZYZ or XYZ_ANGLE_AXIS)",
+                  edp::to_string(representation)));
 }
 
 void to_values(const Eigen::Isometry3d& frame, edp::ArmRepresentation representation,

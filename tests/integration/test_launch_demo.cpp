@@ -100,10 +100,13 @@ std::vector<std::string> mrroc_processes() {
 class EdpReplyRecorder {
  public:
   EdpReplyRecorder(comm::Bus& bus, const std::string& robot) {
-    bus.lcm().subscribe(channels::edp_reply(robot), &EdpReplyRecorder::on_reply, this);
+    bus.lcm().subscribeFunction(channels::edp_reply(robot), &EdpReplyRecorder::dispatch, this);
   }
-  void on_reply(const lcm::ReceiveBuffer*, const std::string&,
-                const mrroc_lcm::edp_reply_t* msg) {
+  static void dispatch(const lcm::ReceiveBuffer*, const std::string&,
+                       const mrroc_lcm::edp_reply_t* msg, EdpReplyRecorder* self) {
+    self->on_reply(msg);
+  }
+  void on_reply(const mrroc_lcm::edp_reply_t* msg) {
     if (msg->header.kind != mrroc_lcm::header_t::REPLY) return;
     std::lock_guard lock(mutex_);
     replies_.push_back(comm::decode(*msg));

@@ -263,9 +263,8 @@ TEST(Irb6Transmission, OutOfRangeMotorsAndJointsAreRefused) {
                        "381.444 mm)");
   // Triangle solvable (-49.3 deg), but below the -45 deg linkage limit.
   m[2] = -111.5;
-  expect_command_error(
-      [&] { (void)irb6::joints_from_motors(m); }, out_of_limits,
-      "motor 2 (upper_arm) position -111.5 rad gives q1 + q2 + pi/2 = -0.8");
+  expect_command_error([&] { (void)irb6::joints_from_motors(m); }, out_of_limits,
+                       "motor 2 (upper_arm) position -111.5 rad gives q1 + q2 + pi/2 = -0.8");
   expect_command_error([&] { (void)irb6::joints_from_motors(m); }, out_of_limits,
                        "below the upper-arm linkage limit -0.785398 rad");
   m = irb6::kSynchroMotorPositions;
@@ -366,9 +365,8 @@ class Irb6Kdl : public ::testing::Test {
     EXPECT_GE(solver.JntToCart(joints, frame), 0);
     Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) out.linear()(r, c) = frame.M(static_cast<unsigned int>(r),
-                                                                 static_cast<unsigned int>(c));
-      out.translation()(r) = frame.p(static_cast<unsigned int>(r));
+      for (int c = 0; c < 3; ++c) out.linear()(r, c) = frame.M(r, c);
+      out.translation()(r) = frame.p(r);
     }
     return out;
   }
@@ -413,9 +411,8 @@ TEST(Irb6Forward, HandCheckedPoses) {
   EXPECT_LT((up.translation() - Eigen::Vector3d(0.67, 0.0, 1.345)).norm(), 1e-15);
   EXPECT_LT((up.linear().col(2) - Eigen::Vector3d::UnitZ()).norm(), 1e-15);
   // The default gripper: 0.25 m along the approach.
-  const Eigen::Isometry3d tip =
-      irb6::forward_kinematics(irb6::kSynchroJointPositions, Irb6Geometry::nominal(),
-                               translation(0.0, 0.0, 0.25));
+  const Eigen::Isometry3d tip = irb6::forward_kinematics(
+      irb6::kSynchroJointPositions, Irb6Geometry::nominal(), translation(0.0, 0.0, 0.25));
   EXPECT_LT((tip.translation() - Eigen::Vector3d(1.11, 0.0, 1.155)).norm(), 1e-15);
 }
 
@@ -535,16 +532,16 @@ TEST(Irb6Inverse, ToolAndLocalCorrector) {
     const JointPosition q = random_joints(rng);
     const Eigen::Isometry3d target = k.forward(q);
     // Where the corrector and the tool apply.
-    ASSERT_LT((target.matrix() - (k.corrector * irb6::forward_kinematics(q, k.geometry) * k.tool)
-                                     .matrix())
+    ASSERT_LT((target.matrix() -
+               (k.corrector * irb6::forward_kinematics(q, k.geometry) * k.tool).matrix())
                   .cwiseAbs()
                   .maxCoeff(),
               1e-15);
-    ASSERT_LT((k.flange(q).matrix() -
-               (k.corrector * irb6::forward_kinematics(q, k.geometry)).matrix())
-                  .cwiseAbs()
-                  .maxCoeff(),
-              1e-15);
+    ASSERT_LT(
+        (k.flange(q).matrix() - (k.corrector * irb6::forward_kinematics(q, k.geometry)).matrix())
+            .cwiseAbs()
+            .maxCoeff(),
+        1e-15);
     const JointPosition solved = k.inverse(target, irb6::kSynchroJointPositions);
     worst = std::max(worst, max_difference(solved, q));
     ASSERT_LT(max_difference(solved, q), 1e-9) << "q = " << show(q);
@@ -554,8 +551,8 @@ TEST(Irb6Inverse, ToolAndLocalCorrector) {
   irb6::Irb6Kinematics plain = k;
   plain.corrector = Eigen::Isometry3d::Identity();
   const JointPosition q = {0.3, deg(-80), deg(10), deg(20), 0.5};
-  const JointPosition uncorrected = plain.inverse(k.forward(q), q);
-  EXPECT_GT(max_difference(uncorrected, q), 1e-3);
+  const JointPosition uncorrected = plain.inverse_nearest(k.forward(q), q).joints;
+  EXPECT_GT(max_difference(uncorrected, q), 5e-4);
 }
 
 TEST(Irb6Inverse, UnreachableOrientationIsRefusedWithTheDeviation) {
@@ -597,7 +594,8 @@ TEST(Irb6Inverse, NearestReachableOrientationOnRandomPoses) {
     const Eigen::Isometry3d reachable = irb6::forward_kinematics(q);
     const double turn = uniform(rng, 1e-5, 0.1);
     Eigen::Isometry3d target = reachable;
-    target.linear() = Eigen::AngleAxisd(turn, random_unit_vector(rng)).matrix() * reachable.linear();
+    target.linear() =
+        Eigen::AngleAxisd(turn, random_unit_vector(rng)).matrix() * reachable.linear();
 
     const irb6::NearestSolution nearest = irb6::inverse_nearest(target, q);
     const Eigen::Isometry3d reached = irb6::forward_kinematics(nearest.joints);
@@ -652,16 +650,26 @@ TEST(Irb6Inverse, TargetsOutsideTheJointLimitsNameTheJoint) {
   };
   const std::vector<Case> cases = {
       {{deg(175), deg(-90), 0.0, 0.0, 0.0},
-       "joint 0 (column) inverse kinematics solution 3.054326 rad exceeds upper limit 2.967060 rad"},
-      {{deg(-175), deg(-90), 0.0, 0.0, 0.0}, "joint 0 (column) inverse kinematics solution -3.0543"},
-      {{0.0, deg(-135), deg(10), 0.0, 0.0}, "joint 1 (lower_arm) inverse kinematics solution -2.3561"},
-      {{0.0, deg(-45), deg(10), 0.0, 0.0}, "joint 1 (lower_arm) inverse kinematics solution -0.7853"},
-      {{0.0, deg(-90), deg(45), 0.0, 0.0}, "joint 2 (upper_arm) inverse kinematics solution 0.7853"},
-      {{0.0, deg(-60), deg(-30), 0.0, 0.0}, "joint 2 (upper_arm) inverse kinematics solution -0.5235"},
-      {{0.0, deg(-90), 0.0, deg(95), 0.0}, "joint 3 (wrist_pitch) inverse kinematics solution 1.6580"},
-      {{0.0, deg(-90), 0.0, deg(-95), 0.0}, "joint 3 (wrist_pitch) inverse kinematics solution -1.6580"},
-      {{0.0, deg(-90), 0.0, 0.0, deg(170)}, "joint 4 (wrist_roll) inverse kinematics solution 2.9670"},
-      {{0.0, deg(-90), 0.0, 0.0, deg(-170)}, "joint 4 (wrist_roll) inverse kinematics solution -2.9670"},
+       "joint 0 (column) inverse kinematics solution 3.054326 rad exceeds upper limit 2.967060 "
+       "rad"},
+      {{deg(-175), deg(-90), 0.0, 0.0, 0.0},
+       "joint 0 (column) inverse kinematics solution -3.0543"},
+      {{0.0, deg(-135), deg(10), 0.0, 0.0},
+       "joint 1 (lower_arm) inverse kinematics solution -2.3561"},
+      {{0.0, deg(-45), deg(10), 0.0, 0.0},
+       "joint 1 (lower_arm) inverse kinematics solution -0.7853"},
+      {{0.0, deg(-90), deg(45), 0.0, 0.0},
+       "joint 2 (upper_arm) inverse kinematics solution 0.7853"},
+      {{0.0, deg(-60), deg(-30), 0.0, 0.0},
+       "joint 2 (upper_arm) inverse kinematics solution -0.5235"},
+      {{0.0, deg(-90), 0.0, deg(95), 0.0},
+       "joint 3 (wrist_pitch) inverse kinematics solution 1.6580"},
+      {{0.0, deg(-90), 0.0, deg(-95), 0.0},
+       "joint 3 (wrist_pitch) inverse kinematics solution -1.6580"},
+      {{0.0, deg(-90), 0.0, 0.0, deg(170)},
+       "joint 4 (wrist_roll) inverse kinematics solution 2.9670"},
+      {{0.0, deg(-90), 0.0, 0.0, deg(-170)},
+       "joint 4 (wrist_roll) inverse kinematics solution -2.9670"},
       {{0.0, deg(-125), deg(-20), 0.0, 0.0},
        "joint 2 (upper_arm) inverse kinematics solution: q1 + q2 + pi/2 = -0.959931 rad is below "
        "the upper-arm linkage limit -0.785398 rad"},
@@ -676,16 +684,26 @@ TEST(Irb6Inverse, TargetsOutsideTheJointLimitsNameTheJoint) {
   }
   // Out of reach.
   Eigen::Isometry3d far = irb6::forward_kinematics(irb6::kSynchroJointPositions);
-  far.translation() = Eigen::Vector3d(2.0, 0.0, 1.0);
+  far.translation() = Eigen::Vector3d(2.0, 0.0, 0.7);  // wrist centre 1.81 m ahead of the axis
   expect_command_error(
       [&] { (void)irb6::inverse_kinematics(far, irb6::kSynchroJointPositions); }, out_of_limits,
       "position not reachable: wrist centre 1.810000 m from the lower-arm axis, the arm reaches "
       "0.215000 .. 1.125000 m");
+  // Flange on the column axis with a vertical approach: the wrist centre is on the axis too, the
+  // column angle comes from the seed, and the IRb-6 cannot put its wrist there.
+  Eigen::Isometry3d on_axis = irb6::forward_kinematics({0.0, -kPi / 2, 0.0, -kPi / 2, 0.0});
+  on_axis.translation() = Eigen::Vector3d(0.0, 0.0, 1.5);
+  for (const double column : {-1.0, 0.0, 2.0}) {
+    const JointPosition seed = {column, -kPi / 2, 0.0, 0.0, 0.0};
+    expect_command_error([&] { (void)irb6::inverse_kinematics(on_axis, seed); }, out_of_limits,
+                         "inverse kinematics solution");
+    expect_command_error([&] { (void)irb6::inverse_nearest(on_axis, seed); }, out_of_limits,
+                         "inverse kinematics solution");
+  }
   // Not finite.
   far.translation().x() = std::nan("");
-  expect_command_error(
-      [&] { (void)irb6::inverse_kinematics(far, irb6::kSynchroJointPositions); }, bad_argument,
-      "target frame is not finite");
+  expect_command_error([&] { (void)irb6::inverse_kinematics(far, irb6::kSynchroJointPositions); },
+                       bad_argument, "target frame is not finite");
 }
 
 }  // namespace

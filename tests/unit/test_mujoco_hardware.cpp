@@ -469,4 +469,335 @@ TEST(MujocoHardware, UnstableSimulationIsAFault) {
   std::filesystem::remove_all(dir);
 }
 
+// ---- The RNT: a closed parallelogram, coupled axes (robots/rnt). ----
+
+constexpr std::size_t kRntAxes = 6;
+// The elbow actuator drives the absolute forearm pitch: a2 = q1 + q2 (parameters.toml).
+constexpr std::size_t kShoulder = 1;
+constexpr std::size_t kElbow = 2;
+
+std::filesystem::path rnt_dir() {
+  return std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / "rnt";
+}
+
+HardwareSetup rnt_setup() {
+  HardwareSetup setup;
+  setup.robot = "rnt";
+  setup.model_dir = rnt_dir();
+  setup.servo_period_s = kPeriod;
+  setup.synchro_positions = {0.0, 0.0, 0.0, kPi / 2, 0.0, 0.0};
+  setup.params = Params(SourceLocation{"test.toml", 20});
+  return setup;
+}
+
+int joint_id(const mjModel* m, const char* name) { return mj_name2id(m, mjOBJ_JOINT, name); }
+
+double joint_qpos(const mjModel* m, const mjData* d, const char* name) {
+  return d->qpos[m->jnt_qposadr[joint_id(m, name)]];
+}
+
+/// Exact violation of every `connect` constraint of the model at the state `d->qpos` [m]:
+/// distance between the anchor on body1 and the anchor on body2 (computed on a scratch copy).
+class LoopProbe {
+ public:
+  explicit LoopProbe(const mjModel* m) : m_(m), d_(mj_makeData(m)) {}
+  ~LoopProbe() { mj_deleteData(d_); }
+  LoopProbe(const LoopProbe&) = delete;
+  LoopProbe& operator=(const LoopProbe&) = delete;
+
+  double violation(const mjData* state) {
+    for (int i = 0; i < m_->nq; ++i) {
+      d_->qpos[i] = state->qpos[i];
+    }
+    mj_kinematics(m_, d_);
+    double worst = 0.0;
+    for (int e = 0; e < m_->neq; ++e) {
+      if (m_->eq_type[e] != mjEQ_CONNECT) {
+        continue;
+      }
+      const mjtNum* data = m_->eq_data + mjNEQDATA * e;
+      std::array<mjtNum, 3> p1{};
+      std::array<mjtNum, 3> p2{};
+      const int b1 = m_->eq_obj1id[e];
+      const int b2 = m_->eq_obj2id[e];
+      mju_mulMatVec(p1.data(), d_->xmat + 9 * b1, data, 3, 3);
+      mju_addTo3(p1.data(), d_->xpos + 3 * b1);
+      mju_mulMatVec(p2.data(), d_->xmat + 9 * b2, data + 3, 3, 3);
+      mju_addTo3(p2.data(), d_->xpos + 3 * b2);
+      worst = std::max(worst, mju_dist3(p1.data(), p2.data()));
+    }
+    return worst;
+  }
+
+ private:
+  const mjModel* m_;
+  mjData* d_;
+};
+
+TEST(MujocoHardwareRnt, AxesAreTheActuatorsAndThePowerOnPoseClosesTheParallelogram) {
+  MujocoHardware hw;
+  hw.configure(rnt_setup());
+  ASSERT_EQ(hw.axis_count(), kRntAxes);
+  EXPECT_TRUE(hw.coupled());
+  const mjModel* m = hw.model();
+  ASSERT_EQ(m->nu, 6);
+  ASSERT_EQ(m->njnt, 8) << "6 axes + the passive elbow_drive crank and coupler";
+  ASSERT_EQ(m->neq, 1);
+  // Axis 2's actuator joint is the parallelogram crank, not the serial elbow.
+  EXPECT_EQ(hw.actuator_joints()[kElbow], joint_id(m, "elbow_drive"));
+  EXPECT_EQ(hw.actuator_joints()[kShoulder], joint_id(m, "shoulder"));
+  // The coupling of parameters.toml: identity except a2 = q1 + q2.
+  const std::vector<double>& c = hw.coupling();
+  ASSERT_EQ(c.size(), kRntAxes * kRntAxes);
+  for (std::size_t r = 0; r < kRntAxes; ++r) {
+    for (std::size_t col = 0; col < kRntAxes; ++col) {
+      const double expected = (r == col || (r == kElbow && col == kShoulder)) ? 1.0 : 0.0;
+      EXPECT_EQ(c[r * kRntAxes + col], expected) << "M(" << r << ", " << col << ")";
+    }
+  }
+
+  // Default power-on pose: synchro + 0.05 rad in joint coordinates.
+  const std::vector<double> expected = {0.05, 0.05, 0.05, kPi / 2 + 0.05, 0.05, 0.05};
+  hw.activate();
+  const mjData* d = hw.data();
+  const auto q = hw.true_joint_positions();
+  for (std::size_t i = 0; i < kRntAxes; ++i) {
+    EXPECT_NEAR(hw.power_on_positions()[i], expected[i], 1e-15) << "axis " << i;
+    EXPECT_NEAR(q[i], expected[i], 1e-12) << "axis " << i;
+  }
+  // The plugin solved the loop for the passive joints: elbow = q2, coupler = -q2, crank = q1 + q2.
+  EXPECT_NEAR(joint_qpos(m, d, "elbow_drive"), 0.10, 1e-15);
+  EXPECT_NEAR(joint_qpos(m, d, "elbow"), 0.05, 1e-12);
+  EXPECT_NEAR(joint_qpos(m, d, "coupler"), -0.05, 1e-12);
+  LoopProbe probe(m);
+  EXPECT_LT(probe.violation(d), 1e-12);
+  EXPECT_LT(hw.equality_violation(), 1e-12);
+
+  std::array<AxisFeedback, kRntAxes> fb{};
+  ASSERT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
+  for (std::size_t i = 0; i < kRntAxes; ++i) {
+    EXPECT_NEAR(fb[i].position, 0.0, 1e-12) << "axis " << i;
+    EXPECT_TRUE(fb[i].synchro_switch) << "axis " << i;
+  }
+}
+
+TEST(MujocoHardwareRnt, InitialPoseAwayFromQpos0IsClosedBySolving) {
+  HardwareSetup setup = rnt_setup();
+  // Upper arm leaning 0.9 rad forward, forearm 0.6 rad below it (absolute pitch 1.5 rad).
+  const std::vector<double> initial = {0.4, 0.9, 0.6, 0.3, -0.5, 1.2};
+  setup.params.set("initial_joint_positions", initial, SourceLocation{"test.toml", 21});
+  MujocoHardware hw;
+  hw.configure(setup);
+  hw.activate();
+  const mjModel* m = hw.model();
+  const mjData* d = hw.data();
+  EXPECT_NEAR(joint_qpos(m, d, "shoulder"), 0.9, 1e-15);
+  EXPECT_NEAR(joint_qpos(m, d, "elbow_drive"), 1.5, 1e-15);
+  EXPECT_NEAR(joint_qpos(m, d, "elbow"), 0.6, 1e-10);
+  EXPECT_NEAR(joint_qpos(m, d, "coupler"), -0.6, 1e-10);
+  LoopProbe probe(m);
+  EXPECT_LT(probe.violation(d), 1e-10);
+  const auto q = hw.true_joint_positions();
+  for (std::size_t i = 0; i < kRntAxes; ++i) {
+    EXPECT_NEAR(q[i], initial[i], 1e-12) << "axis " << i;
+  }
+}
+
+TEST(MujocoHardwareRnt, TracksAJointTrajectoryThroughTheParallelogram) {
+  MujocoHardware hw;
+  hw.configure(rnt_setup());
+  hw.activate();
+  const mjModel* m = hw.model();
+  const mjData* d = hw.data();
+  const std::vector<double> power_on = hw.power_on_positions();
+  LoopProbe probe(m);
+
+  // Raw (joint-space) moves over 2 s: the shoulder leans 0.6 rad forward while the elbow turns
+  // -0.4 rad relative to it (the elbow drive turns +0.2 rad), the wrist axes move too.
+  const std::array<double, kRntAxes> amplitude = {0.5, 0.6, -0.4, -0.5, 0.4, 0.8};
+  constexpr double kMoveTime = 2.0;
+  constexpr double kSettleTime = 0.5;
+  const int total_cycles = static_cast<int>(std::lround((kMoveTime + kSettleTime) / kPeriod));
+  const auto reference = [&](std::size_t i, double t) {
+    return amplitude[i] * quintic(t / kMoveTime);
+  };
+
+  std::array<AxisFeedback, kRntAxes> fb{};
+  std::array<double, kRntAxes> setpoint{};
+  std::array<double, kRntAxes> max_error{};
+  double max_violation = 0.0;
+  double max_elbow_mismatch = 0.0;
+  g_allocations = 0;
+  for (int k = 0; k <= total_cycles; ++k) {
+    const double t = k * kPeriod;
+    g_count_allocations = true;
+    const CycleStatus read_status = hw.read(fb);
+    g_count_allocations = false;
+    ASSERT_EQ(read_status, CycleStatus::ok) << hw.fault_text();
+    // The reading is in joint coordinates: q2 = elbow_drive - shoulder.
+    const double a1 = joint_qpos(m, d, "shoulder");
+    const double a2 = joint_qpos(m, d, "elbow_drive");
+    ASSERT_NEAR(fb[kShoulder].position, a1 - power_on[kShoulder], 1e-12);
+    ASSERT_NEAR(fb[kElbow].position, (a2 - a1) - power_on[kElbow], 1e-12);
+    // ... and agrees with the passive serial elbow joint while the loop stays closed.
+    max_elbow_mismatch = std::max(
+        max_elbow_mismatch,
+        std::abs(fb[kElbow].position + power_on[kElbow] - joint_qpos(m, d, "elbow")));
+    max_violation = std::max(max_violation, probe.violation(d));
+    for (std::size_t i = 0; i < kRntAxes; ++i) {
+      max_error[i] = std::max(max_error[i], std::abs(reference(i, t) - fb[i].position));
+    }
+    for (std::size_t i = 0; i < kRntAxes; ++i) {
+      setpoint[i] = reference(i, (k + 1) * kPeriod);
+    }
+    g_count_allocations = true;
+    const CycleStatus write_status = hw.write(setpoint);
+    g_count_allocations = false;
+    ASSERT_EQ(write_status, CycleStatus::ok) << hw.fault_text();
+    // The elbow drive is commanded with the absolute forearm pitch q1 + q2.
+    ASSERT_NEAR(d->ctrl[kElbow],
+                setpoint[kShoulder] + power_on[kShoulder] + setpoint[kElbow] + power_on[kElbow],
+                1e-12);
+  }
+  EXPECT_EQ(g_allocations.load(), 0) << "read()/write() allocated on the heap";
+
+  ASSERT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
+  const std::array<const char*, kRntAxes> names = {"waist",       "shoulder",  "elbow",
+                                                   "wrist_pitch", "wrist_yaw", "wrist_roll"};
+  for (std::size_t i = 0; i < kRntAxes; ++i) {
+    const double final_error = std::abs(amplitude[i] - fb[i].position);
+    std::printf("rnt %-12s max tracking error %.3e rad, final error after %.1f s settling %.3e rad\n",
+                names[i], max_error[i], kSettleTime, final_error);
+    // Velocity lag of the servo, d/kp ~ 0.0107 s times at most 0.75 rad/s (peak of the quintic
+    // at 0.8 rad over 2 s).
+    EXPECT_LT(max_error[i], 1e-2) << names[i];
+    EXPECT_LT(final_error, 1e-3) << names[i];
+  }
+  std::printf("rnt parallelogram: max loop violation %.3e m, max |elbow reading - serial elbow "
+              "joint| %.3e rad\n",
+              max_violation, max_elbow_mismatch);
+  EXPECT_LT(max_violation, 1e-4);
+  EXPECT_LT(max_elbow_mismatch, 1e-3);
+  EXPECT_LT(hw.equality_violation(), 1e-4);
+}
+
+TEST(MujocoHardwareRnt, ShoulderAloneKeepsTheForearmAngleRelativeToTheUpperArm) {
+  // Moving only joint q1 (raw setpoint on axis 1) moves both the shoulder and the elbow drive, so
+  // that the elbow joint q2 stays put: the EDP's joint coordinates are the serial chain's.
+  MujocoHardware hw;
+  hw.configure(rnt_setup());
+  hw.activate();
+  const mjModel* m = hw.model();
+  const mjData* d = hw.data();
+  std::array<AxisFeedback, kRntAxes> fb{};
+  std::array<double, kRntAxes> setpoint{};
+  const double elbow_before = joint_qpos(m, d, "elbow");
+  const double drive_before = joint_qpos(m, d, "elbow_drive");
+  for (int k = 0; k < 1000; ++k) {
+    setpoint[kShoulder] = 0.3 * quintic(k * kPeriod / 1.5);
+    ASSERT_EQ(hw.write(setpoint), CycleStatus::ok) << hw.fault_text();
+  }
+  ASSERT_EQ(hw.read(fb), CycleStatus::ok);
+  EXPECT_NEAR(fb[kShoulder].position, 0.3, 1e-3);
+  EXPECT_NEAR(fb[kElbow].position, 0.0, 1e-3);
+  EXPECT_NEAR(joint_qpos(m, d, "elbow"), elbow_before, 1e-3);
+  EXPECT_NEAR(joint_qpos(m, d, "elbow_drive"), drive_before + 0.3, 1e-3);
+}
+
+/// A scratch copy of robots/rnt with another parameters.toml.
+class RntScratch {
+ public:
+  explicit RntScratch(const std::string& coupling_toml)
+      : dir_(std::filesystem::temp_directory_path() /
+             ("mrroc_rnt_" + std::to_string(::getpid()) + "_" + std::to_string(counter_++))) {
+    std::filesystem::create_directories(dir_);
+    std::filesystem::copy_file(rnt_dir() / "rnt.xml", dir_ / "rnt.xml");
+    std::ofstream out(dir_ / "parameters.toml");
+    out << "[robot]\nname = \"rnt\"\nmjcf = \"rnt.xml\"\n"
+        << "joint_names = [\"waist\", \"shoulder\", \"elbow\", \"wrist_pitch\", \"wrist_yaw\", "
+           "\"wrist_roll\"]\n"
+        << "synchro_joint_positions = [0.0, 0.0, 0.0, 1.5707963267948966, 0.0, 0.0]\n\n"
+        << "[robot.transmission]\n"
+        << coupling_toml;
+  }
+  ~RntScratch() { std::filesystem::remove_all(dir_); }
+  RntScratch(const RntScratch&) = delete;
+  RntScratch& operator=(const RntScratch&) = delete;
+  [[nodiscard]] HardwareSetup setup() const {
+    HardwareSetup s = rnt_setup();
+    s.model_dir = dir_;
+    return s;
+  }
+  [[nodiscard]] std::filesystem::path file() const { return dir_ / "parameters.toml"; }
+
+ private:
+  static inline int counter_ = 0;
+  std::filesystem::path dir_;
+};
+
+TEST(MujocoHardwareRnt, CouplingErrorsNameTheFileAndTheProblem) {
+  {
+    // Identity (no coupling declared): the serial elbow joint would not follow axis 2.
+    RntScratch scratch("# no coupling\n");
+    MujocoHardware hw;
+    try {
+      hw.configure(scratch.setup());
+      FAIL() << "an identity coupling was accepted for the parallelogram";
+    } catch (const HardwareError& e) {
+      const std::string what = e.what();
+      std::printf("%s\n", what.c_str());
+      EXPECT_NE(what.find("does not match"), std::string::npos) << what;
+      EXPECT_NE(what.find("'elbow'"), std::string::npos) << what;
+    }
+  }
+  {
+    RntScratch scratch("coupling = [[1.0, 0.0], [0.0, 1.0]]\n");
+    MujocoHardware hw;
+    try {
+      hw.configure(scratch.setup());
+      FAIL() << "a 2 x 2 coupling was accepted for 6 actuators";
+    } catch (const ConfigError& e) {
+      const std::string what = e.what();
+      std::printf("%s\n", what.c_str());
+      EXPECT_NE(what.find(scratch.file().string() + ":"), std::string::npos) << what;
+      EXPECT_NE(what.find("6 x 6"), std::string::npos) << what;
+    }
+  }
+  {
+    // Rows 1 and 2 equal: singular.
+    RntScratch scratch(
+        "coupling = [\n"
+        "  [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],\n  [0.0, 1.0, 1.0, 0.0, 0.0, 0.0],\n"
+        "  [0.0, 1.0, 1.0, 0.0, 0.0, 0.0],\n  [0.0, 0.0, 0.0, 1.0, 0.0, 0.0],\n"
+        "  [0.0, 0.0, 0.0, 0.0, 1.0, 0.0],\n  [0.0, 0.0, 0.0, 0.0, 0.0, 1.0],\n]\n");
+    MujocoHardware hw;
+    try {
+      hw.configure(scratch.setup());
+      FAIL() << "a singular coupling was accepted";
+    } catch (const ConfigError& e) {
+      const std::string what = e.what();
+      std::printf("%s\n", what.c_str());
+      EXPECT_NE(what.find(scratch.file().string() + ":8"), std::string::npos) << what;
+      EXPECT_NE(what.find("singular"), std::string::npos) << what;
+    }
+  }
+}
+
+TEST(MujocoHardwareRnt, InitialPoseOutsideTheForearmRangeIsRefused) {
+  HardwareSetup setup = rnt_setup();
+  // q1 + q2 = 1.3 + 0.7 = 2.0 rad: inside both joint limits, beyond the elbow drive's 1.90625 rad.
+  setup.params.set("initial_joint_positions", std::vector<double>{0.0, 1.3, 0.7, 0.0, 0.0, 0.0},
+                   SourceLocation{"test.toml", 22});
+  MujocoHardware hw;
+  try {
+    hw.configure(setup);
+    FAIL() << "an initial pose beyond the elbow drive range was accepted";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    std::printf("%s\n", what.c_str());
+    EXPECT_NE(what.find("test.toml:22"), std::string::npos) << what;
+    EXPECT_NE(what.find("elbow_drive"), std::string::npos) << what;
+  }
+}
+
 }  // namespace

@@ -148,7 +148,8 @@ TEST(PoseFrame, SlightlyNonOrthonormalRotationIsAcceptedAndRepaired) {
     const Eigen::Isometry3d f = random_frame(rng);
     auto values = kin::frame_to_values(f);
     // Perturb every rotation entry by up to 1e-7 (like values printed with 7 digits).
-    for (std::size_t i : {0U, 1U, 2U, 4U, 5U, 6U, 8U, 9U, 10U}) values[i] += uniform(rng, -1e-7, 1e-7);
+    for (std::size_t i : {0U, 1U, 2U, 4U, 5U, 6U, 8U, 9U, 10U})
+      values[i] += uniform(rng, -1e-7, 1e-7);
     const Eigen::Isometry3d back = kin::frame_from_values(values);
     ASSERT_LT((back.linear().transpose() * back.linear() - Eigen::Matrix3d::Identity())
                   .cwiseAbs()
@@ -180,9 +181,8 @@ TEST(PoseFrame, InvalidValuesAreRefusedWithTheProblemNamed) {
                        bad_argument, "FRAME value 5 (r11) is not a finite number: nan");
   auto infinite_position = values;
   infinite_position[7] = HUGE_VAL;
-  expect_command_error(
-      [&] { (void)kin::from_vector(infinite_position, ArmRepresentation::frame); }, bad_argument,
-      "FRAME value 7 (y) is not a finite number: inf");
+  expect_command_error([&] { (void)kin::from_vector(infinite_position, ArmRepresentation::frame); },
+                       bad_argument, "FRAME value 7 (y) is not a finite number: inf");
 
   auto short_vector = values;
   short_vector.pop_back();
@@ -199,11 +199,10 @@ TEST(PoseFrame, InvalidValuesAreRefusedWithTheProblemNamed) {
 
 TEST(PoseEulerZyz, MatchesTheDefinition) {
   const Eigen::Vector3d abg(0.3, 1.1, -2.0);
-  const Eigen::Matrix3d expected =
-      (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
-       Eigen::AngleAxisd(1.1, Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(-2.0, Eigen::Vector3d::UnitZ()))
-          .toRotationMatrix();
+  const Eigen::Matrix3d expected = (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(1.1, Eigen::Vector3d::UnitY()) *
+                                    Eigen::AngleAxisd(-2.0, Eigen::Vector3d::UnitZ()))
+                                       .toRotationMatrix();
   EXPECT_LT((kin::rotation_from_euler_zyz(abg) - expected).cwiseAbs().maxCoeff(), 1e-15);
   const Eigen::Vector3d back = kin::euler_zyz_from_rotation(expected);
   EXPECT_NEAR(back(0), 0.3, 1e-14);
@@ -243,12 +242,14 @@ TEST(PoseEulerZyz, CanonicalEulerToFrameToEulerOnRandomValues) {
   for (int n = 0; n < kSamples; ++n) {
     // Away from the singularities (handled exactly below); near them alpha is ill-conditioned
     // (error ~ 1e-16 / sin(beta)).
-    const std::vector<double> v = {uniform(rng, -1, 1),       uniform(rng, -1, 1),
-                                   uniform(rng, -1, 1),       uniform(rng, -kPi, kPi),
-                                   uniform(rng, 1e-4, kPi - 1e-4), uniform(rng, -kPi, kPi)};
-    const std::vector<double> back =
-        kin::to_vector(kin::from_vector(v, ArmRepresentation::xyz_euler_zyz),
-                       ArmRepresentation::xyz_euler_zyz);
+    const std::vector<double> v = {uniform(rng, -1, 1),
+                                   uniform(rng, -1, 1),
+                                   uniform(rng, -1, 1),
+                                   uniform(rng, -kPi, kPi),
+                                   uniform(rng, 1e-4, kPi - 1e-4),
+                                   uniform(rng, -kPi, kPi)};
+    const std::vector<double> back = kin::to_vector(
+        kin::from_vector(v, ArmRepresentation::xyz_euler_zyz), ArmRepresentation::xyz_euler_zyz);
     double err = 0.0;
     for (std::size_t i = 0; i < 3; ++i) err = std::max(err, std::abs(v[i] - back[i]));
     for (std::size_t i = 3; i < 6; ++i) err = std::max(err, angle_difference(v[i], back[i]));
@@ -308,8 +309,8 @@ TEST(PoseEulerZyz, NearSingularFramesStillRoundTrip) {
   const std::uint32_t seed = test_seed();
   SCOPED_TRACE(seed_trace(seed));
   std::mt19937 rng(seed + 5U);
-  for (const double beta : {1e-15, 1e-13, 1e-11, 1e-9, 1e-6, kPi - 1e-6, kPi - 1e-9, kPi - 1e-11,
-                            kPi - 1e-13}) {
+  for (const double beta :
+       {1e-15, 1e-13, 1e-11, 1e-9, 1e-6, kPi - 1e-6, kPi - 1e-9, kPi - 1e-11, kPi - 1e-13}) {
     for (int n = 0; n < kSamples / 10; ++n) {
       const Eigen::Matrix3d r = kin::rotation_from_euler_zyz(
           Eigen::Vector3d(uniform(rng, -kPi, kPi), beta, uniform(rng, -kPi, kPi)));
@@ -365,8 +366,8 @@ TEST(PoseAngleAxis, CanonicalRotationVectorToFrameAndBack) {
 TEST(PoseAngleAxis, AngleZeroIsTheZeroVector) {
   EXPECT_TRUE(kin::rotation_vector_from_rotation(Eigen::Matrix3d::Identity()).isZero(0.0));
   EXPECT_TRUE(kin::rotation_from_rotation_vector(Eigen::Vector3d::Zero()).isIdentity(0.0));
-  const std::vector<double> v = kin::to_vector(Eigen::Isometry3d::Identity(),
-                                               ArmRepresentation::xyz_angle_axis);
+  const std::vector<double> v =
+      kin::to_vector(Eigen::Isometry3d::Identity(), ArmRepresentation::xyz_angle_axis);
   for (double x : v) EXPECT_EQ(x, 0.0);
   // Tiny angles keep their relative accuracy.
   const std::uint32_t seed = test_seed();
@@ -458,10 +459,14 @@ TEST(PoseRepresentation, SizesAndNonCartesianRepresentations) {
                          bad_argument, name + " is not a Cartesian representation");
   }
   expect_command_error(
-      [&] { (void)kin::from_vector({0, 0, 0, 0, 0}, ArmRepresentation::xyz_euler_zyz); },
+      [&] {
+        (void)kin::from_vector({0, 0, 0, 0, 0}, ArmRepresentation::xyz_euler_zyz);
+      },
       bad_argument, "XYZ_EULER_ZYZ needs 6 values, got 5");
   expect_command_error(
-      [&] { (void)kin::from_vector(std::vector<double>(12, 0.0), ArmRepresentation::xyz_angle_axis); },
+      [&] {
+        (void)kin::from_vector(std::vector<double>(12, 0.0), ArmRepresentation::xyz_angle_axis);
+      },
       bad_argument, "XYZ_ANGLE_AXIS needs 6 values, got 12");
   expect_command_error(
       [&] {
@@ -488,9 +493,8 @@ TEST(PoseRepresentation, AllRepresentationsDescribeTheSameFrame) {
         kin::to_vector(f, ArmRepresentation::xyz_euler_zyz), ArmRepresentation::xyz_euler_zyz);
     const Eigen::Isometry3d via_axis = kin::from_vector(
         kin::to_vector(f, ArmRepresentation::xyz_angle_axis), ArmRepresentation::xyz_angle_axis);
-    const Eigen::Isometry3d via_frame =
-        kin::from_vector(kin::to_vector(via_euler, ArmRepresentation::frame),
-                         ArmRepresentation::frame);
+    const Eigen::Isometry3d via_frame = kin::from_vector(
+        kin::to_vector(via_euler, ArmRepresentation::frame), ArmRepresentation::frame);
     ASSERT_LT(frame_error(via_euler, via_axis), 1e-14);
     ASSERT_LT(frame_error(via_frame, f), 1e-14);
   }

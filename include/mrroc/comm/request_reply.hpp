@@ -82,7 +82,7 @@ class Client {
         reply_channel_(std::move(reply_channel)),
         options_(options),
         dice_(options.faults) {
-    subscription_ = bus_.lcm().subscribe(reply_channel_, &Client::on_reply, this);
+    subscription_ = bus_.lcm().subscribeFunction(reply_channel_, &Client::dispatch, this);
   }
   ~Client() { bus_.lcm().unsubscribe(subscription_); }
   Client(const Client&) = delete;
@@ -152,7 +152,13 @@ class Client {
     lock.lock();
   }
 
-  void on_reply(const lcm::ReceiveBuffer*, const std::string&, const Rep* reply) {
+  // LCM calls a plain function with the object as context (no pointer-to-member dispatch).
+  static void dispatch(const lcm::ReceiveBuffer*, const std::string&, const Rep* reply,
+                       Client* self) {
+    self->on_reply(reply);
+  }
+
+  void on_reply(const Rep* reply) {
     if (reply->header.recipient != name_) return;  // another client's reply on a shared channel
     std::lock_guard lock(mutex_);
     if (reply->header.seq != waiting_seq_ || reply_) {
@@ -255,7 +261,7 @@ class Server {
         handler_(std::move(handler)),
         state_(std::make_shared<State>(&bus, std::move(name), std::move(reply_channel),
                                        options.faults)) {
-    subscription_ = bus_.lcm().subscribe(request_channel, &Server::on_request, this);
+    subscription_ = bus_.lcm().subscribeFunction(request_channel, &Server::dispatch, this);
   }
   ~Server() {
     bus_.lcm().unsubscribe(subscription_);
@@ -283,7 +289,12 @@ class Server {
   }
 
  private:
-  void on_request(const lcm::ReceiveBuffer*, const std::string&, const Req* request) {
+  static void dispatch(const lcm::ReceiveBuffer*, const std::string&, const Req* request,
+                       Server* self) {
+    self->on_request(request);
+  }
+
+  void on_request(const Req* request) {
     const std::string& client = request->header.sender;
     const std::int64_t seq = request->header.seq;
     std::optional<Rep> resend;

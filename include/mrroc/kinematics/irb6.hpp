@@ -43,12 +43,10 @@ constexpr double deg(double degrees) { return degrees * std::numbers::pi / 180.0
 
 /// Joint limits [rad] (the same values as irb6.urdf: -170..170, -130..-50, -25..40, -90..92,
 /// -165..168 deg).
-inline constexpr JointPosition kJointLowerLimits = {detail::deg(-170), detail::deg(-130),
-                                                    detail::deg(-25), detail::deg(-90),
-                                                    detail::deg(-165)};
-inline constexpr JointPosition kJointUpperLimits = {detail::deg(170), detail::deg(-50),
-                                                    detail::deg(40), detail::deg(92),
-                                                    detail::deg(168)};
+inline constexpr JointPosition kJointLowerLimits = {
+    detail::deg(-170), detail::deg(-130), detail::deg(-25), detail::deg(-90), detail::deg(-165)};
+inline constexpr JointPosition kJointUpperLimits = {
+    detail::deg(170), detail::deg(-50), detail::deg(40), detail::deg(92), detail::deg(168)};
 
 /// Motor limits [rad of motor shaft].
 inline constexpr MotorPosition kMotorLowerLimits = {-470.0, -110.0, -80.0, -70.0, -80.0};
@@ -56,14 +54,13 @@ inline constexpr MotorPosition kMotorUpperLimits = {450.0, 100.0, 100.0, 380.0, 
 
 /// Motor positions at the synchronisation switches [rad] and the joints there [rad].
 inline constexpr MotorPosition kSynchroMotorPositions = {-15.9, -5.0, -8.527, 151.31, 314.665};
-inline constexpr JointPosition kSynchroJointPositions = {0.0, -std::numbers::pi / 2, 0.0, 0.0,
-                                                         0.0};
+inline constexpr JointPosition kSynchroJointPositions = {0.0, -std::numbers::pi / 2, 0.0, 0.0, 0.0};
 
 /// Harmonic-drive transmissions: joint = direction * (motor - motor_sync) / ratio + joint_sync.
-inline constexpr double kColumnRatio = 158.0;             ///< motor rad per joint rad
-inline constexpr double kWristPitchRatio = 128.0;         ///< motor rad per joint rad
-inline constexpr double kWristRollRatio = 128.0 * 0.6;    ///< harmonic 128 x bevel 0.6
-inline constexpr double kHarmonicDirection = -1.0;        ///< the same for all three
+inline constexpr double kColumnRatio = 158.0;           ///< motor rad per joint rad
+inline constexpr double kWristPitchRatio = 128.0;       ///< motor rad per joint rad
+inline constexpr double kWristRollRatio = 128.0 * 0.6;  ///< harmonic 128 x bevel 0.6
+inline constexpr double kHarmonicDirection = -1.0;      ///< the same for all three
 /// Ball-screw lead [mm per motor revolution].
 inline constexpr double kScrewLead = 5.0;
 
@@ -85,8 +82,8 @@ struct ScrewLinkage {
 
 /// Lower arm: fed angle q1, linkage range -150..25 deg (the triangle degenerates at about
 /// -154.3 and 25.7 deg).
-inline constexpr ScrewLinkage kLowerArmScrew = {77895.25,  60902.55,          -29346.68,
-                                                220.3374,  detail::deg(-150), detail::deg(25)};
+inline constexpr ScrewLinkage kLowerArmScrew = {77895.25, 60902.55,          -29346.68,
+                                                220.3374, detail::deg(-150), detail::deg(25)};
 /// Upper arm: fed angle q1 + q2 + pi/2, linkage range -45..130 deg (the triangle degenerates at
 /// about -49.3 and 130.7 deg). Within the individual joint limits that angle spans -65..80 deg, so
 /// the lower bound is a real further limit on (q1, q2).
@@ -190,8 +187,9 @@ struct NearestSolution {
 /// Configuration. Of the up to four solutions (column q0 or q0 + pi, elbow either side) the joint
 /// and linkage limits of the IRb-6 leave at most one (the wrist centre stays at least 0.18 m in
 /// front of the column axis and q2 + pi/2 is in 65..130 deg); if several were valid, the one
-/// nearest `seed` would be taken. `seed` (normally the current joints) also fixes the column
-/// angle when the pivot and the wrist centre are on the column axis, and the approach in
+/// nearest `seed` would be taken. A solution joint less than 1e-9 rad outside its limit (round-off
+/// of a target at the limit) is put onto the limit. `seed` (normally the current joints) also fixes
+/// the column angle when the pivot and the wrist centre are on the column axis, and the approach in
 /// `inverse_nearest` when it is perpendicular to the arm plane.
 ///
 /// @param pivot distance [m] along the flange z axis of the point that defines the arm plane.

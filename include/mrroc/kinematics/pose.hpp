@@ -40,9 +40,9 @@ inline constexpr double kEulerSingularity = 1e-12;
 /// Axis components with a magnitude up to this do not decide the canonical sign at angle pi.
 inline constexpr double kAxisSignThreshold = 1e-9;
 
-inline constexpr std::size_t kFrameValues = 12;          ///< FRAME
-inline constexpr std::size_t kXyzEulerZyzValues = 6;     ///< XYZ_EULER_ZYZ
-inline constexpr std::size_t kXyzAngleAxisValues = 6;    ///< XYZ_ANGLE_AXIS
+inline constexpr std::size_t kFrameValues = 12;        ///< FRAME
+inline constexpr std::size_t kXyzEulerZyzValues = 6;   ///< XYZ_EULER_ZYZ
+inline constexpr std::size_t kXyzAngleAxisValues = 6;  ///< XYZ_ANGLE_AXIS
 
 /// The 12 values of a frame: [R | p] row by row.
 std::array<double, kFrameValues> frame_to_values(const Eigen::Isometry3d& frame);
@@ -102,7 +102,8 @@ Eigen::Isometry3d from_values(std::span<const double> values,
 
 /// `to_values` into a new vector of `representation_size(representation)` elements.
 /// @throws CommandError (code edp::error_code::bad_argument) for JOINT/MOTOR.
-std::vector<double> to_vector(const Eigen::Isometry3d& frame, edp::ArmRepresentation representation);
+std::vector<double> to_vector(const Eigen::Isometry3d& frame,
+                              edp::ArmRepresentation representation);
 
 /// `from_values` of a vector. @throws CommandError as `from_values`.
 Eigen::Isometry3d from_vector(const std::vector<double>& values,

@@ -2,7 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
+
 #include "mrroc/core/error.hpp"
+#include "mrroc/kinematics/pose.hpp"
 
 namespace mrroc::edp {
 
@@ -11,8 +14,15 @@ constexpr double kSynchroTimeout = 60.0;  // longest synchronisation [s]
 }
 
 CommandInterpreter::CommandInterpreter(ServoLoop& servo, const RobotModel& model,
-                                       double servo_period_s)
-    : servo_(servo), model_(model), period_s_(servo_period_s) {}
+                                       ArmKinematics& kinematics, double servo_period_s)
+    : servo_(servo), model_(model), kinematics_(kinematics), period_s_(servo_period_s) {}
+
+namespace {
+bool is_cartesian(ArmRepresentation r) {
+  return r == ArmRepresentation::frame || r == ArmRepresentation::xyz_euler_zyz ||
+         r == ArmRepresentation::xyz_angle_axis;
+}
+}  // namespace
 
 Reply CommandInterpreter::error(int code, const std::string& text) {
   Reply r;
@@ -56,32 +66,60 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     due_ = Due::synchro;
     return Reply{};
   }
-  constexpr std::uint8_t settable = item::arm | item::servo | item::outputs;
-  constexpr std::uint8_t gettable = item::arm | item::servo | item::inputs | item::timing;
+  constexpr std::uint8_t settable =
+      item::arm | item::tool | item::model | item::servo | item::outputs;
+  constexpr std::uint8_t gettable =
+      item::arm | item::tool | item::model | item::servo | item::inputs | item::timing;
   if (sets && (in.set & ~settable) != 0)
-    throw CommandError(error_code::not_supported,
-                       fmt::format("SET of items {:#x} is not supported by this EDP (supported: "
-                                   "ARM, SERVO, OUTPUTS)",
+    throw CommandError(error_code::bad_argument,
+                       fmt::format("SET of items {:#x} is not possible (SET takes ARM, TOOL, "
+                                   "MODEL, SERVO, OUTPUTS)",
                                    in.set & ~settable));
   if (gets && (in.get & ~gettable) != 0)
-    throw CommandError(error_code::not_supported,
-                       fmt::format("GET of items {:#x} is not supported by this EDP (supported: "
-                                   "ARM, SERVO, INPUTS, TIMING)",
+    throw CommandError(error_code::bad_argument,
+                       fmt::format("GET of items {:#x} is not possible (GET takes ARM, TOOL, "
+                                   "MODEL, SERVO, INPUTS, TIMING)",
                                    in.get & ~gettable));
-  if (gets && (in.get & item::arm) != 0 && in.get_arm_type != ArmRepresentation::joint)
-    throw CommandError(error_code::not_supported,
-                       fmt::format("GET ARM in {} is not supported by this EDP yet (only JOINT)",
-                                   to_string(in.get_arm_type)));
+  if (gets && (in.get & item::arm) != 0 && in.get_arm_type != ArmRepresentation::joint) {
+    if (!servo_.synchronised())
+      throw CommandError(error_code::not_synchronised,
+                         fmt::format("GET ARM in {} refused: robot not synchronised (only JOINT "
+                                     "readings, of the raw encoders, exist before SYNCHRO)",
+                                     to_string(in.get_arm_type)));
+    if (is_cartesian(in.get_arm_type) && !kinematics_.cartesian())
+      (void)kinematics_.forward({});  // throws not_supported with the reason
+  }
 
-  // Validate every item first: a refused SET changes nothing.
+  // Apply MODEL and TOOL tentatively, validate everything, and undo them if anything is refused:
+  // a refused SET changes nothing.
+  const int old_model = kinematics_.model_no();
+  const int old_corrector = kinematics_.corrector_no();
+  const Eigen::Isometry3d old_tool = kinematics_.tool();
   std::vector<double> target;
-  if (sets && (in.set & item::servo) != 0) validate_servo(in);
-  if (sets && (in.set & item::arm) != 0) target = validate_arm(in);
+  try {
+    if (sets && (in.set & item::model) != 0)
+      kinematics_.select_model(in.kinematic_model_no, in.corrector_no);
+    if (sets && (in.set & item::tool) != 0) {
+      if (!is_cartesian(in.tool_type))
+        throw CommandError(error_code::bad_argument,
+                           fmt::format("a tool is a frame: tool_type {} is not FRAME, "
+                                       "XYZ_EULER_ZYZ or XYZ_ANGLE_AXIS",
+                                       to_string(in.tool_type)));
+      kinematics_.set_tool(kinematics::from_vector(in.tool, in.tool_type));
+    }
+    if (sets && (in.set & item::servo) != 0) validate_servo(in);
+    if (sets && (in.set & item::arm) != 0) target = arm_target(in);
+  } catch (...) {
+    kinematics_.select_model(old_model, old_corrector);
+    kinematics_.set_tool(old_tool);
+    throw;
+  }
 
   if (sets && (in.set & item::outputs) != 0) servo_.request_outputs(in.output_values);
   if (sets && (in.set & item::servo) != 0)
     servo_.request_servo(in.servo_algorithm, in.servo_parameters_no);
   due_arm_type_ = in.get_arm_type;
+  due_tool_type_ = is_cartesian(in.tool_type) ? in.tool_type : ArmRepresentation::frame;
   due_get_ = gets ? in.get : 0;
   if (!target.empty()) {
     due_macro_step_ = servo_.submit(target, in.motion_steps, in.value_in_step_no);
@@ -121,14 +159,10 @@ void CommandInterpreter::validate_servo(const Instruction& in) const {
   }
 }
 
-std::vector<double> CommandInterpreter::validate_arm(const Instruction& in) const {
+std::vector<double> CommandInterpreter::arm_target(const Instruction& in) const {
   if (!servo_.synchronised())
     throw CommandError(error_code::not_synchronised,
                        "SET ARM refused: robot not synchronised (send SYNCHRO first)");
-  if (in.set_arm_type != ArmRepresentation::joint)
-    throw CommandError(error_code::not_supported,
-                       fmt::format("SET ARM in {} is not supported by this EDP yet (only JOINT)",
-                                   to_string(in.set_arm_type)));
   if (in.motion_steps < 1 || in.motion_steps > 100000)
     throw CommandError(error_code::bad_argument,
                        fmt::format("motion_steps {} is outside 1..100000", in.motion_steps));
@@ -136,19 +170,73 @@ std::vector<double> CommandInterpreter::validate_arm(const Instruction& in) cons
     throw CommandError(error_code::bad_argument,
                        fmt::format("value_in_step_no {} is outside 1..{} (motion_steps + 1)",
                                    in.value_in_step_no, in.motion_steps + 1));
-  if (in.arm.size() != model_.axes())
-    throw CommandError(error_code::bad_argument,
-                       fmt::format("SET ARM JOINT has {} values, robot '{}' has {} axes",
-                                   in.arm.size(), model_.name, model_.axes()));
-  std::vector<double> target = in.arm;
-  if (in.motion_type == MotionType::relative) {
-    const std::vector<double> base = servo_.planned_end();
-    for (std::size_t i = 0; i < target.size(); ++i) target[i] += base[i];
+  const bool relative = in.motion_type == MotionType::relative;
+  const std::vector<double> start = servo_.planned_end();
+  std::vector<double> target;
+  switch (in.set_arm_type) {
+    case ArmRepresentation::joint:
+    case ArmRepresentation::motor: {
+      const bool motor = in.set_arm_type == ArmRepresentation::motor;
+      if (in.arm.size() != model_.axes())
+        throw CommandError(error_code::bad_argument,
+                           fmt::format("SET ARM {} has {} values, robot '{}' has {} axes",
+                                       to_string(in.set_arm_type), in.arm.size(), model_.name,
+                                       model_.axes()));
+      for (std::size_t i = 0; i < in.arm.size(); ++i)
+        if (!std::isfinite(in.arm[i]))
+          throw CommandError(error_code::bad_argument,
+                             fmt::format("SET ARM {} value {} ({}) is not a finite number",
+                                         to_string(in.set_arm_type), i, model_.joint_names[i]));
+      std::vector<double> values = in.arm;
+      if (relative) {
+        const std::vector<double> base = motor ? kinematics_.motors_from_joints(start) : start;
+        for (std::size_t i = 0; i < values.size(); ++i) values[i] += base[i];
+      }
+      if (motor) {
+        kinematics_.check_motor_limits(values, "target");
+        target = kinematics_.joints_from_motors(values);
+      } else {
+        target = std::move(values);
+      }
+      break;
+    }
+    case ArmRepresentation::frame:
+    case ArmRepresentation::xyz_euler_zyz:
+    case ArmRepresentation::xyz_angle_axis: {
+      const Eigen::Isometry3d given = kinematics::from_vector(in.arm, in.set_arm_type);
+      const Eigen::Isometry3d goal =
+          relative ? kinematics::compose_relative(kinematics_.forward(start), given) : given;
+      target = kinematics_.inverse(goal, start);
+      break;
+    }
   }
-  // The interpolation is linear in joint space from a pose inside the limits, so the whole
-  // path is inside the limits exactly when the target is.
-  model_.check_joint_limits(target, "target");
+  check_path(start, target, in.motion_steps);
   return target;
+}
+
+void CommandInterpreter::check_path(const std::vector<double>& start,
+                                    const std::vector<double>& target, int steps) const {
+  kinematics_.check_joint_limits(target, "target");
+  std::vector<double> q(target.size());
+  for (int k = 1; k <= steps; ++k) {
+    const double s = static_cast<double>(k) / steps;
+    for (std::size_t i = 0; i < q.size(); ++i) q[i] = start[i] + (target[i] - start[i]) * s;
+    const std::string what = fmt::format("step {} of {}", k, steps);
+    kinematics_.check_joint_limits(q, what.c_str());
+    kinematics_.check_motor_limits(kinematics_.motors_from_joints(q), what.c_str());
+  }
+}
+
+std::vector<double> CommandInterpreter::arm_values(const std::vector<double>& joints,
+                                                   ArmRepresentation type) const {
+  switch (type) {
+    case ArmRepresentation::joint:
+      return joints;
+    case ArmRepresentation::motor:
+      return kinematics_.motors_from_joints(joints);
+    default:
+      return kinematics::to_vector(kinematics_.forward(joints), type);
+  }
 }
 
 Reply CommandInterpreter::query() {
@@ -193,6 +281,18 @@ Reply CommandInterpreter::reading_reply(const Reading& reading) const {
   r.joint_velocities.assign(reading.velocities.begin(), reading.velocities.begin() + n);
   r.arm_type = ArmRepresentation::joint;
   r.arm = r.joints;
+  if (reading.synchronised && (due_get_ & item::arm) != 0) {
+    try {
+      r.arm = arm_values(r.joints, due_arm_type_);
+      r.arm_type = due_arm_type_;
+    } catch (const CommandError& e) {
+      return error(e.code(), fmt::format("GET ARM in {}: {}", to_string(due_arm_type_), e.what()));
+    }
+  }
+  r.tool_type = due_tool_type_;
+  r.tool = kinematics::to_vector(kinematics_.tool(), due_tool_type_);
+  r.kinematic_model_no = kinematics_.model_no();
+  r.corrector_no = kinematics_.corrector_no();
   r.input_values = reading.inputs;
   r.servo_algorithm.assign(reading.servo_algorithm.begin(), reading.servo_algorithm.begin() + n);
   r.servo_parameters_no.assign(reading.servo_parameter_set.begin(),

@@ -10,11 +10,18 @@
 ///   nothing due is refused with "query unexpected".
 /// - Motion before SYNCHRO is refused ("not synchronised"); a second SYNCHRO is refused
 ///   ("already synchronised").
-/// - Every SET ARM target is checked against the joint limits before anything moves.
+/// - A SET applies MODEL first, then TOOL, then ARM (so an arm target in the same SET uses the new
+///   model and tool); if any item is refused, none is applied.
+/// - Arm targets in every representation become joint targets (inverse kinematics for frames,
+///   the transmission for motors); RELATIVE targets are relative to where the motion already
+///   queued ends (joint/motor: added; frames: composed in the current tool frame). The macro-step
+///   is interpolated linearly in joint coordinates, and every interpolation step is checked
+///   against the joint (and linkage) and motor limits before anything moves.
 
 #include <optional>
 #include <string>
 
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "servo_loop.hpp"
@@ -23,7 +30,8 @@ namespace mrroc::edp {
 
 class CommandInterpreter {
  public:
-  CommandInterpreter(ServoLoop& servo, const RobotModel& model, double servo_period_s);
+  CommandInterpreter(ServoLoop& servo, const RobotModel& model, ArmKinematics& kinematics,
+                     double servo_period_s);
 
   /// Executes one instruction and returns the reply to send. Blocks for a QUERY until its
   /// reading is ready. Never throws: refusals become ERROR replies.
@@ -34,12 +42,16 @@ class CommandInterpreter {
   Reply accept(const Instruction& instruction);
   Reply query();
   void validate_servo(const Instruction& instruction) const;
-  std::vector<double> validate_arm(const Instruction& instruction) const;
+  std::vector<double> arm_target(const Instruction& instruction) const;
+  void check_path(const std::vector<double>& start, const std::vector<double>& target,
+                  int steps) const;
+  std::vector<double> arm_values(const std::vector<double>& joints, ArmRepresentation type) const;
   Reply reading_reply(const Reading& reading) const;
   static Reply error(int code, const std::string& text);
 
   ServoLoop& servo_;
   const RobotModel& model_;
+  ArmKinematics& kinematics_;
   double period_s_;
   Due due_ = Due::nothing;
   std::uint64_t due_macro_step_ = 0;
@@ -47,6 +59,7 @@ class CommandInterpreter {
   int steps_ahead_ = 0;  ///< steps of the macro-step submitted before the due one
   ArmRepresentation due_arm_type_ = ArmRepresentation::joint;
   std::uint8_t due_get_ = 0;
+  ArmRepresentation due_tool_type_ = ArmRepresentation::frame;
 };
 
 }  // namespace mrroc::edp

@@ -12,6 +12,7 @@
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "servo_loop.hpp"
@@ -51,14 +52,16 @@ int run(const std::string& config_path, const std::string& robot_name) {
     const std::string memory = lock_memory();
     edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
     servo.start();
-    edp::CommandInterpreter interpreter(servo, model, robot.edp.servo_period_s);
+    const std::unique_ptr<edp::ArmKinematics> kinematics = edp::make_arm_kinematics(model);
+    edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
     comm::EdpServer server(bus, process, channels::edp_command(robot.name),
                            channels::edp_reply(robot.name));
 
     std::this_thread::sleep_for(std::chrono::milliseconds(20));  // let the loop settle its policy
-    reporter.info(fmt::format("ready: plugin '{}', {} axes, servo period {:.3f} ms, {}, {}",
-                              hardware->name(), model.axes(), robot.edp.servo_period_s * 1e3,
-                              servo.timing().scheduling, memory));
+    reporter.info(fmt::format("ready: plugin '{}', {} axes, kinematics '{}', servo period {:.3f} "
+                              "ms, {}, {}",
+                              hardware->name(), model.axes(), kinematics->name(),
+                              robot.edp.servo_period_s * 1e3, servo.timing().scheduling, memory));
     reporter.set_state(ProcessState::ready);
 
     bool hardware_fault_reported = false;

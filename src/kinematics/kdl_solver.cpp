@@ -34,6 +34,8 @@ namespace fs = std::filesystem;
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+/// Retries of one attempt from its solution projected into the joint limits.
+constexpr int kLimitProjections = 2;
 
 enum class JointKind { revolute, continuous, prismatic };
 
@@ -281,32 +283,37 @@ std::vector<double> KdlSolver::inverse(const Eigen::Isometry3d& target,
   std::optional<std::string> first_limit_text;
   const std::size_t attempts = 1 + s.restart_seeds.size();
   for (std::size_t attempt = 0; attempt < attempts; ++attempt) {
-    const std::vector<double>& start = attempt == 0 ? seed : s.restart_seeds[attempt - 1];
-    KDL::JntArray q_init(n);
-    KDL::JntArray q_out(n);
-    for (unsigned int i = 0; i < n; ++i) q_init(i) = start[i];
-    solver.CartToJnt(q_init, goal, q_out);
-    std::vector<double> q(s.size());
-    bool finite = true;
-    for (unsigned int i = 0; i < n; ++i) {
-      q[i] = q_out(i);
-      finite = finite && std::isfinite(q[i]);
-    }
-    if (!finite) continue;
-    s.refine(q, target, weights);
-    s.normalise(q, seed);
-    const auto [position, orientation] = residual(s.fk(q), target);
-    if (position > o.position_tolerance || orientation > o.orientation_tolerance) {
-      if (position + o.orientation_weight * orientation <
-          best_position + o.orientation_weight * best_orientation) {
-        best_position = position;
-        best_orientation = orientation;
+    std::vector<double> start = attempt == 0 ? seed : s.restart_seeds[attempt - 1];
+    // A solution outside the limits is retried from its projection into the limits, which
+    // usually leads to the configuration inside them when there is one nearby.
+    for (int projection = 0; projection <= kLimitProjections; ++projection) {
+      KDL::JntArray q_init(n);
+      KDL::JntArray q_out(n);
+      for (unsigned int i = 0; i < n; ++i) q_init(i) = start[i];
+      solver.CartToJnt(q_init, goal, q_out);
+      std::vector<double> q(s.size());
+      bool finite = true;
+      for (unsigned int i = 0; i < n; ++i) {
+        q[i] = q_out(i);
+        finite = finite && std::isfinite(q[i]);
       }
-      continue;
+      if (!finite) break;
+      s.refine(q, target, weights);
+      s.normalise(q, seed);
+      const auto [position, orientation] = residual(s.fk(q), target);
+      if (position > o.position_tolerance || orientation > o.orientation_tolerance) {
+        if (position + o.orientation_weight * orientation <
+            best_position + o.orientation_weight * best_orientation) {
+          best_position = position;
+          best_orientation = orientation;
+        }
+        break;
+      }
+      std::string violation = s.limit_violation(q);
+      if (violation.empty()) return q;
+      if (!first_limit_text) first_limit_text = std::move(violation);
+      for (std::size_t i = 0; i < s.size(); ++i) start[i] = std::clamp(q[i], s.lower[i], s.upper[i]);
     }
-    std::string violation = s.limit_violation(q);
-    if (violation.empty()) return q;
-    if (!first_limit_text) first_limit_text = std::move(violation);
   }
   if (first_limit_text)
     out_of_limits("inverse kinematics: solution outside the joint limits: " + *first_limit_text);

@@ -93,6 +93,27 @@ RobotModel load_robot_model(const fs::path& folder) {
   m.max_acceleration = numbers(*robot, "max_joint_acceleration", file, axes);
   m.synchro_joint_positions = numbers(*robot, "synchro_joint_positions", file, axes);
 
+  if (const toml::table* kin = robot->get_as<toml::table>("kinematics")) {
+    if (const auto* solver = kin->get_as<std::string>("solver")) m.kinematics = **solver;
+    if (const toml::array* list = kin->get_as<toml::array>("correctors")) {
+      for (const auto& row : *list) {
+        const toml::array* values = row.as_array();
+        std::array<double, 6> c{};
+        if (values == nullptr || values->size() != 6)
+          throw ConfigError(fmt::format("{}:{}: error: each corrector must be [x, y, z, rx, ry, rz] "
+                                        "(m, rad)",
+                                        file.string(), row.source().begin.line));
+        for (std::size_t i = 0; i < 6; ++i) {
+          const auto v = (*values)[i].value<double>();
+          if (!v)
+            throw ConfigError(fmt::format("{}:{}: error: corrector values must be numbers",
+                                          file.string(), row.source().begin.line));
+          c[i] = *v;
+        }
+        m.correctors.push_back(c);
+      }
+    }
+  }
   if (!fs::exists(m.urdf))
     throw ConfigError(fmt::format("{}: error: URDF file not found", m.urdf.string()));
   urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDFFile(m.urdf.string());

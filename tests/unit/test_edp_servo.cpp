@@ -7,11 +7,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <map>
 #include <new>
 #include <thread>
 
 #include "command_interpreter.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
+#include "mrroc/kinematics/pose.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "servo_loop.hpp"
 
@@ -52,7 +55,8 @@ class EdpTest : public ::testing::Test {
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
     servo_->enable_trace(20000);
     servo_->start();
-    interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, kPeriod);
+    kinematics_ = make_arm_kinematics(model_);
+    interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
   }
   void TearDown() override {
     g_watched = std::thread::id{};
@@ -87,6 +91,7 @@ class EdpTest : public ::testing::Test {
   RobotModel model_;
   std::unique_ptr<Hardware> hardware_;
   std::unique_ptr<ServoLoop> servo_;
+  std::unique_ptr<ArmKinematics> kinematics_;
   std::unique_ptr<CommandInterpreter> interpreter_;
 };
 
@@ -265,23 +270,42 @@ TEST_F(EdpTest, ServoAlgorithmOutputsAndTiming) {
   EXPECT_NE(r.error_text.find("axis 3 (wrist_pitch): servo algorithm 7"), std::string::npos)
       << r.error_text;
   // Unknown items are refused by name.
-  Instruction tool;
-  tool.type = InstructionType::set;
-  tool.set = item::inputs;
-  EXPECT_EQ(exec(tool).error_code, error_code::not_supported);
+  Instruction inputs;
+  inputs.type = InstructionType::set;
+  inputs.set = item::inputs;
+  r = exec(inputs);
+  EXPECT_EQ(r.error_code, error_code::bad_argument);
+  EXPECT_NE(r.error_text.find("SET takes ARM, TOOL, MODEL, SERVO, OUTPUTS"), std::string::npos);
 }
 
 TEST_F(EdpTest, EveryServoStepStaysInsideTheLimits) {
   ASSERT_EQ(synchronise().type, ReplyType::data);
-  // Drive every joint to 99% of its range on one side, then the other, in few macro-steps.
+  // Drive every joint as far towards one end of its range as the EDP accepts (it refuses any
+  // path that would leave a joint, linkage or motor limit), back to the synchronisation pose,
+  // then towards the other end.
+  const double deg = std::acos(-1.0) / 180.0;
   for (double side : {1.0, -1.0}) {
-    std::vector<double> q(model_.axes());
-    for (std::size_t j = 0; j < q.size(); ++j) {
-      const double mid = 0.5 * (model_.lower_limits[j] + model_.upper_limits[j]);
-      const double half = 0.5 * (model_.upper_limits[j] - model_.lower_limits[j]);
-      q[j] = mid + side * 0.99 * half;
+    bool moved = false;
+    for (double fraction = 0.95; fraction >= 0.2 && !moved; fraction -= 0.05) {
+      std::vector<double> q(model_.axes());
+      for (std::size_t j = 0; j < q.size(); ++j) {
+        const double mid = 0.5 * (model_.lower_limits[j] + model_.upper_limits[j]);
+        const double half = 0.5 * (model_.upper_limits[j] - model_.lower_limits[j]);
+        q[j] = mid + side * fraction * half;
+      }
+      q[2] = std::max(q[2], -44.0 * deg - 90.0 * deg - q[1]);  // upper-arm linkage range
+      const Reply r = exec(set_joints(q, 500, 501));
+      if (r.type == ReplyType::error) {
+        EXPECT_EQ(r.error_code, error_code::out_of_limits) << r.error_text;
+        continue;
+      }
+      ASSERT_EQ(query().type, ReplyType::data);
+      std::printf("side %+.0f: %.0f%% of the joint ranges accepted\n", side, fraction * 100);
+      moved = true;
     }
-    ASSERT_EQ(exec(set_joints(q, 500, 501)).type, ReplyType::acknowledge);
+    ASSERT_TRUE(moved);
+    ASSERT_EQ(exec(set_joints(model_.synchro_joint_positions, 300, 301)).type,
+              ReplyType::acknowledge);
     ASSERT_EQ(query().type, ReplyType::data);
   }
   const auto trace = servo_->trace();
@@ -289,13 +313,155 @@ TEST_F(EdpTest, EveryServoStepStaysInsideTheLimits) {
   std::size_t checked = 0;
   for (const auto& t : trace) {
     if (!t.synchronised) continue;  // raw encoder positions before SYNCHRO
-    for (std::size_t j = 0; j < model_.axes(); ++j) {
-      ASSERT_GE(t.desired[j], model_.lower_limits[j]) << "cycle " << t.cycle << " joint " << j;
-      ASSERT_LE(t.desired[j], model_.upper_limits[j]) << "cycle " << t.cycle << " joint " << j;
-      ASSERT_GE(t.measured[j], model_.lower_limits[j]) << "cycle " << t.cycle << " joint " << j;
-      ASSERT_LE(t.measured[j], model_.upper_limits[j]) << "cycle " << t.cycle << " joint " << j;
+    const std::vector<double> desired(t.desired.begin(),
+                                      t.desired.begin() + static_cast<long>(model_.axes()));
+    const std::vector<double> measured(t.measured.begin(),
+                                       t.measured.begin() + static_cast<long>(model_.axes()));
+    for (const auto* q : {&desired, &measured}) {
+      EXPECT_NO_THROW(kinematics_->check_joint_limits(*q, "trace")) << "cycle " << t.cycle;
+      EXPECT_NO_THROW(kinematics_->check_motor_limits(kinematics_->motors_from_joints(*q), "trace"))
+          << "cycle " << t.cycle;
     }
     ++checked;
   }
-  std::printf("%zu servo steps checked against the joint limits\n", checked);
+  std::printf("%zu servo steps checked against the joint, linkage and motor limits\n", checked);
+}
+
+TEST_F(EdpTest, LinkageLimitIsCheckedOnThePath) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  // Each joint inside its own range, but q1 + q2 + 90 deg = -63.5 deg is outside the upper-arm
+  // screw's linkage range.
+  const double deg = std::acos(-1.0) / 180.0;
+  const Reply r = exec(set_joints({0.0, -129.2 * deg, -24.3 * deg, 0.0, 0.0}, 100, 101));
+  EXPECT_EQ(r.type, ReplyType::error);
+  EXPECT_EQ(r.error_code, error_code::out_of_limits);
+  EXPECT_NE(r.error_text.find("upper_arm"), std::string::npos) << r.error_text;
+  std::printf("refused: %s\n", r.error_text.c_str());
+}
+
+TEST_F(EdpTest, EveryArmRepresentationReachesTheSamePose) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  const std::vector<double> q = {0.3, -1.3, 0.2, -0.4, 0.7};
+  ASSERT_EQ(exec(set_joints(q, 200, 201)).type, ReplyType::acknowledge);
+  ASSERT_EQ(query().type, ReplyType::data);
+  // Read the pose back in every representation.
+  std::map<ArmRepresentation, std::vector<double>> pose;
+  for (ArmRepresentation rep :
+       {ArmRepresentation::joint, ArmRepresentation::motor, ArmRepresentation::frame,
+        ArmRepresentation::xyz_euler_zyz, ArmRepresentation::xyz_angle_axis}) {
+    Instruction get;
+    get.type = InstructionType::get;
+    get.get = item::arm;
+    get.get_arm_type = rep;
+    ASSERT_EQ(exec(get).type, ReplyType::acknowledge);
+    const Reply r = query();
+    ASSERT_EQ(r.type, ReplyType::data) << to_string(rep) << ": " << r.error_text;
+    EXPECT_EQ(r.arm_type, rep);
+    pose[rep] = r.arm;
+  }
+  EXPECT_EQ(pose[ArmRepresentation::frame].size(), 12U);
+  EXPECT_EQ(pose[ArmRepresentation::xyz_euler_zyz].size(), 6U);
+  // Move away, then come back to the pose given in each representation: the desired joints must
+  // equal the measured pose it was read from (to the servo's small tracking error).
+  for (ArmRepresentation rep : {ArmRepresentation::motor, ArmRepresentation::frame,
+                                ArmRepresentation::xyz_euler_zyz,
+                                ArmRepresentation::xyz_angle_axis}) {
+    ASSERT_EQ(exec(set_joints({0.0, -1.5, 0.0, 0.0, 0.0}, 100, 101)).type,
+              ReplyType::acknowledge);
+    ASSERT_EQ(query().type, ReplyType::data);
+    Instruction back = set_joints(pose[rep], 100, 101);
+    back.set_arm_type = rep;
+    const Reply accepted = exec(back);
+    ASSERT_EQ(accepted.type, ReplyType::acknowledge) << to_string(rep) << ": "
+                                                     << accepted.error_text;
+    const Reply r = query();
+    ASSERT_EQ(r.type, ReplyType::data);
+    for (std::size_t j = 0; j < q.size(); ++j)
+      EXPECT_NEAR(r.desired_joints[j], pose[ArmRepresentation::joint][j], 1e-9)
+          << to_string(rep) << " joint " << j;
+  }
+}
+
+TEST_F(EdpTest, RelativeCartesianMoveIsInTheToolFrame) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // settle after synchronisation
+  // Tool: a 0.25 m gripper along the flange z axis.
+  Instruction tool;
+  tool.type = InstructionType::set_get;
+  tool.set = item::tool;
+  tool.get = item::tool | item::arm | item::model;
+  tool.get_arm_type = ArmRepresentation::frame;
+  tool.tool_type = ArmRepresentation::xyz_angle_axis;
+  tool.tool = {0, 0, 0.25, 0, 0, 0};
+  ASSERT_EQ(exec(tool).type, ReplyType::acknowledge);
+  Reply r = query();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_EQ(r.tool, tool.tool);
+  const std::vector<double> before = r.arm;  // tool frame, 3x4 row-major
+  // 2 cm along the tool's own z axis (the approach direction).
+  Instruction step = set_joints({0, 0, 0.02, 0, 0, 0}, 100, 101, MotionType::relative);
+  step.set_arm_type = ArmRepresentation::xyz_angle_axis;
+  ASSERT_EQ(exec(step).type, ReplyType::acknowledge);
+  ASSERT_EQ(query().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  Instruction get;
+  get.type = InstructionType::get;
+  get.get = item::arm;
+  get.get_arm_type = ArmRepresentation::frame;
+  ASSERT_EQ(exec(get).type, ReplyType::acknowledge);
+  r = query();
+  ASSERT_EQ(r.type, ReplyType::data);
+  // Displacement = 0.02 * (third column of R).
+  for (int row = 0; row < 3; ++row) {
+    const double expected = before[static_cast<std::size_t>(row * 4 + 3)] +
+                            0.02 * before[static_cast<std::size_t>(row * 4 + 2)];
+    EXPECT_NEAR(r.arm[static_cast<std::size_t>(row * 4 + 3)], expected, 2e-4) << "row " << row;
+  }
+}
+
+TEST_F(EdpTest, UnreachableOrientationAndModelSelection) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  Instruction get;
+  get.type = InstructionType::get;
+  get.get = item::arm;
+  get.get_arm_type = ArmRepresentation::xyz_angle_axis;
+  ASSERT_EQ(exec(get).type, ReplyType::acknowledge);
+  const Reply here = query();
+  ASSERT_EQ(here.type, ReplyType::data);
+  // Same position, orientation turned 0.3 rad about the world z axis: a 5-axis arm cannot yaw
+  // its approach out of the arm plane.
+  Instruction yaw = set_joints(here.arm, 100, 101);
+  yaw.set_arm_type = ArmRepresentation::xyz_angle_axis;
+  yaw.arm[3] = 0.0;
+  yaw.arm[4] = 0.0;
+  yaw.arm[5] = 0.0;
+  Eigen::Isometry3d frame = kinematics::from_vector(here.arm, ArmRepresentation::xyz_angle_axis);
+  frame.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix() * frame.linear();
+  yaw.arm = kinematics::to_vector(frame, ArmRepresentation::xyz_angle_axis);
+  yaw.arm[0] = here.arm[0];
+  yaw.arm[1] = here.arm[1];
+  Reply r = exec(yaw);
+  EXPECT_EQ(r.error_code, error_code::out_of_limits);
+  EXPECT_NE(r.error_text.find("orientation not reachable by a 5-axis arm"), std::string::npos)
+      << r.error_text;
+  // Kinematic model 1 (calibrated) and corrector 1 exist; model 2 does not.
+  Instruction model;
+  model.type = InstructionType::set_get;
+  model.set = item::model;
+  model.get = item::model;
+  model.kinematic_model_no = 1;
+  model.corrector_no = 1;
+  ASSERT_EQ(exec(model).type, ReplyType::acknowledge);
+  r = query();
+  EXPECT_EQ(r.kinematic_model_no, 1);
+  EXPECT_EQ(r.corrector_no, 1);
+  model.kinematic_model_no = 2;
+  r = exec(model);
+  EXPECT_EQ(r.error_code, error_code::bad_argument) << r.error_text;
+  // A refused SET changed nothing: still model 1.
+  Instruction check;
+  check.type = InstructionType::get;
+  check.get = item::model;
+  ASSERT_EQ(exec(check).type, ReplyType::acknowledge);
+  EXPECT_EQ(query().kinematic_model_no, 1);
 }

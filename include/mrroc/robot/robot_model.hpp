@@ -3,6 +3,7 @@
 /// A robot's model as the controller needs it: axes, joint names, joint limits (from the URDF),
 /// velocity/acceleration limits and synchronisation positions (from parameters.toml).
 
+#include <array>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -20,6 +21,11 @@ struct RobotModel {
   std::vector<double> max_velocity;            ///< [rad/s]
   std::vector<double> max_acceleration;        ///< [rad/s^2]
   std::vector<double> synchro_joint_positions; ///< [rad]
+  /// Kinematics solver name ([robot.kinematics] solver), empty: joint-only.
+  std::string kinematics;
+  /// Local correctors of the kinematic model ([robot.kinematics] correctors), each a frame as
+  /// x, y, z [m] and a rotation vector [rad]; corrector number i+1 is correctors[i].
+  std::vector<std::array<double, 6>> correctors;
 
   [[nodiscard]] std::size_t axes() const { return joint_names.size(); }
 

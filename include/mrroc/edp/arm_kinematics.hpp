@@ -1,0 +1,84 @@
+#pragma once
+/// @file
+/// What the EDP needs to know about a robot's kinematics to accept every arm representation:
+/// the motor <-> joint transmission with its limits, and the forward/inverse kinematics of the
+/// tool frame under a selectable kinematic model and local corrector.
+///
+/// Frames: tool frame = corrector * FK_model(q) * tool, in the robot base frame [m].
+/// Used only from the EDP's command thread.
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "mrroc/robot/robot_model.hpp"
+
+namespace mrroc::edp {
+
+class ArmKinematics {
+ public:
+  virtual ~ArmKinematics() = default;
+
+  [[nodiscard]] virtual std::string name() const = 0;
+
+  /// Motor shaft angles [rad] from joint coordinates, and back.
+  [[nodiscard]] virtual std::vector<double> motors_from_joints(std::span<const double> q) const = 0;
+  [[nodiscard]] virtual std::vector<double> joints_from_motors(std::span<const double> m) const = 0;
+  /// @throws CommandError (out_of_limits) naming motor, value, unit and limit.
+  virtual void check_motor_limits(std::span<const double> m, const char* what) const = 0;
+  /// Joint limits including any the linkage adds. @throws CommandError (out_of_limits).
+  virtual void check_joint_limits(std::span<const double> q, const char* what) const = 0;
+
+  /// True when FRAME / XYZ_EULER_ZYZ / XYZ_ANGLE_AXIS are available.
+  [[nodiscard]] virtual bool cartesian() const = 0;
+  /// Tool frame of joints `q`. @throws CommandError (not_supported) without Cartesian kinematics.
+  [[nodiscard]] virtual Eigen::Isometry3d forward(std::span<const double> q) const = 0;
+  /// Joints putting the tool frame at `target`, nearest to `seed`.
+  /// @throws CommandError (out_of_limits) when unreachable, naming why.
+  [[nodiscard]] virtual std::vector<double> inverse(const Eigen::Isometry3d& target,
+                                                    std::span<const double> seed) const = 0;
+
+  /// Kinematic models (0 = nominal) and local correctors (0 = none) this robot offers.
+  [[nodiscard]] virtual int model_count() const = 0;
+  [[nodiscard]] virtual int corrector_count() const = 0;
+  /// @throws CommandError (bad_argument) naming the number and the range.
+  virtual void select_model(int model_no, int corrector_no) = 0;
+  [[nodiscard]] int model_no() const { return model_no_; }
+  [[nodiscard]] int corrector_no() const { return corrector_no_; }
+
+  virtual void set_tool(const Eigen::Isometry3d& tool) = 0;
+  [[nodiscard]] virtual Eigen::Isometry3d tool() const = 0;
+
+ protected:
+  int model_no_ = 0;
+  int corrector_no_ = 0;
+};
+
+/// Makes the kinematics named by the robot's parameters.toml (`kinematics = "irb6"`, ...;
+/// robots without the key get joint-only kinematics: motor = joint, no Cartesian representations).
+/// @throws ConfigError naming the unknown kinematics and the file.
+std::unique_ptr<ArmKinematics> make_arm_kinematics(const RobotModel& model);
+
+using ArmKinematicsFactory = std::function<std::unique_ptr<ArmKinematics>(const RobotModel&)>;
+void register_arm_kinematics(const std::string& name, ArmKinematicsFactory factory);
+
+namespace detail {
+struct ArmKinematicsRegistrar {
+  ArmKinematicsRegistrar(const char* name, ArmKinematicsFactory f) {
+    register_arm_kinematics(name, std::move(f));
+  }
+};
+}  // namespace detail
+
+}  // namespace mrroc::edp
+
+/// Registers kinematics under a name: `MRROC_REGISTER_ARM_KINEMATICS("irb6", Irb6ArmKinematics)`;
+/// the class is constructed from a `const RobotModel&`.
+#define MRROC_REGISTER_ARM_KINEMATICS(NAME, CLASS)                                            \
+  static const ::mrroc::edp::detail::ArmKinematicsRegistrar mrroc_arm_kinematics_##CLASS{ \
+      NAME, [](const ::mrroc::RobotModel& m) {                                              \
+        return std::unique_ptr<::mrroc::edp::ArmKinematics>(new CLASS(m));                  \
+      }}

@@ -1,0 +1,80 @@
+// The IRb-6's kinematics for the EDP: the analytic solver and the ball-screw transmission of
+// include/mrroc/kinematics/irb6.hpp, two kinematic models (nominal, calibrated) and the local
+// correctors listed in parameters.toml.
+#include <fmt/format.h>
+
+#include "mrroc/core/error.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
+#include "mrroc/edp/instruction.hpp"
+#include "mrroc/kinematics/irb6.hpp"
+#include "mrroc/kinematics/pose.hpp"
+
+namespace mrroc::robots::irb6 {
+
+class Irb6ArmKinematics : public edp::ArmKinematics {
+ public:
+  explicit Irb6ArmKinematics(const RobotModel& model) : model_(model) {
+    if (model.axes() != kAxes)
+      throw ConfigError(fmt::format("{}/parameters.toml: error: irb6 kinematics needs {} axes, "
+                                    "the model has {}",
+                                    model.folder.string(), kAxes, model.axes()));
+  }
+
+  std::string name() const override { return "irb6"; }
+
+  std::vector<double> motors_from_joints(std::span<const double> q) const override {
+    const MotorPosition m = robots::irb6::motors_from_joints(axes_from_values(q, "joints"));
+    return {m.begin(), m.end()};
+  }
+  std::vector<double> joints_from_motors(std::span<const double> m) const override {
+    const JointPosition q = robots::irb6::joints_from_motors(axes_from_values(m, "motors"));
+    return {q.begin(), q.end()};
+  }
+  void check_motor_limits(std::span<const double> m, const char* what) const override {
+    robots::irb6::check_motor_limits(axes_from_values(m, what), what);
+  }
+  void check_joint_limits(std::span<const double> q, const char* what) const override {
+    model_.check_joint_limits({q.begin(), q.end()}, what);
+    robots::irb6::check_joint_limits(axes_from_values(q, what), what);
+  }
+
+  bool cartesian() const override { return true; }
+  Eigen::Isometry3d forward(std::span<const double> q) const override {
+    return solver_.forward(axes_from_values(q, "joints"));
+  }
+  std::vector<double> inverse(const Eigen::Isometry3d& target,
+                              std::span<const double> seed) const override {
+    const JointPosition q = solver_.inverse(target, axes_from_values(seed, "seed"));
+    return {q.begin(), q.end()};
+  }
+
+  int model_count() const override { return kKinematicModels; }
+  int corrector_count() const override { return 1 + static_cast<int>(model_.correctors.size()); }
+  void select_model(int model_no, int corrector_no) override {
+    if (corrector_no < 0 || corrector_no >= corrector_count())
+      throw CommandError(edp::error_code::bad_argument,
+                         fmt::format("corrector {} is outside 0..{} (0 = none; the others are "
+                                     "listed in {}/parameters.toml)",
+                                     corrector_no, corrector_count() - 1,
+                                     model_.folder.string()));
+    solver_.geometry = kinematic_model(model_no);  // throws for an unknown model
+    solver_.corrector = Eigen::Isometry3d::Identity();
+    if (corrector_no > 0) {
+      const auto& c = model_.correctors[static_cast<std::size_t>(corrector_no - 1)];
+      solver_.corrector = kinematics::from_values(c, edp::ArmRepresentation::xyz_angle_axis);
+    }
+    model_no_ = model_no;
+    corrector_no_ = corrector_no;
+  }
+
+  void set_tool(const Eigen::Isometry3d& tool) override { solver_.tool = tool; }
+  Eigen::Isometry3d tool() const override { return solver_.tool; }
+
+ private:
+  const RobotModel& model_;
+  Irb6Kinematics solver_;
+};
+
+MRROC_REGISTER_ARM_KINEMATICS("irb6", Irb6ArmKinematics);
+
+}  // namespace mrroc::robots::irb6

@@ -30,7 +30,10 @@ double JointPosesGenerator::segment_duration(double distance, double max_velocit
 JointPosesGenerator::JointPosesGenerator(const RobotModel& model,
                                          std::vector<std::vector<double>> poses,
                                          JointPosesOptions options)
-    : model_(model), poses_(std::move(poses)), options_(options) {
+    : model_(model),
+      kinematics_(edp::make_arm_kinematics(model)),
+      poses_(std::move(poses)),
+      options_(options) {
   if (!(options_.velocity_scale > 0.0 && options_.velocity_scale <= 1.0))
     throw Error(fmt::format("velocity_scale {} is outside (0, 1]", options_.velocity_scale));
   if (!(options_.acceleration_scale > 0.0 && options_.acceleration_scale <= 1.0))
@@ -40,6 +43,24 @@ JointPosesGenerator::JointPosesGenerator(const RobotModel& model,
     throw Error(fmt::format("motion_steps {} is outside 2..1000", options_.motion_steps));
   for (std::size_t i = 0; i < poses_.size(); ++i)
     model_.check_joint_limits(poses_[i], fmt::format("pose {}", i + 1).c_str());
+  for (std::size_t i = 1; i < poses_.size(); ++i)
+    check_segment(poses_[i - 1], poses_[i], fmt::format("path from pose {} to {}", i, i + 1));
+}
+
+void JointPosesGenerator::check_segment(const std::vector<double>& from,
+                                        const std::vector<double>& to,
+                                        const std::string& what) const {
+  // The EDP refuses a macro-step leaving a limit; checking the whole segment here refuses the
+  // motion before its first macro-step. Joint-space paths can leave a motor range in the middle
+  // (nonlinear transmissions), so the path is sampled finely, not only at its ends.
+  constexpr int kSamples = 200;
+  std::vector<double> q(to.size());
+  for (int k = 0; k <= kSamples; ++k) {
+    const double s = static_cast<double>(k) / kSamples;
+    for (std::size_t j = 0; j < q.size(); ++j) q[j] = from[j] + (to[j] - from[j]) * s;
+    kinematics_->check_joint_limits(q, what.c_str());
+    kinematics_->check_motor_limits(kinematics_->motors_from_joints(q), what.c_str());
+  }
 }
 
 void JointPosesGenerator::begin_segment(const std::vector<double>& from) {
@@ -80,6 +101,7 @@ bool JointPosesGenerator::first_step(RobotImage& robot, const SensorList&) {
   if (robot.desired_joints.size() != model_.axes())
     throw Error("robot image has no desired joint position (read the robot state first)");
   pose_ = 0;
+  check_segment(robot.desired_joints, poses_[0], "path to pose 1");
   begin_segment(robot.desired_joints);
   command(robot);
   return true;

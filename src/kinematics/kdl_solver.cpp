@@ -116,9 +116,10 @@ struct KdlSolver::Impl {
     return to_eigen(frame);
   }
 
-  /// Gauss-Newton refinement of an LMA result on the exact pose error. KDL measures rotations with
-  /// its global epsilon (1e-6), so LMA alone leaves orientation errors of up to about 1e-6 rad;
-  /// a few weighted least-squares steps with the exact rotation vector bring them to rounding.
+  /// Refinement of an LMA result on the exact pose error (Levenberg-Marquardt with adaptive
+  /// damping). KDL measures rotations with its global epsilon (1e-6), so LMA alone leaves
+  /// orientation errors of up to about 1e-6 rad, and it can stall near singular configurations
+  /// (wrist centre on the waist axis, wrist singularity); these steps bring the error to rounding.
   void refine(std::vector<double>& q, const Eigen::Isometry3d& target,
               const Eigen::Matrix<double, 6, 1>& weights) const {
     KDL::ChainJntToJacSolver jacobian_solver(chain);
@@ -134,20 +135,32 @@ struct KdlSolver::Impl {
       return Eigen::Matrix<double, 6, 1>(weights.cwiseProduct(error));
     };
     Eigen::Matrix<double, 6, 1> error = weighted_error(q);
-    for (int iteration = 0; iteration < 10 && error.norm() > 1e-15; ++iteration) {
+    double damping = 1e-12;
+    for (int iteration = 0; iteration < 100 && error.norm() > 1e-15; ++iteration) {
       for (unsigned int i = 0; i < n; ++i) joints(i) = q[i];
       if (jacobian_solver.JntToJac(joints, jacobian) < 0) return;
       // KDL's Jacobian: rows (linear velocity of the tip, angular velocity), base frame.
       const Eigen::MatrixXd weighted = weights.asDiagonal() * jacobian.data;
-      Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> solver(weighted);
-      solver.setThreshold(1e-9);
-      const Eigen::VectorXd step = solver.solve(error);
-      std::vector<double> candidate = q;
-      for (unsigned int i = 0; i < n; ++i) candidate[i] += step(i);
-      const Eigen::Matrix<double, 6, 1> candidate_error = weighted_error(candidate);
-      if (!(candidate_error.norm() < error.norm())) return;  // keep the better joints
-      q = std::move(candidate);
-      error = candidate_error;
+      const Eigen::MatrixXd normal = weighted.transpose() * weighted;
+      const Eigen::VectorXd gradient = weighted.transpose() * error;
+      bool improved = false;
+      while (!improved && damping < 1e6) {
+        const Eigen::MatrixXd damped =
+            normal + damping * Eigen::MatrixXd::Identity(normal.rows(), normal.cols());
+        const Eigen::VectorXd step = damped.ldlt().solve(gradient);
+        std::vector<double> candidate = q;
+        for (unsigned int i = 0; i < n; ++i) candidate[i] += step(i);
+        const Eigen::Matrix<double, 6, 1> candidate_error = weighted_error(candidate);
+        if (candidate_error.norm() < error.norm()) {
+          q = std::move(candidate);
+          error = candidate_error;
+          damping = std::max(1e-12, damping * 0.1);
+          improved = true;
+        } else {
+          damping *= 10.0;
+        }
+      }
+      if (!improved) return;  // no step reduces the error: keep the best joints
     }
   }
 

@@ -46,7 +46,7 @@ TEST(JointPosesGenerator, ReachesPosesWithinLimitsSmoothly) {
   options.velocity_scale = 0.6;
   options.acceleration_scale = 0.6;
   options.motion_steps = 10;
-  const std::vector<std::vector<double>> poses = {{0.6, -1.2, 0.3, 0.5, 1.0},
+  const std::vector<std::vector<double>> poses = {{0.6, -1.35, 0.15, 0.5, 1.0},
                                                   {-0.5, -1.8, -0.2, -0.6, -1.2},
                                                   m.synchro_joint_positions};
   ecp::JointPosesGenerator g(m, poses, options);
@@ -136,4 +136,25 @@ TEST(JointPosesGenerator, NoPosesNoMotion) {
   const RobotModel m = model();
   ecp::JointPosesGenerator g(m, {});
   EXPECT_TRUE(run(g, m.synchro_joint_positions).targets.empty());
+}
+
+TEST(JointPosesGenerator, RefusesAPathThatLeavesTheMotorRangeBeforeMoving) {
+  const RobotModel m = model();
+  // Both poses are inside the joint limits, but the upper arm's ball screw needs more than its
+  // motor range (100 rad) for q1 = -1.2 rad with q2 = 0.3 rad.
+  try {
+    ecp::JointPosesGenerator g(m, {m.synchro_joint_positions, {0.0, -1.2, 0.3, 0.0, 0.0}});
+    FAIL() << "accepted a path outside the motor range";
+  } catch (const CommandError& e) {
+    EXPECT_EQ(e.code(), edp::error_code::out_of_limits);
+    EXPECT_NE(std::string(e.what()).find("motor 2 (upper_arm) path from pose 1 to 2"),
+              std::string::npos)
+        << e.what();
+  }
+  // The path from the current pose to the first pose is checked before the first command.
+  ecp::JointPosesGenerator g(m, {{0.0, -1.2, 0.3, 0.0, 0.0}});
+  ecp::RobotImage image;
+  image.desired_joints = m.synchro_joint_positions;
+  EXPECT_THROW(g.first_step(image, {}), CommandError);
+  EXPECT_EQ(image.command.type, edp::InstructionType::query) << "a command was prepared";
 }

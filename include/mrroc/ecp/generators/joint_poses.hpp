@@ -3,7 +3,10 @@
 /// Stock generator: visits a list of joint poses, each segment with a quintic (minimum-jerk-like)
 /// time scaling, so velocity and acceleration are continuous and zero at every pose.
 
+#include <memory>
 #include <vector>
+
+#include "mrroc/edp/arm_kinematics.hpp"
 
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/robot/robot_model.hpp"
@@ -19,8 +22,11 @@ struct JointPosesOptions {
 
 class JointPosesGenerator : public Generator {
  public:
-  /// @throws CommandError when a pose has the wrong size or leaves the joint limits, and
-  /// ConfigError-like `Error` for options out of range; nothing moves in either case.
+  /// Checks every pose, and the joint-space path between consecutive poses, against the robot's
+  /// joint, linkage and motor limits (the path from the current pose to the first one is checked
+  /// in first_step, before the first command).
+  /// @throws CommandError when a pose has the wrong size or a pose or path leaves a limit, and
+  /// `Error` for options out of range; nothing moves in either case.
   JointPosesGenerator(const RobotModel& model, std::vector<std::vector<double>> poses,
                       JointPosesOptions options = {});
 
@@ -37,9 +43,12 @@ class JointPosesGenerator : public Generator {
 
  private:
   void begin_segment(const std::vector<double>& from);
+  void check_segment(const std::vector<double>& from, const std::vector<double>& to,
+                     const std::string& what) const;
   void command(RobotImage& robot);
 
   const RobotModel& model_;
+  std::unique_ptr<edp::ArmKinematics> kinematics_;
   std::vector<std::vector<double>> poses_;
   JointPosesOptions options_;
   std::size_t pose_ = 0;

@@ -198,6 +198,11 @@ mrroc_lcm::ecp_mp_reply_t encode(const ecp::EcpReply& in) {
   m.is_synchronised = in.synchronised ? 1 : 0;
   m.n_joints = length(in.joints, "joints");
   m.joints = in.joints;
+  m.desired_joints = in.desired_joints;
+  m.desired_joints.resize(in.joints.size(), 0.0);
+  m.arm_type = arm_code(in.arm_type);
+  m.n_arm = length(in.arm, "arm");
+  m.arm = in.arm;
   return m;
 }
 
@@ -210,6 +215,9 @@ ecp::EcpReply decode(const mrroc_lcm::ecp_mp_reply_t& m) {
   out.error_text = m.error_text;
   out.synchronised = m.is_synchronised != 0;
   out.joints = checked_vector(m.joints, m.n_joints, "joints");
+  out.desired_joints = checked_vector(m.desired_joints, m.n_joints, "desired_joints");
+  out.arm_type = arm_of(m.arm_type, "arm_type");
+  out.arm = checked_vector(m.arm, m.n_arm, "arm");
   return out;
 }
 

@@ -179,6 +179,17 @@ class Reader {
 
 }  // namespace
 
+Params params_from_toml(const std::string& text, const std::string& origin) {
+  Reader r(origin);
+  try {
+    const toml::table table = toml::parse(text, origin);
+    return r.params(table, origin);
+  } catch (const toml::parse_error& e) {
+    throw ConfigError(
+        fmt::format("{}:{}: error: {}", origin, e.source().begin.line, e.description()));
+  }
+}
+
 const RobotConfig& ProcessSetConfig::robot(const std::string& robot_name) const {
   for (const auto& r : robots)
     if (r.name == robot_name) return r;

@@ -11,9 +11,10 @@ void refresh(const SensorList& sensors) {
   for (Sensor* s : sensors) s->initiate_reading();
   for (Sensor* s : sensors) s->get_reading();
 }
-void check_stop(const Robot& robot) {
+void check_stop(Robot& robot) {
   if (robot.stop_requested() || mrroc::stop_requested())
     throw TaskStopped("task stopped on request");
+  robot.wait_while_paused();
 }
 }  // namespace
 

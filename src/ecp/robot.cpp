@@ -27,6 +27,36 @@ void Robot::update_image(const edp::Reply& reply) {
   image_.joint_velocities = reply.joint_velocities;
   image_.step_no = reply.step_no;
   image_.servo_cycle = reply.servo_cycle;
+  image_.arm_type = reply.arm_type;
+  image_.arm = reply.arm;
+}
+
+void Robot::request_stop() {
+  stop_.store(true);
+  std::lock_guard lock(pause_mutex_);
+  pause_cv_.notify_all();
+}
+
+void Robot::pause() {
+  std::lock_guard lock(pause_mutex_);
+  paused_ = true;
+}
+
+void Robot::resume() {
+  std::lock_guard lock(pause_mutex_);
+  paused_ = false;
+  pause_cv_.notify_all();
+}
+
+bool Robot::paused() const {
+  std::lock_guard lock(pause_mutex_);
+  return paused_;
+}
+
+void Robot::wait_while_paused() {
+  std::unique_lock lock(pause_mutex_);
+  pause_cv_.wait(lock, [&] { return !paused_ || stop_.load(); });
+  if (stop_.load()) throw TaskStopped("task stopped on request");
 }
 
 void Robot::execute() {

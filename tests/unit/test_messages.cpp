@@ -127,6 +127,9 @@ TEST(Messages, MpCommandAndEcpReplyRoundTrip) {
   r.error_text = "boom";
   r.synchronised = true;
   r.joints = {1, 2, 3};
+  r.desired_joints = {1.5, 2.5, 3.5};
+  r.arm_type = edp::ArmRepresentation::xyz_euler_zyz;
+  r.arm = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6};
   const ecp::EcpReply r2 = comm::decode(through_bytes(comm::encode(r)));
   EXPECT_EQ(r2.type, r.type);
   EXPECT_EQ(r2.error_class, ecp::ErrorClass::fatal);
@@ -134,6 +137,9 @@ TEST(Messages, MpCommandAndEcpReplyRoundTrip) {
   EXPECT_EQ(r2.error_text, "boom");
   EXPECT_TRUE(r2.synchronised);
   EXPECT_EQ(r2.joints, r.joints);
+  EXPECT_EQ(r2.desired_joints, r.desired_joints);
+  EXPECT_EQ(r2.arm_type, r.arm_type);
+  EXPECT_EQ(r2.arm, r.arm);
 }
 
 TEST(Messages, MalformedInstructionNamesTheField) {

@@ -61,6 +61,10 @@ struct ProcessSetConfig {
   [[nodiscard]] const RobotConfig& robot(const std::string& name) const;
 };
 
+/// Parses `key = value` lines (TOML) into Params, e.g. the arguments of a NEXT_STATE command.
+/// Locations read "<origin>:line". @throws ConfigError.
+Params params_from_toml(const std::string& text, const std::string& origin);
+
 /// Loads and validates a process-set file. @throws ConfigError ("file:line: error: ...").
 ProcessSetConfig load_process_set(const std::filesystem::path& file);
 

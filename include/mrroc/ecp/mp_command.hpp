@@ -54,7 +54,11 @@ struct EcpReply {
   ErrorClass error_class = ErrorClass::none;
   std::string error_text;
   bool synchronised = false;
-  std::vector<double> joints;  ///< measured joint positions [rad]
+  std::vector<double> joints;          ///< measured joint positions [rad]
+  std::vector<double> desired_joints;  ///< commanded joint positions [rad]
+  /// NEXT_POSE replies: the EDP's reading in the pose's representation.
+  edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
+  std::vector<double> arm;
 };
 
 }  // namespace mrroc::ecp

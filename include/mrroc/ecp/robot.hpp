@@ -4,6 +4,8 @@
 /// and the link to the robot's EDP that keeps the image current (paper, section 4).
 
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -21,6 +23,9 @@ struct RobotImage {
   std::vector<double> joint_velocities;  ///< measured [rad/s]
   int step_no = 0;                       ///< step of the macro-step the reading was taken in
   std::int64_t servo_cycle = 0;
+  /// The last reading in the representation the command asked for (GET ARM), e.g. a frame.
+  edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
+  std::vector<double> arm;
 
   /// The instruction the next exchange sends (a generator fills it in each step).
   edp::Instruction command;
@@ -57,10 +62,18 @@ class Robot {
   /// SYNCHRO + QUERY unless the EDP is already synchronised.
   void synchronise();
 
-  /// Makes Move/Wait throw TaskStopped at their next step.
-  void request_stop() { stop_.store(true); }
+  /// Makes Move/Wait throw TaskStopped at their next step (and ends a pause).
+  void request_stop();
   void clear_stop() { stop_.store(false); }
   [[nodiscard]] bool stop_requested() const { return stop_.load(); }
+
+  /// PAUSE: Move and Wait hold before their next step (the current macro-step completes, then
+  /// the robot stands) until resume() or request_stop().
+  void pause();
+  void resume();
+  [[nodiscard]] bool paused() const;
+  /// Blocks while paused. @throws TaskStopped when a stop is requested.
+  void wait_while_paused();
 
  private:
   edp::Reply exchange(const edp::Instruction& instruction);
@@ -71,6 +84,9 @@ class Robot {
   comm::EdpClient client_;
   RobotImage image_;
   std::atomic<bool> stop_{false};
+  mutable std::mutex pause_mutex_;
+  std::condition_variable pause_cv_;
+  bool paused_ = false;
 };
 
 }  // namespace mrroc::ecp

@@ -1,0 +1,226 @@
+#include "shell.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "mrroc/core/process.hpp"
+#include "mrroc/ecp/generator.hpp"
+#include "mrroc/robot/robot_model.hpp"
+
+namespace mrroc::ecp {
+
+namespace {
+
+EcpReply error_reply(ErrorClass cls, int code, const std::string& text) {
+  EcpReply r;
+  r.type = EcpReplyType::error;
+  r.error_class = cls;
+  r.error_code = code;
+  r.error_text = text;
+  return r;
+}
+
+}  // namespace
+
+EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter)
+    : config_(config),
+      reporter_(reporter),
+      process_("ecp/" + config.name),
+      robot_(bus, process_, config.name, load_robot_model(config.model_dir)),
+      server_(bus, process_, channels::ecp_command(config.name), channels::ecp_reply(config.name)) {
+  // Build the configured task once now, so that a wrong name or argument fails before "ready".
+  TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s};
+  try {
+    (void)make_ecp_task(config_.ecp.name, context);
+  } catch (const ConfigError& e) {
+    const std::string text = e.what();
+    if (text.find(": error: ") != std::string::npos) throw;
+    throw ConfigError(fmt::format("{}: error: {}", config_.ecp.where.str(), text));
+  }
+  worker_ = std::thread([this] { worker_loop(); });
+}
+
+EcpShell::~EcpShell() {
+  robot_.request_stop();
+  {
+    std::lock_guard lock(mutex_);
+    closing_ = true;
+  }
+  cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void EcpShell::worker_loop() {
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    cv_.wait(lock, [&] { return job_ || closing_; });
+    if (!job_) return;
+    auto job = std::move(job_);
+    job_ = nullptr;
+    lock.unlock();
+    job();
+    lock.lock();
+    busy_ = false;
+  }
+}
+
+bool EcpShell::start_activity(const std::string& what, std::function<EcpReply()> body,
+                              const Responder& responder) {
+  {
+    std::lock_guard lock(mutex_);
+    if (busy_) return false;
+    busy_ = true;
+    job_ = [this, what, body = std::move(body), responder] {
+      EcpReply reply;
+      try {
+        reply = body();
+      } catch (const TaskStopped& e) {
+        reply = error_reply(ErrorClass::non_fatal, error_code::stopped, e.what());
+        reporter_.report(Severity::warning, error_code::stopped, what + ": " + e.what());
+      } catch (const TimeoutError& e) {
+        reply = error_reply(ErrorClass::system, error_code::timeout, e.what());
+        reporter_.report(Severity::error, error_code::timeout, what + ": " + e.what());
+      } catch (const RemoteError& e) {
+        reply = error_reply(ErrorClass::fatal, e.code(), e.what());
+        reporter_.report(Severity::error, e.code(), what + ": " + e.what());
+      } catch (const ConfigError& e) {
+        reply = error_reply(ErrorClass::non_fatal, error_code::task_error, e.what());
+        reporter_.report(Severity::error, error_code::task_error, what + ": " + e.what());
+      } catch (const CommandError& e) {
+        reply = error_reply(ErrorClass::non_fatal, e.code(), e.what());
+        reporter_.report(Severity::error, e.code(), what + ": " + e.what());
+      } catch (const std::exception& e) {
+        reply = error_reply(ErrorClass::fatal, error_code::task_error, e.what());
+        reporter_.report(Severity::error, error_code::task_error, what + ": " + e.what());
+      }
+      if (reply.joints.empty()) {
+        reply.synchronised = robot_.image().synchronised;
+        reply.joints = robot_.image().joints;
+        reply.desired_joints = robot_.image().desired_joints;
+      }
+      responder.reply(reply);
+    };
+  }
+  cv_.notify_all();
+  return true;
+}
+
+EcpReply EcpShell::state_reply(EcpReplyType type) const {
+  EcpReply r;
+  r.type = type;
+  const RobotImage& image = robot_.image();
+  r.synchronised = image.synchronised;
+  r.joints = image.joints;
+  r.desired_joints = image.desired_joints;
+  r.arm_type = image.arm_type;
+  r.arm = image.arm;
+  return r;
+}
+
+EcpReply EcpShell::run_task(const std::string& name, const Params& args) {
+  TaskContext context{robot_, reporter_, args, config_.edp.servo_period_s};
+  std::unique_ptr<EcpTask> task = make_ecp_task(name, context);
+  reporter_.info(fmt::format("task '{}' started", name));
+  task->main_task();
+  reporter_.info(fmt::format("task '{}' terminated", name));
+  return state_reply(EcpReplyType::task_terminated);
+}
+
+EcpReply EcpShell::next_pose(const MpCommand& command) {
+  if (robot_.stop_requested()) throw TaskStopped("task stopped on request");
+  robot_.wait_while_paused();
+  if (!robot_.image().synchronised) robot_.synchronise();
+  edp::Instruction& c = robot_.image().command;
+  c = edp::Instruction{};
+  c.type = edp::InstructionType::set_get;
+  c.set = edp::item::arm;
+  c.get = edp::item::arm;
+  c.set_arm_type = command.arm_type;
+  c.get_arm_type = command.arm_type;
+  c.motion_type = command.motion_type;
+  c.motion_steps = command.motion_steps;
+  c.value_in_step_no = command.value_in_step_no;
+  c.arm = command.arm;
+  robot_.execute();
+  return state_reply(EcpReplyType::acknowledge);
+}
+
+EcpReply EcpShell::end_motion() {
+  robot_.read_state();
+  return state_reply(EcpReplyType::acknowledge);
+}
+
+void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
+  const char* name = to_string(command.type);
+  auto busy = [&] {
+    responder.reply(error_reply(ErrorClass::non_fatal, error_code::task_running,
+                                fmt::format("{} refused: another command is running", name)));
+  };
+  switch (command.type) {
+    case MpCommandType::start_task:
+      robot_.clear_stop();  // a STOP ends one run, not the next one
+      if (!start_activity(
+              fmt::format("task '{}'", config_.ecp.name),
+              [this] { return run_task(config_.ecp.name, config_.ecp.args); }, responder))
+        busy();
+      break;
+    case MpCommandType::next_state: {
+      robot_.clear_stop();
+      const std::string state = command.state_name;
+      const std::string arguments = command.arguments;
+      const std::string origin = fmt::format("NEXT_STATE '{}' arguments", state);
+      if (!start_activity(
+              fmt::format("sub-task '{}'", state),
+              [this, state, arguments, origin] {
+                const Params args = params_from_toml(arguments, origin);
+                return run_task(state, args);
+              },
+              responder))
+        busy();
+      break;
+    }
+    case MpCommandType::next_pose:
+      if (!start_activity("NEXT_POSE", [this, command] { return next_pose(command); }, responder))
+        busy();
+      break;
+    case MpCommandType::end_motion:
+      if (!start_activity("END_MOTION", [this] { return end_motion(); }, responder)) busy();
+      break;
+    case MpCommandType::stop:
+      robot_.request_stop();
+      reporter_.warning("STOP from the MP");
+      responder.reply(state_reply(EcpReplyType::acknowledge));
+      break;
+    case MpCommandType::pause:
+      robot_.pause();
+      reporter_.info("paused");
+      responder.reply(state_reply(EcpReplyType::acknowledge));
+      break;
+    case MpCommandType::resume:
+      robot_.resume();
+      reporter_.info("resumed");
+      responder.reply(state_reply(EcpReplyType::acknowledge));
+      break;
+  }
+}
+
+void EcpShell::run() {
+  reporter_.info(fmt::format("ready: task '{}'", config_.ecp.name));
+  reporter_.set_state(ProcessState::ready);
+  while (!stop_requested()) {
+    auto in = server_.wait_request(std::chrono::milliseconds(100));
+    if (!in) continue;
+    if (!in->request) {
+      reporter_.report(Severity::warning, error_code::malformed,
+                       "malformed MP command dropped: " + in->decode_error);
+      in->responder.reply(error_reply(ErrorClass::non_fatal, error_code::malformed,
+                                      "malformed command: " + in->decode_error));
+      continue;
+    }
+    dispatch(*in->request, in->responder);
+  }
+  reporter_.set_state(ProcessState::stopping);
+  robot_.request_stop();
+}
+
+}  // namespace mrroc::ecp

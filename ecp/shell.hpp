@@ -1,0 +1,73 @@
+#pragma once
+/// @file
+/// The ECP shell: serves the MP's commands for one robot (paper, section 4).
+///
+/// | command     | what the ECP does                                   | reply (when)                      |
+/// |-------------|-----------------------------------------------------|-----------------------------------|
+/// | START_TASK  | runs the configured task                            | TASK_TERMINATED / ERROR (its end) |
+/// | NEXT_STATE  | runs the ECP task named `state_name` with the TOML  | TASK_TERMINATED / ERROR (its end) |
+/// |             | `arguments` (sporadic coordination)                 |                                   |
+/// | NEXT_POSE   | one macro-step to the MP's pose (continuous         | ACKNOWLEDGE + reading (in step    |
+/// |             | coordination)                                       | value_in_step_no)                 |
+/// | END_MOTION  | ends a series of NEXT_POSE: waits for the robot     | ACKNOWLEDGE + state               |
+/// |             | to stop, reads its state                            |                                   |
+/// | STOP        | stops what runs (it ends with ERROR "stopped")      | ACKNOWLEDGE (at once)             |
+/// | PAUSE       | holds before the next macro-step                    | ACKNOWLEDGE (at once)             |
+/// | RESUME      | goes on                                             | ACKNOWLEDGE (at once)             |
+///
+/// One activity (task, sub-task, pose, end of motion) runs at a time on the worker thread; a
+/// second one is refused with `task_running`. STOP, PAUSE and RESUME act at once.
+
+#include <condition_variable>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "mrroc/comm/links.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/core/reporter.hpp"
+#include "mrroc/ecp/robot.hpp"
+#include "mrroc/ecp/task.hpp"
+
+namespace mrroc::ecp {
+
+class EcpShell {
+ public:
+  /// Loads the robot model and the configured task (errors name config file and line).
+  EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter);
+  ~EcpShell();
+  EcpShell(const EcpShell&) = delete;
+  EcpShell& operator=(const EcpShell&) = delete;
+
+  /// Serves commands until `stop_requested()` (SIGINT/SIGTERM); stops what runs on the way out.
+  void run();
+
+ private:
+  using Responder = comm::EcpServer::Responder;
+  void dispatch(const MpCommand& command, const Responder& responder);
+  /// Runs `body` on the worker; its reply (or the error it throws) goes to `responder`.
+  bool start_activity(const std::string& what, std::function<EcpReply()> body,
+                      const Responder& responder);
+  EcpReply run_task(const std::string& name, const Params& args);
+  EcpReply next_pose(const MpCommand& command);
+  EcpReply end_motion();
+  EcpReply state_reply(EcpReplyType type) const;
+  void worker_loop();
+
+  const RobotConfig& config_;
+  Reporter& reporter_;
+  std::string process_;
+  Robot robot_;
+  comm::EcpServer server_;
+
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::function<void()> job_;
+  bool busy_ = false;
+  bool closing_ = false;
+  std::thread worker_;
+};
+
+}  // namespace mrroc::ecp

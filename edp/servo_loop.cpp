@@ -113,9 +113,11 @@ void ServoLoop::store_reading(std::uint64_t id, int step_no) {
 }
 
 void ServoLoop::cycle() {
-  const std::span<AxisFeedback> fb(feedback_.data(), axes_);
-  const CycleStatus read_status = hardware_.read(fb);
+  // Sample without the lock (the hardware may take a while), publish under it.
+  const CycleStatus read_status = hardware_.read(std::span(sample_.data(), axes_));
   std::lock_guard lock(mutex_);
+  feedback_ = sample_;
+  const std::span<const AxisFeedback> fb(feedback_.data(), axes_);
   if (read_status != CycleStatus::ok && !faulted_) set_fault(hardware_.fault_text().c_str());
   const bool synced = synchronised_.load(std::memory_order_relaxed);
   latest_.cycle = cycles_;

@@ -155,7 +155,8 @@ class ServoLoop {
   Reading delivered_;  ///< the last reading requested by a macro-step
   AxisArray desired_{};  ///< joint coordinates (raw before synchronisation)
   AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
-  std::array<AxisFeedback, kMaxAxes> feedback_{};
+  std::array<AxisFeedback, kMaxAxes> sample_{};    ///< servo thread only
+  std::array<AxisFeedback, kMaxAxes> feedback_{};  ///< under mutex_
   std::array<double, kMaxAxes> raw_setpoints_{};
   // synchronisation
   std::array<bool, kMaxAxes> switch_found_{};

@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
@@ -81,6 +82,7 @@ void Reporter::report(Severity severity, int code, const std::string& text) {
   m.severity = static_cast<std::int8_t>(severity);
   m.code = code;
   m.text = text;
+  comm::detail::published();
   bus_.lcm().publish(channels::srp, &m);
 }
 
@@ -113,6 +115,7 @@ void Reporter::publish_status() {
   m.robot = robot_;
   m.pid = static_cast<std::int32_t>(::getpid());
   m.uptime_us = (monotonic_ns() - started_ns_) / 1000;
+  comm::detail::published();
   bus_.lcm().publish(channels::status, &m);
 }
 
@@ -124,13 +127,22 @@ struct SystemListener::Impl {
   lcm::Subscription* srp_sub = nullptr;
   lcm::Subscription* status_sub = nullptr;
 
-  static void on_srp(const lcm::ReceiveBuffer*, const std::string&,
-                     const mrroc_lcm::srp_message_t* m, Impl* self) {
-    self->message(m);
+  static void on_srp(const lcm::ReceiveBuffer* buffer, const std::string&, Impl* self) {
+    mrroc_lcm::srp_message_t m;
+    if (!comm::detail::decode_received(buffer, m)) {
+      ++*self->malformed;
+      return;
+    }
+    self->message(&m);
   }
-  static void on_status_message(const lcm::ReceiveBuffer*, const std::string&,
-                        const mrroc_lcm::process_status_t* m, Impl* self) {
-    self->status(m);
+  static void on_status_message(const lcm::ReceiveBuffer* buffer, const std::string&,
+                                Impl* self) {
+    mrroc_lcm::process_status_t m;
+    if (!comm::detail::decode_received(buffer, m)) {
+      ++*self->malformed;
+      return;
+    }
+    self->status(&m);
   }
   void message(const mrroc_lcm::srp_message_t* m) {
     if (!on_message) return;
@@ -155,8 +167,9 @@ struct SystemListener::Impl {
 SystemListener::SystemListener(comm::Bus& bus, MessageHandler on_message, StatusHandler on_status)
     : impl_(std::make_unique<Impl>(
           Impl{bus, std::move(on_message), std::move(on_status), &malformed_})) {
-  impl_->srp_sub = bus.lcm().subscribeFunction(channels::srp, &Impl::on_srp, impl_.get());
-  impl_->status_sub = bus.lcm().subscribeFunction(channels::status, &Impl::on_status_message, impl_.get());
+  impl_->srp_sub = bus.lcm().subscribeFunction<Impl*>(channels::srp, &Impl::on_srp, impl_.get());
+  impl_->status_sub = bus.lcm().subscribeFunction<Impl*>(channels::status, &Impl::on_status_message,
+                                                       impl_.get());
 }
 
 SystemListener::~SystemListener() {

@@ -19,6 +19,7 @@
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/codec.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
 
 namespace fs = std::filesystem;
@@ -100,11 +101,13 @@ std::vector<std::string> mrroc_processes() {
 class EdpReplyRecorder {
  public:
   EdpReplyRecorder(comm::Bus& bus, const std::string& robot) {
-    bus.lcm().subscribeFunction(channels::edp_reply(robot), &EdpReplyRecorder::dispatch, this);
+    bus.lcm().subscribeFunction<EdpReplyRecorder*>(channels::edp_reply(robot),
+                                                  &EdpReplyRecorder::dispatch, this);
   }
-  static void dispatch(const lcm::ReceiveBuffer*, const std::string&,
-                       const mrroc_lcm::edp_reply_t* msg, EdpReplyRecorder* self) {
-    self->on_reply(msg);
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string&,
+                       EdpReplyRecorder* self) {
+    mrroc_lcm::edp_reply_t msg;
+    if (comm::detail::decode_received(buffer, msg)) self->on_reply(&msg);
   }
   void on_reply(const mrroc_lcm::edp_reply_t* msg) {
     if (msg->header.kind != mrroc_lcm::header_t::REPLY) return;

@@ -32,6 +32,7 @@
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/faults.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/header_t.hpp"
@@ -63,6 +64,7 @@ template <class Msg>
 void publish_with_faults(lcm::LCM& lcm, FaultDice& dice, const std::string& channel,
                          const Msg& msg) {
   const int copies = dice.copies();
+  published();
   for (int i = 0; i < copies; ++i) lcm.publish(channel, &msg);
 }
 }  // namespace detail
@@ -82,7 +84,7 @@ class Client {
         reply_channel_(std::move(reply_channel)),
         options_(options),
         dice_(options.faults) {
-    subscription_ = bus_.lcm().subscribeFunction(reply_channel_, &Client::dispatch, this);
+    subscription_ = bus_.lcm().subscribeFunction<Client*>(reply_channel_, &Client::dispatch, this);
   }
   ~Client() { bus_.lcm().unsubscribe(subscription_); }
   Client(const Client&) = delete;
@@ -153,9 +155,14 @@ class Client {
   }
 
   // LCM calls a plain function with the object as context (no pointer-to-member dispatch).
-  static void dispatch(const lcm::ReceiveBuffer*, const std::string&, const Rep* reply,
-                       Client* self) {
-    self->on_reply(reply);
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string&, Client* self) {
+    Rep reply;
+    if (!detail::decode_received(buffer, reply)) {
+      std::lock_guard lock(self->mutex_);
+      ++self->stats_.malformed;
+      return;
+    }
+    self->on_reply(&reply);
   }
 
   void on_reply(const Rep* reply) {
@@ -261,7 +268,7 @@ class Server {
         handler_(std::move(handler)),
         state_(std::make_shared<State>(&bus, std::move(name), std::move(reply_channel),
                                        options.faults)) {
-    subscription_ = bus_.lcm().subscribeFunction(request_channel, &Server::dispatch, this);
+    subscription_ = bus_.lcm().subscribeFunction<Server*>(request_channel, &Server::dispatch, this);
   }
   ~Server() {
     bus_.lcm().unsubscribe(subscription_);
@@ -289,9 +296,14 @@ class Server {
   }
 
  private:
-  static void dispatch(const lcm::ReceiveBuffer*, const std::string&, const Req* request,
-                       Server* self) {
-    self->on_request(request);
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string&, Server* self) {
+    Req request;
+    if (!detail::decode_received(buffer, request)) {
+      std::lock_guard lock(self->state_->mutex);
+      ++self->state_->stats.malformed;
+      return;
+    }
+    self->on_request(&request);
   }
 
   void on_request(const Req* request) {

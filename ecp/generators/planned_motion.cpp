@@ -1,0 +1,132 @@
+#include "mrroc/ecp/generators/planned_motion.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::ecp {
+
+PlannedMotionGenerator::PlannedMotionGenerator(const RobotModel& model)
+    : model_(model), kinematics_(edp::make_arm_kinematics(model)) {}
+
+MotionPlan PlannedMotionGenerator::plan_from(const std::vector<double>& start_joints) const {
+  if (start_joints.size() != model_.axes())
+    throw Error(fmt::format("motion start has {} joint values, robot '{}' has {} axes (read the "
+                            "robot state first)",
+                            start_joints.size(), model_.name, model_.axes()));
+  return make_plan(start_joints);
+}
+
+bool PlannedMotionGenerator::first_step(RobotImage& robot, const SensorList&) {
+  // Plan into a local first: a refused plan leaves the previous one and the command untouched.
+  MotionPlan plan = plan_from(robot.desired_joints);
+  plan_ = std::move(plan);
+  sent_ = 0;
+  if (plan_.targets.empty()) return false;
+  command(robot);
+  return true;
+}
+
+bool PlannedMotionGenerator::next_step(RobotImage& robot, const SensorList&) {
+  if (sent_ >= plan_.targets.size()) return false;
+  command(robot);
+  return true;
+}
+
+void PlannedMotionGenerator::command(RobotImage& robot) {
+  edp::Instruction& c = robot.command;
+  c = edp::Instruction{};
+  c.type = edp::InstructionType::set;
+  c.set = edp::item::arm;
+  c.set_arm_type = plan_.representation;
+  c.motion_type = edp::MotionType::absolute;
+  c.motion_steps = plan_.motion_steps;
+  const bool last = sent_ + 1 == plan_.targets.size();
+  c.value_in_step_no = last ? plan_.motion_steps + 1 : plan_.motion_steps - 1;
+  c.arm = plan_.targets[sent_];
+  if (sent_ == 0 && plan_.first_command_sets != 0) {
+    c.set = static_cast<std::uint8_t>(c.set | plan_.first_command_sets);
+    if ((plan_.first_command_sets & edp::item::tool) != 0) {
+      c.tool_type = edp::ArmRepresentation::frame;
+      c.tool = plan_.tool;
+    }
+    c.kinematic_model_no = plan_.kinematic_model_no;
+    c.corrector_no = plan_.corrector_no;
+  }
+  ++sent_;
+}
+
+namespace detail {
+
+void check_macro_step_path(const edp::ArmKinematics& kinematics, const std::vector<double>& from,
+                           const std::vector<double>& to, int motion_steps) {
+  // The same checks, on the same interpolation steps, as the EDP's command interpreter: a plan
+  // that passes here is not refused there (for the same kinematic model and tool).
+  kinematics.check_joint_limits(to, "target");
+  std::vector<double> q(to.size());
+  for (int k = 1; k <= motion_steps; ++k) {
+    const double s = static_cast<double>(k) / motion_steps;
+    for (std::size_t i = 0; i < q.size(); ++i) q[i] = from[i] + (to[i] - from[i]) * s;
+    const std::string what = fmt::format("servo step {} of {}", k, motion_steps);
+    kinematics.check_joint_limits(q, what.c_str());
+    kinematics.check_motor_limits(kinematics.motors_from_joints(q), what.c_str());
+  }
+}
+
+JointRates joint_rates(const std::vector<double>& before,
+                       const std::vector<std::vector<double>>& joints, std::size_t first,
+                       std::size_t count, double macro_step_s,
+                       const std::vector<double>& max_velocity,
+                       const std::vector<double>& max_acceleration) {
+  JointRates r;
+  const std::size_t axes = before.size();
+  std::vector<double> previous_velocity(axes, 0.0);
+  for (std::size_t k = first; k <= first + count; ++k) {
+    for (std::size_t j = 0; j < axes; ++j) {
+      double v = 0.0;  // at rest after the last macro-step
+      if (k < first + count) {
+        const double from = k == first ? before[j] : joints[k - 1][j];
+        v = (joints[k][j] - from) / macro_step_s;
+      }
+      const double a = (v - previous_velocity[j]) / macro_step_s;
+      const double velocity_ratio = std::abs(v) / max_velocity[j];
+      const double acceleration_ratio = std::abs(a) / max_acceleration[j];
+      if (velocity_ratio > r.velocity_ratio) {
+        r.velocity_ratio = velocity_ratio;
+        r.velocity_step = k;
+        r.velocity_axis = j;
+        r.velocity = v;
+      }
+      if (acceleration_ratio > r.acceleration_ratio) {
+        r.acceleration_ratio = acceleration_ratio;
+        r.acceleration_step = k;
+        r.acceleration_axis = j;
+        r.acceleration = a;
+      }
+      previous_velocity[j] = v;
+    }
+  }
+  return r;
+}
+
+void rethrow_with_context(const std::string& prefix) {
+  try {
+    throw;
+  } catch (const CommandError& e) {
+    throw CommandError(e.code(), prefix + e.what());
+  }
+}
+
+void check_macro_step_options(int motion_steps, double servo_period_s, const char* generator) {
+  if (motion_steps < 2 || motion_steps > 1000)
+    throw Error(fmt::format("{}: motion_steps {} is outside 2..1000", generator, motion_steps));
+  if (!(std::isfinite(servo_period_s) && servo_period_s > 0.0 && servo_period_s <= 1.0))
+    throw Error(
+        fmt::format("{}: servo_period_s {} s is outside (0, 1] s", generator, servo_period_s));
+}
+
+}  // namespace detail
+
+}  // namespace mrroc::ecp

@@ -63,16 +63,16 @@ MotionProfile MotionProfile::with_duration(ProfileShape shape, double max_veloci
                             duration, fast.duration()));
   duration = std::max(duration, fast.duration());
   if (shape == ProfileShape::quintic) return {shape, duration, 0.0, 0.0};
-  // Keep the acceleration, lower the cruise velocity v: v * T - v^2 / a = 1 (unit distance).
-  const double a = max_acceleration;
-  const double discriminant = std::max(0.0, a * a * duration * duration - 4.0 * a);
-  const double v = (a * duration - std::sqrt(discriminant)) / 2.0;
-  return {shape, duration, v, a};
+  // The same shape, slower: velocity times k, acceleration times k^2 (a triangle stays a
+  // triangle, a trapezoid keeps the share of its cruise phase).
+  const double k = fast.duration() / duration;
+  return {shape, duration, fast.cruise_velocity_ * k, fast.acceleration_ * k * k};
 }
 
 double MotionProfile::cruise_duration() const {
   if (shape_ == ProfileShape::quintic) return 0.0;
-  return std::max(0.0, duration_ - 2.0 * cruise_velocity_ / acceleration_);
+  const double cruise = duration_ - 2.0 * cruise_velocity_ / acceleration_;
+  return cruise > 1e-9 * duration_ ? cruise : 0.0;  // a triangle, up to rounding
 }
 
 double MotionProfile::peak_velocity() const {

@@ -95,6 +95,19 @@ RobotModel load_robot_model(const fs::path& folder) {
 
   if (const toml::table* kin = robot->get_as<toml::table>("kinematics")) {
     if (const auto* solver = kin->get_as<std::string>("solver")) m.kinematics = **solver;
+    if (const toml::array* models = kin->get_as<toml::array>("models")) {
+      for (const auto& entry : *models) {
+        const auto name = entry.value<std::string>();
+        if (!name)
+          throw ConfigError(fmt::format("{}:{}: error: 'models' must be a list of URDF file names",
+                                        file.string(), entry.source().begin.line));
+        const fs::path path = folder / *name;
+        if (!fs::exists(path))
+          throw ConfigError(fmt::format("{}:{}: error: kinematic model file '{}' not found",
+                                        file.string(), entry.source().begin.line, path.string()));
+        m.kinematic_models.push_back(path);
+      }
+    }
     if (const toml::array* list = kin->get_as<toml::array>("correctors")) {
       for (const auto& row : *list) {
         const toml::array* values = row.as_array();

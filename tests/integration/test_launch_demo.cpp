@@ -256,3 +256,14 @@ TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {
   EXPECT_EQ(r.output.find("started mp"), std::string::npos) << r.output;
   EXPECT_TRUE(mrroc_processes().empty());
 }
+
+TEST(LaunchDemo, RntDemoRunsToTheEnd) {
+  const std::string config = (kSource / "configs/demo-rnt.toml").string();
+  const RunResult r = run({launcher(), config}, 90.0);
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("kinematics 'rnt'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("task finished"), std::string::npos) << r.output;
+  std::printf("RNT demo finished in %.2f s\n", r.seconds);
+  EXPECT_TRUE(mrroc_processes().empty());
+}

@@ -26,6 +26,9 @@ struct RobotModel {
   /// Local correctors of the kinematic model ([robot.kinematics] correctors), each a frame as
   /// x, y, z [m] and a rotation vector [rad]; corrector number i+1 is correctors[i].
   std::vector<std::array<double, 6>> correctors;
+  /// URDF files of the kinematic models ([robot.kinematics] models; absolute paths), model i is
+  /// kinematic_models[i]; empty: the solver's own models.
+  std::vector<std::filesystem::path> kinematic_models;
 
   [[nodiscard]] std::size_t axes() const { return joint_names.size(); }
 

@@ -31,10 +31,11 @@ class MotionProfile {
   /// [1/s^2]. @throws Error when a limit is not a positive finite number.
   static MotionProfile fastest(ProfileShape shape, double max_velocity, double max_acceleration);
 
-  /// A profile lasting exactly `duration` [s] within the same limits. The quintic is stretched
-  /// in time; the trapezoid keeps the acceleration `max_acceleration` and lowers its cruise
-  /// velocity. @throws Error when a limit is not a positive finite number or `duration` is
-  /// shorter than `fastest(...).duration()` (the text names both durations).
+  /// The fastest profile stretched in time to last exactly `duration` [s]: the same shape with
+  /// velocities times k and accelerations times k^2, k = fastest duration / `duration` (a
+  /// triangle stays a triangle; a trapezoid keeps the share of its cruise phase).
+  /// @throws Error when a limit is not a positive finite number or `duration` is shorter than
+  ///   `fastest(...).duration()` (the text names both durations).
   static MotionProfile with_duration(ProfileShape shape, double max_velocity,
                                      double max_acceleration, double duration);
 

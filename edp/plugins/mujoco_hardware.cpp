@@ -593,7 +593,36 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   axes_ = axes;
   model_ = model.release();
   data_ = data.release();
+  nominal_kp_.assign(axes_, 0.0);
+  for (std::size_t i = 0; i < axes_; ++i)
+    nominal_kp_[i] = model_->actuator_gainprm[static_cast<std::size_t>(mjNGAIN) * i];
+  outputs_ = 0;
   reset_to_power_on();
+}
+
+int MujocoHardware::servo_parameter_set_count(int algorithm) const {
+  return algorithm == 0 ? static_cast<int>(kServoGainScale.size()) : 0;
+}
+
+void MujocoHardware::set_servo(std::size_t axis, int algorithm, int parameter_set) {
+  if (model_ == nullptr || axis >= axes_ || algorithm != 0 || parameter_set < 0 ||
+      parameter_set >= static_cast<int>(kServoGainScale.size()))
+    return;
+  // A position servo: force = kp (target - q) (+ the joint's damping). Changing kp changes the
+  // stiffness of the servo; the bias term must follow the gain.
+  const double kp = nominal_kp_[axis] * kServoGainScale[static_cast<std::size_t>(parameter_set)];
+  model_->actuator_gainprm[static_cast<std::size_t>(mjNGAIN) * axis] = kp;
+  model_->actuator_biasprm[static_cast<std::size_t>(mjNBIAS) * axis + 1] = -kp;
+}
+
+std::uint32_t MujocoHardware::read_inputs() const {
+  // Emulated controller I/O: input i (0..15) is axis i's synchronisation switch; inputs 16..31
+  // are wired to outputs 0..15 (a loop-back plug, so that tasks can test their I/O).
+  std::uint32_t inputs = (outputs_ & 0xFFFFU) << 16U;
+  if (model_ == nullptr || data_ == nullptr) return inputs;
+  for (std::size_t i = 0; i < axes_ && i < 16; ++i)
+    if (switch_state_[i]) inputs |= 1U << i;
+  return inputs;
 }
 
 void MujocoHardware::joints_from_actuators(const double* a, double* q) const noexcept {
@@ -727,6 +756,7 @@ CycleStatus MujocoHardware::read(std::span<AxisFeedback> out) {
   for (std::size_t i = 0; i < axes_; ++i) {
     out[i].position = q[i] - power_on_[i];
     out[i].synchro_switch = q[i] > synchro_[i];
+    if (i < switch_state_.size()) switch_state_[i] = out[i].synchro_switch;
   }
   for (std::size_t i = 0; i < axes_; ++i) {
     a[i] = data_->qvel[dof_adr_[i]];

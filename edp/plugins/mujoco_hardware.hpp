@@ -98,6 +98,18 @@ class MujocoHardware : public Hardware {
 
   [[nodiscard]] std::string fault_text() const override;
 
+  /// Servo algorithm 0: the MJCF position servo with gravity feed-forward. Its parameter sets
+  /// scale the position gain kp: 0 nominal (x1), 1 soft (x0.25), 2 stiff (x2).
+  [[nodiscard]] int servo_algorithm_count() const override { return 1; }
+  [[nodiscard]] int servo_parameter_set_count(int algorithm) const override;
+  void set_servo(std::size_t axis, int algorithm, int parameter_set) override;
+  static constexpr std::array<double, 3> kServoGainScale = {1.0, 0.25, 2.0};
+
+  /// Emulated I/O: inputs 0..15 are the axes' synchronisation switches, inputs 16..31 read back
+  /// outputs 0..15.
+  void write_outputs(std::uint32_t values) override { outputs_ = values; }
+  [[nodiscard]] std::uint32_t read_inputs() const override;
+
   /// The loaded model and its data (nullptr before configure()).
   [[nodiscard]] const mjModel* model() const { return model_; }
   [[nodiscard]] const mjData* data() const { return data_; }
@@ -161,6 +173,9 @@ class MujocoHardware : public Hardware {
   std::vector<double> scratch_q_;
 
   int warnings_at_activate_ = 0;
+  std::vector<double> nominal_kp_;
+  std::uint32_t outputs_ = 0;
+  std::array<bool, 16> switch_state_{};  ///< as of the last read()
   std::array<char, 512> fault_{};
 };
 

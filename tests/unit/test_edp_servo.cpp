@@ -465,3 +465,47 @@ TEST_F(EdpTest, UnreachableOrientationAndModelSelection) {
   ASSERT_EQ(exec(check).type, ReplyType::acknowledge);
   EXPECT_EQ(query().kinematic_model_no, 1);
 }
+
+TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  // Outputs 0b1010 come back on inputs 16..19; inputs 0..4 are the synchronisation switches.
+  Instruction io;
+  io.type = InstructionType::set_get;
+  io.set = item::outputs;
+  io.get = item::inputs;
+  io.output_values = 0xA;
+  ASSERT_EQ(exec(io).type, ReplyType::acknowledge);
+  ASSERT_EQ(query().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  Instruction in;
+  in.type = InstructionType::get;
+  in.get = item::inputs;
+  ASSERT_EQ(exec(in).type, ReplyType::acknowledge);
+  Reply r = query();
+  EXPECT_EQ((r.input_values >> 16) & 0xFU, 0xAU) << std::hex << r.input_values;
+
+  // Track the same fast joint move with the soft and the stiff parameter set: the soft servo
+  // lags more.
+  auto lag_with = [&](std::int8_t set) {
+    Instruction servo;
+    servo.type = InstructionType::set;
+    servo.set = item::servo;
+    servo.servo_algorithm.assign(model_.axes(), 0);
+    servo.servo_parameters_no.assign(model_.axes(), set);
+    EXPECT_EQ(exec(servo).type, ReplyType::acknowledge);
+    EXPECT_EQ(query().type, ReplyType::data);
+    std::vector<double> q = model_.synchro_joint_positions;
+    q[0] = set == 1 ? 0.2 : 0.0;  // alternate direction so each run moves 0.2 rad
+    EXPECT_EQ(exec(set_joints(q, 100, 50)).type, ReplyType::acknowledge);
+    const Reply mid = query();
+    EXPECT_EQ(mid.servo_parameters_no[0], set);
+    const double lag = std::abs(mid.desired_joints[0] - mid.joints[0]);
+    EXPECT_EQ(exec(set_joints(q, 100, 101)).type, ReplyType::acknowledge);  // settle
+    EXPECT_EQ(query().type, ReplyType::data);
+    return lag;
+  };
+  const double soft = lag_with(1);
+  const double stiff = lag_with(2);
+  std::printf("tracking lag at 1 rad/s: soft %.5f rad, stiff %.5f rad\n", soft, stiff);
+  EXPECT_GT(soft, stiff * 1.5);
+}

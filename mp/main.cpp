@@ -26,13 +26,11 @@ int run(const std::string& config_path) {
   bus.start();
   Reporter reporter(bus, "mp");
   try {
-    std::vector<std::unique_ptr<comm::EcpClient>> clients;
-    mp::TaskContext context{{}, reporter, config.mp.args};
+    std::vector<std::unique_ptr<mp::Robot>> robots;
+    mp::TaskContext context{{}, reporter, config.mp.args, config};
     for (const auto& robot : config.robots) {
-      clients.push_back(std::make_unique<comm::EcpClient>(bus, "mp", "ECP " + robot.name,
-                                                          channels::ecp_command(robot.name),
-                                                          channels::ecp_reply(robot.name)));
-      context.robots.push_back(mp::RobotLink{robot.name, clients.back().get()});
+      robots.push_back(std::make_unique<mp::Robot>(bus, robot.name));
+      context.robots.push_back(robots.back().get());
     }
     if (!config.mp.library.empty()) load_plugin_library(config.mp.library, config.mp.where);
     std::unique_ptr<mp::MpTask> task;
@@ -64,17 +62,11 @@ int run(const std::string& config_path) {
         // Operator stop: ask every ECP to stop its task; their START_TASK replies then end the task.
         stop_sent = true;
         reporter.warning("stop requested: sending STOP to every ECP");
-        for (const auto& robot : config.robots) {
+        for (mp::Robot* robot : context.robots) {
           try {
-            comm::EcpClient stopper(bus, "mp-stop", "ECP " + robot.name,
-                                    channels::ecp_command(robot.name),
-                                    channels::ecp_reply(robot.name),
-                                    comm::ClientOptions{std::chrono::milliseconds(100), 5, {}});
-            ecp::MpCommand stop;
-            stop.type = ecp::MpCommandType::stop;
-            stopper.call(stop);
+            robot->stop();
           } catch (const std::exception& e) {
-            reporter.warning(fmt::format("STOP to ecp/{}: {}", robot.name, e.what()));
+            reporter.warning(fmt::format("STOP to ecp/{}: {}", robot->name(), e.what()));
           }
         }
       }

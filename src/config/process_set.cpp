@@ -242,7 +242,7 @@ ProcessSetConfig load_process_set(const fs::path& path) {
   std::set<std::string> names;
   for (const auto& node : *list) {
     const toml::table& t = *node.as_table();
-    r.only_keys(t, "robot", {"name", "model", "edp", "ecp"});
+    r.only_keys(t, "robot", {"name", "model", "base", "edp", "ecp"});
     RobotConfig robot;
     robot.where = r.where(t);
     robot.name = r.string(t, "name", "robot");
@@ -257,6 +257,13 @@ ProcessSetConfig load_process_set(const fs::path& path) {
       r.fail(*t.get("model"),
              fmt::format("robot model folder '{}' not found", robot.model_dir.string()));
 
+    if (const toml::node* base = t.get("base")) {
+      const toml::array* values = base->as_array();
+      if (values == nullptr || values->size() != 6)
+        r.fail(*base, "'base' must be [x, y, z, rx, ry, rz] (m, rotation vector in rad)");
+      const std::vector<double> v = r.numbers(*values, "base");
+      std::copy(v.begin(), v.end(), robot.base.begin());
+    }
     const toml::table& edp = r.table(t, "edp", "robot");
     r.only_keys(edp, "robot.edp", {"plugin", "library", "servo_period_ms", "params", "cpus",
                                    "stop_grace_s"});

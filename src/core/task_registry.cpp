@@ -49,6 +49,16 @@ void ecp::register_ecp_task(const std::string& name, EcpTaskFactory factory) {
 std::unique_ptr<ecp::EcpTask> ecp::make_ecp_task(const std::string& name, TaskContext& context) {
   return ecp_registry().make(name, context, "ECP");
 }
+mp::Robot& mp::TaskContext::robot(const std::string& name) const {
+  std::string known;
+  for (Robot* r : robots) {
+    if (r->name() == name) return *r;
+    known += (known.empty() ? "" : ", ") + r->name();
+  }
+  throw ConfigError(fmt::format("the MP task needs robot '{}', the process set has: {}", name,
+                                known.empty() ? "none" : known));
+}
+
 void mp::register_mp_task(const std::string& name, MpTaskFactory factory) {
   mp_registry().add(name, std::move(factory));
 }

@@ -7,6 +7,7 @@
 /// Errors are `ConfigError`s reading "file:line: error: ..."; unknown keys are errors; missing
 /// files and folders are named.
 
+#include <array>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -43,6 +44,8 @@ struct TaskConfig {
 struct RobotConfig {
   std::string name;                 ///< e.g. "irb6"; used in channel and process names
   std::filesystem::path model_dir;  ///< absolute path of robots/<name>/
+  /// Pose of the robot's base in the cell: x, y, z [m] and a rotation vector [rad] (default 0).
+  std::array<double, 6> base{};
   EdpConfig edp;
   TaskConfig ecp;
   SourceLocation where;

@@ -10,26 +10,20 @@
 
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/params.hpp"
+#include "mrroc/config/process_set.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "mrroc/mp/robot.hpp"
 
 namespace mrroc::mp {
 
-/// The MP's link to one robot's ECP.
-struct RobotLink {
-  std::string name;
-  comm::EcpClient* ecp;
-};
-
 struct TaskContext {
-  std::vector<RobotLink> robots;
+  RobotList robots;  ///< every robot of the process set, in config order
   Reporter& reporter;
-  const Params& args;  ///< [mp.args]
-};
+  const Params& args;               ///< [mp.args]
+  const ProcessSetConfig& config;   ///< the whole process set (robot models, servo periods, ...)
 
-/// Thrown by an MP task when an ECP reported an error.
-class EcpFailed : public RemoteError {
- public:
-  using RemoteError::RemoteError;
+  /// @throws ConfigError naming the robots there are.
+  [[nodiscard]] Robot& robot(const std::string& name) const;
 };
 
 class MpTask {

@@ -1,0 +1,55 @@
+// Stock ECP task "follow_mp": synchronises the robot and terminates; from then on the ECP follows
+// the MP's NEXT_POSE and NEXT_STATE commands (tight and loose coordination).
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "mrroc/ecp/task.hpp"
+
+namespace mrroc::ecp {
+
+class FollowMp : public EcpTask {
+ public:
+  explicit FollowMp(TaskContext& context) : context_(context) {
+    context.args.reject_unread("robot.ecp.args");
+  }
+  void main_task() override {
+    context_.robot.synchronise();
+    context_.reporter.info(fmt::format("synchronised at [{:.4f}]; following the MP",
+                                       fmt::join(context_.robot.image().joints, ", ")));
+  }
+
+ private:
+  TaskContext& context_;
+};
+
+MRROC_REGISTER_ECP_TASK("follow_mp", FollowMp);
+
+/// Stock ECP task "set_outputs": SET OUTPUTS (args: outputs = <bits>), e.g. a gripper valve.
+class SetOutputs : public EcpTask {
+ public:
+  explicit SetOutputs(TaskContext& context)
+      : context_(context), outputs_(context.args.get_int("outputs")) {
+    context.args.reject_unread("set_outputs arguments");
+    if (outputs_ < 0 || outputs_ > 0xFFFFFFFFLL)
+      throw ConfigError(fmt::format("{}: error: outputs {} is outside 0..0xFFFFFFFF",
+                                    context.args.location_of("outputs").str(), outputs_));
+  }
+  void main_task() override {
+    edp::Instruction& c = context_.robot.image().command;
+    c = edp::Instruction{};
+    c.type = edp::InstructionType::set_get;
+    c.set = edp::item::outputs;
+    c.get = edp::item::inputs;
+    c.output_values = static_cast<std::uint32_t>(outputs_);
+    context_.robot.execute();
+    context_.reporter.info(fmt::format("outputs set to {:#x}", outputs_));
+  }
+
+ private:
+  TaskContext& context_;
+  std::int64_t outputs_;
+};
+
+MRROC_REGISTER_ECP_TASK("set_outputs", SetOutputs);
+
+}  // namespace mrroc::ecp

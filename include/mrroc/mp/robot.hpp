@@ -1,0 +1,101 @@
+#pragma once
+/// @file
+/// The MP's robots: an image of each robot (kept current from the ECPs' replies) and the link to
+/// its ECP, with the MP-level Move and Wait of the paper (section 4): the MP works on images of
+/// several robots; on this level Move sends every robot's next pose each macro-step (continuous
+/// coordination), and the sporadic commands (START_TASK, NEXT_STATE) run whole ECP tasks.
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "mrroc/comm/links.hpp"
+#include "mrroc/ecp/generator.hpp"
+#include "mrroc/ecp/mp_command.hpp"
+
+namespace mrroc::mp {
+
+/// What MP generators see of one robot. Units: rad, m.
+struct RobotImage {
+  std::string name;
+  bool synchronised = false;
+  std::vector<double> joints;          ///< measured, from the last ECP reply
+  std::vector<double> desired_joints;  ///< commanded, from the last ECP reply
+  edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
+  std::vector<double> arm;  ///< the last NEXT_POSE reading, in arm_type
+
+  /// The NEXT_POSE the MP sends this macro-step; a generator sets `commanded` to include the
+  /// robot in the step.
+  ecp::MpCommand command;
+  bool commanded = false;
+};
+
+/// Thrown when an ECP answers ERROR (its class, code and text are kept).
+class EcpFailed : public RemoteError {
+ public:
+  EcpFailed(const std::string& robot, const ecp::EcpReply& reply);
+  [[nodiscard]] ecp::ErrorClass error_class() const { return class_; }
+
+ private:
+  ecp::ErrorClass class_;
+};
+
+/// The MP's link to one robot's ECP. Long commands (START_TASK, NEXT_STATE, NEXT_POSE,
+/// END_MOTION) and operator commands (STOP, PAUSE, RESUME) use separate request/reply clients,
+/// so that a STOP is never queued behind a running task.
+class Robot {
+ public:
+  Robot(comm::Bus& bus, const std::string& robot_name);
+
+  [[nodiscard]] const std::string& name() const { return image_.name; }
+  [[nodiscard]] RobotImage& image() { return image_; }
+  [[nodiscard]] const RobotImage& image() const { return image_; }
+
+  /// Runs the ECP's configured task; returns when it terminated. @throws EcpFailed, TimeoutError.
+  void start_task();
+  /// Runs the ECP task `state` with TOML `arguments`; returns when it terminated.
+  void next_state(const std::string& state, const std::string& arguments = {});
+  /// Sends image().command (one macro-step) and updates the image from the reply.
+  void next_pose();
+  /// Ends a series of NEXT_POSE: the ECP reads the robot's state into the image.
+  void end_motion();
+  void stop();
+  void pause();
+  void resume();
+
+ private:
+  ecp::EcpReply checked(const ecp::EcpReply& reply);
+  ecp::EcpReply control(ecp::MpCommandType type);
+  RobotImage image_;
+  comm::EcpClient command_;
+  comm::EcpClient control_;
+};
+
+using RobotList = std::vector<Robot*>;
+using ImageList = std::vector<RobotImage*>;
+
+/// An MP-level generator: computes the next pose of every robot from the robot images and the
+/// sensor images (paper, figure 4, on the MP level).
+class Generator {
+ public:
+  virtual ~Generator() = default;
+  /// Fills the commands of the first macro-step (set `commanded`). false: nothing to do.
+  virtual bool first_step(const ImageList& robots, const ecp::SensorList& sensors) = 0;
+  /// Called after every robot's reply: next commands, or false when the terminal condition holds.
+  virtual bool next_step(const ImageList& robots, const ecp::SensorList& sensors) = 0;
+};
+
+/// Move on the MP level: each macro-step sends NEXT_POSE to every commanded robot at once (one
+/// thread per robot) and waits for all replies before the next step; ends every robot's motion
+/// with END_MOTION. @throws EcpFailed / TimeoutError from any robot (the others are stopped).
+void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator);
+
+/// Wait on the MP level: refreshes the sensor images until `condition` holds.
+void Wait(const ecp::SensorList& sensors, ecp::Condition& condition, double period_s = 0.01);
+
+/// Runs one function per robot at the same time and rethrows the first error after all ended
+/// (e.g. `parallel(robots, [](Robot& r) { r.start_task(); })`).
+void parallel(const RobotList& robots, const std::function<void(Robot&)>& action);
+
+}  // namespace mrroc::mp

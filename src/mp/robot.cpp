@@ -1,0 +1,134 @@
+#include "mrroc/mp/robot.hpp"
+
+#include <fmt/format.h>
+
+#include <exception>
+#include <thread>
+
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/core/process.hpp"
+
+namespace mrroc::mp {
+
+EcpFailed::EcpFailed(const std::string& robot, const ecp::EcpReply& reply)
+    : RemoteError(reply.error_code, fmt::format("ecp/{}: {}", robot, reply.error_text)),
+      class_(reply.error_class) {}
+
+Robot::Robot(comm::Bus& bus, const std::string& robot_name)
+    : command_(bus, "mp", "ECP " + robot_name, channels::ecp_command(robot_name),
+               channels::ecp_reply(robot_name)),
+      control_(bus, "mp-control", "ECP " + robot_name, channels::ecp_command(robot_name),
+               channels::ecp_reply(robot_name),
+               comm::ClientOptions{std::chrono::milliseconds(100), 10, {}}) {
+  image_.name = robot_name;
+}
+
+ecp::EcpReply Robot::checked(const ecp::EcpReply& reply) {
+  image_.synchronised = reply.synchronised;
+  if (!reply.joints.empty()) image_.joints = reply.joints;
+  if (!reply.desired_joints.empty()) image_.desired_joints = reply.desired_joints;
+  if (reply.type == ecp::EcpReplyType::error) throw EcpFailed(image_.name, reply);
+  return reply;
+}
+
+void Robot::start_task() {
+  ecp::MpCommand c;
+  c.type = ecp::MpCommandType::start_task;
+  checked(command_.call(c));
+}
+
+void Robot::next_state(const std::string& state, const std::string& arguments) {
+  ecp::MpCommand c;
+  c.type = ecp::MpCommandType::next_state;
+  c.state_name = state;
+  c.arguments = arguments;
+  checked(command_.call(c));
+}
+
+void Robot::next_pose() {
+  ecp::MpCommand c = image_.command;
+  c.type = ecp::MpCommandType::next_pose;
+  const ecp::EcpReply r = checked(command_.call(c));
+  image_.arm_type = r.arm_type;
+  image_.arm = r.arm;
+}
+
+void Robot::end_motion() {
+  ecp::MpCommand c;
+  c.type = ecp::MpCommandType::end_motion;
+  checked(command_.call(c));
+}
+
+ecp::EcpReply Robot::control(ecp::MpCommandType type) {
+  ecp::MpCommand c;
+  c.type = type;
+  return checked(control_.call(c));
+}
+
+void Robot::stop() { control(ecp::MpCommandType::stop); }
+void Robot::pause() { control(ecp::MpCommandType::pause); }
+void Robot::resume() { control(ecp::MpCommandType::resume); }
+
+void parallel(const RobotList& robots, const std::function<void(Robot&)>& action) {
+  std::vector<std::exception_ptr> errors(robots.size());
+  std::vector<std::thread> threads;
+  threads.reserve(robots.size());
+  for (std::size_t i = 0; i < robots.size(); ++i)
+    threads.emplace_back([&, i] {
+      try {
+        action(*robots[i]);
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    });
+  for (auto& t : threads) t.join();
+  for (auto& e : errors)
+    if (e) std::rethrow_exception(e);
+}
+
+namespace {
+void refresh(const ecp::SensorList& sensors) {
+  for (ecp::Sensor* s : sensors) s->initiate_reading();
+  for (ecp::Sensor* s : sensors) s->get_reading();
+}
+}  // namespace
+
+void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator) {
+  ImageList images;
+  for (Robot* r : robots) images.push_back(&r->image());
+  refresh(sensors);
+  for (RobotImage* image : images) image->commanded = false;
+  if (!generator.first_step(images, sensors)) return;
+  try {
+    do {
+      if (mrroc::stop_requested()) throw ecp::TaskStopped("MP stopped on request");
+      RobotList step;
+      for (Robot* r : robots)
+        if (r->image().commanded) step.push_back(r);
+      parallel(step, [](Robot& r) { r.next_pose(); });
+      refresh(sensors);
+      for (RobotImage* image : images) image->commanded = false;
+    } while (generator.next_step(images, sensors));
+  } catch (...) {
+    // Leave no robot half-way in a continuous motion: end it on every robot that still answers.
+    for (Robot* r : robots) {
+      try {
+        r->end_motion();
+      } catch (...) {
+      }
+    }
+    throw;
+  }
+  parallel(robots, [](Robot& r) { r.end_motion(); });
+}
+
+void Wait(const ecp::SensorList& sensors, ecp::Condition& condition, double period_s) {
+  for (;;) {
+    if (mrroc::stop_requested()) throw ecp::TaskStopped("MP stopped on request");
+    refresh(sensors);
+    if (condition.check(sensors)) return;
+    std::this_thread::sleep_for(std::chrono::duration<double>(period_s));
+  }
+}
+
+}  // namespace mrroc::mp

@@ -792,6 +792,9 @@ TEST(GuardedMove, ThrowsWhenTheDistanceRunsOut) {
   EXPECT_THROW(
       ecp::GuardedMoveGenerator::along_axes(m, {1, 0, 0, 0, 0}, {0, 1, 1}, [] { return false; }),
       Error);
+  EXPECT_THROW(ecp::GuardedMoveGenerator::along_axes(m, {1, 0, 0, 0, 0}, {},
+                                                     std::function<bool()>{}),
+               Error);
 }
 
 TEST(GuardedMove, CartesianMoveDownUntilASensorThreshold) {

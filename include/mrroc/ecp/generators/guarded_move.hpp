@@ -24,14 +24,25 @@
 
 namespace mrroc::ecp {
 
+namespace detail {
+template <class T>
+struct is_std_function : std::false_type {};
+template <class R, class... A>
+struct is_std_function<std::function<R(A...)>> : std::true_type {};
+}  // namespace detail
+
 /// A terminal condition: any callable returning bool (`std::function<bool()>`, a lambda), or a
 /// `Condition` (checked with the Move's sensor list; it must outlive the generator).
 class TerminalCondition {
  public:
+  /// @throws Error for an empty std::function or a null function pointer.
   template <class F>
     requires(std::is_invocable_r_v<bool, F&> && !std::derived_from<std::decay_t<F>, Condition>)
-  TerminalCondition(F f)  // NOLINT(google-explicit-constructor): converts like std::function
-      : check_([f = std::move(f)](const SensorList&) mutable { return static_cast<bool>(f()); }) {}
+  TerminalCondition(F f) {  // NOLINT(google-explicit-constructor): converts like std::function
+    if constexpr (std::is_pointer_v<F> || detail::is_std_function<F>::value)
+      if (!static_cast<bool>(f)) throw Error("guarded move: empty terminal condition");
+    check_ = [f = std::move(f)](const SensorList&) mutable { return static_cast<bool>(f()); };
+  }
   TerminalCondition(Condition& condition)  // NOLINT(google-explicit-constructor)
       : check_([&condition](const SensorList& sensors) { return condition.check(sensors); }) {}
 

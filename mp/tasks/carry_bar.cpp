@@ -1,0 +1,197 @@
+// Stock MP task "carry_bar": tight cooperation (paper, section 2). Two robots hold one rigid bar
+// at its ends; the MP generates both robots' tool frames every macro-step from the bar's path in
+// the cell, and the ECPs pass them through to their EDPs (NEXT_POSE). The bar stays rigid only
+// if both robots follow in step: the MP measures the distance between the two grips in every
+// macro-step (from the robots' own readings and their base poses) and fails when it deviates
+// from the bar's length by more than the tolerance.
+//
+// [mp.args]: robots = ["left", "right"], bar_length [m], path = [[x, y, z], ...] (bar centre in
+// the cell [m]; the bar lies along x), speed [m/s], motion_steps, tolerance [m].
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+#include "mrroc/kinematics/pose.hpp"
+#include "mrroc/mp/task.hpp"
+
+namespace mrroc::mp {
+
+namespace {
+
+Eigen::Isometry3d frame_of(const std::array<double, 6>& pose) {
+  return kinematics::from_values(pose, edp::ArmRepresentation::xyz_angle_axis);
+}
+
+/// Tool orientation gripping the bar from its end: approach along +x (left) or -x (right) of
+/// the cell, tool x axis pointing down.
+Eigen::Matrix3d grip_orientation(double side) {
+  Eigen::Matrix3d r;
+  r.col(0) = Eigen::Vector3d(0, 0, -1);
+  r.col(2) = Eigen::Vector3d(side, 0, 0);
+  r.col(1) = r.col(2).cross(r.col(0));
+  return r;
+}
+
+class BarCarryGenerator : public Generator {
+ public:
+  BarCarryGenerator(std::vector<Eigen::Isometry3d> bases, double bar_length,
+                    std::vector<Eigen::Vector3d> path, double speed, int motion_steps,
+                    double servo_period_s)
+      : bases_(std::move(bases)),
+        half_(bar_length / 2.0),
+        path_(std::move(path)),
+        speed_(speed),
+        steps_(motion_steps),
+        period_(servo_period_s) {}
+
+  bool first_step(const ImageList& robots, const ecp::SensorList&) override {
+    // Approach: both robots go to the grips of the bar's first pose in one long macro-step.
+    segment_ = 0;
+    macro_ = 0;
+    approaching_ = true;
+    command(robots, path_.front(), 1000, 1001);
+    return true;
+  }
+
+  bool next_step(const ImageList& robots, const ecp::SensorList&) override {
+    measure(robots);
+    if (approaching_) {
+      approaching_ = false;
+      max_deviation_ = 0.0;  // the carry starts here
+      if (!begin_segment()) return false;
+    } else if (macro_ >= segment_macros_) {
+      ++segment_;
+      if (!begin_segment()) return false;
+    }
+    ++macro_;
+    const double tau = static_cast<double>(macro_) / segment_macros_;
+    const double s = tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+    const Eigen::Vector3d centre = from_ + (to_ - from_) * s;
+    const bool last = segment_ + 2 == path_.size() && macro_ == segment_macros_;
+    command(robots, centre, steps_, last ? steps_ + 1 : steps_ - 1);
+    return true;
+  }
+
+  [[nodiscard]] double max_deviation() const { return max_deviation_; }
+  [[nodiscard]] int macro_steps() const { return macro_total_; }
+
+ private:
+  bool begin_segment() {
+    if (segment_ + 1 >= path_.size()) return false;
+    from_ = path_[segment_];
+    to_ = path_[segment_ + 1];
+    const double duration = 1.875 * (to_ - from_).norm() / speed_;
+    segment_macros_ = std::max(1, static_cast<int>(std::ceil(duration / (steps_ * period_))));
+    macro_ = 0;
+    return true;
+  }
+
+  void command(const ImageList& robots, const Eigen::Vector3d& centre, int steps, int value) {
+    for (std::size_t i = 0; i < robots.size(); ++i) {
+      const double side = i == 0 ? 1.0 : -1.0;  // left grips the bar's -x end, approaching +x
+      Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();
+      grip.linear() = grip_orientation(side);
+      grip.translation() = centre - side * half_ * Eigen::Vector3d::UnitX();
+      ecp::MpCommand& c = robots[i]->command;
+      c.arm_type = edp::ArmRepresentation::frame;
+      c.motion_type = edp::MotionType::absolute;
+      c.motion_steps = steps;
+      c.value_in_step_no = value;
+      c.arm = kinematics::to_vector(bases_[i].inverse() * grip, edp::ArmRepresentation::frame);
+      robots[i]->commanded = true;
+    }
+    ++macro_total_;
+  }
+
+  void measure(const ImageList& robots) {
+    std::vector<Eigen::Vector3d> grips;
+    for (std::size_t i = 0; i < robots.size(); ++i) {
+      if (robots[i]->arm_type != edp::ArmRepresentation::frame || robots[i]->arm.size() != 12)
+        return;
+      grips.push_back(bases_[i] * kinematics::from_vector(robots[i]->arm,
+                                                          edp::ArmRepresentation::frame)
+                                      .translation());
+    }
+    const double deviation = std::abs((grips[1] - grips[0]).norm() - 2.0 * half_);
+    max_deviation_ = std::max(max_deviation_, deviation);
+  }
+
+  std::vector<Eigen::Isometry3d> bases_;
+  double half_;
+  std::vector<Eigen::Vector3d> path_;
+  double speed_;
+  int steps_;
+  double period_;
+  std::size_t segment_ = 0;
+  int macro_ = 0;
+  int segment_macros_ = 1;
+  int macro_total_ = 0;
+  bool approaching_ = true;
+  Eigen::Vector3d from_, to_;
+  double max_deviation_ = 0.0;
+};
+
+}  // namespace
+
+class CarryBar : public MpTask {
+ public:
+  explicit CarryBar(TaskContext& context) : context_(context) {
+    const Params& args = context.args;
+    const auto names = args.get_strings("robots");
+    if (names.size() != 2)
+      throw ConfigError(fmt::format("{}: error: 'robots' must name exactly two robots",
+                                    args.location_of("robots").str()));
+    for (const auto& n : names) robots_.push_back(&context.robot(n));
+    bar_length_ = args.get_double("bar_length");
+    for (const auto& p : args.get_double_rows("path")) {
+      if (p.size() != 3)
+        throw ConfigError(fmt::format("{}: error: every 'path' point is [x, y, z] (m)",
+                                      args.location_of("path").str()));
+      path_.emplace_back(p[0], p[1], p[2]);
+    }
+    if (path_.size() < 2)
+      throw ConfigError(fmt::format("{}: error: 'path' needs at least two points",
+                                    args.location_of("path").str()));
+    speed_ = args.get_double("speed", 0.05);
+    motion_steps_ = static_cast<int>(args.get_int("motion_steps", 10));
+    tolerance_ = args.get_double("tolerance", 0.003);
+    args.reject_unread("mp.args");
+    if (!(speed_ > 0.0 && speed_ <= 0.5))
+      throw ConfigError(fmt::format("{}: error: speed {} m/s is outside (0, 0.5] m/s",
+                                    args.location_of("speed").str(), speed_));
+  }
+
+  void main_task() override {
+    parallel(robots_, [](Robot& r) { r.start_task(); });  // follow_mp: synchronise
+    context_.reporter.info("both robots synchronised; carrying the bar");
+    std::vector<Eigen::Isometry3d> bases;
+    for (Robot* r : robots_) bases.push_back(frame_of(context_.config.robot(r->name()).base));
+    BarCarryGenerator generator(bases, bar_length_, path_, speed_, motion_steps_,
+                                context_.config.robot(robots_[0]->name()).edp.servo_period_s);
+    Move(robots_, {}, generator);
+    const double deviation = generator.max_deviation();
+    context_.reporter.info(fmt::format(
+        "bar carried along {} points in {} macro-steps; grip distance within {:.3f} mm of the "
+        "bar length {:.3f} m",
+        path_.size(), generator.macro_steps(), deviation * 1e3, bar_length_));
+    if (deviation > tolerance_)
+      throw Error(fmt::format("the robots did not keep the bar rigid: grip distance deviated "
+                              "{:.3f} mm, tolerance {:.3f} mm",
+                              deviation * 1e3, tolerance_ * 1e3));
+  }
+
+ private:
+  TaskContext& context_;
+  RobotList robots_;
+  double bar_length_ = 0;
+  std::vector<Eigen::Vector3d> path_;
+  double speed_ = 0.05;
+  int motion_steps_ = 10;
+  double tolerance_ = 0.003;
+};
+
+MRROC_REGISTER_MP_TASK("carry_bar", CarryBar);
+
+}  // namespace mrroc::mp

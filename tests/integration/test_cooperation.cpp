@@ -1,0 +1,141 @@
+// The three kinds of multi-robot tasks of the paper, each a real process set started by
+// mrroc-launch, with checked outcomes read from the robots' own EDP replies and the MP's report.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/codec.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc/config/process_set.hpp"
+
+namespace fs = std::filesystem;
+using namespace mrroc;
+
+namespace {
+
+const fs::path kBin = MRROC_BIN_DIR;
+const fs::path kSource = MRROC_SOURCE_DIR;
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;
+};
+
+RunResult launch(const std::string& config) {
+  const std::string command = (kBin / "mrroc-launch").string() + " " + config + " 2>&1";
+  RunResult r;
+  FILE* pipe = popen(command.c_str(), "r");
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, pipe) != nullptr) r.output += buf;
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+/// Last DATA reply (measured joints) of every robot's EDP, as the EDPs sent them.
+class FinalJoints {
+ public:
+  FinalJoints(comm::Bus& bus, const std::vector<std::string>& robots) {
+    for (const auto& robot : robots) {
+      auto* slot = &slots_[robot];
+      slot->owner = this;
+      bus.lcm().subscribeFunction<Slot*>(channels::edp_reply(robot), &FinalJoints::on_reply, slot);
+    }
+  }
+  std::vector<double> of(const std::string& robot) {
+    std::lock_guard lock(mutex_);
+    return slots_[robot].joints;
+  }
+
+ private:
+  struct Slot {
+    FinalJoints* owner = nullptr;
+    std::vector<double> joints;
+  };
+  static void on_reply(const lcm::ReceiveBuffer* buffer, const std::string&, Slot* slot) {
+    mrroc_lcm::edp_reply_t msg;
+    if (!comm::detail::decode_received(buffer, msg)) return;
+    if (msg.header.kind != mrroc_lcm::header_t::REPLY) return;
+    const edp::Reply reply = comm::decode(msg);
+    if (reply.type != edp::ReplyType::data || !reply.synchronised) return;
+    std::lock_guard lock(slot->owner->mutex_);
+    slot->joints = reply.joints;
+  }
+  std::mutex mutex_;
+  std::map<std::string, Slot> slots_;
+};
+
+void expect_near(const std::vector<double>& actual, const std::vector<double>& expected,
+                 double tolerance, const std::string& what) {
+  ASSERT_EQ(actual.size(), expected.size()) << what;
+  for (std::size_t j = 0; j < expected.size(); ++j)
+    EXPECT_NEAR(actual[j], expected[j], tolerance) << what << " joint " << j;
+}
+
+}  // namespace
+
+TEST(Cooperation, IndependentRobotsRunTheirOwnTasks) {
+  const std::string file = (kSource / "configs/independent.toml").string();
+  const ProcessSetConfig config = load_process_set(file);
+  comm::Bus bus(config.lcm_url);
+  FinalJoints final_joints(bus, {"irb6", "rnt"});
+  bus.start();
+  const RunResult r = launch(file);
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (const auto& robot : config.robots) {
+    EXPECT_NE(r.output.find("ecp/" + robot.name + ": TASK_TERMINATED"), std::string::npos)
+        << r.output;
+    expect_near(final_joints.of(robot.name), robot.ecp.args.get_double_rows("poses").back(), 2e-3,
+                robot.name);
+  }
+}
+
+TEST(Cooperation, LooseConveyorStartsOnlyAfterThePlacement) {
+  const std::string file = (kSource / "configs/loose-conveyor.toml").string();
+  const ProcessSetConfig config = load_process_set(file);
+  comm::Bus bus(config.lcm_url);
+  FinalJoints final_joints(bus, {"irb6", "conveyor"});
+  bus.start();
+  const RunResult r = launch(file);
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // Order of events: released on the belt, then (and only then) the belt moves.
+  const auto placed = r.output.find("object placed on the conveyor by irb6");
+  const auto belt_task = r.output.find("[ecp/conveyor] ecp/conveyor: info: task 'visit_joint_poses' started");
+  const auto delivered = r.output.find("object delivered: conveyor at");
+  ASSERT_NE(placed, std::string::npos) << r.output;
+  ASSERT_NE(belt_task, std::string::npos) << r.output;
+  ASSERT_NE(delivered, std::string::npos) << r.output;
+  EXPECT_LT(placed, belt_task);
+  EXPECT_LT(belt_task, delivered);
+  EXPECT_NE(r.output.find("outputs set to 0x1"), std::string::npos) << "gripper never closed";
+  EXPECT_NEAR(final_joints.of("conveyor").at(0), config.mp.args.get_double("belt_target"), 2e-3);
+  expect_near(final_joints.of("irb6"), config.mp.args.get_doubles("retreat"), 2e-3, "irb6");
+}
+
+TEST(Cooperation, TightTwoRobotsKeepTheBarRigid) {
+  const std::string file = (kSource / "configs/tight-bar.toml").string();
+  const RunResult r = launch(file);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::regex report("grip distance within ([0-9.]+) mm of the bar length ([0-9.]+) m");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, report)) << r.output;
+  const double deviation_mm = std::stod(m[1]);
+  EXPECT_LT(deviation_mm, 3.0);
+  EXPECT_GE(deviation_mm, 0.0);
+  std::printf("bar: grip distance deviation %.3f mm\n", deviation_mm);
+  const std::regex steps("in ([0-9]+) macro-steps");
+  ASSERT_TRUE(std::regex_search(r.output, m, steps));
+  EXPECT_GT(std::stoi(m[1]), 100) << "the MP must generate the trajectory macro-step by macro-step";
+}

@@ -85,7 +85,8 @@ class PassThroughGenerator : public Generator {
   /// The check applied to every instruction (`number` names it in the error text), public for
   /// shells that want to refuse an MP pose before queueing it. A tool or kinematic model the
   /// instruction SETs is taken over into the generator's kinematics (as the EDP will) before its
-  /// arm target is checked, and only if the whole instruction passes.
+  /// arm target is checked, and only if the whole instruction passes. Not thread-safe: call it
+  /// from the thread that runs the generator (or on a generator of its own).
   /// @throws CommandError (bad_argument, out_of_limits).
   void validate(const edp::Instruction& instruction, std::size_t number,
                 const std::vector<double>& desired_joints);

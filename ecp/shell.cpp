@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include "mrroc/core/process.hpp"
+#include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
@@ -74,6 +75,11 @@ bool EcpShell::start_activity(const std::string& what, std::function<EcpReply()>
       EcpReply reply;
       try {
         reply = body();
+      } catch (const TaskError& e) {
+        reply = error_reply(e.error_class(), e.code(), e.what());
+        reporter_.report(e.error_class() == ErrorClass::non_fatal ? Severity::warning
+                                                                  : Severity::error,
+                         e.code(), what + ": " + e.what());
       } catch (const TaskStopped& e) {
         reply = error_reply(ErrorClass::non_fatal, error_code::stopped, e.what());
         reporter_.report(Severity::warning, error_code::stopped, what + ": " + e.what());

@@ -1,0 +1,132 @@
+// Error conditions thrown by user tasks and operator PAUSE/RESUME, through real process sets
+// whose tasks come from a plugin library (tests/integration/test_tasks.cpp).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/config/process_set.hpp"
+
+namespace fs = std::filesystem;
+using namespace mrroc;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;
+};
+
+class TaskErrors : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mrroc-task-errors-" + std::to_string(getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string config(const std::string& mp_task, const std::string& mp_args,
+                     const std::string& ecp_task) {
+    const fs::path file = dir_ / (mp_task + ".toml");
+    std::ofstream(file) << "[system]\nname = \"t\"\nlcm_url = \"udpm://239.255.76.67:7667?ttl=0\"\n"
+                        << "[mp]\ntask = \"" << mp_task << "\"\nlibrary = \"" << MRROC_TEST_TASKS
+                        << "\"\n[mp.args]\n" << mp_args << "\n[[robot]]\nname = \"irb6\"\n"
+                        << "model = \"" << MRROC_SOURCE_DIR << "/robots/irb6\"\n"
+                        << "[robot.edp]\nplugin = \"mujoco\"\n[robot.ecp]\ntask = \"" << ecp_task
+                        << "\"\nlibrary = \"" << MRROC_TEST_TASKS << "\"\n";
+    return file.string();
+  }
+
+  static RunResult launch(const std::string& file) {
+    const std::string command = std::string(MRROC_BIN_DIR) + "/mrroc-launch " + file + " 2>&1";
+    RunResult r;
+    FILE* pipe = popen(command.c_str(), "r");
+    char buf[4096];
+    while (std::fgets(buf, sizeof buf, pipe) != nullptr) r.output += buf;
+    const int status = pclose(pipe);
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return r;
+  }
+
+  fs::path dir_;
+};
+
+}  // namespace
+
+TEST_F(TaskErrors, NonFatalErrorsLetTheMpGoOn) {
+  const RunResult r = launch(config(
+      "retry", "arguments = \"class = 'non_fatal'\\ntimes = 2\\n\"\nattempts = 3", "follow_mp"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("non-fatal error (code 201), retrying"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("succeeded at attempt 3"), std::string::npos) << r.output;
+  // The SRP saw the ECP's report of the error, with its code.
+  EXPECT_NE(r.output.find("ecp/irb6   warning [201] sub-task 'fail': deliberate non_fatal error"),
+            std::string::npos)
+      << r.output;
+}
+
+TEST_F(TaskErrors, FatalErrorAbortsTheTask) {
+  const RunResult r = launch(
+      config("retry", "arguments = \"class = 'fatal'\\ntimes = 5\\n\"\nattempts = 3", "follow_mp"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("aborting: ecp/irb6: deliberate fatal error, run 1"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("retrying"), std::string::npos) << r.output;
+  // Nothing crashed: every process ended by itself when the set was stopped.
+  EXPECT_EQ(r.output.find("killed"), std::string::npos) << r.output;
+}
+
+namespace {
+/// Times at which the EDP sent replies.
+class ReplyTimes {
+ public:
+  explicit ReplyTimes(comm::Bus& bus) {
+    bus.lcm().subscribeFunction<ReplyTimes*>(channels::edp_reply("irb6"), &ReplyTimes::on, this);
+  }
+  static void on(const lcm::ReceiveBuffer*, const std::string&, ReplyTimes* self) {
+    std::lock_guard lock(self->mutex_);
+    self->times_.push_back(Clock::now());
+  }
+  double largest_gap_s() {
+    std::lock_guard lock(mutex_);
+    double gap = 0;
+    for (std::size_t i = 1; i < times_.size(); ++i)
+      gap = std::max(gap, std::chrono::duration<double>(times_[i] - times_[i - 1]).count());
+    return gap;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<Clock::time_point> times_;
+};
+}  // namespace
+
+TEST_F(TaskErrors, PauseHoldsTheRobotUntilResume) {
+  comm::Bus bus("udpm://239.255.76.67:7667?ttl=0");
+  ReplyTimes replies(bus);
+  bus.start();
+  const RunResult r = launch(config("pause_resume", "pause_s = 1.2", "follow_mp"));
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("ecp/irb6: info: paused"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("ecp/irb6: info: resumed"), std::string::npos) << r.output;
+  // While paused the ECP sends no macro-step: the EDP's replies stop for the pause.
+  const double gap = replies.largest_gap_s();
+  EXPECT_GT(gap, 1.0) << "no pause in the EDP traffic";
+  EXPECT_LT(gap, 2.5);
+  std::printf("longest silence of the EDP during the pause: %.3f s\n", gap);
+  const std::regex took("move with pause took ([0-9.]+) s");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, took)) << r.output;
+  EXPECT_GT(std::stod(m[1]), 1.2);
+}

@@ -2,12 +2,15 @@
 
 #include <fmt/format.h>
 
+#include "mrroc/kinematics/pose.hpp"
+
 namespace mrroc::ecp {
 
 Robot::Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
              RobotModel model, comm::ClientOptions options)
     : name_(robot_name),
       model_(std::move(model)),
+      kinematics_(edp::make_arm_kinematics(model_)),
       client_(bus, process_name, "EDP " + robot_name, channels::edp_command(robot_name),
               channels::edp_reply(robot_name), options) {}
 
@@ -57,6 +60,18 @@ void Robot::wait_while_paused() {
   std::unique_lock lock(pause_mutex_);
   pause_cv_.wait(lock, [&] { return !paused_ || stop_.load(); });
   if (stop_.load()) throw TaskStopped("task stopped on request");
+}
+
+std::vector<double> Robot::pose(edp::ArmRepresentation representation, bool desired) const {
+  const std::vector<double>& q = desired ? image_.desired_joints : image_.joints;
+  switch (representation) {
+    case edp::ArmRepresentation::joint:
+      return q;
+    case edp::ArmRepresentation::motor:
+      return kinematics_->motors_from_joints(q);
+    default:
+      return kinematics::to_vector(kinematics_->forward(q), representation);
+  }
 }
 
 void Robot::execute() {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "mrroc/comm/links.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
@@ -54,6 +55,12 @@ class Robot {
   [[nodiscard]] RobotImage& image() { return image_; }
   [[nodiscard]] const RobotImage& image() const { return image_; }
 
+  /// The image's measured (or desired) arm pose in any representation, converted by the library
+  /// from the joint coordinates (frames are the tool frame in the robot's base frame).
+  /// @throws CommandError when the robot has no Cartesian kinematics and a frame is asked for.
+  [[nodiscard]] std::vector<double> pose(edp::ArmRepresentation representation,
+                                         bool desired = false) const;
+
   /// Sends `image().command` and then QUERY; updates the image from the QUERY reply.
   /// @throws EdpRefused (the EDP refused; nothing moved), TimeoutError.
   void execute();
@@ -81,6 +88,7 @@ class Robot {
 
   std::string name_;
   RobotModel model_;
+  std::unique_ptr<edp::ArmKinematics> kinematics_;
   comm::EdpClient client_;
   RobotImage image_;
   std::atomic<bool> stop_{false};

@@ -61,7 +61,6 @@ void EcpShell::worker_loop() {
     lock.unlock();
     job();
     lock.lock();
-    busy_ = false;
   }
 }
 
@@ -103,6 +102,11 @@ bool EcpShell::start_activity(const std::string& what, std::function<EcpReply()>
         reply.synchronised = robot_.image().synchronised;
         reply.joints = robot_.image().joints;
         reply.desired_joints = robot_.image().desired_joints;
+      }
+      // Free the worker before answering: the MP may send its next command at once.
+      {
+        std::lock_guard done(mutex_);
+        busy_ = false;
       }
       responder.reply(reply);
     };

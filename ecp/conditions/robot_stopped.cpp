@@ -14,12 +14,12 @@ RobotStoppedCondition::RobotStoppedCondition(const RobotImage& image, double vel
       consecutive_(consecutive),
       refresh_(std::move(refresh)) {
   if (!(std::isfinite(threshold_) && threshold_ > 0.0))
-    throw Error(fmt::format("robot stopped condition: velocity threshold {} rad/s is not a "
-                            "positive number",
-                            threshold_));
-  if (consecutive_ < 1)
     throw Error(
-        fmt::format("robot stopped condition: consecutive {} is not >= 1", consecutive_));
+        fmt::format("robot stopped condition: velocity threshold {} rad/s is not a "
+                    "positive number",
+                    threshold_));
+  if (consecutive_ < 1)
+    throw Error(fmt::format("robot stopped condition: consecutive {} is not >= 1", consecutive_));
 }
 
 bool RobotStoppedCondition::check(const SensorList&) {

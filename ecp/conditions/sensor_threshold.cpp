@@ -19,23 +19,28 @@ SensorThresholdCondition::SensorThresholdCondition(std::function<double()> readi
   if (!std::isfinite(threshold_))
     throw Error(fmt::format("sensor threshold condition: threshold {} is not finite", threshold_));
   if (!(std::isfinite(hysteresis_) && hysteresis_ >= 0.0))
-    throw Error(fmt::format("sensor threshold condition: hysteresis {} is not a number >= 0",
-                            hysteresis_));
+    throw Error(
+        fmt::format("sensor threshold condition: hysteresis {} is not a number >= 0", hysteresis_));
 }
 
 bool SensorThresholdCondition::check(const SensorList&) {
   const double x = reading_();
   if (std::isnan(x))
-    throw GeneratorError(fmt::format("sensor threshold condition: the reading is not a number "
-                                     "(threshold {})",
-                                     threshold_));
+    throw GeneratorError(
+        fmt::format("sensor threshold condition: the reading is not a number "
+                    "(threshold {})",
+                    threshold_));
   last_ = x;
   if (direction_ == Direction::above) {
-    if (!state_ && x >= threshold_) state_ = true;
-    else if (state_ && x <= threshold_ - hysteresis_ && x < threshold_) state_ = false;
+    if (!state_ && x >= threshold_)
+      state_ = true;
+    else if (state_ && x <= threshold_ - hysteresis_ && x < threshold_)
+      state_ = false;
   } else {
-    if (!state_ && x <= threshold_) state_ = true;
-    else if (state_ && x >= threshold_ + hysteresis_ && x > threshold_) state_ = false;
+    if (!state_ && x <= threshold_)
+      state_ = true;
+    else if (state_ && x >= threshold_ + hysteresis_ && x > threshold_)
+      state_ = false;
   }
   return state_;
 }

@@ -35,7 +35,8 @@ const char* kind_name(CartesianSegment::Kind kind) {
 
 void check_positive(double value, const char* name, const char* unit) {
   if (!(std::isfinite(value) && value > 0.0))
-    throw Error(fmt::format("Cartesian path: {} {} {} is not a positive number", name, value, unit));
+    throw Error(
+        fmt::format("Cartesian path: {} {} {} is not a positive number", name, value, unit));
 }
 
 void check_scale(double value, const char* name) {
@@ -120,9 +121,10 @@ ResolvedSegment resolve(const CartesianSegment& segment, const Eigen::Isometry3d
       r.circle.radius = (offset - along).norm();
       r.circle.angle = segment.angle;
       if (r.circle.radius < 1e-9)
-        bad_argument(fmt::format("arc about an axis: the start ({:.6f}, {:.6f}, {:.6f}) m lies on "
-                                 "the axis (radius {:.3g} m)",
-                                 p0.x(), p0.y(), p0.z(), r.circle.radius));
+        bad_argument(
+            fmt::format("arc about an axis: the start ({:.6f}, {:.6f}, {:.6f}) m lies on "
+                        "the axis (radius {:.3g} m)",
+                        p0.x(), p0.y(), p0.z(), r.circle.radius));
       r.orientation = segment.rotate_orientation ? ResolvedSegment::Orientation::turn
                                                  : ResolvedSegment::Orientation::constant;
       r.rotation = segment.rotate_orientation ? std::abs(segment.angle) : 0.0;
@@ -148,11 +150,11 @@ CircleArc CircleArc::through(const Eigen::Vector3d& start, const Eigen::Vector3d
   const Eigen::Vector3d n = a.cross(b);
   const double scale = a.norm() * b.norm();
   if (!(scale > 1e-18) || n.norm() <= 1e-9 * scale)
-    bad_argument(fmt::format("three-point arc: start ({:.6f}, {:.6f}, {:.6f}), via ({:.6f}, "
-                             "{:.6f}, {:.6f}) and end ({:.6f}, {:.6f}, {:.6f}) m are collinear or "
-                             "coincide",
-                             start.x(), start.y(), start.z(), via.x(), via.y(), via.z(), end.x(),
-                             end.y(), end.z()));
+    bad_argument(fmt::format(
+        "three-point arc: start ({:.6f}, {:.6f}, {:.6f}), via ({:.6f}, "
+        "{:.6f}, {:.6f}) and end ({:.6f}, {:.6f}, {:.6f}) m are collinear or "
+        "coincide",
+        start.x(), start.y(), start.z(), via.x(), via.y(), via.z(), end.x(), end.y(), end.z()));
   CircleArc arc;
   // Circumcentre of the triangle (start, via, end).
   arc.centre = start + (a.squaredNorm() * b.cross(n) + b.squaredNorm() * n.cross(a)) /
@@ -221,9 +223,10 @@ CartesianPathGenerator::CartesianPathGenerator(const RobotModel& model,
   const auto rep = options_.representation;
   if (rep != edp::ArmRepresentation::frame && rep != edp::ArmRepresentation::xyz_angle_axis &&
       rep != edp::ArmRepresentation::xyz_euler_zyz)
-    throw Error(fmt::format("Cartesian path: representation {} is not FRAME, XYZ_ANGLE_AXIS or "
-                            "XYZ_EULER_ZYZ",
-                            edp::to_string(rep)));
+    throw Error(
+        fmt::format("Cartesian path: representation {} is not FRAME, XYZ_ANGLE_AXIS or "
+                    "XYZ_EULER_ZYZ",
+                    edp::to_string(rep)));
   if (options_.profile != ProfileShape::trapezoidal && options_.profile != ProfileShape::quintic)
     throw Error("Cartesian path: unknown profile shape");
   check_positive(options_.max_linear_velocity, "max_linear_velocity", "m/s");
@@ -241,8 +244,8 @@ CartesianPathGenerator::CartesianPathGenerator(const RobotModel& model,
 
   for (std::size_t i = 0; i < segments_.size(); ++i) {
     const CartesianSegment& s = segments_[i];
-    const std::string what = fmt::format("Cartesian path segment {} ({})", i + 1,
-                                         kind_name(s.kind));
+    const std::string what =
+        fmt::format("Cartesian path segment {} ({})", i + 1, kind_name(s.kind));
     try {
       if (!(std::isfinite(s.duration_s) && s.duration_s >= 0.0))
         bad_argument(fmt::format("duration {} s is not a number >= 0", s.duration_s));
@@ -367,9 +370,9 @@ MotionPlan CartesianPathGenerator::make_plan(const std::vector<double>& start_jo
           detail::check_macro_step_path(kin, previous, q, options_.motion_steps);
         } catch (...) {
           const Eigen::Vector3d p = target.translation();
-          detail::rethrow_with_context(fmt::format(
-              "macro-step {} of {} (tool at {:.6f} {:.6f} {:.6f} m): ", step, n, p.x(), p.y(),
-              p.z()));
+          detail::rethrow_with_context(
+              fmt::format("macro-step {} of {} (tool at {:.6f} {:.6f} {:.6f} m): ", step, n, p.x(),
+                          p.y(), p.z()));
         }
         for (std::size_t j = 0; j < axes; ++j) velocity[j] = (q[j] - previous[j]) / dt;
         check_rates(step, false);

@@ -68,18 +68,20 @@ std::vector<Waypoint> to_waypoints(const std::vector<std::vector<double>>& poses
 InterpolationGenerator::InterpolationGenerator(const RobotModel& model,
                                                std::vector<Waypoint> waypoints,
                                                InterpolationOptions options)
-    : PlannedMotionGenerator(model), waypoints_(std::move(waypoints)), options_(std::move(options)) {
+    : PlannedMotionGenerator(model),
+      waypoints_(std::move(waypoints)),
+      options_(std::move(options)) {
   const auto rep = options_.representation;
   if (rep != edp::ArmRepresentation::joint && rep != edp::ArmRepresentation::motor)
-    throw Error(fmt::format("interpolation: representation {} is not JOINT or MOTOR (use the "
-                            "Cartesian path generator for Cartesian motions)",
-                            edp::to_string(rep)));
+    throw Error(
+        fmt::format("interpolation: representation {} is not JOINT or MOTOR (use the "
+                    "Cartesian path generator for Cartesian motions)",
+                    edp::to_string(rep)));
   if (options_.profile != ProfileShape::trapezoidal && options_.profile != ProfileShape::quintic)
     throw Error("interpolation: unknown profile shape");
   check_scale(options_.velocity_scale, "velocity_scale");
   check_scale(options_.acceleration_scale, "acceleration_scale");
-  detail::check_macro_step_options(options_.motion_steps, options_.servo_period_s,
-                                   "interpolation");
+  detail::check_macro_step_options(options_.motion_steps, options_.servo_period_s, "interpolation");
   const std::size_t axes = model.axes();
   check_explicit_limits(options_.max_velocity, axes, "max_velocity");
   check_explicit_limits(options_.max_acceleration, axes, "max_acceleration");
@@ -93,16 +95,16 @@ InterpolationGenerator::InterpolationGenerator(const RobotModel& model,
                                      w.position.size(), edp::to_string(rep), model.name, axes));
     for (std::size_t j = 0; j < axes; ++j)
       if (!std::isfinite(w.position[j]))
-        throw CommandError(edp::error_code::bad_argument,
-                           fmt::format("{} value {} ({}) is not a finite number", what, j,
-                                       model.joint_names[j]));
+        throw CommandError(
+            edp::error_code::bad_argument,
+            fmt::format("{} value {} ({}) is not a finite number", what, j, model.joint_names[j]));
     if (!(std::isfinite(w.duration_s) && w.duration_s >= 0.0))
       throw CommandError(edp::error_code::bad_argument,
                          fmt::format("{} duration {} s is not a number >= 0", what, w.duration_s));
     if (!(w.velocity_scale > 0.0 && w.velocity_scale <= 1.0))
-      throw CommandError(edp::error_code::bad_argument,
-                         fmt::format("{} velocity_scale {} is outside (0, 1]", what,
-                                     w.velocity_scale));
+      throw CommandError(
+          edp::error_code::bad_argument,
+          fmt::format("{} velocity_scale {} is outside (0, 1]", what, w.velocity_scale));
     if (w.relative) continue;  // checked on the plan, once the start is known
     if (is_motor(rep)) {
       kinematics().check_motor_limits(w.position, what.c_str());
@@ -121,9 +123,8 @@ void InterpolationGenerator::limits_at(const std::vector<double>& joints,
   max_velocity.assign(axes, 0.0);
   max_acceleration.assign(axes, 0.0);
   for (std::size_t j = 0; j < axes; ++j) {
-    const double ratio = is_motor(options_.representation)
-                             ? transmission_ratio(kinematics(), joints, j)
-                             : 1.0;
+    const double ratio =
+        is_motor(options_.representation) ? transmission_ratio(kinematics(), joints, j) : 1.0;
     max_velocity[j] = options_.max_velocity.empty()
                           ? m.max_velocity[j] * options_.velocity_scale * ratio
                           : options_.max_velocity[j];
@@ -159,9 +160,8 @@ MotionPlan InterpolationGenerator::make_plan(const std::vector<double>& start_jo
 
   for (std::size_t i = 0; i < waypoints_.size(); ++i) {
     const Waypoint& w = waypoints_[i];
-    const std::string context =
-        fmt::format("{} interpolation, segment {} (to waypoint {}): ", edp::to_string(rep), i + 1,
-                    i + 1);
+    const std::string context = fmt::format(
+        "{} interpolation, segment {} (to waypoint {}): ", edp::to_string(rep), i + 1, i + 1);
     try {
       std::vector<double> to = w.position;
       if (w.relative)
@@ -182,8 +182,8 @@ MotionPlan InterpolationGenerator::make_plan(const std::vector<double>& start_jo
       segment.first_macro_step = plan.targets.size();
       if (!std::isfinite(v_path)) {  // no motion
         if (w.duration_s <= 0.0) continue;
-        segment.macro_steps = static_cast<std::size_t>(
-            std::max(1.0, std::ceil(w.duration_s / dt - 1e-9)));
+        segment.macro_steps =
+            static_cast<std::size_t>(std::max(1.0, std::ceil(w.duration_s / dt - 1e-9)));
         for (std::size_t s = 0; s < segment.macro_steps; ++s) {
           plan.targets.push_back(to);
           plan.joints.push_back(from_joints);
@@ -205,8 +205,8 @@ MotionPlan InterpolationGenerator::make_plan(const std::vector<double>& start_jo
       constexpr int kAttempts = 20;
       for (int attempt = 0;; ++attempt) {
         const auto n = static_cast<std::size_t>(std::max(1.0, std::ceil(duration / dt - 1e-9)));
-        const MotionProfile profile = MotionProfile::with_duration(
-            options_.profile, v_path, a_path, static_cast<double>(n) * dt);
+        const MotionProfile profile = MotionProfile::with_duration(options_.profile, v_path, a_path,
+                                                                   static_cast<double>(n) * dt);
         targets.assign(n, std::vector<double>(axes));
         joints.clear();
         for (std::size_t step = 1; step <= n; ++step) {

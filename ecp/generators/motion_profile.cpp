@@ -58,9 +58,10 @@ MotionProfile MotionProfile::with_duration(ProfileShape shape, double max_veloci
                                            double max_acceleration, double duration) {
   const MotionProfile fast = fastest(shape, max_velocity, max_acceleration);
   if (!std::isfinite(duration) || duration < fast.duration() * (1.0 - 1e-12))
-    throw Error(fmt::format("motion profile: duration {} s is shorter than the {:.6f} s the "
-                            "limits allow",
-                            duration, fast.duration()));
+    throw Error(
+        fmt::format("motion profile: duration {} s is shorter than the {:.6f} s the "
+                    "limits allow",
+                    duration, fast.duration()));
   duration = std::max(duration, fast.duration());
   if (shape == ProfileShape::quintic) return {shape, duration, 0.0, 0.0};
   // The same shape, slower: velocity times k, acceleration times k^2 (a triangle stays a

@@ -30,8 +30,7 @@ void InstructionQueue::close() {
 std::optional<edp::Instruction> InstructionQueue::pop(std::chrono::milliseconds timeout) {
   std::unique_lock lock(mutex_);
   if (!ready_.wait_for(lock, timeout, [&] { return closed_ || !queue_.empty(); }))
-    throw TimeoutError(fmt::format("pass-through: no pose arrived within {} ms",
-                                   timeout.count()));
+    throw TimeoutError(fmt::format("pass-through: no pose arrived within {} ms", timeout.count()));
   if (queue_.empty()) return std::nullopt;  // closed
   edp::Instruction next = std::move(queue_.front());
   queue_.pop_front();
@@ -60,9 +59,10 @@ PassThroughGenerator::PassThroughGenerator(const RobotModel& model, InstructionS
                            r == edp::ArmRepresentation::xyz_euler_zyz ||
                            r == edp::ArmRepresentation::xyz_angle_axis;
     if (cartesian && !kinematics_->cartesian())
-      throw Error(fmt::format("pass-through: representation {} needs Cartesian kinematics, robot "
-                              "'{}' has none",
-                              edp::to_string(r), model.name));
+      throw Error(
+          fmt::format("pass-through: representation {} needs Cartesian kinematics, robot "
+                      "'{}' has none",
+                      edp::to_string(r), model.name));
   }
 }
 
@@ -98,8 +98,7 @@ void PassThroughGenerator::validate(const edp::Instruction& in, std::size_t numb
                     edp::to_string(rep), model_.name));
   if (in.motion_type != edp::MotionType::absolute && in.motion_type != edp::MotionType::relative)
     bad(fmt::format("motion type {} is unknown", static_cast<int>(in.motion_type)));
-  const std::size_t expected =
-      joint_like ? model_.axes() : kinematics::representation_size(rep);
+  const std::size_t expected = joint_like ? model_.axes() : kinematics::representation_size(rep);
   if (in.arm.size() != expected)
     bad(fmt::format("{} arm has {} values, {} expected", edp::to_string(rep), in.arm.size(),
                     expected));
@@ -109,8 +108,8 @@ void PassThroughGenerator::validate(const edp::Instruction& in, std::size_t numb
   if (in.motion_steps < 1 || in.motion_steps > 100000)
     bad(fmt::format("motion_steps {} is outside 1..100000", in.motion_steps));
   if (in.value_in_step_no < 1 || in.value_in_step_no > in.motion_steps + 1)
-    bad(fmt::format("value_in_step_no {} is outside 1..{} (motion_steps + 1)",
-                    in.value_in_step_no, in.motion_steps + 1));
+    bad(fmt::format("value_in_step_no {} is outside 1..{} (motion_steps + 1)", in.value_in_step_no,
+                    in.motion_steps + 1));
 
   // Tool and model first, as the EDP applies them before the arm; undone if the arm is refused.
   const Eigen::Isometry3d old_tool = kinematics_->tool();

@@ -13,9 +13,10 @@ PlannedMotionGenerator::PlannedMotionGenerator(const RobotModel& model)
 
 MotionPlan PlannedMotionGenerator::plan_from(const std::vector<double>& start_joints) const {
   if (start_joints.size() != model_.axes())
-    throw Error(fmt::format("motion start has {} joint values, robot '{}' has {} axes (read the "
-                            "robot state first)",
-                            start_joints.size(), model_.name, model_.axes()));
+    throw Error(
+        fmt::format("motion start has {} joint values, robot '{}' has {} axes (read the "
+                    "robot state first)",
+                    start_joints.size(), model_.name, model_.axes()));
   return make_plan(start_joints);
 }
 

@@ -20,8 +20,8 @@ TeachInRecorder::TeachInRecorder(const RobotModel& model, edp::ArmRepresentation
                                  Source source, const Eigen::Isometry3d& tool)
     : model_(model), kinematics_(edp::make_arm_kinematics(model)), source_(source) {
   if (!representation_from_string(edp::to_string(representation)))
-    throw Error(fmt::format("teach-in: representation {} is unknown",
-                            static_cast<int>(representation)));
+    throw Error(
+        fmt::format("teach-in: representation {} is unknown", static_cast<int>(representation)));
   if (is_cartesian(representation) && !kinematics_->cartesian())
     throw CommandError(edp::error_code::not_supported,
                        fmt::format("teach-in: robot '{}' has no Cartesian kinematics for {}",
@@ -35,17 +35,17 @@ TeachInRecorder::TeachInRecorder(const RobotModel& model, edp::ArmRepresentation
 const TrajectoryPoint& TeachInRecorder::record(const RobotImage& image,
                                                std::optional<double> duration_s,
                                                std::optional<double> velocity_scale) {
-  const std::vector<double>& q =
-      source_ == Source::measured ? image.joints : image.desired_joints;
+  const std::vector<double>& q = source_ == Source::measured ? image.joints : image.desired_joints;
   if (q.size() != model_.axes())
-    throw Error(fmt::format("teach-in: the robot image has {} {} joint values, robot '{}' has {} "
-                            "axes (read the robot state first)",
-                            q.size(), source_ == Source::measured ? "measured" : "desired",
-                            model_.name, model_.axes()));
+    throw Error(
+        fmt::format("teach-in: the robot image has {} {} joint values, robot '{}' has {} "
+                    "axes (read the robot state first)",
+                    q.size(), source_ == Source::measured ? "measured" : "desired", model_.name,
+                    model_.axes()));
   for (std::size_t j = 0; j < q.size(); ++j)
     if (!std::isfinite(q[j]))
-      throw Error(fmt::format("teach-in: joint {} ({}) value is not finite", j,
-                              model_.joint_names[j]));
+      throw Error(
+          fmt::format("teach-in: joint {} ({}) value is not finite", j, model_.joint_names[j]));
   if (duration_s && !(std::isfinite(*duration_s) && *duration_s > 0.0))
     throw Error(fmt::format("teach-in: duration {} s is not > 0", *duration_s));
   if (velocity_scale && !(*velocity_scale > 0.0 && *velocity_scale <= 1.0))

@@ -64,8 +64,8 @@ std::optional<double> to_number(std::string_view token) {
 bool valid_robot_name(std::string_view name) {
   if (name.empty() || name.size() > 64) return false;
   for (const char c : name)
-    if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-          c == '_' || c == '-' || c == '.'))
+    if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+          c == '-' || c == '.'))
       return false;
   return true;
 }
@@ -116,8 +116,8 @@ class Parser {
     }
     if (!header) {
       line_ = 1;
-      fail(fmt::format("empty file: expected the header '{}{} representation=... axes=...'",
-                       kMagic, TrajectoryFile::kVersion));
+      fail(fmt::format("empty file: expected the header '{}{} representation=... axes=...'", kMagic,
+                       TrajectoryFile::kVersion));
     }
     return file;
   }
@@ -129,19 +129,21 @@ class Parser {
 
   void parse_header(std::string_view line, TrajectoryFile& file) const {
     if (!line.starts_with(kMagic))
-      fail(fmt::format("the first line must be the header '{}{} representation=... axes=...', "
-                       "found {}",
-                       kMagic, TrajectoryFile::kVersion, printable(line)));
+      fail(
+          fmt::format("the first line must be the header '{}{} representation=... axes=...', "
+                      "found {}",
+                      kMagic, TrajectoryFile::kVersion, printable(line)));
     const std::vector<std::string_view> tokens = split(line.substr(kMagic.size()));
     if (tokens.empty()) fail("header: the format version is missing after 'v'");
     int version = 0;
     const auto [ptr, ec] =
         std::from_chars(tokens[0].data(), tokens[0].data() + tokens[0].size(), version);
     if (ec != std::errc() || ptr != tokens[0].data() + tokens[0].size() || version < 1)
-      fail(fmt::format("header: format version {} is not a positive integer", printable(tokens[0])));
+      fail(
+          fmt::format("header: format version {} is not a positive integer", printable(tokens[0])));
     if (version > TrajectoryFile::kVersion)
-      fail(fmt::format("header: format version {} is newer than the supported version {}",
-                       version, TrajectoryFile::kVersion));
+      fail(fmt::format("header: format version {} is newer than the supported version {}", version,
+                       TrajectoryFile::kVersion));
     bool have_representation = false;
     bool have_axes = false;
     bool have_robot = false;
@@ -157,9 +159,10 @@ class Parser {
         if (have_representation) fail("header: representation is given twice");
         const auto r = representation_from_string(value);
         if (!r)
-          fail(fmt::format("header: representation {} is not one of JOINT, MOTOR, FRAME, "
-                           "XYZ_EULER_ZYZ, XYZ_ANGLE_AXIS",
-                           printable(value)));
+          fail(
+              fmt::format("header: representation {} is not one of JOINT, MOTOR, FRAME, "
+                          "XYZ_EULER_ZYZ, XYZ_ANGLE_AXIS",
+                          printable(value)));
         file.representation = *r;
         have_representation = true;
       } else if (key == "axes") {
@@ -174,9 +177,10 @@ class Parser {
       } else if (key == "robot") {
         if (have_robot) fail("header: robot is given twice");
         if (!valid_robot_name(value))
-          fail(fmt::format("header: robot {} is not a name of 1..64 letters, digits, '_', '-', "
-                           "'.'",
-                           printable(value)));
+          fail(
+              fmt::format("header: robot {} is not a name of 1..64 letters, digits, '_', '-', "
+                          "'.'",
+                          printable(value)));
         file.robot = std::string(value);
         have_robot = true;
       } else {
@@ -207,11 +211,11 @@ class Parser {
                            point.values.size() + 1, printable(token), expected,
                            value_unit(file.representation)));
         if (point.values.size() == expected)
-          fail(fmt::format("too many values: {} has {} values, expected {} {} (header: "
-                           "representation={} axes={})",
-                           printable(token), point.values.size() + 1, expected,
-                           value_unit(file.representation), edp::to_string(file.representation),
-                           file.axes));
+          fail(fmt::format(
+              "too many values: {} has {} values, expected {} {} (header: "
+              "representation={} axes={})",
+              printable(token), point.values.size() + 1, expected, value_unit(file.representation),
+              edp::to_string(file.representation), file.axes));
         point.values.push_back(*value);
         continue;
       }
@@ -229,18 +233,20 @@ class Parser {
           fail(fmt::format("velocity_scale {} is not a number in (0, 1]", printable(text)));
         point.velocity_scale = *value;
       } else {
-        fail(fmt::format("unknown option {} (expected duration=SECONDS or "
-                         "velocity_scale=FRACTION)",
-                         printable(key)));
+        fail(
+            fmt::format("unknown option {} (expected duration=SECONDS or "
+                        "velocity_scale=FRACTION)",
+                        printable(key)));
       }
     }
     if (point.duration_s && point.velocity_scale)
       fail("a pose has either duration= or velocity_scale=, not both");
     if (point.values.size() != expected)
-      fail(fmt::format("too few values: the pose has {}, expected {} {} (header: "
-                       "representation={} axes={})",
-                       point.values.size(), expected, value_unit(file.representation),
-                       edp::to_string(file.representation), file.axes));
+      fail(
+          fmt::format("too few values: the pose has {}, expected {} {} (header: "
+                      "representation={} axes={})",
+                      point.values.size(), expected, value_unit(file.representation),
+                      edp::to_string(file.representation), file.axes));
     if (file.representation == edp::ArmRepresentation::frame) {
       try {
         (void)kinematics::frame_from_values(point.values);
@@ -259,9 +265,9 @@ class Parser {
 }  // namespace
 
 std::optional<edp::ArmRepresentation> representation_from_string(std::string_view name) {
-  for (const auto r : {edp::ArmRepresentation::joint, edp::ArmRepresentation::motor,
-                       edp::ArmRepresentation::frame, edp::ArmRepresentation::xyz_euler_zyz,
-                       edp::ArmRepresentation::xyz_angle_axis})
+  for (const auto r :
+       {edp::ArmRepresentation::joint, edp::ArmRepresentation::motor, edp::ArmRepresentation::frame,
+        edp::ArmRepresentation::xyz_euler_zyz, edp::ArmRepresentation::xyz_angle_axis})
     if (name == edp::to_string(r)) return r;
   return std::nullopt;
 }

@@ -96,8 +96,7 @@ TEST(SensorThresholdCondition, BelowAndPlainComparison) {
   EXPECT_THROW(ecp::SensorThresholdCondition({}, 1.0), Error);
   EXPECT_THROW(ecp::SensorThresholdCondition([] { return 0.0; }, INFINITY), Error);
   EXPECT_THROW(ecp::SensorThresholdCondition([] { return 0.0; }, 1.0,
-                                             ecp::SensorThresholdCondition::Direction::above,
-                                             -1.0),
+                                             ecp::SensorThresholdCondition::Direction::above, -1.0),
                Error);
 }
 

@@ -32,8 +32,7 @@ using edp::ArmRepresentation;
 namespace {
 
 const RobotModel& model() {
-  static const RobotModel m =
-      load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+  static const RobotModel m = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
   return m;
 }
 
@@ -92,7 +91,7 @@ struct Executed {
 
 /// Runs `g` as Move does. `after` sees the image after each exchange.
 Executed run(ecp::Generator& g, const std::vector<double>& start,
-        const std::function<void(const ecp::RobotImage&)>& after = {}) {
+             const std::function<void(const ecp::RobotImage&)>& after = {}) {
   FakeEdp edp;
   ecp::RobotImage image;
   image.desired_joints = start;
@@ -145,9 +144,7 @@ std::vector<double> scaled(const std::vector<double>& v, double k) {
   return out;
 }
 
-Eigen::Isometry3d synchro_frame() {
-  return edp::make_arm_kinematics(model())->forward(synchro());
-}
+Eigen::Isometry3d synchro_frame() { return edp::make_arm_kinematics(model())->forward(synchro()); }
 
 Eigen::Vector3d position_of(const edp::Instruction& c) {
   return kinematics::from_vector(c.arm, c.set_arm_type).translation();
@@ -198,8 +195,7 @@ TEST(MotionProfile, QuinticAndStretchedDurations) {
   EXPECT_NEAR(stretched.peak_acceleration(), 2.5 * 2.5 / 16.0, 1e-12);
   EXPECT_NEAR(stretched.cruise_duration(), 1.5 * 4.0 / 2.5, 1e-12);
   EXPECT_NEAR(stretched.position(4.0 - 1e-9), 1.0, 1e-8);
-  EXPECT_THROW(ecp::MotionProfile::with_duration(ecp::ProfileShape::quintic, 1.0, 1.0, 1.0),
-               Error);
+  EXPECT_THROW(ecp::MotionProfile::with_duration(ecp::ProfileShape::quintic, 1.0, 1.0, 1.0), Error);
   EXPECT_THROW(ecp::MotionProfile::fastest(ecp::ProfileShape::quintic, 0.0, 1.0), Error);
 }
 
@@ -274,11 +270,11 @@ TEST_P(InterpolationProfiles, RespectLimitsFinishTogetherAndEndExactly) {
   EXPECT_EQ(r.commands.back().value_in_step_no, options.motion_steps + 1);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    All, InterpolationProfiles,
-    ::testing::Combine(::testing::Values(ArmRepresentation::joint, ArmRepresentation::motor),
-                       ::testing::Values(ecp::ProfileShape::trapezoidal,
-                                         ecp::ProfileShape::quintic)));
+INSTANTIATE_TEST_SUITE_P(All, InterpolationProfiles,
+                         ::testing::Combine(::testing::Values(ArmRepresentation::joint,
+                                                              ArmRepresentation::motor),
+                                            ::testing::Values(ecp::ProfileShape::trapezoidal,
+                                                              ecp::ProfileShape::quintic)));
 
 TEST(Interpolation, TrapezoidCruisesOnLongMovesAndIsATriangleOnShortOnes) {
   const RobotModel& m = model();
@@ -334,7 +330,7 @@ TEST(Interpolation, WaypointsDurationsDwellsAndRelativeMoves) {
   const double dt = options.motion_steps * options.servo_period_s;
   const std::vector<double> a = {0.2, -1.5, 0.1, 0.0, 0.3};
   ecp::Waypoint second{a, 0.0, 1.0, false};
-  second.duration_s = 1.5;  // dwell at `a` for 1.5 s
+  second.duration_s = 1.5;                                           // dwell at `a` for 1.5 s
   ecp::Waypoint back{{-0.2, 0.1, -0.1, 0.0, -0.3}, 0.0, 0.5, true};  // relative, half speed
   ecp::InterpolationGenerator g(m, {ecp::Waypoint{a}, second, back}, options);
   const Executed r = run(g, synchro());
@@ -519,10 +515,10 @@ TEST(CartesianPath, OtherRepresentationsAndLineBy) {
   ecp::CartesianOptions options;
   options.representation = ArmRepresentation::xyz_angle_axis;
   options.set_tool_and_model = false;
-  ecp::CartesianPathGenerator g(
-      m, {ecp::CartesianSegment::line_by({0.0, 0.0, -0.05}),
-          ecp::CartesianSegment::line_by({-0.05, 0.0, 0.0})},
-      options);
+  ecp::CartesianPathGenerator g(m,
+                                {ecp::CartesianSegment::line_by({0.0, 0.0, -0.05}),
+                                 ecp::CartesianSegment::line_by({-0.05, 0.0, 0.0})},
+                                options);
   const Executed r = run(g, synchro());
   EXPECT_EQ(r.commands[0].set, edp::item::arm);
   EXPECT_EQ(g.plan().segments.size(), 2U);
@@ -548,14 +544,14 @@ TEST(CartesianPath, ThreePointArcStaysOnItsCircle) {
   end.translation() = on_circle(-std::numbers::pi / 2);
   end.linear() = Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY()) * start.linear();
 
-  const ecp::CircleArc arc = ecp::CircleArc::through(start.translation(), on_circle(-0.7),
-                                                     end.translation());
+  const ecp::CircleArc arc =
+      ecp::CircleArc::through(start.translation(), on_circle(-0.7), end.translation());
   EXPECT_LT((arc.centre - centre).norm(), 1e-12);
   EXPECT_NEAR(arc.radius, radius, 1e-12);
   EXPECT_NEAR(arc.angle, std::numbers::pi / 2, 1e-12);
 
-  ecp::CartesianPathGenerator g(
-      m, {ecp::CartesianSegment::arc_through(on_circle(-0.7), end)}, ecp::CartesianOptions{});
+  ecp::CartesianPathGenerator g(m, {ecp::CartesianSegment::arc_through(on_circle(-0.7), end)},
+                                ecp::CartesianOptions{});
   const Executed r = run(g, synchro());
   ASSERT_GT(r.commands.size(), 20U);
   double previous_angle = 0.0;
@@ -572,11 +568,11 @@ TEST(CartesianPath, ThreePointArcStaysOnItsCircle) {
 
   EXPECT_THROW((void)ecp::CircleArc::through({0, 0, 0}, {1, 0, 0}, {2, 0, 0}), CommandError);
   ecp::CartesianPathGenerator collinear(
-      m, {ecp::CartesianSegment::arc_through(start.translation() + Eigen::Vector3d(-0.1, 0, 0),
-                                             Eigen::Isometry3d(Eigen::Translation3d(
-                                                 start.translation() +
-                                                 Eigen::Vector3d(-0.2, 0, 0))) *
-                                                 Eigen::Isometry3d(start.linear()))});
+      m,
+      {ecp::CartesianSegment::arc_through(start.translation() + Eigen::Vector3d(-0.1, 0, 0),
+                                          Eigen::Isometry3d(Eigen::Translation3d(
+                                              start.translation() + Eigen::Vector3d(-0.2, 0, 0))) *
+                                              Eigen::Isometry3d(start.linear()))});
   try {
     (void)collinear.plan_from(synchro());
     FAIL();
@@ -622,9 +618,9 @@ TEST(CartesianPath, ArcAboutTheColumnAxisTurnsOnlyTheColumn) {
     EXPECT_TRUE(contains(e.what(), "segment 1 (arc about an axis): macro-step ")) << e.what();
     EXPECT_TRUE(contains(e.what(), "orientation not reachable by a 5-axis arm")) << e.what();
   }
-  EXPECT_THROW(ecp::CartesianPathGenerator(
-                   m, {ecp::CartesianSegment::arc_about({0, 0, 0}, {0, 0, 0}, 0.4)}),
-               CommandError);
+  EXPECT_THROW(
+      ecp::CartesianPathGenerator(m, {ecp::CartesianSegment::arc_about({0, 0, 0}, {0, 0, 0}, 0.4)}),
+      CommandError);
 }
 
 TEST(CartesianPath, RefusesUnreachableAndLimitViolatingPathsBeforeTheFirstCommand) {
@@ -640,13 +636,17 @@ TEST(CartesianPath, RefusesUnreachableAndLimitViolatingPathsBeforeTheFirstComman
   {  // sideways: the approach would leave the arm plane at once
     Eigen::Isometry3d end = start;
     end.translation() += Eigen::Vector3d(0.0, 0.1, 0.0);
-    cases.push_back({"sideways", ecp::CartesianSegment::line_to(end), {},
+    cases.push_back({"sideways",
+                     ecp::CartesianSegment::line_to(end),
+                     {},
                      {"segment 1 (line): macro-step 1 of ", "orientation not reachable"}});
   }
   {  // up: the upper arm leaves its joint limit on the way
     Eigen::Isometry3d end = start;
     end.translation() += Eigen::Vector3d(0.0, 0.0, 0.3);
-    cases.push_back({"up", ecp::CartesianSegment::line_to(end), {},
+    cases.push_back({"up",
+                     ecp::CartesianSegment::line_to(end),
+                     {},
                      {"segment 1 (line): macro-step 182 of 282",
                       "joint 2 (upper_arm) inverse kinematics solution -0.43",
                       "is below lower limit -0.436332 rad"}});
@@ -654,7 +654,9 @@ TEST(CartesianPath, RefusesUnreachableAndLimitViolatingPathsBeforeTheFirstComman
   {  // towards the column: the lower-arm motor leaves its range between two targets
     Eigen::Isometry3d end = start;
     end.translation() += Eigen::Vector3d(-0.4, 0.0, 0.0);
-    cases.push_back({"in", ecp::CartesianSegment::line_to(end), {},
+    cases.push_back({"in",
+                     ecp::CartesianSegment::line_to(end),
+                     {},
                      {"segment 1 (line): macro-step 223 of 375", "motor 1 (lower_arm) servo step",
                       "is below lower limit -110.0 rad"}});
   }
@@ -664,12 +666,16 @@ TEST(CartesianPath, RefusesUnreachableAndLimitViolatingPathsBeforeTheFirstComman
     ecp::CartesianOptions fast;
     fast.max_angular_velocity = 10.0;
     fast.max_angular_acceleration = 100.0;
-    cases.push_back({"fast pitch", ecp::CartesianSegment::line_to(end), fast,
+    cases.push_back({"fast pitch",
+                     ecp::CartesianSegment::line_to(end),
+                     fast,
                      {"segment 1 (line): macro-step 1 of 9: joint 2 (upper_arm) acceleration",
                       "exceeds the limit 2.000000 rad/s^2"}});
     ecp::CartesianOptions slow_joints;
     slow_joints.joint_velocity_scale = 0.05;
-    cases.push_back({"pitch, joint velocity", ecp::CartesianSegment::line_to(end), slow_joints,
+    cases.push_back({"pitch, joint velocity",
+                     ecp::CartesianSegment::line_to(end),
+                     slow_joints,
                      {"segment 1 (line): macro-step 11 of 94: joint 3 (wrist_pitch) velocity 0.10",
                       "rad/s exceeds the limit 0.100000 rad/s"}});
   }
@@ -792,9 +798,9 @@ TEST(GuardedMove, ThrowsWhenTheDistanceRunsOut) {
   EXPECT_THROW(
       ecp::GuardedMoveGenerator::along_axes(m, {1, 0, 0, 0, 0}, {0, 1, 1}, [] { return false; }),
       Error);
-  EXPECT_THROW(ecp::GuardedMoveGenerator::along_axes(m, {1, 0, 0, 0, 0}, {},
-                                                     std::function<bool()>{}),
-               Error);
+  EXPECT_THROW(
+      ecp::GuardedMoveGenerator::along_axes(m, {1, 0, 0, 0, 0}, {}, std::function<bool()>{}),
+      Error);
 }
 
 TEST(GuardedMove, CartesianMoveDownUntilASensorThreshold) {
@@ -876,8 +882,8 @@ TEST(PassThrough, ForwardsExactlyWhatItIsGiven) {
   {
     std::vector<double> q = synchro();
     q[0] = 0.1;
-    const auto f = kinematics::to_vector(edp::make_arm_kinematics(m)->forward(q),
-                                         ArmRepresentation::frame);
+    const auto f =
+        kinematics::to_vector(edp::make_arm_kinematics(m)->forward(q), ArmRepresentation::frame);
     frame.arm.assign(f.begin(), f.end());
   }
   poses.push_back(frame);

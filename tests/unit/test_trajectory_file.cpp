@@ -2,6 +2,7 @@
 // value and the expectation, a mutation loop that must never crash, the recorder and playback.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -9,7 +10,6 @@
 #include <fstream>
 #include <random>
 #include <string>
-#include <unistd.h>
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/ecp/generators/teach_in.hpp"
@@ -23,8 +23,7 @@ using edp::ArmRepresentation;
 namespace {
 
 const RobotModel& model() {
-  static const RobotModel m =
-      load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+  static const RobotModel m = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
   return m;
 }
 
@@ -152,7 +151,8 @@ TEST(TrajectoryFile, BadFilesAreRejectedWithFileAndLine) {
       {"# mrroc trajectory v1 representation=JOINT axes=3 axes=3\n",
        "t.traj:1: error: header: axes is given twice"},
       {header + "0 0\n", "t.traj:2: error: too few values: the pose has 2, expected 3 joint"},
-      {header + "# c\n\n0 0 0 0\n", "t.traj:4: error: too many values: '0' has 4 values, expected 3"},
+      {header + "# c\n\n0 0 0 0\n",
+       "t.traj:4: error: too many values: '0' has 4 values, expected 3"},
       {header + "0 x 0\n",
        "t.traj:2: error: value 2 'x' is not a finite number (expected 3 joint values [rad])"},
       {header + "0 nan 0\n", "t.traj:2: error: value 2 'nan' is not a finite number"},
@@ -184,8 +184,9 @@ TEST(TrajectoryFile, BadFilesAreRejectedWithFileAndLine) {
     (void)ecp::TrajectoryFile::load("/nonexistent/dir/x.traj");
     FAIL();
   } catch (const ConfigError& e) {
-    EXPECT_TRUE(contains(e.what(), "/nonexistent/dir/x.traj: error: trajectory file cannot be "
-                                   "opened"))
+    EXPECT_TRUE(contains(e.what(),
+                         "/nonexistent/dir/x.traj: error: trajectory file cannot be "
+                         "opened"))
         << e.what();
   }
 }
@@ -232,7 +233,8 @@ TEST(TrajectoryFile, MutatedFilesNeverCrash) {
       ++accepted;
       // Whatever was accepted writes and reads back the same.
       EXPECT_EQ(ecp::TrajectoryFile::parse(t.to_text(), "again.traj"), t)
-          << "seed " << seed << " iteration " << i << "\n" << text;
+          << "seed " << seed << " iteration " << i << "\n"
+          << text;
     } catch (const ConfigError& e) {
       ASSERT_TRUE(std::string(e.what()).starts_with("fuzz.traj:"))
           << "seed " << seed << " iteration " << i << ": " << e.what();

@@ -1,8 +1,8 @@
 #pragma once
 /// @file
 /// Stock generator: straight lines and circular arcs of the tool frame in the robot's base frame,
-/// with the orientation interpolated by slerp (spherical linear interpolation of quaternions), under
-/// linear and angular velocity and acceleration limits. Commands are absolute Cartesian poses
+/// with the orientation interpolated by slerp (spherical linear interpolation of quaternions),
+/// under linear and angular velocity and acceleration limits. Commands are absolute Cartesian poses
 /// (FRAME by default), so the EDP solves the inverse kinematics; the generator solves it too, for
 /// every macro-step target before the first command, to refuse a path the arm cannot follow.
 ///

@@ -36,6 +36,7 @@ struct is_std_function<std::function<R(A...)>> : std::true_type {};
 class TerminalCondition {
  public:
   /// @throws Error for an empty std::function or a null function pointer.
+  // clang-format off
   template <class F>
     requires(std::is_invocable_r_v<bool, F&> && !std::derived_from<std::decay_t<F>, Condition>)
   TerminalCondition(F f) {  // NOLINT(google-explicit-constructor): converts like std::function
@@ -43,6 +44,7 @@ class TerminalCondition {
       if (!static_cast<bool>(f)) throw Error("guarded move: empty terminal condition");
     check_ = [f = std::move(f)](const SensorList&) mutable { return static_cast<bool>(f()); };
   }
+  // clang-format on
   TerminalCondition(Condition& condition)  // NOLINT(google-explicit-constructor)
       : check_([&condition](const SensorList& sensors) { return condition.check(sensors); }) {}
 

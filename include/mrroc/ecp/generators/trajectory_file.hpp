@@ -26,7 +26,7 @@ struct TrajectoryPoint {
   /// The pose in the file's representation: one value per axis (JOINT [rad], MOTOR [rad]) or the
   /// representation's values (FRAME 12, XYZ_EULER_ZYZ 6, XYZ_ANGLE_AXIS 6; m and rad).
   std::vector<double> values;
-  std::optional<double> duration_s = std::nullopt;  ///< [s], > 0: duration of the move here
+  std::optional<double> duration_s = std::nullopt;      ///< [s], > 0: duration of the move here
   std::optional<double> velocity_scale = std::nullopt;  ///< (0, 1]: of the playback's limits
 
   bool operator==(const TrajectoryPoint&) const = default;

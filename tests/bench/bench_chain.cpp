@@ -1,0 +1,455 @@
+// B1: macro-step round trip MP -> ECP -> EDP (MuJoCo) -> ECP -> MP against a bare LCM
+// two-process round trip; B4: macro-steps per second when not paced against the rate of a bare LCM
+// three-process chain (driver -> relay -> echo -> relay -> driver).
+//
+// Value: this program starts the real mrroc-edp (plugin "mujoco", IRb-6, 2 ms servo period) and
+// mrroc-ecp (task "follow_mp") from a generated config, waits for both to report ready, and acts as
+// the MP with mrroc::mp::Robot: START_TASK once (the ECP synchronises the robot), then NEXT_POSE
+// macro-steps of 1 servo step with the reading in step 1 (value_in_step_no = 1), alternating the
+// column between two joint positions 1 mrad apart. Each next_pose() call is timed.
+//
+// Baselines (no mrroc code): raw lcm::LCM publish/subscribe of a 64-byte message between this
+// program and child processes it starts (this executable again, in a forwarding role): an echo
+// (two processes) and a relay + echo (three processes, a chain of four hops as MP -> ECP -> EDP).
+// Same LCM URL as the process set, same pacing, same count, nothing pinned, default scheduling.
+// Half of each baseline runs before the process set is started and half after it stopped, so slow
+// drift of the host affects both sides alike and no mrroc process is alive during a baseline.
+//
+// Pacing (B1): 200 Hz on average; each deadline is shifted by a golden-ratio sequence over one
+// servo period, so that the MP's phase against the EDP's servo clock is sampled evenly (a fixed
+// 5 ms pace on a 2 ms servo clock would hit only two phases). B4 is not paced.
+//
+// Usage (inside scripts/netns-run): bench_chain [samples]   (default 2000)
+// Prints "RESULT B1 ..." and "RESULT B4 ...".
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/reporter.hpp"
+#include "mrroc/mp/robot.hpp"
+
+extern char** environ;
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+constexpr std::int64_t kPacePeriodNs = 5'000'000;  // 200 Hz
+constexpr std::size_t kPayloadBytes = 64;
+
+std::int64_t now_ns() {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000LL + t.tv_nsec;
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(p * static_cast<double>(v.size() - 1))];
+}
+
+/// 200 Hz on average; deadline k = start + k * 5 ms + frac(k * golden) * sweep.
+class Pacer {
+ public:
+  explicit Pacer(std::int64_t sweep_ns) : start_(now_ns() + kPacePeriodNs), sweep_(sweep_ns) {}
+  void wait() {
+    const double phase = std::fmod(static_cast<double>(k_) * 0.6180339887498949, 1.0);
+    const std::int64_t deadline =
+        start_ + k_ * kPacePeriodNs + static_cast<std::int64_t>(phase * static_cast<double>(sweep_));
+    ++k_;
+    timespec wake{};
+    wake.tv_sec = static_cast<time_t>(deadline / 1'000'000'000LL);
+    wake.tv_nsec = static_cast<long>(deadline % 1'000'000'000LL);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &wake, nullptr) == EINTR) {
+    }
+  }
+
+ private:
+  std::int64_t start_;
+  std::int64_t sweep_;
+  std::int64_t k_ = 0;
+};
+
+// ---- Child processes ----
+
+struct Child {
+  std::string name;
+  pid_t pid = -1;
+  std::string log;
+};
+
+Child spawn(const std::string& name, const std::vector<std::string>& args, const std::string& log) {
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  Child c{name, -1, log};
+  const int rc = posix_spawn(&c.pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) throw mrroc::Error("cannot start " + args[0] + ": " + std::strerror(rc));
+  return c;
+}
+
+/// SIGTERM, up to 5 s for the exit, then SIGKILL.
+void stop(Child& c) {
+  if (c.pid <= 0) return;
+  ::kill(c.pid, SIGTERM);
+  for (int i = 0; i < 500; ++i) {
+    int status = 0;
+    if (::waitpid(c.pid, &status, WNOHANG) == c.pid) {
+      c.pid = -1;
+      return;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ::kill(c.pid, SIGKILL);
+  ::waitpid(c.pid, nullptr, 0);
+  c.pid = -1;
+}
+
+std::string tail_of(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  std::string text = s.str();
+  if (text.size() > 2000) text = text.substr(text.size() - 2000);
+  return text;
+}
+
+/// Stops the children in reverse order when the scope ends.
+class Children {
+ public:
+  Children() = default;
+  Children(const Children&) = delete;
+  Children& operator=(const Children&) = delete;
+  ~Children() { stop_all(); }
+  Child& add(Child c) {
+    list_.push_back(std::move(c));
+    return list_.back();
+  }
+  void stop_all() {
+    for (auto it = list_.rbegin(); it != list_.rend(); ++it) stop(*it);
+    list_.clear();
+  }
+  [[nodiscard]] std::string logs() const {
+    std::string out;
+    for (const auto& c : list_) out += "--- " + c.name + " (" + c.log + "):\n" + tail_of(c.log);
+    return out;
+  }
+
+ private:
+  std::vector<Child> list_;
+};
+
+// ---- Bare LCM (no mrroc code) ----
+
+/// Forwarding role: every message on in[i] is published unchanged on out[i].
+int run_forwarder(const std::vector<std::string>& pairs) {
+  lcm::LCM lcm(kUrl);
+  if (!lcm.good()) return 1;
+  struct Route {
+    lcm::LCM* lcm;
+    std::string out;
+  };
+  std::vector<Route> routes;
+  routes.reserve(pairs.size() / 2);
+  for (std::size_t i = 0; i + 1 < pairs.size(); i += 2) {
+    routes.push_back({&lcm, pairs[i + 1]});
+    lcm.subscribeFunction<Route*>(
+        pairs[i],
+        [](const lcm::ReceiveBuffer* rbuf, const std::string&, Route* route) {
+          route->lcm->publish(route->out, rbuf->data, rbuf->data_size);
+        },
+        &routes.back());
+  }
+  for (;;) lcm.handle();
+}
+
+/// The driver's side of a bare ping-pong: publishes on `out`, waits for its echo on `in`.
+class RawPinger {
+ public:
+  RawPinger(const std::string& out, const std::string& in) : lcm_(kUrl), out_(out) {
+    if (!lcm_.good()) throw mrroc::Error(std::string("cannot open LCM at ") + kUrl);
+    lcm_.subscribeFunction<RawPinger*>(
+        in,
+        [](const lcm::ReceiveBuffer* rbuf, const std::string&, RawPinger* self) {
+          std::uint64_t seq = 0;
+          if (rbuf->data_size >= sizeof seq) std::memcpy(&seq, rbuf->data, sizeof seq);
+          if (seq == self->seq_) self->answered_ = true;
+        },
+        this);
+  }
+  /// One round trip; false when no answer came within `timeout_ms`.
+  bool ping(int timeout_ms) {
+    std::uint8_t payload[kPayloadBytes] = {};
+    ++seq_;
+    std::memcpy(payload, &seq_, sizeof seq_);
+    answered_ = false;
+    lcm_.publish(out_, payload, static_cast<unsigned>(sizeof payload));
+    const std::int64_t until = now_ns() + static_cast<std::int64_t>(timeout_ms) * 1'000'000LL;
+    while (!answered_) {
+      const std::int64_t left_ms = (until - now_ns()) / 1'000'000LL;
+      if (left_ms < 0) return false;
+      lcm_.handleTimeout(static_cast<int>(left_ms) + 1);
+    }
+    return true;
+  }
+  /// Pings until the peer answers (its subscription is up). @throws Error after `seconds`.
+  void wait_for_peer(double seconds) {
+    const auto until = Clock::now() + std::chrono::duration<double>(seconds);
+    while (!ping(100))
+      if (Clock::now() > until) throw mrroc::Error("bare LCM peer on '" + out_ + "' never answered");
+    for (int i = 0; i < 50; ++i) (void)ping(100);  // warm-up
+  }
+
+ private:
+  lcm::LCM lcm_;
+  std::string out_;
+  std::uint64_t seq_ = 0;
+  bool answered_ = false;
+};
+
+struct Series {
+  std::vector<double> us;
+  int lost = 0;
+  double seconds = 0.0;  // wall time of the whole series (unpaced rate)
+};
+
+/// Bare two-process round trips, paced (B1 baseline) and three-process chain round trips,
+/// unpaced (B4 baseline), `paced` and `unpaced` samples each, appended to the series.
+void run_bare(const std::string& self, const fs::path& dir, int paced, int unpaced,
+              Series& two_process, Series& chain) {
+  Children children;
+  children.add(spawn("echo", {self, "--forward", "BENCH_PING", "BENCH_PONG"},
+                     (dir / "echo.log").string()));
+  children.add(spawn("relay",
+                     {self, "--forward", "BENCH_A", "BENCH_B", "BENCH_C", "BENCH_D"},
+                     (dir / "relay.log").string()));
+  children.add(spawn("chain-echo", {self, "--forward", "BENCH_B", "BENCH_C"},
+                     (dir / "chain-echo.log").string()));
+  RawPinger two(std::string("BENCH_PING"), std::string("BENCH_PONG"));
+  RawPinger three(std::string("BENCH_A"), std::string("BENCH_D"));
+  two.wait_for_peer(10);
+  three.wait_for_peer(10);
+  Pacer pacer(2'000'000);
+  for (int i = 0; i < paced; ++i) {
+    pacer.wait();
+    const std::int64_t t0 = now_ns();
+    if (!two.ping(1000)) {
+      ++two_process.lost;
+      continue;
+    }
+    two_process.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
+  }
+  const std::int64_t start = now_ns();
+  for (int i = 0; i < unpaced; ++i) {
+    const std::int64_t t0 = now_ns();
+    if (!three.ping(1000)) {
+      ++chain.lost;
+      continue;
+    }
+    chain.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
+  }
+  chain.seconds += static_cast<double>(now_ns() - start) / 1e9;
+}
+
+// ---- The process set ----
+
+class ReadyWatch {
+ public:
+  void on_status(const mrroc::ProcessStatus& s) {
+    std::lock_guard lock(mutex_);
+    states_[s.process] = s.state;
+    cv_.notify_all();
+  }
+  bool wait_ready(const std::string& process, double seconds) {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, std::chrono::duration<double>(seconds), [&] {
+      auto it = states_.find(process);
+      return it != states_.end() && (it->second == mrroc::ProcessState::ready ||
+                                     it->second == mrroc::ProcessState::running);
+    });
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::map<std::string, mrroc::ProcessState> states_;
+};
+
+struct ChainFigures {
+  Series paced;
+  Series unpaced;
+};
+
+ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double servo_period_ms,
+                             int paced, int unpaced) {
+  const fs::path config = dir / "bench-chain.toml";
+  std::ofstream(config) << "[system]\nname = \"bench-chain\"\nlcm_url = \"" << kUrl << "\"\n"
+                        << "[mp]\ntask = \"start_and_wait\"\n"
+                        << "[[robot]]\nname = \"irb6\"\nmodel = \"" << MRROC_SOURCE_DIR
+                        << "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\nservo_period_ms = "
+                        << servo_period_ms << "\n[robot.ecp]\ntask = \"follow_mp\"\n";
+  mrroc::comm::Bus bus(kUrl);
+  ReadyWatch ready;
+  mrroc::SystemListener listener(bus, {},
+                                 [&](const mrroc::ProcessStatus& s) { ready.on_status(s); });
+  bus.start();
+  Children children;
+  children.add(spawn("edp/irb6",
+                     {(bin / "mrroc-edp").string(), "--config", config.string(), "--robot", "irb6"},
+                     (dir / "edp.log").string()));
+  children.add(spawn("ecp/irb6",
+                     {(bin / "mrroc-ecp").string(), "--config", config.string(), "--robot", "irb6"},
+                     (dir / "ecp.log").string()));
+  for (const char* process : {"edp/irb6", "ecp/irb6"})
+    if (!ready.wait_ready(process, 30))
+      throw mrroc::Error(std::string(process) + " was not ready within 30 s\n" + children.logs());
+
+  ChainFigures out;
+  try {
+    mrroc::mp::Robot robot(bus, "irb6");
+    robot.start_task();  // follow_mp: synchronises the robot
+    mrroc::ecp::MpCommand& c = robot.image().command;
+    c.arm_type = mrroc::edp::ArmRepresentation::joint;
+    c.motion_type = mrroc::edp::MotionType::absolute;
+    c.motion_steps = 1;
+    c.value_in_step_no = 1;
+    c.arm = {0.0, -1.5707963267948966, 0.0, 0.0, 0.0};
+    int k = 0;
+    auto step = [&] {
+      c.arm[0] = (k++ % 2 == 0) ? 0.001 : 0.0;
+      robot.next_pose();
+    };
+    for (int i = 0; i < 100; ++i) step();  // warm-up
+    Pacer pacer(static_cast<std::int64_t>(servo_period_ms * 1e6));
+    for (int i = 0; i < paced; ++i) {
+      pacer.wait();
+      const std::int64_t t0 = now_ns();
+      step();
+      out.paced.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
+    }
+    const std::int64_t start = now_ns();
+    for (int i = 0; i < unpaced; ++i) {
+      const std::int64_t t0 = now_ns();
+      step();
+      out.unpaced.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
+    }
+    out.unpaced.seconds = static_cast<double>(now_ns() - start) / 1e9;
+    robot.end_motion();
+  } catch (const std::exception& e) {
+    throw mrroc::Error(std::string(e.what()) + "\n" + children.logs());
+  }
+  children.stop_all();
+  bus.stop();
+  return out;
+}
+
+fs::path own_directory() { return fs::read_symlink("/proc/self/exe").parent_path(); }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc > 1 && std::strcmp(argv[1], "--forward") == 0)
+    return run_forwarder(std::vector<std::string>(argv + 2, argv + argc));
+  const int samples = argc > 1 ? std::atoi(argv[1]) : 2000;
+  const int chain_samples = 5000;
+  try {
+    const fs::path bin = own_directory();
+    const std::string self = (bin / "bench_chain").string();
+    const fs::path dir = fs::temp_directory_path() / ("mrroc-bench-chain-" + std::to_string(getpid()));
+    fs::create_directories(dir);
+
+    Series bare_two;
+    Series bare_chain;
+    run_bare(self, dir, samples / 2, chain_samples / 2, bare_two, bare_chain);
+    const ChainFigures set = run_process_set(bin, dir, 2.0, samples, samples);
+    const ChainFigures fast = run_process_set(bin, dir, 1.0, samples / 2, samples / 2);
+    run_bare(self, dir, samples - samples / 2, chain_samples - chain_samples / 2, bare_two,
+             bare_chain);
+    fs::remove_all(dir);
+
+    const double b50 = percentile(bare_two.us, 0.5);
+    const double b99 = percentile(bare_two.us, 0.99);
+    const double v50 = percentile(set.paced.us, 0.5);
+    const double v99 = percentile(set.paced.us, 0.99);
+    const double f50 = percentile(fast.paced.us, 0.5);
+    const double chain50 = percentile(bare_chain.us, 0.5);
+    const double chain99 = percentile(bare_chain.us, 0.99);
+    const double bare_rate = static_cast<double>(bare_chain.us.size()) / bare_chain.seconds;
+    const double set_rate = static_cast<double>(set.unpaced.us.size()) / set.unpaced.seconds;
+    const double fast_rate = static_cast<double>(fast.unpaced.us.size()) / fast.unpaced.seconds;
+    std::printf("B1 macro-step round trip, %d samples each, paced at 200 Hz\n", samples);
+    std::printf("  bare LCM two-process round trip: p50 %.1f us, p99 %.1f us (%d lost)\n", b50,
+                b99, bare_two.lost);
+    std::printf("  MP->ECP->EDP->ECP->MP, servo 2 ms: p50 %.1f us, p99 %.1f us\n", v50, v99);
+    std::printf("  MP->ECP->EDP->ECP->MP, servo 1 ms: p50 %.1f us, p99 %.1f us (%zu samples)\n",
+                f50, percentile(fast.paced.us, 0.99), fast.paced.us.size());
+    std::printf("B4 unpaced\n");
+    std::printf("  bare LCM 3-process chain: %.0f round trips/s, p50 %.1f us, p99 %.1f us (%d "
+                "lost)\n",
+                bare_rate, chain50, chain99, bare_chain.lost);
+    std::printf("  macro-steps, servo 2 ms: %.0f /s, p50 %.1f us, p99 %.1f us\n", set_rate,
+                percentile(set.unpaced.us, 0.5), percentile(set.unpaced.us, 0.99));
+    std::printf("  macro-steps, servo 1 ms: %.0f /s, p50 %.1f us, p99 %.1f us\n", fast_rate,
+                percentile(fast.unpaced.us, 0.5), percentile(fast.unpaced.us, 0.99));
+    // With the MP's phase against the servo clock swept evenly, the round trip is a fixed part
+    // plus a wait for the servo cycle that grows with the period: fixed ~= 2 RT(1 ms) - RT(2 ms).
+    std::printf("NOTE B1 one NEXT_POSE = MP->ECP, ECP->EDP SET_GET, EDP->ECP ACK, ECP->EDP "
+                "QUERY, EDP->ECP reading of servo step 1, ECP->MP: three LCM round trips plus "
+                "the wait for the next servo cycle. Same run with a 1 ms servo period: p50 %.0f "
+                "us; extrapolated to a zero period (2 x RT(1 ms) - RT(2 ms)) p50 ~%.0f us = %.1f "
+                "x the bare round trip. Bare LCM: %d lost of %d; 64-byte raw messages on %s.\n",
+                f50, 2 * f50 - v50, (2 * f50 - v50) / b50, bare_two.lost, samples, kUrl);
+    std::printf("RESULT B1 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
+                "samples=%d unit=us\n",
+                b50, b99, v50, v99, samples);
+    std::printf("NOTE B4 interpreted as macro-steps/s of MP->ECP->EDP(MuJoCo, real-time 2 ms "
+                "servo loop) with NEXT_POSE sent back to back (1 servo step each, reading in "
+                "step 1) against round trips/s of a bare LCM chain driver->relay->echo->relay->"
+                "driver sent back to back (%d samples, p50 %.0f us, p99 %.0f us). The EDP "
+                "advances its simulation in real time, one step per servo period, so a "
+                "macro-step can never take less than one period: at most %.0f /s with 2 ms "
+                "(measured %.0f /s), %.0f /s with 1 ms (measured %.0f /s). No lock-step "
+                "(free-running) simulation mode exists yet.\n",
+                chain_samples, chain50, chain99, 1000.0 / 2.0, set_rate, 1000.0 / 1.0, fast_rate);
+    std::printf("RESULT B4 baseline_rate=%.1f value_rate=%.1f baseline_p50=%.2f "
+                "baseline_p99=%.2f value_p50=%.2f value_p99=%.2f samples=%d unit=/s\n",
+                bare_rate, set_rate, chain50, chain99, percentile(set.unpaced.us, 0.5),
+                percentile(set.unpaced.us, 0.99), samples);
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_chain: %s\n", e.what());
+    return 1;
+  }
+}

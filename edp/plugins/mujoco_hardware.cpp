@@ -593,6 +593,10 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   axes_ = axes;
   model_ = model.release();
   data_ = data.release();
+  previous_ctrl_.assign(axes_, 0.0);
+  feed_forward_.assign(axes_, 0.0);
+  servo_algorithm_.assign(axes_, 0);
+  have_previous_ctrl_ = false;
   nominal_kp_.assign(axes_, 0.0);
   for (std::size_t i = 0; i < axes_; ++i)
     nominal_kp_[i] = model_->actuator_gainprm[static_cast<std::size_t>(mjNGAIN) * i];
@@ -601,11 +605,11 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
 }
 
 int MujocoHardware::servo_parameter_set_count(int algorithm) const {
-  return algorithm == 0 ? static_cast<int>(kServoGainScale.size()) : 0;
+  return algorithm == 0 || algorithm == 1 ? static_cast<int>(kServoGainScale.size()) : 0;
 }
 
 void MujocoHardware::set_servo(std::size_t axis, int algorithm, int parameter_set) {
-  if (model_ == nullptr || axis >= axes_ || algorithm != 0 || parameter_set < 0 ||
+  if (model_ == nullptr || axis >= axes_ || algorithm < 0 || algorithm > 1 || parameter_set < 0 ||
       parameter_set >= static_cast<int>(kServoGainScale.size()))
     return;
   // A position servo: force = kp (target - q) (+ the joint's damping). Changing kp changes the
@@ -613,6 +617,7 @@ void MujocoHardware::set_servo(std::size_t axis, int algorithm, int parameter_se
   const double kp = nominal_kp_[axis] * kServoGainScale[static_cast<std::size_t>(parameter_set)];
   model_->actuator_gainprm[static_cast<std::size_t>(mjNGAIN) * axis] = kp;
   model_->actuator_biasprm[static_cast<std::size_t>(mjNBIAS) * axis + 1] = -kp;
+  servo_algorithm_[axis] = algorithm;
 }
 
 std::uint32_t MujocoHardware::read_inputs() const {
@@ -642,6 +647,7 @@ void MujocoHardware::joints_from_actuators(const double* a, double* q) const noe
 }
 
 void MujocoHardware::reset_to_power_on() noexcept {
+  have_previous_ctrl_ = false;
   mj_resetData(model_, data_);
   for (int i = 0; i < model_->nq; ++i) {
     data_->qpos[i] = power_on_qpos_[index(i)];
@@ -798,6 +804,19 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
       data_->ctrl[i] = setpoints[i] + power_on_[i];
     }
   }
+  // Servo algorithm 1: velocity feed-forward. The joint's viscous friction (damping) is what
+  // makes a position servo lag by damping / kp * velocity; feeding the commanded velocity's
+  // friction force forward removes that lag.
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const double velocity = have_previous_ctrl_
+                                ? (data_->ctrl[i] - previous_ctrl_[i]) / (substeps_ * model_->opt.timestep)
+                                : 0.0;
+    previous_ctrl_[i] = data_->ctrl[i];
+    feed_forward_[i] = servo_algorithm_[i] == 1
+                           ? model_->dof_damping[dof_adr_[i]] * velocity
+                           : 0.0;
+  }
+  have_previous_ctrl_ = true;
   for (int s = 0; s < substeps_; ++s) {
     if (gravity_compensation_) {
       // Gravity and Coriolis feed-forward evaluated at the state of this step: mj_step1 computes
@@ -806,6 +825,8 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
       for (int v = 0; v < model_->nv; ++v) {
         data_->qfrc_applied[v] = data_->qfrc_bias[v];
       }
+      for (std::size_t i = 0; i < axes_; ++i)
+        data_->qfrc_applied[dof_adr_[i]] += feed_forward_[i];
       mj_step2(model_, data_);
     } else {
       mj_step(model_, data_);

@@ -98,9 +98,11 @@ class MujocoHardware : public Hardware {
 
   [[nodiscard]] std::string fault_text() const override;
 
-  /// Servo algorithm 0: the MJCF position servo with gravity feed-forward. Its parameter sets
-  /// scale the position gain kp: 0 nominal (x1), 1 soft (x0.25), 2 stiff (x2).
-  [[nodiscard]] int servo_algorithm_count() const override { return 1; }
+  /// Servo algorithm 0: the MJCF position servo with gravity feed-forward. Algorithm 1: the same
+  /// plus velocity feed-forward (the commanded velocity times the joint's damping). The
+  /// parameter sets of both scale the position gain kp: 0 nominal (x1), 1 soft (x0.25),
+  /// 2 stiff (x2).
+  [[nodiscard]] int servo_algorithm_count() const override { return 2; }
   [[nodiscard]] int servo_parameter_set_count(int algorithm) const override;
   void set_servo(std::size_t axis, int algorithm, int parameter_set) override;
   static constexpr std::array<double, 3> kServoGainScale = {1.0, 0.25, 2.0};
@@ -174,6 +176,10 @@ class MujocoHardware : public Hardware {
 
   int warnings_at_activate_ = 0;
   std::vector<double> nominal_kp_;
+  std::vector<double> previous_ctrl_;  ///< actuator targets of the previous write()
+  std::vector<double> feed_forward_;   ///< velocity feed-forward force per axis [N m]
+  std::vector<int> servo_algorithm_;
+  bool have_previous_ctrl_ = false;
   std::uint32_t outputs_ = 0;
   std::array<bool, 16> switch_state_{};  ///< as of the last read()
   std::array<char, 512> fault_{};

@@ -486,19 +486,22 @@ TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
 
   // Track the same fast joint move with the soft and the stiff parameter set: the soft servo
   // lags more.
-  auto lag_with = [&](std::int8_t set) {
+  bool forward = true;
+  auto lag_with = [&](std::int8_t set, std::int8_t algorithm = 0) {
     Instruction servo;
     servo.type = InstructionType::set;
     servo.set = item::servo;
-    servo.servo_algorithm.assign(model_.axes(), 0);
+    servo.servo_algorithm.assign(model_.axes(), algorithm);
     servo.servo_parameters_no.assign(model_.axes(), set);
     EXPECT_EQ(exec(servo).type, ReplyType::acknowledge);
     EXPECT_EQ(query().type, ReplyType::data);
     std::vector<double> q = model_.synchro_joint_positions;
-    q[0] = set == 1 ? 0.2 : 0.0;  // alternate direction so each run moves 0.2 rad
+    q[0] = forward ? 0.2 : 0.0;  // alternate direction so each run moves 0.2 rad
+    forward = !forward;
     EXPECT_EQ(exec(set_joints(q, 100, 50)).type, ReplyType::acknowledge);
     const Reply mid = query();
     EXPECT_EQ(mid.servo_parameters_no[0], set);
+    EXPECT_EQ(mid.servo_algorithm[0], algorithm);
     const double lag = std::abs(mid.desired_joints[0] - mid.joints[0]);
     EXPECT_EQ(exec(set_joints(q, 100, 101)).type, ReplyType::acknowledge);  // settle
     EXPECT_EQ(query().type, ReplyType::data);
@@ -506,6 +509,11 @@ TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
   };
   const double soft = lag_with(1);
   const double stiff = lag_with(2);
-  std::printf("tracking lag at 1 rad/s: soft %.5f rad, stiff %.5f rad\n", soft, stiff);
+  const double nominal = lag_with(0, 0);
+  const double feed_forward = lag_with(0, 1);
+  std::printf("tracking lag at 1 rad/s: soft %.5f rad, stiff %.5f rad, nominal %.5f rad, "
+              "nominal with velocity feed-forward %.5f rad\n",
+              soft, stiff, nominal, feed_forward);
   EXPECT_GT(soft, stiff * 1.5);
+  EXPECT_LT(feed_forward, nominal * 0.5) << "velocity feed-forward must reduce the lag";
 }

@@ -194,22 +194,31 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
         busy();
       break;
     case MpCommandType::end_motion:
-      if (!start_activity("END_MOTION", [this] { return end_motion(); }, responder)) busy();
+      // The end of a continuous motion also ends a STOP that stopped it.
+      if (!start_activity(
+              "END_MOTION",
+              [this] {
+                robot_.clear_stop();
+                return end_motion();
+              },
+              responder))
+        busy();
       break;
+    // Operator commands answer at once, without the robot image (the worker may be updating it).
     case MpCommandType::stop:
       robot_.request_stop();
       reporter_.warning("STOP from the MP");
-      responder.reply(state_reply(EcpReplyType::acknowledge));
+      responder.reply(EcpReply{});
       break;
     case MpCommandType::pause:
       robot_.pause();
       reporter_.info("paused");
-      responder.reply(state_reply(EcpReplyType::acknowledge));
+      responder.reply(EcpReply{});
       break;
     case MpCommandType::resume:
       robot_.resume();
       reporter_.info("resumed");
-      responder.reply(state_reply(EcpReplyType::acknowledge));
+      responder.reply(EcpReply{});
       break;
   }
 }

@@ -9,9 +9,11 @@
 /// |             | `arguments` (sporadic coordination)                 |                                   |
 /// | NEXT_POSE   | one macro-step to the MP's pose (continuous         | ACKNOWLEDGE + reading (in step    |
 /// |             | coordination)                                       | value_in_step_no)                 |
-/// | END_MOTION  | ends a series of NEXT_POSE: waits for the robot     | ACKNOWLEDGE + state               |
-/// |             | to stop, reads its state                            |                                   |
-/// | STOP        | stops what runs (it ends with ERROR "stopped")      | ACKNOWLEDGE (at once)             |
+/// | END_MOTION  | ends a series of NEXT_POSE (and a STOP that stopped | ACKNOWLEDGE + state               |
+/// |             | it): reads the robot's state (GET)                  |                                   |
+/// | STOP        | stops what runs (it ends with ERROR "stopped");     | ACKNOWLEDGE (at once)             |
+/// |             | NEXT_POSE stays refused until END_MOTION, START_TASK|                                   |
+/// |             | or NEXT_STATE                                       |                                   |
 /// | PAUSE       | holds before the next macro-step                    | ACKNOWLEDGE (at once)             |
 /// | RESUME      | goes on                                             | ACKNOWLEDGE (at once)             |
 ///

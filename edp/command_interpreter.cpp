@@ -41,8 +41,18 @@ Reply CommandInterpreter::execute(const Instruction& in) {
                   fmt::format("{} refused: query expected (a QUERY must follow every other "
                               "instruction)",
                               to_string(in.type)));
-  } else if (servo_.faulted()) {
-    reply = error(error_code::hardware_fault, "hardware fault: " + servo_.fault_text());
+  } else if (servo_.faulted() && in.type != InstructionType::synchro) {
+    reply = error(error_code::hardware_fault,
+                  "hardware fault: " + servo_.fault_text() +
+                      " (the robot is held; SYNCHRO resets the fault and re-synchronises)");
+  } else if (servo_.emergency_stopped() &&
+             (in.type == InstructionType::synchro ||
+              ((in.type == InstructionType::set || in.type == InstructionType::set_get) &&
+               (in.set & item::arm) != 0))) {
+    reply = error(error_code::emergency_stop,
+                  fmt::format("{} refused: emergency stop engaged (release it first, e.g. "
+                              "mrroc-ui release)",
+                              to_string(in.type)));
   } else {
     try {
       reply = accept(in);
@@ -60,6 +70,12 @@ Reply CommandInterpreter::accept(const Instruction& in) {
   const bool sets = in.type == InstructionType::set || in.type == InstructionType::set_get;
   const bool gets = in.type == InstructionType::get || in.type == InstructionType::set_get;
   if (in.type == InstructionType::synchro) {
+    if (servo_.faulted()) {
+      // Reset: the servo loop powers the drives again; the position reference is found anew.
+      if (!servo_.reset_fault(1.0))
+        throw CommandError(error_code::hardware_fault,
+                           "SYNCHRO refused: the fault could not be reset: " + servo_.fault_text());
+    }
     if (servo_.synchronised())
       throw CommandError(error_code::already_synchronised, "SYNCHRO refused: already synchronised");
     servo_.begin_synchronisation();
@@ -258,6 +274,9 @@ Reply CommandInterpreter::query() {
       // Generous bound: the macro-step that may still run ahead of it, this one, plus a second.
       const double timeout = 2.0 * (steps_ahead_ + due_steps_ + 2) * period_s_ + 1.0;
       auto reading = servo_.wait_reading(due_macro_step_, timeout);
+      if (!reading && servo_.emergency_stopped())
+        return error(error_code::emergency_stop,
+                     "macro-step interrupted: emergency stop engaged; the robot is held");
       if (!reading)
         return error(error_code::hardware_fault,
                      servo_.faulted()

@@ -3,11 +3,14 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <mutex>
 #include <cstdio>
 #include <thread>
 
 #include "command_interpreter.hpp"
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
@@ -64,14 +67,61 @@ int run(const std::string& config_path, const std::string& robot_name) {
                               robot.edp.servo_period_s * 1e3, servo.timing().scheduling, memory));
     reporter.set_state(ProcessState::ready);
 
+    // Emergency stop: acted on in the bus thread at once, reported from the command thread.
+    struct EstopContext {
+      edp::ServoLoop* servo;
+      std::string robot;
+      std::mutex mutex;
+      std::string reason;
+    } estop{&servo, robot.name, {}, {}};
+    auto on_estop = +[](const lcm::ReceiveBuffer* buffer, const std::string&, EstopContext* c) {
+      mrroc_lcm::emergency_stop_t m;
+      if (!comm::detail::decode_received(buffer, m)) return;
+      if (!m.robot.empty() && m.robot != c->robot) return;
+      if (m.action == mrroc_lcm::emergency_stop_t::ENGAGE) {
+        c->servo->emergency_stop();
+        std::lock_guard lock(c->mutex);
+        c->reason = m.reason + " (from " + m.header.sender + ")";
+      } else if (m.action == mrroc_lcm::emergency_stop_t::RELEASE) {
+        c->servo->release_emergency_stop();
+      }
+    };
+    lcm::Subscription* estop_subscription =
+        bus.lcm().subscribeFunction<EstopContext*>(channels::emergency_stop, on_estop, &estop);
+
     bool hardware_fault_reported = false;
+    bool estop_reported = false;
+    std::int64_t lost_reported = 0;
     std::thread commands([&] {
       while (!stop_requested()) {
         auto in = server.wait_request(std::chrono::milliseconds(100));
-        if (servo.faulted() && !hardware_fault_reported) {
-          hardware_fault_reported = true;
-          reporter.report(Severity::error, edp::error_code::hardware_fault,
-                          "servo loop stopped the robot: " + servo.fault_text());
+        if (servo.faulted() != hardware_fault_reported) {
+          hardware_fault_reported = servo.faulted();
+          if (hardware_fault_reported)
+            reporter.report(Severity::error, edp::error_code::hardware_fault,
+                            fmt::format("plugin '{}' of robot '{}' faulted; the robot is held: {}",
+                                        hardware->name(), robot.name, servo.fault_text()));
+          else
+            reporter.info("hardware fault reset");
+        }
+        if (servo.emergency_stopped() != estop_reported) {
+          estop_reported = servo.emergency_stopped();
+          std::string reason;
+          {
+            std::lock_guard lock(estop.mutex);
+            reason = estop.reason;
+          }
+          if (estop_reported)
+            reporter.report(Severity::error, edp::error_code::emergency_stop,
+                            "EMERGENCY STOP: robot brought to a standstill: " + reason);
+          else
+            reporter.warning("emergency stop released");
+        }
+        if (const std::int64_t lost = servo.lost_successors(); lost != lost_reported) {
+          lost_reported = lost;
+          reporter.warning(fmt::format("no next macro-step from the ECP in time ({} so far): the "
+                                       "robot was brought to a standstill",
+                                       lost));
         }
         if (!in) continue;
         if (!in->request) {
@@ -112,6 +162,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
     reporter.set_state(ProcessState::stopping);
     servo.stop();  // wakes a command waiting for a reading
     commands.join();
+    bus.lcm().unsubscribe(estop_subscription);
     report_timing();
     reporter.set_state(ProcessState::finished);
   } catch (const std::exception& e) {

@@ -65,11 +65,11 @@ void ServoLoop::stop() {
 void ServoLoop::run() {
   sched_param sp{};
   sp.sched_priority = 80;
-  if (pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0) {
-    scheduling_ = "SCHED_FIFO 80";
-  } else {
-    prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
-    scheduling_ = "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)";
+  const bool fifo = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
+  if (!fifo) prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
+  {
+    std::lock_guard lock(mutex_);
+    scheduling_ = fifo ? "SCHED_FIFO 80" : "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)";
   }
   const auto period_ns = static_cast<std::int64_t>(std::llround(period_s_ * 1e9));
   timespec now{};
@@ -113,12 +113,57 @@ void ServoLoop::store_reading(std::uint64_t id, int step_no) {
 }
 
 void ServoLoop::cycle() {
-  // Sample without the lock (the hardware may take a while), publish under it.
-  const CycleStatus read_status = hardware_.read(std::span(sample_.data(), axes_));
+  bool reset = false;
+  {
+    std::lock_guard lock(mutex_);
+    reset = reset_pending_;
+  }
+  if (reset) {
+    try {
+      hardware_.deactivate();
+      hardware_.activate();
+    } catch (...) {
+      // Stays faulted: read() below reports why.
+    }
+  }
+  // Sample without the lock (the hardware may take a while), publish under it. A plugin must
+  // not throw here; if it does, the loop holds the robot and reports it as a fault.
+  CycleStatus read_status = CycleStatus::ok;
+  const char* thrown = nullptr;
+  try {
+    read_status = hardware_.read(std::span(sample_.data(), axes_));
+  } catch (const std::exception& e) {
+    read_status = CycleStatus::fault;
+    thrown = e.what();
+  } catch (...) {
+    read_status = CycleStatus::fault;
+    thrown = "unknown exception";
+  }
   std::lock_guard lock(mutex_);
   feedback_ = sample_;
   const std::span<const AxisFeedback> fb(feedback_.data(), axes_);
-  if (read_status != CycleStatus::ok && !faulted_) set_fault(hardware_.fault_text().c_str());
+  if (reset) {
+    reset_pending_ = false;
+    if (read_status == CycleStatus::ok) {
+      faulted_ = false;
+      fault_[0] = '\0';
+      synchronised_ = false;
+      mode_ = Mode::hold;
+      current_.reset();
+      next_.reset();
+      for (std::size_t i = 0; i < axes_; ++i) desired_[i] = fb[i].position;
+    }
+    cv_.notify_all();
+  }
+  if (read_status != CycleStatus::ok && !faulted_) {
+    if (thrown != nullptr) {
+      char text[256];
+      std::snprintf(text, sizeof text, "plugin threw in read(): %s", thrown);
+      set_fault(text);
+    } else {
+      set_fault(hardware_.fault_text().c_str());
+    }
+  }
   const bool synced = synchronised_.load(std::memory_order_relaxed);
   latest_.cycle = cycles_;
   latest_.synchronised = synced;
@@ -141,9 +186,12 @@ void ServoLoop::cycle() {
   latest_.servo_algorithm = servo_algorithm_;
   latest_.servo_parameter_set = servo_parameter_set_;
 
+  const AxisArray previous_desired = desired_;
   if (faulted_) {
     // Hold still where the axes are.
     for (std::size_t i = 0; i < axes_; ++i) desired_[i] = latest_.joints[i];
+  } else if (mode_ == Mode::stopping) {
+    stop_cycle();
   } else if (mode_ != Mode::hold) {
     synchro_cycle();
   } else {
@@ -166,14 +214,27 @@ void ServoLoop::cycle() {
       latest_.desired = desired_;
       if (m.step == m.value_in_step_no) store_reading(m.id, m.step);
       if (m.step >= m.steps) {
-        if (m.value_in_step_no > m.steps) {
+        const bool promised_successor = m.value_in_step_no <= m.steps;
+        if (!promised_successor) {
           after_stop_id_ = m.id;
           after_stop_step_ = m.steps + 1;
         }
         current_.reset();
+        if (promised_successor && !next_) {
+          // The ECP read this macro-step early to send the next one in time, and none came:
+          // the link or the ECP is lost. Bring the robot to a standstill within its
+          // acceleration limits instead of stopping it dead.
+          ++lost_successors_;
+          mode_ = Mode::stopping;
+        }
       }
     }
   }
+  if (synced && !faulted_)
+    for (std::size_t i = 0; i < axes_; ++i)
+      commanded_velocity_[i] = (desired_[i] - previous_desired[i]) / period_s_;
+  else
+    commanded_velocity_.fill(0.0);
   latest_.desired = desired_;
   if (trace_count_ < trace_.size()) {
     TraceSample& t = trace_[trace_count_++];
@@ -185,9 +246,72 @@ void ServoLoop::cycle() {
   const bool use_offset = synchronised_.load(std::memory_order_relaxed);
   for (std::size_t i = 0; i < axes_; ++i)
     raw_setpoints_[i] = desired_[i] - (use_offset ? offset_[i] : 0.0);
-  if (hardware_.write(std::span<const double>(raw_setpoints_.data(), axes_)) != CycleStatus::ok &&
-      !faulted_)
-    set_fault(hardware_.fault_text().c_str());
+  CycleStatus write_status = CycleStatus::ok;
+  try {
+    write_status = hardware_.write(std::span<const double>(raw_setpoints_.data(), axes_));
+  } catch (const std::exception& e) {
+    if (!faulted_) {
+      char text[256];
+      std::snprintf(text, sizeof text, "plugin threw in write(): %s", e.what());
+      set_fault(text);
+    }
+  } catch (...) {
+    if (!faulted_) set_fault("plugin threw in write(): unknown exception");
+  }
+  if (write_status != CycleStatus::ok && !faulted_) set_fault(hardware_.fault_text().c_str());
+}
+
+void ServoLoop::stop_cycle() {
+  // Decelerate every axis at its maximum acceleration, never past a joint limit.
+  bool moving = false;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    double v = commanded_velocity_[i];
+    const double dv = model_.max_acceleration[i] * period_s_;
+    v = std::abs(v) <= dv ? 0.0 : v - std::copysign(dv, v);
+    desired_[i] = std::clamp(desired_[i] + v * period_s_, model_.lower_limits[i],
+                             model_.upper_limits[i]);
+    moving = moving || v != 0.0;
+  }
+  if (!moving) {
+    mode_ = Mode::hold;
+    cv_.notify_all();
+  }
+}
+
+void ServoLoop::emergency_stop() {
+  std::lock_guard lock(mutex_);
+  emergency_stop_ = true;
+  current_.reset();
+  next_.reset();
+  if (synchronised_ && !faulted_ && (mode_ == Mode::hold || mode_ == Mode::stopping))
+    mode_ = Mode::stopping;
+  else if (mode_ != Mode::hold)
+    mode_ = Mode::hold;  // a synchronisation search is simply abandoned (it is slow)
+  cv_.notify_all();
+}
+
+void ServoLoop::release_emergency_stop() {
+  std::lock_guard lock(mutex_);
+  emergency_stop_ = false;
+}
+
+bool ServoLoop::emergency_stopped() const {
+  std::lock_guard lock(mutex_);
+  return emergency_stop_;
+}
+
+std::int64_t ServoLoop::lost_successors() const {
+  std::lock_guard lock(mutex_);
+  return lost_successors_;
+}
+
+bool ServoLoop::reset_fault(double timeout_s) {
+  std::unique_lock lock(mutex_);
+  if (!faulted_) return true;
+  reset_pending_ = true;
+  cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+               [&] { return !reset_pending_ || !running_; });
+  return !faulted_;
 }
 
 void ServoLoop::synchro_cycle() {
@@ -242,6 +366,7 @@ void ServoLoop::synchro_cycle() {
 std::uint64_t ServoLoop::submit(const std::vector<double>& target, int steps,
                                 int value_in_step_no) {
   std::unique_lock lock(mutex_);
+  if (emergency_stop_) throw HardwareError("emergency stop engaged");
   cv_.wait(lock, [&] { return !next_ || faulted_ || !running_; });
   if (faulted_) throw HardwareError(fault_);
   if (!running_) throw HardwareError("the servo loop is not running");
@@ -263,7 +388,7 @@ std::vector<double> ServoLoop::planned_end() const {
 std::optional<Reading> ServoLoop::wait_reading(std::uint64_t id, double timeout_s) {
   std::unique_lock lock(mutex_);
   const bool ok = cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [&] {
-    return delivered_.macro_step >= id || faulted_ || !running_;
+    return delivered_.macro_step >= id || faulted_ || emergency_stop_ || !running_;
   });
   if (!ok || delivered_.macro_step != id) return std::nullopt;
   return delivered_;
@@ -277,6 +402,13 @@ Reading ServoLoop::latest() const {
 bool ServoLoop::moving() const {
   std::lock_guard lock(mutex_);
   return current_.has_value() || next_.has_value() || mode_ != Mode::hold;
+}
+
+bool ServoLoop::stopped() const {
+  std::lock_guard lock(mutex_);
+  bool still = !current_ && !next_ && mode_ == Mode::hold;
+  for (std::size_t i = 0; i < axes_; ++i) still = still && commanded_velocity_[i] == 0.0;
+  return still;
 }
 
 void ServoLoop::begin_synchronisation() {

@@ -92,6 +92,22 @@ class ServoLoop {
   bool wait_synchronised(double timeout_s);
   [[nodiscard]] bool synchronised() const { return synchronised_.load(); }
   [[nodiscard]] bool moving() const;
+  /// True when nothing is queued or running and the commanded velocity is zero.
+  [[nodiscard]] bool stopped() const;
+
+  /// Emergency stop: drops the queued motion, decelerates every axis at its maximum
+  /// acceleration (never past a joint limit) to a standstill and holds; no motion is accepted
+  /// until release_emergency_stop(). Callable from any thread.
+  void emergency_stop();
+  void release_emergency_stop();
+  [[nodiscard]] bool emergency_stopped() const;
+  /// Macro-steps that promised a successor (value_in_step_no <= motion_steps) which never came;
+  /// each brought the robot to a standstill within its acceleration limits.
+  [[nodiscard]] std::int64_t lost_successors() const;
+  /// After a fault: the servo thread deactivates and re-activates the plugin, clears the fault,
+  /// forgets the synchronisation (the position reference is lost) and holds where the axes are.
+  /// Waits up to `timeout_s` for that; returns false if the fault persists.
+  bool reset_fault(double timeout_s);
 
   /// Binary outputs to write from the next cycle on.
   void request_outputs(std::uint32_t values);
@@ -117,7 +133,7 @@ class ServoLoop {
   [[nodiscard]] std::thread::id servo_thread_id() const { return thread_.get_id(); }
 
  private:
-  enum class Mode { hold, synchro_search, synchro_approach };
+  enum class Mode { hold, synchro_search, synchro_approach, stopping };
   struct Motion {
     std::uint64_t id = 0;
     AxisArray start{};
@@ -130,6 +146,7 @@ class ServoLoop {
   void run();
   void cycle();
   void synchro_cycle();
+  void stop_cycle();
   void set_fault(const char* text);
   void store_reading(std::uint64_t id, int step_no);
 
@@ -154,6 +171,10 @@ class ServoLoop {
   Reading latest_;
   Reading delivered_;  ///< the last reading requested by a macro-step
   AxisArray desired_{};  ///< joint coordinates (raw before synchronisation)
+  AxisArray commanded_velocity_{};  ///< of desired_ over the last cycle [rad/s]
+  bool emergency_stop_ = false;
+  bool reset_pending_ = false;
+  std::int64_t lost_successors_ = 0;
   AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
   std::array<AxisFeedback, kMaxAxes> sample_{};    ///< servo thread only
   std::array<AxisFeedback, kMaxAxes> feedback_{};  ///< under mutex_

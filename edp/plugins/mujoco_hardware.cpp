@@ -829,6 +829,7 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
         data_->qfrc_applied[dof_adr_[i]] += feed_forward_[i];
       mj_step2(model_, data_);
     } else {
+      for (std::size_t i = 0; i < axes_; ++i) data_->qfrc_applied[dof_adr_[i]] = feed_forward_[i];
       mj_step(model_, data_);
     }
   }

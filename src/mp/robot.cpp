@@ -60,9 +60,12 @@ void Robot::end_motion() {
 }
 
 ecp::EcpReply Robot::control(ecp::MpCommandType type) {
+  // Operator commands come from other threads than the task's: they do not touch the image.
   ecp::MpCommand c;
   c.type = type;
-  return checked(control_.call(c));
+  const ecp::EcpReply reply = control_.call(c);
+  if (reply.type == ecp::EcpReplyType::error) throw EcpFailed(image_.name, reply);
+  return reply;
 }
 
 void Robot::stop() { control(ecp::MpCommandType::stop); }

@@ -196,6 +196,27 @@ TEST(LaunchDemo, SigintMidMotionStopsEverythingInReverseOrder) {
   EXPECT_TRUE(mrroc_processes().empty()) << "left behind: " << mrroc_processes().front();
 }
 
+TEST(LaunchDemo, EmergencyStopFromTheUiStopsTheTask) {
+  bool sent = false;
+  const RunResult r = run({launcher(), demo_config()}, 60.0, [&](const std::string& line) {
+    if (sent || line.find("pose 1/3 reached") == std::string::npos) return false;
+    sent = true;
+    const RunResult ui = run({(kBin / "mrroc-ui").string(), "estop", "--config", demo_config(),
+                              "--reason", "test"},
+                             10.0);
+    EXPECT_EQ(ui.exit_code, 0) << ui.output;
+    return false;
+  });
+  ASSERT_TRUE(sent) << r.output;
+  EXPECT_EQ(r.exit_code, 1) << "the task must fail\n" << r.output;
+  EXPECT_NE(r.output.find("EMERGENCY STOP: robot brought to a standstill: test"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("emergency stop engaged"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("pose 3/3 reached"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("killed"), std::string::npos) << r.output;
+  EXPECT_TRUE(mrroc_processes().empty());
+}
+
 TEST(LaunchDemo, ConfigTypoStartsNothing) {
   const fs::path dir = fs::temp_directory_path() / ("mrroc-typo-" + std::to_string(getpid()));
   fs::create_directories(dir);

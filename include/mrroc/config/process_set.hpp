@@ -79,6 +79,7 @@ inline std::string ecp_command(const std::string& robot) { return robot + "/ecp/
 inline std::string ecp_reply(const std::string& robot) { return robot + "/ecp/reply"; }
 inline constexpr const char* srp = "mrroc/srp";
 inline constexpr const char* status = "mrroc/status";
+inline constexpr const char* emergency_stop = "mrroc/estop";
 }  // namespace channels
 
 }  // namespace mrroc

@@ -80,6 +80,7 @@ inline constexpr int out_of_limits = 6;      ///< the path leaves a joint or mot
 inline constexpr int bad_argument = 7;       ///< wrong size, steps, representation not supported
 inline constexpr int hardware_fault = 8;     ///< the hardware plugin reported a fault
 inline constexpr int not_supported = 9;      ///< valid instruction that this EDP does not support
+inline constexpr int emergency_stop = 10;    ///< motion refused: emergency stop engaged
 }  // namespace error_code
 
 struct Reply {

@@ -88,7 +88,8 @@ class Generator {
 
 /// Move on the MP level: each macro-step sends NEXT_POSE to every commanded robot at once (one
 /// thread per robot) and waits for all replies before the next step; ends every robot's motion
-/// with END_MOTION. @throws EcpFailed / TimeoutError from any robot (the others are stopped).
+/// with END_MOTION. @throws EcpFailed / TimeoutError from any robot (END_MOTION is sent to every
+/// robot first: their EDPs finish the macro-step they run and hold).
 void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator);
 
 /// Wait on the MP level: refreshes the sensor images until `condition` holds.

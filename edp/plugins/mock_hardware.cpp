@@ -1,0 +1,121 @@
+// Two test plugins: "mock" mirrors every command (the axes are exactly where they were told to
+// be one cycle earlier), and "faulty", a mock that injects a fault after a number of cycles
+// (a fault status, or an exception) to test the EDP's fault handling.
+//
+// Parameters ([robot.edp.params]):
+//   mock:   power_on_offset (rad, default 0.05): power-on position relative to the synchronisation
+//           position on every axis.
+//   faulty: the same, plus fault_after_cycles (default 100) and fault = "status" | "throw".
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <stdexcept>
+
+#include "mrroc/core/error.hpp"
+#include "mrroc/edp/hardware.hpp"
+
+namespace mrroc::edp {
+
+class MockHardware : public Hardware {
+ public:
+  std::string name() const override { return "mock"; }
+  std::size_t axis_count() const override { return axes_; }
+
+  void configure(const HardwareSetup& setup) override {
+    const Params params = setup.params;
+    configure_params(params);
+    params.reject_unread("robot.edp.params");
+    if (setup.synchro_positions.empty())
+      throw HardwareError(fmt::format("{}: no synchronisation positions for robot '{}'", name(),
+                                      setup.robot));
+    axes_ = setup.synchro_positions.size();
+    synchro_ = setup.synchro_positions;
+    power_on_.resize(axes_);
+    for (std::size_t i = 0; i < axes_; ++i) power_on_[i] = synchro_[i] + offset_;
+    raw_.assign(axes_, 0.0);
+    velocity_.assign(axes_, 0.0);
+    period_ = setup.servo_period_s;
+  }
+  void activate() override {
+    raw_.assign(axes_, 0.0);
+    velocity_.assign(axes_, 0.0);
+    active_ = true;
+  }
+  void deactivate() override { active_ = false; }
+
+  CycleStatus read(std::span<AxisFeedback> out) override {
+    for (std::size_t i = 0; i < axes_ && i < out.size(); ++i) {
+      out[i].position = raw_[i];
+      out[i].velocity = velocity_[i];
+      out[i].synchro_switch = power_on_[i] + raw_[i] > synchro_[i];
+    }
+    return CycleStatus::ok;
+  }
+  CycleStatus write(std::span<const double> setpoints) override {
+    if (!active_) return CycleStatus::fault;
+    for (std::size_t i = 0; i < axes_ && i < setpoints.size(); ++i) {
+      velocity_[i] = (setpoints[i] - raw_[i]) / period_;
+      raw_[i] = setpoints[i];
+    }
+    return CycleStatus::ok;
+  }
+
+ protected:
+  virtual void configure_params(const Params& params) {
+    offset_ = params.get_double("power_on_offset", 0.05);
+  }
+
+ private:
+  std::size_t axes_ = 0;
+  double offset_ = 0.05;
+  double period_ = 0.002;
+  bool active_ = false;
+  std::vector<double> synchro_, power_on_, raw_, velocity_;
+};
+
+class FaultyHardware : public MockHardware {
+ public:
+  std::string name() const override { return "faulty"; }
+  void activate() override {
+    MockHardware::activate();
+    cycles_ = 0;
+    faulted_ = false;
+    ++activations_;
+  }
+  CycleStatus read(std::span<AxisFeedback> out) override {
+    // Each activation injects one fault, after fault_after_cycles reads; after a reset the
+    // plugin keeps working (the fault was transient).
+    if (activations_ == 1 && ++cycles_ > fault_after_ && !faulted_) {
+      faulted_ = true;
+      if (throw_) throw std::runtime_error("injected exception in read()");
+    }
+    if (faulted_ && activations_ == 1) return CycleStatus::fault;
+    return MockHardware::read(out);
+  }
+  std::string fault_text() const override {
+    return fmt::format("faulty: injected drive fault after {} cycles", fault_after_);
+  }
+
+ protected:
+  void configure_params(const Params& params) override {
+    MockHardware::configure_params(params);
+    fault_after_ = params.get_int("fault_after_cycles", 100);
+    const std::string kind = params.get_string("fault", "status");
+    if (kind != "status" && kind != "throw")
+      throw ConfigError(fmt::format("{}: error: fault '{}' must be \"status\" or \"throw\"",
+                                    params.location_of("fault").str(), kind));
+    throw_ = kind == "throw";
+  }
+
+ private:
+  std::int64_t fault_after_ = 100;
+  std::int64_t cycles_ = 0;
+  int activations_ = 0;
+  bool throw_ = false;
+  bool faulted_ = false;
+};
+
+MRROC_REGISTER_HARDWARE("mock", MockHardware);
+MRROC_REGISTER_HARDWARE("faulty", FaultyHardware);
+
+}  // namespace mrroc::edp

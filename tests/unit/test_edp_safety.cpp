@@ -1,0 +1,205 @@
+// EDP safety: emergency stop and a lost ECP bring the robot to a standstill within its
+// acceleration limits and hold it; plugin faults (a fault status or an exception) hold the
+// robot, refuse motion, and are reset by SYNCHRO.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "command_interpreter.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
+#include "mrroc/edp/hardware.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "servo_loop.hpp"
+
+using namespace mrroc;
+using namespace mrroc::edp;
+
+namespace {
+
+constexpr double kPeriod = 0.002;
+
+class Edp {
+ public:
+  explicit Edp(const std::string& plugin, Params params = {}) {
+    model_ = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+    hardware_ = make_hardware(plugin);
+    HardwareSetup setup;
+    setup.robot = "irb6";
+    setup.model_dir = model_.folder;
+    setup.servo_period_s = kPeriod;
+    setup.synchro_positions = model_.synchro_joint_positions;
+    setup.params = std::move(params);
+    hardware_->configure(setup);
+    servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
+    servo_->enable_trace(20000);
+    servo_->start();
+    kinematics_ = make_arm_kinematics(model_);
+    interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
+  }
+  ~Edp() { servo_->stop(); }
+
+  Reply exec(const Instruction& in) { return interpreter_->execute(in); }
+  Reply query() {
+    Instruction q;
+    q.type = InstructionType::query;
+    return exec(q);
+  }
+  Reply synchronise() {
+    Instruction s;
+    s.type = InstructionType::synchro;
+    const Reply r = exec(s);
+    if (r.type == ReplyType::error) return r;
+    return query();
+  }
+  Reply set_joints(std::vector<double> q, int steps, int value) {
+    Instruction in;
+    in.type = InstructionType::set;
+    in.set = item::arm;
+    in.set_arm_type = ArmRepresentation::joint;
+    in.motion_steps = steps;
+    in.value_in_step_no = value;
+    in.arm = std::move(q);
+    return exec(in);
+  }
+  /// Commanded joint velocities of the trace from cycle `from` on [rad/s].
+  std::vector<std::vector<double>> velocities(std::int64_t from) {
+    std::vector<std::vector<double>> out;
+    const auto trace = servo_->trace();
+    for (std::size_t i = 1; i < trace.size(); ++i) {
+      if (trace[i].cycle < from || !trace[i].synchronised || !trace[i - 1].synchronised) continue;
+      std::vector<double> v(model_.axes());
+      for (std::size_t j = 0; j < v.size(); ++j)
+        v[j] = (trace[i].desired[j] - trace[i - 1].desired[j]) / kPeriod;
+      out.push_back(v);
+    }
+    return out;
+  }
+
+  RobotModel model_;
+  std::unique_ptr<Hardware> hardware_;
+  std::unique_ptr<ServoLoop> servo_;
+  std::unique_ptr<ArmKinematics> kinematics_;
+  std::unique_ptr<CommandInterpreter> interpreter_;
+};
+
+/// Checks a deceleration: no step changes a joint's velocity by more than its maximum
+/// acceleration allows, and the robot ends at rest. Returns the number of cycles to rest.
+int check_stop(const std::vector<std::vector<double>>& v, const RobotModel& model) {
+  int to_rest = -1;
+  for (std::size_t k = 1; k < v.size(); ++k) {
+    bool rest = true;
+    for (std::size_t j = 0; j < model.axes(); ++j) {
+      EXPECT_LE(std::abs(v[k][j] - v[k - 1][j]), model.max_acceleration[j] * kPeriod * 1.0001)
+          << "cycle " << k << " joint " << j;
+      rest = rest && v[k][j] == 0.0;
+    }
+    if (rest && to_rest < 0) to_rest = static_cast<int>(k);
+  }
+  EXPECT_GE(to_rest, 0) << "never came to rest";
+  for (std::size_t k = static_cast<std::size_t>(std::max(to_rest, 0)); k < v.size(); ++k)
+    for (double x : v[k]) EXPECT_EQ(x, 0.0) << "moved again while held";
+  return to_rest;
+}
+
+}  // namespace
+
+TEST(EdpSafety, EmergencyStopDeceleratesWithinLimitsAndHolds) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  q[0] = 1.0;  // 1 rad in 1 s: 1 rad/s on the column
+  ASSERT_EQ(edp.set_joints(q, 500, 501).type, ReplyType::acknowledge);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::int64_t at = edp.servo_->latest().cycle;
+  edp.servo_->emergency_stop();
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  const int cycles = check_stop(edp.velocities(at - 5), edp.model_);
+  // 1 rad/s at 3 rad/s^2 needs about 167 cycles of 2 ms.
+  EXPECT_LT(cycles, 200);
+  std::printf("standstill %d servo steps after the emergency stop\n", cycles);
+  EXPECT_TRUE(edp.servo_->stopped());
+  // The QUERY of the interrupted motion reports an error (its macro-step never ended), and
+  // no motion is accepted until the release.
+  EXPECT_EQ(edp.query().type, ReplyType::error);
+  Reply r = edp.set_joints(edp.model_.synchro_joint_positions, 100, 101);
+  EXPECT_EQ(r.error_code, error_code::emergency_stop) << r.error_text;
+  edp.servo_->release_emergency_stop();
+  r = edp.set_joints(edp.model_.synchro_joint_positions, 300, 301);
+  ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
+  EXPECT_EQ(edp.query().type, ReplyType::data);
+}
+
+TEST(EdpSafety, LostEcpBringsTheRobotToAStandstill) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  q[0] = 0.01;  // 0.5 rad/s, with the reading one step early: a successor is promised
+  const std::int64_t at = edp.servo_->latest().cycle;
+  ASSERT_EQ(edp.set_joints(q, 10, 9).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.query().type, ReplyType::data);
+  // ... and never sent.
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_EQ(edp.servo_->lost_successors(), 1);
+  const auto v = edp.velocities(at);
+  std::size_t first = 0;
+  while (first < v.size() && v[first][0] == 0.0) ++first;
+  ASSERT_LT(first, v.size());
+  // The constant-velocity macro-step, then a ramp down instead of a dead stop.
+  const std::vector<std::vector<double>> tail(v.begin() + static_cast<long>(first) + 9, v.end());
+  const int cycles = check_stop(tail, edp.model_);
+  EXPECT_GT(cycles, 10) << "stopped dead instead of decelerating";
+  EXPECT_TRUE(edp.servo_->stopped());
+  // The ECP may carry on afterwards.
+  ASSERT_EQ(edp.set_joints(edp.model_.synchro_joint_positions, 100, 101).type,
+            ReplyType::acknowledge);
+  EXPECT_EQ(edp.query().type, ReplyType::data);
+}
+
+TEST(EdpSafety, MockPluginMirrorsCommands) {
+  Edp edp("mock");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::vector<double> q = {0.2, -1.4, 0.1, 0.3, -0.5};
+  ASSERT_EQ(edp.set_joints(q, 50, 51).type, ReplyType::acknowledge);
+  const Reply r = edp.query();
+  ASSERT_EQ(r.type, ReplyType::data);
+  for (std::size_t j = 0; j < q.size(); ++j) EXPECT_NEAR(r.joints[j], q[j], 1e-9);
+}
+
+class PluginFaults : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(PluginFaults, FaultHoldsRefusesAndSynchroResets) {
+  Params params;
+  params.set("fault_after_cycles", std::int64_t{400}, {});
+  params.set("fault", std::string(GetParam()), {});
+  Edp edp("faulty", params);
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  // A long motion, interrupted by the fault.
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  q[0] = 0.5;
+  ASSERT_EQ(edp.set_joints(q, 1000, 1001).type, ReplyType::acknowledge);
+  Reply r = edp.query();
+  EXPECT_EQ(r.type, ReplyType::error);
+  EXPECT_EQ(r.error_code, error_code::hardware_fault) << r.error_text;
+  ASSERT_TRUE(edp.servo_->faulted());
+  std::printf("fault (%s): %s\n", GetParam(), edp.servo_->fault_text().c_str());
+  const std::string expected =
+      std::string(GetParam()) == "throw" ? "plugin threw in read(): injected exception" : "injected drive fault";
+  EXPECT_NE(edp.servo_->fault_text().find(expected), std::string::npos);
+  // Held and refusing motion.
+  r = edp.set_joints(edp.model_.synchro_joint_positions, 100, 101);
+  EXPECT_EQ(r.error_code, error_code::hardware_fault);
+  EXPECT_NE(r.error_text.find("SYNCHRO resets"), std::string::npos) << r.error_text;
+  // SYNCHRO resets the fault and synchronises again; motion works afterwards.
+  r = edp.synchronise();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_TRUE(r.synchronised);
+  EXPECT_FALSE(edp.servo_->faulted());
+  ASSERT_EQ(edp.set_joints(q, 100, 101).type, ReplyType::acknowledge);
+  r = edp.query();
+  ASSERT_EQ(r.type, ReplyType::data);
+  EXPECT_NEAR(r.joints[0], 0.5, 1e-9);
+}
+
+INSTANTIATE_TEST_SUITE_P(StatusAndException, PluginFaults, ::testing::Values("status", "throw"));

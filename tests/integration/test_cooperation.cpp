@@ -139,3 +139,19 @@ TEST(Cooperation, TightTwoRobotsKeepTheBarRigid) {
   ASSERT_TRUE(std::regex_search(r.output, m, steps));
   EXPECT_GT(std::stoi(m[1]), 100) << "the MP must generate the trajectory macro-step by macro-step";
 }
+
+TEST(Cooperation, RntEngravesMrrocOnTheStrokes) {
+  const std::string file = (kSource / "configs/engrave-rnt.toml").string();
+  const RunResult r = launch(file);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::regex report(
+      "engraved 'MRROC': ([0-9]+) strokes, ([0-9]+) cutting samples, cutter tip within ([0-9.]+) "
+      "mm of the strokes");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, report)) << r.output;
+  EXPECT_GT(std::stoi(m[1]), 30);
+  EXPECT_GT(std::stoi(m[2]), 200) << "too few samples in the wood to judge the engraving";
+  EXPECT_LT(std::stod(m[3]), 0.5);
+  std::printf("engraving: %s strokes, %s samples, within %s mm\n", m[1].str().c_str(),
+              m[2].str().c_str(), m[3].str().c_str());
+}

@@ -1,0 +1,196 @@
+// Stock ECP task "engrave": the RNT's demonstration task of the paper. Engraves a text with a
+// milling cutter on a horizontal board, stroke by stroke, with the stock Cartesian path
+// generator (lift, plunge to the cutting depth, follow the stroke, lift). While cutting it
+// records the measured joints of every macro-step, computes the cutter tip from them, and fails
+// when the tip strayed from the intended strokes by more than the tolerance.
+//
+// [robot.ecp.args]: text (letters of the stroke font: C, M, O, R), origin = [x, y, z] (the
+// text's lower-left corner on the board surface [m]), letter_height, letter_width, spacing,
+// depth (below the surface), lift (above it), cutter (tool length along the flange z axis),
+// speed [m/s], acceleration [m/s^2], tolerance [m], servo_algorithm (1: velocity feed-forward).
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <map>
+
+#include "mrroc/ecp/errors.hpp"
+#include "mrroc/ecp/generators/cartesian_path.hpp"
+#include "mrroc/ecp/task.hpp"
+
+namespace mrroc::ecp {
+
+namespace {
+
+using Stroke = std::vector<Eigen::Vector2d>;  // (u along the text, v up the letter), unit box
+
+std::vector<Stroke> arc_stroke(double from_deg, double to_deg, int pieces) {
+  Stroke s;
+  for (int i = 0; i <= pieces; ++i) {
+    const double a = (from_deg + (to_deg - from_deg) * i / pieces) * M_PI / 180.0;
+    s.emplace_back(0.5 + 0.5 * std::cos(a), 0.5 + 0.5 * std::sin(a));
+  }
+  return {s};
+}
+
+const std::map<char, std::vector<Stroke>>& font() {
+  static const std::map<char, std::vector<Stroke>> f = {
+      {'M', {{{0, 0}, {0, 1}, {0.5, 0.45}, {1, 1}, {1, 0}}}},
+      {'R', {{{0, 0}, {0, 1}, {0.7, 1}, {1, 0.85}, {1, 0.65}, {0.7, 0.5}, {0, 0.5}},
+             {{0.45, 0.5}, {1, 0}}}},
+      {'O', arc_stroke(0, 360, 12)},
+      {'C', arc_stroke(45, 315, 9)},
+  };
+  return f;
+}
+
+/// Records the measured joints after every exchange of the wrapped generator.
+class Recording : public Generator {
+ public:
+  Recording(Generator& inner, std::vector<std::vector<double>>& samples)
+      : inner_(inner), samples_(samples) {}
+  bool first_step(RobotImage& robot, const SensorList& sensors) override {
+    return inner_.first_step(robot, sensors);
+  }
+  bool next_step(RobotImage& robot, const SensorList& sensors) override {
+    samples_.push_back(robot.joints);
+    return inner_.next_step(robot, sensors);
+  }
+
+ private:
+  Generator& inner_;
+  std::vector<std::vector<double>>& samples_;
+};
+
+double distance_to_segment(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                           const Eigen::Vector3d& b) {
+  const Eigen::Vector3d ab = b - a;
+  const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-18), 0.0, 1.0);
+  return (a + t * ab - p).norm();
+}
+
+}  // namespace
+
+class Engrave : public EcpTask {
+ public:
+  explicit Engrave(TaskContext& context) : context_(context) {
+    const Params& a = context.args;
+    text_ = a.get_string("text", "MRROC");
+    const auto origin = a.get_doubles("origin");
+    height_ = a.get_double("letter_height", 0.04);
+    width_ = a.get_double("letter_width", 0.03);
+    spacing_ = a.get_double("spacing", 0.012);
+    depth_ = a.get_double("depth", 0.002);
+    lift_ = a.get_double("lift", 0.01);
+    cutter_ = a.get_double("cutter", 0.15);
+    speed_ = a.get_double("speed", 0.06);
+    tolerance_ = a.get_double("tolerance", 0.001);
+    acceleration_ = a.get_double("acceleration", 1.0);
+    servo_algorithm_ = a.get_int("servo_algorithm", 1);
+    a.reject_unread("robot.ecp.args");
+    if (origin.size() != 3)
+      throw ConfigError(fmt::format("{}: error: 'origin' must be [x, y, z] (m)",
+                                    a.location_of("origin").str()));
+    origin_ = Eigen::Vector3d(origin[0], origin[1], origin[2]);
+    for (char c : text_)
+      if (c != ' ' && font().count(c) == 0)
+        throw ConfigError(fmt::format("{}: error: letter '{}' is not in the stroke font (C, M, O, "
+                                      "R, space)",
+                                      a.location_of("text").str(), c));
+  }
+
+  void main_task() override {
+    Robot& robot = context_.robot;
+    robot.synchronise();
+    // Servo algorithm 1 (velocity feed-forward) where the plugin has it: the cutter follows
+    // the strokes without the lag of a plain position servo.
+    {
+      edp::Instruction& c = robot.image().command;
+      c = edp::Instruction{};
+      c.type = edp::InstructionType::set;
+      c.set = edp::item::servo;
+      c.servo_algorithm.assign(robot.model().axes(), static_cast<std::int8_t>(servo_algorithm_));
+      c.servo_parameters_no.assign(robot.model().axes(), 0);
+      robot.execute();
+    }
+    auto kinematics = edp::make_arm_kinematics(robot.model());
+    Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+    tool.translation() = Eigen::Vector3d(0, 0, cutter_);
+    kinematics->set_tool(tool);
+    // Keep the cutter's orientation of the synchronisation pose (pointing down) all the way.
+    const Eigen::Matrix3d down = kinematics->forward(robot.image().desired_joints).linear();
+
+    std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> cuts;  // intended, at depth
+    std::vector<std::vector<double>> samples;
+    int letter = 0;
+    for (char c : text_) {
+      const double u0 = letter++ * (width_ + spacing_);
+      if (c == ' ') continue;
+      std::vector<CartesianSegment> segments;
+      auto at = [&](const Eigen::Vector2d& p, double dz) {
+        Eigen::Isometry3d f = Eigen::Isometry3d::Identity();
+        f.linear() = down;
+        // Text along +y, letters upright along -x (read from the robot's side of the board).
+        f.translation() = origin_ + Eigen::Vector3d(-p.y() * height_, u0 + p.x() * width_, dz);
+        return f;
+      };
+      for (const Stroke& stroke : font().at(c)) {
+        segments.push_back(CartesianSegment::line_to(at(stroke.front(), lift_)));
+        segments.push_back(CartesianSegment::line_to(at(stroke.front(), -depth_)));
+        for (std::size_t i = 1; i < stroke.size(); ++i) {
+          segments.push_back(CartesianSegment::line_to(at(stroke[i], -depth_)));
+          cuts.emplace_back(at(stroke[i - 1], -depth_).translation(),
+                            at(stroke[i], -depth_).translation());
+        }
+        segments.push_back(CartesianSegment::line_to(at(stroke.back(), lift_)));
+      }
+      CartesianOptions options;
+      options.tool = tool;
+      options.max_linear_velocity = speed_;
+      options.max_linear_acceleration = acceleration_;
+      options.servo_period_s = context_.servo_period_s;
+      CartesianPathGenerator generator(robot.model(), segments, options);
+      Recording recording(generator, samples);
+      Move(robot, {}, recording);
+      context_.reporter.info(fmt::format("letter '{}' engraved", c));
+    }
+
+    // Wherever the cutter is in the wood (below half the depth), its tip must lie on an
+    // intended stroke, in the board's plane (the groove's path; plunges and lifts are vertical).
+    double worst = 0.0;
+    int cutting = 0;
+    auto flat = [](Eigen::Vector3d v) {
+      v.z() = 0.0;
+      return v;
+    };
+    for (const auto& q : samples) {
+      const Eigen::Vector3d tip = kinematics->forward(q).translation();
+      if (tip.z() > origin_.z() - depth_ / 2) continue;
+      ++cutting;
+      double nearest = 1e9;
+      for (const auto& [a, b] : cuts)
+        nearest = std::min(nearest, distance_to_segment(flat(tip), flat(a), flat(b)));
+      worst = std::max(worst, nearest);
+    }
+    context_.reporter.info(fmt::format(
+        "engraved '{}': {} strokes, {} cutting samples, cutter tip within {:.3f} mm of the "
+        "strokes in the board's plane (tolerance {:.3f} mm)",
+        text_, cuts.size(), cutting, worst * 1e3, tolerance_ * 1e3));
+    if (cutting == 0) throw FatalError("the cutter never reached the cutting depth");
+    if (worst > tolerance_)
+      throw FatalError(fmt::format("the engraving left its strokes by {:.3f} mm (tolerance {:.3f} "
+                                   "mm)",
+                                   worst * 1e3, tolerance_ * 1e3));
+  }
+
+ private:
+  TaskContext& context_;
+  std::string text_;
+  Eigen::Vector3d origin_;
+  double height_, width_, spacing_, depth_, lift_, cutter_, speed_, tolerance_, acceleration_;
+  std::int64_t servo_algorithm_ = 1;
+};
+
+MRROC_REGISTER_ECP_TASK("engrave", Engrave);
+
+}  // namespace mrroc::ecp

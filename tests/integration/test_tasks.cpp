@@ -15,24 +15,62 @@ namespace {
 
 using namespace mrroc;
 
-/// ECP task "fail": throws an error of the class given in `class` for the first `times` runs in
-/// this ECP process, then succeeds.
+/// A generator that moves the column and throws from next_step in its 20th macro-step, while
+/// the robot is moving.
+class ThrowingGenerator : public ecp::Generator {
+ public:
+  ThrowingGenerator(std::string error_class, int run) : class_(std::move(error_class)), run_(run) {}
+  bool first_step(ecp::RobotImage& robot, const ecp::SensorList& sensors) override {
+    start_ = robot.desired_joints;
+    return next_step(robot, sensors);
+  }
+  bool next_step(ecp::RobotImage& robot, const ecp::SensorList&) override {
+    if (++step_ == 20) {
+      const std::string text = fmt::format("deliberate {} error, run {}", class_, run_);
+      if (class_ == "non_fatal") throw ecp::NonFatalError(text, 201);
+      if (class_ == "fatal") throw ecp::FatalError(text, 202);
+      throw ecp::SystemError(text, 203);
+    }
+    auto& c = robot.command;
+    c = edp::Instruction{};
+    c.type = edp::InstructionType::set;
+    c.set = edp::item::arm;
+    c.set_arm_type = edp::ArmRepresentation::joint;
+    c.motion_steps = 10;
+    c.value_in_step_no = 9;
+    c.arm = start_;
+    c.arm[0] += 0.002 * step_;  // 0.1 rad/s
+    return true;
+  }
+
+ private:
+  std::string class_;
+  int run_;
+  int step_ = 0;
+  std::vector<double> start_;
+};
+
+/// ECP task "fail": a Move whose generator throws an error of the class given in `class`, for
+/// the first `times` runs in this ECP process; later runs succeed.
 class Fail : public ecp::EcpTask {
  public:
   explicit Fail(ecp::TaskContext& context)
-      : class_(context.args.get_string("class")), times_(context.args.get_int("times", 1)) {
+      : context_(context),
+        class_(context.args.get_string("class")),
+        times_(context.args.get_int("times", 1)) {
     context.args.reject_unread("fail arguments");
   }
   void main_task() override {
     static std::atomic<int> runs{0};
-    if (runs++ >= times_) return;
-    const std::string text = fmt::format("deliberate {} error, run {}", class_, runs.load());
-    if (class_ == "non_fatal") throw ecp::NonFatalError(text, 201);
-    if (class_ == "fatal") throw ecp::FatalError(text, 202);
-    throw ecp::SystemError(text, 203);
+    const int run = ++runs;
+    if (run > times_) return;
+    context_.robot.synchronise();
+    ThrowingGenerator generator(class_, run);
+    ecp::Move(context_.robot, {}, generator);
   }
 
  private:
+  ecp::TaskContext& context_;
   std::string class_;
   std::int64_t times_;
 };

@@ -53,9 +53,10 @@ int run(const std::string& config_path, const std::string& robot_name) {
     hardware->configure(setup);
 
     const std::string memory = lock_memory();
-    edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
-    servo.start();
     const std::unique_ptr<edp::ArmKinematics> kinematics = edp::make_arm_kinematics(model);
+    edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
+    servo.set_limit_guard(kinematics.get());
+    servo.start();
     edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
     comm::EdpServer server(bus, process, channels::edp_command(robot.name),
                            channels::edp_reply(robot.name));

@@ -263,14 +263,25 @@ void ServoLoop::cycle() {
 
 void ServoLoop::stop_cycle() {
   // Decelerate every axis at its maximum acceleration, never past a joint limit.
+  // The ramp goes on past the last target, where no limit was checked: a step that would leave
+  // a joint, linkage or motor limit ends the ramp where it is (the robot never leaves them).
   bool moving = false;
+  bool inside = true;
   for (std::size_t i = 0; i < axes_; ++i) {
     double v = commanded_velocity_[i];
     const double dv = model_.max_acceleration[i] * period_s_;
     v = std::abs(v) <= dv ? 0.0 : v - std::copysign(dv, v);
-    desired_[i] = std::clamp(desired_[i] + v * period_s_, model_.lower_limits[i],
-                             model_.upper_limits[i]);
+    proposal_[i] = desired_[i] + v * period_s_;
+    inside = inside && proposal_[i] >= model_.lower_limits[i] &&
+             proposal_[i] <= model_.upper_limits[i];
     moving = moving || v != 0.0;
+  }
+  if (inside && guard_ != nullptr) inside = guard_->within_limits(std::span(proposal_.data(), axes_));
+  if (inside) {
+    for (std::size_t i = 0; i < axes_; ++i) desired_[i] = proposal_[i];
+  } else {
+    moving = false;
+    ++limit_stops_;
   }
   if (!moving) {
     mode_ = Mode::hold;

@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
@@ -94,6 +95,10 @@ class ServoLoop {
   [[nodiscard]] bool moving() const;
   /// True when nothing is queued or running and the commanded velocity is zero.
   [[nodiscard]] bool stopped() const;
+
+  /// Limits the stopping ramp must respect (besides the model's joint limits): a ramp step that
+  /// would leave them ends the ramp where it is. Set before start(); may be null.
+  void set_limit_guard(const ArmKinematics* guard) { guard_ = guard; }
 
   /// Emergency stop: drops the queued motion, decelerates every axis at its maximum
   /// acceleration (never past a joint limit) to a standstill and holds; no motion is accepted
@@ -172,6 +177,9 @@ class ServoLoop {
   Reading delivered_;  ///< the last reading requested by a macro-step
   AxisArray desired_{};  ///< joint coordinates (raw before synchronisation)
   AxisArray commanded_velocity_{};  ///< of desired_ over the last cycle [rad/s]
+  AxisArray proposal_{};            ///< next position of the stopping ramp
+  const ArmKinematics* guard_ = nullptr;
+  std::int64_t limit_stops_ = 0;  ///< stopping ramps ended at a limit
   bool emergency_stop_ = false;
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;

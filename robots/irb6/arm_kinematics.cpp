@@ -38,6 +38,18 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
     robots::irb6::check_joint_limits(axes_from_values(q, what), what);
   }
 
+  bool within_limits(std::span<const double> q) const noexcept override {
+    if (q.size() != kAxes) return false;
+    JointPosition joints{};
+    std::copy(q.begin(), q.end(), joints.begin());
+    try {  // the checks throw (and allocate) only for a position outside a limit
+      robots::irb6::check_joint_limits(joints, "position");
+      robots::irb6::check_motor_limits(robots::irb6::motors_from_joints(joints), "position");
+    } catch (...) {
+      return false;
+    }
+    return true;
+  }
   bool cartesian() const override { return true; }
   Eigen::Isometry3d forward(std::span<const double> q) const override {
     return solver_.forward(axes_from_values(q, "joints"));

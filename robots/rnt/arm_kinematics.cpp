@@ -53,6 +53,18 @@ class RntArmKinematics : public edp::ArmKinematics {
     rnt::check_limits(axes_of(q, what), what);  // adds the parallelogram's q1 + q2 range
   }
 
+  bool within_limits(std::span<const double> q) const noexcept override {
+    if (q.size() != kAxes) return false;
+    JointPosition joints{};
+    std::copy(q.begin(), q.end(), joints.begin());
+    try {  // the checks throw (and allocate) only for a position outside a limit
+      rnt::check_limits(joints, "position");
+      rnt::check_motor_limits(rnt::motors_from_joints(joints), "position");
+    } catch (...) {
+      return false;
+    }
+    return true;
+  }
   bool cartesian() const override { return true; }
   Eigen::Isometry3d forward(std::span<const double> q) const override {
     return corrector_ * solver().forward({q.begin(), q.end()}) * tool_;

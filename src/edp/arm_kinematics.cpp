@@ -39,6 +39,12 @@ class JointOnlyKinematics : public ArmKinematics {
   void check_joint_limits(std::span<const double> q, const char* what) const override {
     model_.check_joint_limits({q.begin(), q.end()}, what);
   }
+  bool within_limits(std::span<const double> q) const noexcept override {
+    if (q.size() != model_.axes()) return false;
+    for (std::size_t i = 0; i < q.size(); ++i)
+      if (!(q[i] >= model_.lower_limits[i] && q[i] <= model_.upper_limits[i])) return false;
+    return true;
+  }
   bool cartesian() const override { return false; }
   Eigen::Isometry3d forward(std::span<const double>) const override { unsupported(); }
   std::vector<double> inverse(const Eigen::Isometry3d&, std::span<const double>) const override {

@@ -288,3 +288,27 @@ TEST(LaunchDemo, RntDemoRunsToTheEnd) {
   std::printf("RNT demo finished in %.2f s\n", r.seconds);
   EXPECT_TRUE(mrroc_processes().empty());
 }
+
+TEST(LaunchDemo, LossyAndDuplicatingLinksStillReachTheSameFinalPose) {
+  // Every request and reply on every link of every process: 10% dropped, 10% sent twice.
+  ::setenv("MRROC_LINK_FAULTS", "drop=0.1,duplicate=0.1,seed=11", 1);
+  const ProcessSetConfig config = load_process_set(demo_config());
+  const auto poses = config.robots[0].ecp.args.get_double_rows("poses");
+  comm::Bus bus(config.lcm_url);
+  EdpReplyRecorder recorder(bus, "irb6");
+  bus.start();
+  const RunResult r = run({launcher(), demo_config()}, 120.0);
+  bus.stop();
+  ::unsetenv("MRROC_LINK_FAULTS");
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const auto replies = recorder.replies();
+  const edp::Reply* last = nullptr;
+  for (const auto& reply : replies)
+    if (reply.type == edp::ReplyType::data) last = &reply;
+  ASSERT_NE(last, nullptr);
+  for (std::size_t j = 0; j < poses.back().size(); ++j)
+    EXPECT_NEAR(last->joints[j], poses.back()[j], 2e-3) << "joint " << j;
+  std::printf("demo over lossy links finished in %.2f s\n", r.seconds);
+  EXPECT_TRUE(mrroc_processes().empty());
+}

@@ -32,9 +32,10 @@ class RntEdpTest : public ::testing::Test {
     setup.servo_period_s = kPeriod;
     setup.synchro_positions = model_.synchro_joint_positions;
     hardware_->configure(setup);
-    servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
-    servo_->start();
     kinematics_ = make_arm_kinematics(model_);
+    servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
+    servo_->set_limit_guard(kinematics_.get());
+    servo_->start();
     interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
     Instruction s;
     s.type = InstructionType::synchro;

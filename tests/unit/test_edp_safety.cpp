@@ -32,10 +32,11 @@ class Edp {
     setup.synchro_positions = model_.synchro_joint_positions;
     setup.params = std::move(params);
     hardware_->configure(setup);
+    kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
+    servo_->set_limit_guard(kinematics_.get());
     servo_->enable_trace(20000);
     servo_->start();
-    kinematics_ = make_arm_kinematics(model_);
     interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
   }
   ~Edp() { servo_->stop(); }
@@ -203,3 +204,51 @@ TEST_P(PluginFaults, FaultHoldsRefusesAndSynchroResets) {
 }
 
 INSTANTIATE_TEST_SUITE_P(StatusAndException, PluginFaults, ::testing::Values("status", "throw"));
+
+TEST(EdpSafety, StoppingRampNeverLeavesALimit) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  // Find, by bisection, where the lower and upper arm moving down together first meet a limit
+  // (joint, linkage or motor: whichever binds), then stop 0.02 rad before it.
+  const std::vector<double> sync = edp.model_.synchro_joint_positions;
+  const std::vector<double> direction = {0.0, -1.0, -1.0, 0.0, 0.0};
+  auto along = [&](double t) {
+    std::vector<double> q = sync;
+    for (std::size_t j = 0; j < q.size(); ++j) q[j] += t * direction[j];
+    return q;
+  };
+  double inside = 0.0;
+  double outside = 2.0;
+  ASSERT_FALSE(edp.kinematics_->within_limits(along(outside)));
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (inside + outside);
+    (edp.kinematics_->within_limits(along(mid)) ? inside : outside) = mid;
+  }
+  const std::vector<double> near_limit = along(inside - 0.02);
+  const std::vector<double> away = along(inside - 0.32);
+  Reply r = edp.set_joints(away, 400, 401);
+  ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
+  ASSERT_EQ(edp.query().type, ReplyType::data);
+  const std::int64_t from = edp.servo_->latest().cycle;
+  // Towards the limit at 0.75 rad/s, promising a successor that never comes: the ramp alone
+  // would carry the arm 0.14 rad further, past the limit.
+  r = edp.set_joints(near_limit, 200, 199);
+  ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
+  ASSERT_EQ(edp.query().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_EQ(edp.servo_->lost_successors(), 1);
+  EXPECT_TRUE(edp.servo_->stopped());
+  int checked = 0;
+  for (const auto& t : edp.servo_->trace()) {
+    if (t.cycle < from) continue;
+    ++checked;
+    const std::vector<double> desired(t.desired.begin(), t.desired.begin() + 5);
+    EXPECT_TRUE(edp.kinematics_->within_limits(desired)) << "cycle " << t.cycle;
+  }
+  EXPECT_GT(checked, 200);
+  // The ramp was cut short at the limit: the arm stands within one ramp step of it.
+  const Reading now = edp.servo_->latest();
+  const double reached = sync[1] - now.desired[1];
+  EXPECT_NEAR(reached, inside, 0.01);
+  std::printf("limit at %.4f rad along the path; stopped at %.4f rad\n", inside, reached);
+}

@@ -52,10 +52,11 @@ class EdpTest : public ::testing::Test {
     setup.servo_period_s = kPeriod;
     setup.synchro_positions = model_.synchro_joint_positions;
     hardware_->configure(setup);
+    kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
+    servo_->set_limit_guard(kinematics_.get());
     servo_->enable_trace(20000);
     servo_->start();
-    kinematics_ = make_arm_kinematics(model_);
     interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
   }
   void TearDown() override {

@@ -17,6 +17,11 @@ struct LinkFaults {
   [[nodiscard]] bool active() const { return drop > 0.0 || duplicate > 0.0; }
 };
 
+/// Link faults for every link of the process from the environment variable MRROC_LINK_FAULTS,
+/// e.g. "drop=0.1,duplicate=0.05,seed=7" (fault-injection runs of whole process sets); none when
+/// unset. @throws Error naming the variable and the bad value.
+LinkFaults link_faults_from_environment();
+
 /// Decides, per message, how many copies to send (0, 1 or 2). Thread-safe.
 class FaultDice {
  public:

@@ -83,7 +83,7 @@ class Client {
         request_channel_(std::move(request_channel)),
         reply_channel_(std::move(reply_channel)),
         options_(options),
-        dice_(options.faults) {
+        dice_(options.faults.active() ? options.faults : link_faults_from_environment()) {
     subscription_ = bus_.lcm().subscribeFunction<Client*>(reply_channel_, &Client::dispatch, this);
   }
   ~Client() { bus_.lcm().unsubscribe(subscription_); }
@@ -266,8 +266,9 @@ class Server {
          Handler handler = {}, ServerOptions options = {})
       : bus_(bus),
         handler_(std::move(handler)),
-        state_(std::make_shared<State>(&bus, std::move(name), std::move(reply_channel),
-                                       options.faults)) {
+        state_(std::make_shared<State>(
+            &bus, std::move(name), std::move(reply_channel),
+            options.faults.active() ? options.faults : link_faults_from_environment())) {
     subscription_ = bus_.lcm().subscribeFunction<Server*>(request_channel, &Server::dispatch, this);
   }
   ~Server() {

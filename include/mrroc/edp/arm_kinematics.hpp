@@ -31,6 +31,9 @@ class ArmKinematics {
   virtual void check_motor_limits(std::span<const double> m, const char* what) const = 0;
   /// Joint limits including any the linkage adds. @throws CommandError (out_of_limits).
   virtual void check_joint_limits(std::span<const double> q, const char* what) const = 0;
+  /// True when `q` is inside every joint, linkage and motor limit. Thread-safe; used by the
+  /// servo loop's stopping ramp, so it does not allocate for a `q` inside the limits.
+  [[nodiscard]] virtual bool within_limits(std::span<const double> q) const noexcept = 0;
 
   /// True when FRAME / XYZ_EULER_ZYZ / XYZ_ANGLE_AXIS are available.
   [[nodiscard]] virtual bool cartesian() const = 0;

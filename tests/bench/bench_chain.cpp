@@ -4,9 +4,17 @@
 //
 // Value: this program starts the real mrroc-edp (plugin "mujoco", IRb-6, 2 ms servo period) and
 // mrroc-ecp (task "follow_mp") from a generated config, waits for both to report ready, and acts as
-// the MP with mrroc::mp::Robot: START_TASK once (the ECP synchronises the robot), then NEXT_POSE
-// macro-steps of 1 servo step with the reading in step 1 (value_in_step_no = 1), alternating the
-// column between two joint positions 1 mrad apart. Each next_pose() call is timed.
+// the MP with mrroc::mp::Robot: START_TASK once (the ECP synchronises the robot), then timed
+// next_pose() calls, each one NEXT_POSE macro-step in JOINT coordinates:
+//  - B1, paced: isolated macro-steps of 1 servo step, alternating the column between two positions
+//    1 mrad apart, read after the motion stopped (value_in_step_no = motion_steps + 1 = 2): a
+//    macro-step read in its last step (value_in_step_no = motion_steps) promises a successor
+//    within the same servo cycle, which a paced MP never sends, and the EDP then brings the robot
+//    to a standstill on its own;
+//  - B4, unpaced: a continuous motion of the column at 0.05 rad/s in macro-steps of 2 servo steps
+//    read in step 1 (value_in_step_no = 1), each sent as soon as the previous reply arrives, so
+//    that it is queued in the EDP before the running one ends.
+// Other macro-step parameters: bench_chain SAMPLES B1_STEPS B1_VALUE B4_STEPS B4_VALUE.
 //
 // Baselines (no mrroc code): raw lcm::LCM publish/subscribe of a 64-byte message between this
 // program and child processes it starts (this executable again, in a forwarding role): an echo
@@ -19,7 +27,15 @@
 // servo period, so that the MP's phase against the EDP's servo clock is sampled evenly (a fixed
 // 5 ms pace on a 2 ms servo clock would hit only two phases). B4 is not paced.
 //
-// Usage (inside scripts/netns-run): bench_chain [samples]   (default 2000)
+// CPU time (from /proc/<pid>/task/*/schedstat) of every process during the unpaced series is
+// reported per macro-step and per bare round trip; for the EDP, the CPU time its servo loop takes
+// while idle (measured for 1 s before the series) is subtracted.
+//
+// The process set is run a second time with a 1 ms servo period (half the samples), to show how
+// the round trip depends on the wait for the servo cycle.
+//
+// Usage (inside scripts/netns-run): bench_chain [samples [b1_steps b1_value b4_steps b4_value]]
+// (default 2000 1 2 2 1)
 // Prints "RESULT B1 ..." and "RESULT B4 ...".
 #include <fcntl.h>
 #include <signal.h>
@@ -96,6 +112,18 @@ class Pacer {
   std::int64_t sweep_;
   std::int64_t k_ = 0;
 };
+
+/// CPU time [ns] used so far by all threads of `pid`.
+double cpu_ns(pid_t pid) {
+  double total = 0;
+  std::error_code ec;
+  for (const auto& task : fs::directory_iterator("/proc/" + std::to_string(pid) + "/task", ec)) {
+    std::ifstream in(task.path() / "schedstat");
+    double on_cpu = 0;
+    if (in >> on_cpu) total += on_cpu;
+  }
+  return total;
+}
 
 // ---- Child processes ----
 
@@ -243,6 +271,14 @@ struct Series {
   std::vector<double> us;
   int lost = 0;
   double seconds = 0.0;  // wall time of the whole series (unpaced rate)
+  /// CPU time per sample [us] of the processes involved (unpaced series).
+  std::map<std::string, double> cpu_ns_total;
+  void add_cpu(const std::string& who, double ns) { cpu_ns_total[who] += ns; }
+  [[nodiscard]] double cpu_us_per_sample(const std::string& who) const {
+    auto it = cpu_ns_total.find(who);
+    return it == cpu_ns_total.end() || us.empty() ? 0.0
+                                                  : it->second / 1000.0 / static_cast<double>(us.size());
+  }
 };
 
 /// Bare two-process round trips, paced (B1 baseline) and three-process chain round trips,
@@ -252,11 +288,15 @@ void run_bare(const std::string& self, const fs::path& dir, int paced, int unpac
   Children children;
   children.add(spawn("echo", {self, "--forward", "BENCH_PING", "BENCH_PONG"},
                      (dir / "echo.log").string()));
-  children.add(spawn("relay",
-                     {self, "--forward", "BENCH_A", "BENCH_B", "BENCH_C", "BENCH_D"},
-                     (dir / "relay.log").string()));
-  children.add(spawn("chain-echo", {self, "--forward", "BENCH_B", "BENCH_C"},
-                     (dir / "chain-echo.log").string()));
+  const pid_t relay = children
+                          .add(spawn("relay",
+                                     {self, "--forward", "BENCH_A", "BENCH_B", "BENCH_C", "BENCH_D"},
+                                     (dir / "relay.log").string()))
+                          .pid;
+  const pid_t echo = children
+                         .add(spawn("chain-echo", {self, "--forward", "BENCH_B", "BENCH_C"},
+                                    (dir / "chain-echo.log").string()))
+                         .pid;
   RawPinger two(std::string("BENCH_PING"), std::string("BENCH_PONG"));
   RawPinger three(std::string("BENCH_A"), std::string("BENCH_D"));
   two.wait_for_peer(10);
@@ -271,6 +311,7 @@ void run_bare(const std::string& self, const fs::path& dir, int paced, int unpac
     }
     two_process.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
   }
+  const double cpu0[3] = {cpu_ns(getpid()), cpu_ns(relay), cpu_ns(echo)};
   const std::int64_t start = now_ns();
   for (int i = 0; i < unpaced; ++i) {
     const std::int64_t t0 = now_ns();
@@ -281,6 +322,9 @@ void run_bare(const std::string& self, const fs::path& dir, int paced, int unpac
     chain.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
   }
   chain.seconds += static_cast<double>(now_ns() - start) / 1e9;
+  chain.add_cpu("driver", cpu_ns(getpid()) - cpu0[0]);
+  chain.add_cpu("relay", cpu_ns(relay) - cpu0[1]);
+  chain.add_cpu("echo", cpu_ns(echo) - cpu0[2]);
 }
 
 // ---- The process set ----
@@ -310,10 +354,19 @@ class ReadyWatch {
 struct ChainFigures {
   Series paced;
   Series unpaced;
+  double edp_idle_cpu_us_per_ms = 0;  // the EDP's CPU time while no macro-step runs
+};
+
+/// Macro-step parameters (motion_steps, value_in_step_no) of the paced and unpaced series.
+struct StepShape {
+  int paced_steps = 1;
+  int paced_value = 2;
+  int unpaced_steps = 2;
+  int unpaced_value = 1;
 };
 
 ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double servo_period_ms,
-                             int paced, int unpaced) {
+                             int paced, int unpaced, const StepShape& shape) {
   const fs::path config = dir / "bench-chain.toml";
   std::ofstream(config) << "[system]\nname = \"bench-chain\"\nlcm_url = \"" << kUrl << "\"\n"
                         << "[mp]\ntask = \"start_and_wait\"\n"
@@ -326,12 +379,18 @@ ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double se
                                  [&](const mrroc::ProcessStatus& s) { ready.on_status(s); });
   bus.start();
   Children children;
-  children.add(spawn("edp/irb6",
-                     {(bin / "mrroc-edp").string(), "--config", config.string(), "--robot", "irb6"},
-                     (dir / "edp.log").string()));
-  children.add(spawn("ecp/irb6",
-                     {(bin / "mrroc-ecp").string(), "--config", config.string(), "--robot", "irb6"},
-                     (dir / "ecp.log").string()));
+  const pid_t edp = children
+                        .add(spawn("edp/irb6",
+                                   {(bin / "mrroc-edp").string(), "--config", config.string(),
+                                    "--robot", "irb6"},
+                                   (dir / "edp.log").string()))
+                        .pid;
+  const pid_t ecp = children
+                        .add(spawn("ecp/irb6",
+                                   {(bin / "mrroc-ecp").string(), "--config", config.string(),
+                                    "--robot", "irb6"},
+                                   (dir / "ecp.log").string()))
+                        .pid;
   for (const char* process : {"edp/irb6", "ecp/irb6"})
     if (!ready.wait_ready(process, 30))
       throw mrroc::Error(std::string(process) + " was not ready within 30 s\n" + children.logs());
@@ -343,12 +402,19 @@ ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double se
     mrroc::ecp::MpCommand& c = robot.image().command;
     c.arm_type = mrroc::edp::ArmRepresentation::joint;
     c.motion_type = mrroc::edp::MotionType::absolute;
-    c.motion_steps = 1;
-    c.value_in_step_no = 1;
     c.arm = {0.0, -1.5707963267948966, 0.0, 0.0, 0.0};
     int k = 0;
-    auto step = [&] {
+    auto step = [&] {  // B1: back and forth by 1 mrad
+      c.motion_steps = shape.paced_steps;
+      c.value_in_step_no = shape.paced_value;
       c.arm[0] = (k++ % 2 == 0) ? 0.001 : 0.0;
+      robot.next_pose();
+    };
+    const double column_step = 0.05 * servo_period_ms * 1e-3 * shape.unpaced_steps;
+    auto continuous_step = [&] {  // B4: the column at 0.05 rad/s
+      c.motion_steps = shape.unpaced_steps;
+      c.value_in_step_no = shape.unpaced_value;
+      c.arm[0] += column_step;
       robot.next_pose();
     };
     for (int i = 0; i < 100; ++i) step();  // warm-up
@@ -359,13 +425,26 @@ ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double se
       step();
       out.paced.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
     }
+    // The EDP's CPU time while idle (its servo loop runs all the time), then the unpaced series.
+    const double idle0 = cpu_ns(edp);
+    const std::int64_t idle_start = now_ns();
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+    const double edp_idle_ns_per_ns =
+        (cpu_ns(edp) - idle0) / static_cast<double>(now_ns() - idle_start);
+    const double cpu0[3] = {cpu_ns(getpid()), cpu_ns(ecp), cpu_ns(edp)};
     const std::int64_t start = now_ns();
     for (int i = 0; i < unpaced; ++i) {
       const std::int64_t t0 = now_ns();
-      step();
+      continuous_step();
       out.unpaced.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
     }
-    out.unpaced.seconds = static_cast<double>(now_ns() - start) / 1e9;
+    const std::int64_t elapsed = now_ns() - start;
+    out.unpaced.seconds = static_cast<double>(elapsed) / 1e9;
+    out.unpaced.add_cpu("mp", cpu_ns(getpid()) - cpu0[0]);
+    out.unpaced.add_cpu("ecp", cpu_ns(ecp) - cpu0[1]);
+    out.unpaced.add_cpu("edp", cpu_ns(edp) - cpu0[2] -
+                                   edp_idle_ns_per_ns * static_cast<double>(elapsed));
+    out.edp_idle_cpu_us_per_ms = edp_idle_ns_per_ns * 1000.0;
     robot.end_motion();
   } catch (const std::exception& e) {
     throw mrroc::Error(std::string(e.what()) + "\n" + children.logs());
@@ -383,6 +462,13 @@ int main(int argc, char** argv) {
   if (argc > 1 && std::strcmp(argv[1], "--forward") == 0)
     return run_forwarder(std::vector<std::string>(argv + 2, argv + argc));
   const int samples = argc > 1 ? std::atoi(argv[1]) : 2000;
+  StepShape shape;
+  if (argc > 5) {
+    shape.paced_steps = std::atoi(argv[2]);
+    shape.paced_value = std::atoi(argv[3]);
+    shape.unpaced_steps = std::atoi(argv[4]);
+    shape.unpaced_value = std::atoi(argv[5]);
+  }
   const int chain_samples = 5000;
   try {
     const fs::path bin = own_directory();
@@ -393,8 +479,8 @@ int main(int argc, char** argv) {
     Series bare_two;
     Series bare_chain;
     run_bare(self, dir, samples / 2, chain_samples / 2, bare_two, bare_chain);
-    const ChainFigures set = run_process_set(bin, dir, 2.0, samples, samples);
-    const ChainFigures fast = run_process_set(bin, dir, 1.0, samples / 2, samples / 2);
+    const ChainFigures set = run_process_set(bin, dir, 2.0, samples, samples, shape);
+    const ChainFigures fast = run_process_set(bin, dir, 1.0, samples / 2, samples / 2, shape);
     run_bare(self, dir, samples - samples / 2, chain_samples - chain_samples / 2, bare_two,
              bare_chain);
     fs::remove_all(dir);
@@ -423,26 +509,52 @@ int main(int argc, char** argv) {
                 percentile(set.unpaced.us, 0.5), percentile(set.unpaced.us, 0.99));
     std::printf("  macro-steps, servo 1 ms: %.0f /s, p50 %.1f us, p99 %.1f us\n", fast_rate,
                 percentile(fast.unpaced.us, 0.5), percentile(fast.unpaced.us, 0.99));
+    std::printf("  CPU per bare chain round trip: driver %.1f us, relay %.1f us, echo %.1f us\n",
+                bare_chain.cpu_us_per_sample("driver"), bare_chain.cpu_us_per_sample("relay"),
+                bare_chain.cpu_us_per_sample("echo"));
+    std::printf("  CPU per macro-step (servo 2 ms): MP %.1f us, ECP %.1f us, EDP %.1f us beyond "
+                "its idle servo loop (which takes %.1f us of CPU per ms)\n",
+                set.unpaced.cpu_us_per_sample("mp"), set.unpaced.cpu_us_per_sample("ecp"),
+                set.unpaced.cpu_us_per_sample("edp"), set.edp_idle_cpu_us_per_ms);
     // With the MP's phase against the servo clock swept evenly, the round trip is a fixed part
     // plus a wait for the servo cycle that grows with the period: fixed ~= 2 RT(1 ms) - RT(2 ms).
+    std::printf("  fastest 1 %%: servo 2 ms %.1f us, servo 1 ms %.1f us\n",
+                percentile(set.paced.us, 0.01), percentile(fast.paced.us, 0.01));
+    // The reading of step v is taken v - 1 servo cycles after the cycle that starts the
+    // macro-step; an MP not synchronised with the servo clock waits half a period on average for
+    // that first cycle.
+    const double wait2 = 2000.0 * (0.5 + (shape.paced_value - 1));
+    const double wait1 = 1000.0 * (0.5 + (shape.paced_value - 1));
     std::printf("NOTE B1 one NEXT_POSE = MP->ECP, ECP->EDP SET_GET, EDP->ECP ACK, ECP->EDP "
-                "QUERY, EDP->ECP reading of servo step 1, ECP->MP: three LCM round trips plus "
-                "the wait for the next servo cycle. Same run with a 1 ms servo period: p50 %.0f "
-                "us; extrapolated to a zero period (2 x RT(1 ms) - RT(2 ms)) p50 ~%.0f us = %.1f "
-                "x the bare round trip. Bare LCM: %d lost of %d; 64-byte raw messages on %s.\n",
-                f50, 2 * f50 - v50, (2 * f50 - v50) / b50, bare_two.lost, samples, kUrl);
+                "QUERY, EDP->ECP reading, ECP->MP: three LCM round trips, and the reading waits "
+                "for the servo loop. With motion_steps = %d and value_in_step_no = %d and the MP "
+                "paced independently of the servo clock that wait is %.1f servo periods on "
+                "average (%.0f us at 2 ms), against a bare round trip of %.0f us. p50 minus that "
+                "wait: %.0f us (2 ms servo) and %.0f us (1 ms servo, same run: p50 %.0f us, p99 "
+                "%.0f us), i.e. %.1f and %.1f x the bare round trip; fastest 1 %% at 2 ms: %.0f "
+                "us. Bare LCM: %d lost of %d; 64-byte raw messages on %s, the process set's URL.\n",
+                shape.paced_steps, shape.paced_value, wait2 / 2000.0, wait2, b50, v50 - wait2,
+                f50 - wait1, f50, percentile(fast.paced.us, 0.99), (v50 - wait2) / b50,
+                (f50 - wait1) / b50, percentile(set.paced.us, 0.01), bare_two.lost, samples, kUrl);
     std::printf("RESULT B1 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
                 "samples=%d unit=us\n",
                 b50, b99, v50, v99, samples);
-    std::printf("NOTE B4 interpreted as macro-steps/s of MP->ECP->EDP(MuJoCo, real-time 2 ms "
-                "servo loop) with NEXT_POSE sent back to back (1 servo step each, reading in "
-                "step 1) against round trips/s of a bare LCM chain driver->relay->echo->relay->"
-                "driver sent back to back (%d samples, p50 %.0f us, p99 %.0f us). The EDP "
-                "advances its simulation in real time, one step per servo period, so a "
-                "macro-step can never take less than one period: at most %.0f /s with 2 ms "
-                "(measured %.0f /s), %.0f /s with 1 ms (measured %.0f /s). No lock-step "
-                "(free-running) simulation mode exists yet.\n",
-                chain_samples, chain50, chain99, 1000.0 / 2.0, set_rate, 1000.0 / 1.0, fast_rate);
+    std::printf("NOTE B4 interpreted as macro-steps/s of MP->ECP->EDP(MuJoCo) when the MP sends "
+                "NEXT_POSE back to back (a continuous motion, motion_steps = %d, "
+                "value_in_step_no = %d) against round trips/s of a bare LCM chain driver->relay->echo->"
+                "relay->driver sent back to back (%d samples, p50 %.0f us, p99 %.0f us). The EDP "
+                "runs its simulation in real time, one MuJoCo step per servo period, so a "
+                "macro-step of %d servo steps cannot take less than %d servo periods: at most %.0f /s with "
+                "a 2 ms servo (measured %.0f /s), %.0f /s with 1 ms (measured %.0f /s). There is no "
+                "lock-step (free-running) simulation mode yet. CPU time per macro-step: MP %.0f "
+                "us, ECP %.0f us, EDP %.0f us beyond its idle servo loop (%.1f us per ms); per bare "
+                "chain round trip: driver %.0f us, relay %.0f us, echo %.0f us.\n",
+                shape.unpaced_steps, shape.unpaced_value, chain_samples, chain50, chain99,
+                shape.unpaced_steps, shape.unpaced_steps, 500.0 / shape.unpaced_steps, set_rate,
+                1000.0 / shape.unpaced_steps, fast_rate, set.unpaced.cpu_us_per_sample("mp"),
+                set.unpaced.cpu_us_per_sample("ecp"), set.unpaced.cpu_us_per_sample("edp"),
+                set.edp_idle_cpu_us_per_ms, bare_chain.cpu_us_per_sample("driver"),
+                bare_chain.cpu_us_per_sample("relay"), bare_chain.cpu_us_per_sample("echo"));
     std::printf("RESULT B4 baseline_rate=%.1f value_rate=%.1f baseline_p50=%.2f "
                 "baseline_p99=%.2f value_p50=%.2f value_p99=%.2f samples=%d unit=/s\n",
                 bare_rate, set_rate, chain50, chain99, percentile(set.unpaced.us, 0.5),

@@ -55,6 +55,8 @@ struct LaunchTime {
   double wall_ms = 0;      // spawn of mrroc-launch -> the "all ... ready" line
   double launcher_ms = 0;  // X of that line
   int processes = 0;
+  /// (process, ms from the previous one's ready to its own), in start order.
+  std::vector<std::pair<std::string, double>> stages;
 };
 
 /// One launch: spawn, read until the ready line, SIGTERM, drain, reap.
@@ -84,8 +86,17 @@ LaunchTime launch_once(const fs::path& launcher, const fs::path& config) {
   std::string output;
   char line[4096];
   bool ready = false;
+  double previous_ready = 0;
   while (std::fgets(line, sizeof line, out) != nullptr) {
     output += line;
+    char name[64];
+    double at = 0;
+    if (const char* stage = std::strstr(line, "mrroc-launch: ");
+        stage != nullptr &&
+        std::sscanf(stage, "mrroc-launch: %63s ready at %lf ms", name, &at) == 2) {
+      t.stages.emplace_back(name, at - previous_ready);
+      previous_ready = at;
+    }
     if (const char* all = std::strstr(line, "mrroc-launch: all ");
         all != nullptr && std::strstr(line, "processes ready in") != nullptr) {
       t.wall_ms = ms_since(t0);
@@ -145,15 +156,28 @@ int main(int argc, char** argv) {
     std::vector<double> wall;
     std::vector<double> launcher;
     std::vector<double> baseline;
+    std::vector<std::string> stage_names;
+    std::vector<std::vector<double>> stage_ms;
     int processes = 0;
     for (int i = 0; i < repetitions; ++i) {
       const LaunchTime t = launch_once(bin / "mrroc-launch", config);
       wall.push_back(t.wall_ms);
       launcher.push_back(t.launcher_ms);
       processes = t.processes;
+      for (std::size_t k = 0; k < t.stages.size(); ++k) {
+        if (k >= stage_names.size()) {
+          stage_names.push_back(t.stages[k].first);
+          stage_ms.emplace_back();
+        }
+        stage_ms[k].push_back(t.stages[k].second);
+      }
       baseline.push_back(trivial_processes_ms(processes));
     }
     fs::remove_all(dir);
+    std::string stages;
+    for (std::size_t k = 0; k < stage_names.size(); ++k)
+      stages += (k == 0 ? "" : ", ") + stage_names[k] + " " +
+                std::to_string(static_cast<long>(percentile(stage_ms[k], 0.5) + 0.5)) + " ms";
     std::printf("B8 process set of %d processes (SRP, 2 EDP, 2 ECP, MP), %d launches\n",
                 processes, repetitions);
     std::printf("  %d x /bin/true through the supervisor: p50 %.1f ms, p99 %.1f ms\n", processes,
@@ -162,15 +186,16 @@ int main(int argc, char** argv) {
                 "p50 %.1f ms, p99 %.1f ms\n",
                 percentile(wall, 0.5), percentile(wall, 0.99), percentile(launcher, 0.5),
                 percentile(launcher, 0.99));
+    std::printf("  start to ready per process (p50): %s\n", stages.c_str());
     std::printf("NOTE B8 %d launches of mrroc-launch on two IRb-6 (MuJoCo, follow_mp) with SRP and "
                 "MP: %d processes started one after the other, each waited for until it reports "
                 "ready; timed from spawning the launcher to its 'all %d processes ready' line "
                 "(the launcher's own figure, from its first start: p50 %.0f ms, p99 %.0f ms). "
                 "Baseline: %d x /bin/true started and reaped one after the other through the "
                 "launcher's Supervisor. VSP and UI processes do not exist yet, so the set has %d "
-                "processes, not 8.\n",
+                "processes, not 8. Start to ready of each process (p50): %s.\n",
                 repetitions, processes, processes, percentile(launcher, 0.5),
-                percentile(launcher, 0.99), processes, processes);
+                percentile(launcher, 0.99), processes, processes, stages.c_str());
     std::printf("RESULT B8 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
                 "samples=%d unit=ms\n",
                 percentile(baseline, 0.5), percentile(baseline, 0.99), percentile(wall, 0.5),

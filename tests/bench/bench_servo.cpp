@@ -9,13 +9,15 @@
 // it, else SCHED_OTHER with timer slack 1 ns, as the servo loop does), half a period out of phase
 // with the servo loop, so that both see the same host for the same time. Neither is pinned.
 // Lateness = wake-up time - absolute deadline. The servo loop's p50/p99 come from its own
-// TimingStats; the bare loop's from its samples, with the same percentile rule.
+// TimingStats; the bare loop's from its samples, with the same percentile rule. A second, identical
+// bare loop (the control, a quarter period after the servo loop) shows how far two loops that run
+// the same code differ on this host in the same run: the noise floor of the comparison.
 //
 // Allocations: malloc, calloc, realloc and the aligned variants are interposed (forwarding to
 // glibc) and counted when called on the servo thread, from 20 ms after the start (thread set-up)
 // until the loop is stopped. operator new and MuJoCo's allocations all go through them.
 //
-// Usage: bench_servo [seconds]   (default 20)
+// Usage: bench_servo [seconds]   (default 30)
 // Prints "RESULT B2 ..." and "RESULT B7 ...".
 #include <pthread.h>
 #include <sched.h>
@@ -162,7 +164,18 @@ Instruction set_joints(const std::vector<double>& q, int steps, int value_in_ste
 }  // namespace
 
 int main(int argc, char** argv) {
-  const double seconds = argc > 1 ? std::atof(argv[1]) : 20.0;
+  const double seconds = argc > 1 ? std::atof(argv[1]) : 30.0;
+  // The counter must see an allocation made on the watched thread.
+  g_watched = std::this_thread::get_id();
+  {
+    auto probe = std::make_unique<volatile int>(1);
+    (void)probe;
+  }
+  g_watched = std::thread::id{};
+  if (g_allocations.exchange(0) != 1) {
+    std::fprintf(stderr, "bench_servo: the allocation counter does not work\n");
+    return 1;
+  }
   try {
     const RobotModel model = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
     std::unique_ptr<Hardware> hardware = make_hardware("mujoco");
@@ -177,13 +190,17 @@ int main(int argc, char** argv) {
     CommandInterpreter interpreter(servo, model, *kinematics, kPeriod);
 
     BareLoop bare;
+    BareLoop control;
     bare.lateness_us.assign(static_cast<std::size_t>(seconds / kPeriod) + 1000, 0.0F);
+    control.lateness_us.assign(bare.lateness_us.size(), 0.0F);
 
     servo.start();
     // The servo loop's first deadline is about one period after start(); the bare loop's half a
-    // period later.
-    std::thread bare_thread([&bare, first = now_ns() + kPeriodNs + kPeriodNs / 2] {
-      bare.run(first);
+    // period later, the control's a quarter period later.
+    const std::int64_t servo_first = now_ns() + kPeriodNs;
+    std::thread bare_thread([&bare, servo_first] { bare.run(servo_first + kPeriodNs / 2); });
+    std::thread control_thread([&control, servo_first] {
+      control.run(servo_first + kPeriodNs / 4);
     });
     const auto t0 = std::chrono::steady_clock::now();
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -219,7 +236,9 @@ int main(int argc, char** argv) {
     exec(set_joints(q, kSteps, kSteps + 1));
     exec(query);
     bare.running = false;
+    control.running = false;
     bare_thread.join();
+    control_thread.join();
     const TimingStats t = servo.timing();
     const std::int64_t watched_cycles = servo.latest().cycle - first_watched_cycle;
     const long allocations = g_allocations.load();
@@ -230,12 +249,19 @@ int main(int argc, char** argv) {
                                      bare.lateness_us.begin() + static_cast<long>(bare.count));
     const double b50 = percentile(samples, 0.5);
     const double b99 = percentile(samples, 0.99);
+    const std::vector<float> control_samples(
+        control.lateness_us.begin(), control.lateness_us.begin() + static_cast<long>(control.count));
+    const double c50 = percentile(control_samples, 0.5);
+    const double c99 = percentile(control_samples, 0.99);
     std::printf("B2 servo-loop lateness, %.0f s at %.0f us (%s), %ld macro-steps executed\n",
                 seconds, kPeriod * 1e6, t.scheduling.c_str(), macro_steps);
     std::printf("  bare clock_nanosleep loop (%s): %zu cycles, p50 %.1f us, p99 %.1f us, "
                 "max %.1f us, %lld overruns\n",
                 bare.scheduling.c_str(), bare.count, b50, b99, percentile(samples, 1.0),
                 static_cast<long long>(bare.overruns));
+    std::printf("  control (same bare loop):      %zu cycles, p50 %.1f us, p99 %.1f us, max %.1f "
+                "us\n",
+                control.count, c50, c99, percentile(control_samples, 1.0));
     std::printf("  EDP servo loop:                %lld cycles, p50 %.1f us, p99 %.1f us, max %.1f "
                 "us, %lld overruns\n",
                 static_cast<long long>(t.cycles), t.lateness_p50_us, t.lateness_p99_us,
@@ -246,9 +272,11 @@ int main(int argc, char** argv) {
     std::printf("NOTE B2 %.0f s, period 2 ms, policy %s for both loops (servo loop: %s), run "
                 "side by side half a period apart, unpinned; the servo loop executed SYNCHRO and "
                 "%ld back-to-back macro-steps meanwhile. Cycles woken more than a period late: "
-                "bare %lld, servo %lld.\n",
+                "bare %lld, servo %lld. Noise floor: an identical second bare loop in the same "
+                "run had p50 %.1f us, p99 %.1f us (p99 ratio %.2f against the first).\n",
                 seconds, bare.scheduling.c_str(), t.scheduling.c_str(), macro_steps,
-                static_cast<long long>(bare.overruns), static_cast<long long>(t.overruns));
+                static_cast<long long>(bare.overruns), static_cast<long long>(t.overruns), c50, c99,
+                c99 / b99);
     std::printf("RESULT B2 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
                 "samples=%lld unit=us\n",
                 b50, b99, t.lateness_p50_us, t.lateness_p99_us, static_cast<long long>(t.cycles));

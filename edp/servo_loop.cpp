@@ -214,7 +214,9 @@ void ServoLoop::cycle() {
       latest_.desired = desired_;
       if (m.step == m.value_in_step_no) store_reading(m.id, m.step);
       if (m.step >= m.steps) {
-        const bool promised_successor = m.value_in_step_no <= m.steps;
+        // A reading before the last step promises the next macro-step in time (the paper: one
+        // step early suffices for a seamless transition); in or after the last step it does not.
+        const bool promised_successor = m.value_in_step_no < m.steps;
         if (!promised_successor) {
           after_stop_id_ = m.id;
           after_stop_step_ = m.steps + 1;

@@ -106,7 +106,7 @@ class ServoLoop {
   void emergency_stop();
   void release_emergency_stop();
   [[nodiscard]] bool emergency_stopped() const;
-  /// Macro-steps that promised a successor (value_in_step_no <= motion_steps) which never came;
+  /// Macro-steps that promised a successor (value_in_step_no < motion_steps) which never came;
   /// each brought the robot to a standstill within its acceleration limits.
   [[nodiscard]] std::int64_t lost_successors() const;
   /// After a fault: the servo thread deactivates and re-activates the plugin, clears the fault,

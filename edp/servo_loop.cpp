@@ -129,15 +129,15 @@ void ServoLoop::cycle() {
   // Sample without the lock (the hardware may take a while), publish under it. A plugin must
   // not throw here; if it does, the loop holds the robot and reports it as a fault.
   CycleStatus read_status = CycleStatus::ok;
-  const char* thrown = nullptr;
+  char thrown[200] = {};  // the exception's text, copied while the exception lives
   try {
     read_status = hardware_.read(std::span(sample_.data(), axes_));
   } catch (const std::exception& e) {
     read_status = CycleStatus::fault;
-    thrown = e.what();
+    std::snprintf(thrown, sizeof thrown, "%s", e.what());
   } catch (...) {
     read_status = CycleStatus::fault;
-    thrown = "unknown exception";
+    std::snprintf(thrown, sizeof thrown, "unknown exception");
   }
   std::lock_guard lock(mutex_);
   feedback_ = sample_;
@@ -156,7 +156,7 @@ void ServoLoop::cycle() {
     cv_.notify_all();
   }
   if (read_status != CycleStatus::ok && !faulted_) {
-    if (thrown != nullptr) {
+    if (thrown[0] != '\0') {
       char text[256];
       std::snprintf(text, sizeof text, "plugin threw in read(): %s", thrown);
       set_fault(text);

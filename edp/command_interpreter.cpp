@@ -271,8 +271,9 @@ Reply CommandInterpreter::query() {
     case Due::get:
       return reading_reply(servo_.latest());
     case Due::arm_reading: {
-      // Generous bound: the macro-step that may still run ahead of it, this one, plus a second.
-      const double timeout = 2.0 * (steps_ahead_ + due_steps_ + 2) * period_s_ + 1.0;
+      // Generous bound: the macro-step that may still run ahead of it, this one, a stopping ramp
+      // (when its predecessor's successor came late), plus 5 s: this only catches a stuck loop.
+      const double timeout = 2.0 * (steps_ahead_ + due_steps_ + 2) * period_s_ + 5.0;
       auto reading = servo_.wait_reading(due_macro_step_, timeout);
       if (!reading && servo_.emergency_stopped())
         return error(error_code::emergency_stop,

@@ -3,23 +3,18 @@
 
 #include <fmt/format.h>
 
-#include <map>
-#include <mutex>
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/instruction.hpp"
+#include "../core/registry.hpp"
 
 namespace mrroc::edp {
 
 namespace {
 
-std::map<std::string, ArmKinematicsFactory>& registry() {
-  static std::map<std::string, ArmKinematicsFactory> r;
+::mrroc::detail::Registry<ArmKinematicsFactory>& registry() {
+  static ::mrroc::detail::Registry<ArmKinematicsFactory> r("kinematics solver");
   return r;
-}
-std::mutex& registry_mutex() {
-  static std::mutex m;
-  return m;
 }
 
 /// Motor = joint; no Cartesian representations.
@@ -76,22 +71,19 @@ class JointOnlyKinematics : public ArmKinematics {
 }  // namespace
 
 void register_arm_kinematics(const std::string& name, ArmKinematicsFactory factory) {
-  std::lock_guard lock(registry_mutex());
-  registry()[name] = std::move(factory);
+  registry().add(name, std::move(factory));
 }
 
 std::unique_ptr<ArmKinematics> make_arm_kinematics(const RobotModel& model) {
   if (model.kinematics.empty()) return std::make_unique<JointOnlyKinematics>(model);
-  std::lock_guard lock(registry_mutex());
-  auto it = registry().find(model.kinematics);
-  if (it == registry().end()) {
-    std::string known;
-    for (const auto& [n, f] : registry()) known += (known.empty() ? "" : ", ") + n;
-    throw ConfigError(fmt::format("{}/parameters.toml: error: unknown kinematics solver '{}' "
-                                  "(known: {})",
-                                  model.folder.string(), model.kinematics, known));
+  ArmKinematicsFactory factory;
+  try {
+    factory = registry().get(model.kinematics);
+  } catch (const ConfigError& e) {
+    throw ConfigError(
+        fmt::format("{}/parameters.toml: error: {}", model.folder.string(), e.what()));
   }
-  return it->second(model);
+  return factory(model);
 }
 
 }  // namespace mrroc::edp

@@ -77,7 +77,7 @@ class MujocoHardware : public Hardware {
   /// Largest coupling error accepted between a coupled axis and the joint of the same name [rad].
   static constexpr double kCouplingTolerance = 1e-6;
   /// An equality-constraint violation above this during the simulation is a fault [m or rad].
-  static constexpr double kLoopOpenFault = 5e-3;
+  static constexpr double kLoopOpenFault = 2e-2;
 
   MujocoHardware() = default;
   ~MujocoHardware() override;

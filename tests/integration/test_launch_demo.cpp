@@ -298,7 +298,7 @@ TEST(LaunchDemo, LossyAndDuplicatingLinksStillReachTheSameFinalPose) {
   comm::Bus bus(config.lcm_url);
   EdpReplyRecorder recorder(bus, "irb6");
   bus.start();
-  const RunResult r = run({launcher(), demo_config()}, 120.0);
+  const RunResult r = run({launcher(), demo_config()}, 600.0);
   bus.stop();
   ::unsetenv("MRROC_LINK_FAULTS");
   ASSERT_FALSE(r.timed_out) << r.output;

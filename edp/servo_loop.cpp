@@ -195,6 +195,10 @@ void ServoLoop::cycle() {
   } else if (mode_ != Mode::hold) {
     synchro_cycle();
   } else {
+    if (hold_at_measured_ && !current_ && !next_) {
+      hold_at_measured_ = false;
+      for (std::size_t i = 0; i < axes_; ++i) desired_[i] = latest_.joints[i];
+    }
     if (after_stop_id_ != 0) {
       store_reading(after_stop_id_, after_stop_step_);
       after_stop_id_ = 0;
@@ -292,6 +296,7 @@ void ServoLoop::stop_cycle() {
 }
 
 void ServoLoop::emergency_stop() {
+  hardware_.emergency_stop(true);
   std::lock_guard lock(mutex_);
   emergency_stop_ = true;
   current_.reset();
@@ -306,6 +311,10 @@ void ServoLoop::emergency_stop() {
 void ServoLoop::release_emergency_stop() {
   std::lock_guard lock(mutex_);
   emergency_stop_ = false;
+  // Hold where the axes really are: drives with their own quick stop may have stopped a little
+  // away from the loop's own ramp.
+  hold_at_measured_ = true;
+  hardware_.emergency_stop(false);
 }
 
 bool ServoLoop::emergency_stopped() const {

@@ -181,6 +181,7 @@ class ServoLoop {
   const ArmKinematics* guard_ = nullptr;
   std::int64_t limit_stops_ = 0;  ///< stopping ramps ended at a limit
   bool emergency_stop_ = false;
+  bool hold_at_measured_ = false;  ///< after an emergency stop: hold at the measured joints
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;
   AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)

@@ -62,6 +62,9 @@ std::vector<Stage> plan(const ProcessSetConfig& config, const fs::path& bin_dir,
     srp_argv.push_back(srp_log);
   }
   stages.push_back({"srp", child("srp", srp_argv, config.srp.stop_grace_s)});
+  if (config.emulator)
+    stages.push_back({"emu", child("emu", {exe("mrroc-axis-emu"), "--config", cfg},
+                                   config.emulator->options.stop_grace_s)});
   for (const auto& r : config.robots)
     stages.push_back({"edp/" + r.name, child("edp/" + r.name,
                                              {exe("mrroc-edp"), "--config", cfg, "--robot", r.name},

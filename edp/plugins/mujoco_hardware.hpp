@@ -65,19 +65,20 @@
 #include <mujoco/mujoco.h>
 
 #include "mrroc/edp/hardware.hpp"
+#include "mrroc/sim/robot_axes.hpp"
 
 namespace mrroc::edp {
 
 class MujocoHardware : public Hardware {
  public:
   /// Offset of the default power-on pose from the synchronisation pose on every axis [rad].
-  static constexpr double kDefaultPowerOnOffset = 0.05;
+  static constexpr double kDefaultPowerOnOffset = sim::kDefaultPowerOnOffset;
   /// Largest equality-constraint violation accepted after closing the loops at power-on [m or rad].
-  static constexpr double kLoopClosureTolerance = 1e-9;
+  static constexpr double kLoopClosureTolerance = sim::kLoopClosureTolerance;
   /// Largest coupling error accepted between a coupled axis and the joint of the same name [rad].
-  static constexpr double kCouplingTolerance = 1e-6;
+  static constexpr double kCouplingTolerance = sim::kCouplingTolerance;
   /// An equality-constraint violation above this during the simulation is a fault [m or rad].
-  static constexpr double kLoopOpenFault = 2e-2;
+  static constexpr double kLoopOpenFault = sim::kLoopOpenFault;
 
   MujocoHardware() = default;
   ~MujocoHardware() override;
@@ -121,18 +122,18 @@ class MujocoHardware : public Hardware {
   /// True positions a of the actuator joints, in axis order [rad]; empty before configure().
   [[nodiscard]] std::vector<double> actuator_joint_positions() const;
   /// Model joint id of each axis' actuator joint.
-  [[nodiscard]] const std::vector<int>& actuator_joints() const { return actuator_joint_; }
+  [[nodiscard]] const std::vector<int>& actuator_joints() const { return robot_.joint; }
   /// The coupling M (a = M q), row-major n x n; identity unless parameters.toml declares one.
-  [[nodiscard]] const std::vector<double>& coupling() const { return coupling_; }
+  [[nodiscard]] const std::vector<double>& coupling() const { return robot_.coupling.matrix(); }
   /// True when M is not the identity.
-  [[nodiscard]] bool coupled() const { return coupled_; }
+  [[nodiscard]] bool coupled() const { return robot_.coupling.coupled(); }
   /// Largest |violation| of the equality constraints [m or rad], as computed at the beginning of
   /// the last MuJoCo step (0 for a model without equality constraints).
   [[nodiscard]] double equality_violation() const noexcept;
   /// True joint positions at power-on (raw position zero) [rad].
-  [[nodiscard]] const std::vector<double>& power_on_positions() const { return power_on_; }
+  [[nodiscard]] const std::vector<double>& power_on_positions() const { return robot_.power_on; }
   /// Joint positions at which the synchronisation switches toggle [rad].
-  [[nodiscard]] const std::vector<double>& synchro_positions() const { return synchro_; }
+  [[nodiscard]] const std::vector<double>& synchro_positions() const { return robot_.synchro; }
   /// Path of the loaded MJCF file.
   [[nodiscard]] const std::filesystem::path& mjcf_path() const { return mjcf_path_; }
   /// MuJoCo steps per servo period.
@@ -143,12 +144,8 @@ class MujocoHardware : public Hardware {
   void release() noexcept;
   void reset_to_power_on() noexcept;
   [[gnu::format(printf, 2, 3)]] void set_fault(const char* format, ...) noexcept;
-  [[nodiscard]] bool state_is_finite() const noexcept;
   /// False (with the fault text set) when the simulation went unstable.
   [[nodiscard]] bool check_stable() noexcept;
-  [[nodiscard]] int warning_total() const noexcept;
-  /// q = M^-1 a (n values each; `a` and `q` must not overlap).
-  void joints_from_actuators(const double* a, double* q) const noexcept;
 
   mjModel* model_ = nullptr;
   mjData* data_ = nullptr;
@@ -158,18 +155,9 @@ class MujocoHardware : public Hardware {
   bool gravity_compensation_ = true;
   bool active_ = false;
 
-  // Per axis (axis i = actuator i of the model); all sized in configure().
-  std::vector<int> actuator_joint_;  // joint id driven by actuator i
-  std::vector<int> qpos_adr_;        // of the actuator joint
-  std::vector<int> dof_adr_;         // of the actuator joint
-  std::vector<double> power_on_;     // joint coordinates q at power-on
-  std::vector<double> synchro_;
+  // The axes (axis i = actuator i of the model), coupling, synchronisation and power-on poses.
+  sim::RobotAxes robot_;
   std::vector<double> power_on_qpos_;  // the whole model state at power-on (loops closed)
-
-  // Coupling a = M q (row-major n x n) and its inverse.
-  bool coupled_ = false;
-  std::vector<double> coupling_;
-  std::vector<double> inverse_coupling_;
   // Scratch buffers of the cycle calls (sized in configure(), so read/write do not allocate).
   std::vector<double> scratch_a_;
   std::vector<double> scratch_q_;

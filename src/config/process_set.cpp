@@ -199,20 +199,14 @@ const RobotConfig& ProcessSetConfig::robot(const std::string& robot_name) const 
                                 robot_name, known.empty() ? "none" : known));
 }
 
-ProcessSetConfig load_process_set(const fs::path& path) {
-  if (!fs::exists(path))
-    throw ConfigError(fmt::format("{}: error: config file not found", path.string()));
+namespace {
+
+/// Validates a parsed process-set file; `file` is its absolute path.
+ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path& file) {
   ProcessSetConfig config;
-  config.file = fs::absolute(path).lexically_normal();
+  config.file = file;
   Reader r(config.file);
-  toml::table root;
-  try {
-    root = toml::parse_file(config.file.string());
-  } catch (const toml::parse_error& e) {
-    throw ConfigError(fmt::format("{}:{}: error: {}", config.file.string(),
-                                  e.source().begin.line, e.description()));
-  }
-  r.only_keys(root, "top level", {"system", "srp", "mp", "robot"});
+  r.only_keys(root, "top level", {"system", "srp", "emulator", "mp", "robot"});
 
   const toml::table& system = r.table(root, "system", "");
   r.only_keys(system, "system", {"name", "lcm_url", "ready_timeout_s"});
@@ -228,6 +222,29 @@ ProcessSetConfig load_process_set(const fs::path& path) {
     if (!srp->is_table()) r.fail(*srp, "'srp' must be a table");
     r.only_keys(*srp->as_table(), "srp", {"cpus", "stop_grace_s"});
     config.srp = r.options(*srp->as_table());
+  }
+
+  if (const toml::node* emu = root.get("emulator")) {
+    if (!emu->is_table()) r.fail(*emu, "'emulator' must be a table");
+    const toml::table& t = *emu->as_table();
+    r.only_keys(t, "emulator", {"scene", "lock_step", "faults", "cpus", "stop_grace_s"});
+    EmulatorConfig e;
+    e.where = r.where(t);
+    e.scene = r.resolve(r.string(t, "scene", "emulator"));
+    if (!fs::is_regular_file(e.scene))
+      r.fail(*t.get("scene"), fmt::format("scene file '{}' not found", e.scene.string()));
+    if (const toml::node* ls = t.get("lock_step")) {
+      if (!ls->is_boolean()) r.fail(*ls, "'lock_step' must be true or false");
+      e.lock_step = **ls->as_boolean();
+    }
+    if (const toml::node* faults = t.get("faults")) {
+      const toml::array* arr = faults->as_array();
+      if (arr == nullptr || !arr->is_homogeneous(toml::node_type::string))
+        r.fail(*faults, "'faults' must be a list of strings (see mrroc-axis-emu --help)");
+      for (const auto& f : *arr) e.faults.emplace_back(**f.as_string());
+    }
+    e.options = r.options(t);
+    config.emulator = std::move(e);
   }
 
   config.mp = r.task(r.table(root, "mp", ""), "mp");
@@ -287,6 +304,37 @@ ProcessSetConfig load_process_set(const fs::path& path) {
     config.robots.push_back(std::move(robot));
   }
   return config;
+}
+
+[[noreturn]] void throw_parse_error(const fs::path& file, const toml::parse_error& e) {
+  throw ConfigError(
+      fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
+}
+
+}  // namespace
+
+ProcessSetConfig load_process_set(const fs::path& path) {
+  if (!fs::exists(path))
+    throw ConfigError(fmt::format("{}: error: config file not found", path.string()));
+  const fs::path file = fs::absolute(path).lexically_normal();
+  toml::table root;
+  try {
+    root = toml::parse_file(file.string());
+  } catch (const toml::parse_error& e) {
+    throw_parse_error(file, e);
+  }
+  return process_set_from_table(root, file);
+}
+
+ProcessSetConfig parse_process_set(std::string_view text, const fs::path& path) {
+  const fs::path file = fs::absolute(path).lexically_normal();
+  toml::table root;
+  try {
+    root = toml::parse(text, file.string());
+  } catch (const toml::parse_error& e) {
+    throw_parse_error(file, e);
+  }
+  return process_set_from_table(root, file);
 }
 
 }  // namespace mrroc

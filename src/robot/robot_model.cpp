@@ -127,6 +127,28 @@ RobotModel load_robot_model(const fs::path& folder) {
       }
     }
   }
+  if (const toml::table* transmission = robot->get_as<toml::table>("transmission")) {
+    if (const toml::node* node = transmission->get("coupling")) {
+      const toml::array* rows = node->as_array();
+      const auto shape = [&](const toml::node& where) {
+        return ConfigError(fmt::format(
+            "{}:{}: error: robot.transmission.coupling must be a {} x {} matrix of numbers",
+            file.string(), where.source().begin.line, axes, axes));
+      };
+      if (rows == nullptr || rows->size() != axes) throw shape(*node);
+      for (const auto& row_node : *rows) {
+        const toml::array* row = row_node.as_array();
+        if (row == nullptr || row->size() != axes) throw shape(row_node);
+        std::vector<double> values;
+        for (const auto& v : *row) {
+          const auto d = v.value<double>();
+          if (!d || !std::isfinite(*d)) throw shape(v);
+          values.push_back(*d);
+        }
+        m.coupling.push_back(std::move(values));
+      }
+    }
+  }
   if (!fs::exists(m.urdf))
     throw ConfigError(fmt::format("{}: error: URDF file not found", m.urdf.string()));
   urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDFFile(m.urdf.string());

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "mrroc/config/params.hpp"
@@ -51,6 +52,16 @@ struct RobotConfig {
   SourceLocation where;
 };
 
+/// The cell emulator (`mrroc-axis-emu`): one MuJoCo world whose axes are emulated CiA 402
+/// drives on CAN buses ([emulator] in the process set; docs/hil.md).
+struct EmulatorConfig {
+  std::filesystem::path scene;  ///< scene file (absolute path)
+  bool lock_step = false;       ///< physics advances by SYNC, not by the wall clock
+  std::vector<std::string> faults;  ///< fault injections, as `mrroc-axis-emu --fault` takes them
+  ProcessOptions options;
+  SourceLocation where;
+};
+
 struct ProcessSetConfig {
   std::filesystem::path file;  ///< absolute path of the config file
   std::string name;            ///< name of the set (for messages)
@@ -58,6 +69,7 @@ struct ProcessSetConfig {
   double ready_timeout_s = 10.0;  ///< how long the launcher waits for each process to be ready [s]
   TaskConfig mp;
   ProcessOptions srp;
+  std::optional<EmulatorConfig> emulator;  ///< started after the SRP, before the EDPs
   std::vector<RobotConfig> robots;
 
   /// @throws ConfigError when no robot has this name.
@@ -70,6 +82,11 @@ Params params_from_toml(const std::string& text, const std::string& origin);
 
 /// Loads and validates a process-set file. @throws ConfigError ("file:line: error: ...").
 ProcessSetConfig load_process_set(const std::filesystem::path& file);
+
+/// Validates `text` as if it were the content of the process-set file `file`, exactly as
+/// `load_process_set` does: `file` names the errors and relative paths resolve against its folder,
+/// but it is never read and need not exist (for tests and fuzzing). @throws ConfigError.
+ProcessSetConfig parse_process_set(std::string_view text, const std::filesystem::path& file);
 
 /// Channel names of the links (at most 63 characters, as LCM requires).
 namespace channels {

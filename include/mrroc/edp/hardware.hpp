@@ -87,6 +87,11 @@ class Hardware {
     (void)parameter_set;
   }
 
+  /// Emergency stop engaged (true) or released (false). The EDP's servo loop brings the axes to
+  /// a standstill itself; a plugin whose drives have their own quick stop uses it here. Called
+  /// from the EDP's command thread, concurrently with read/write: keep it to an atomic flag.
+  virtual void emergency_stop(bool engaged) { (void)engaged; }
+
   /// Text of the last fault (read after a `CycleStatus::fault`).
   [[nodiscard]] virtual std::string fault_text() const { return {}; }
 };

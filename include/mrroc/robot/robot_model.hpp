@@ -30,6 +30,9 @@ struct RobotModel {
   /// kinematic_models[i]; empty: the solver's own models.
   std::vector<std::filesystem::path> kinematic_models;
 
+  /// Linear transmission between joint coordinates q and the motors' axis coordinates a:
+  /// a = coupling q ([robot.transmission] coupling, n x n, row by row); empty: identity.
+  std::vector<std::vector<double>> coupling;
   [[nodiscard]] std::size_t axes() const { return joint_names.size(); }
 
   /// Checks one joint vector. @throws CommandError (code out_of_limits) such as

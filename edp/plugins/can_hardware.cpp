@@ -1,0 +1,234 @@
+/// @file
+/// The `can` EDP hardware plugin: a robot's axes as CiA 402 drives on a CAN bus (SocketCAN or
+/// the virtual bus), driven in cyclic synchronous position mode (include/mrroc/can/).
+///
+/// Plugin parameters ([robot.edp.params]; unknown keys are rejected):
+///   - `bus` (string, required): "socketcan:can0", "virtual:cell1", ...
+///   - `nodes` (list of integers, default 1..n): node id of each axis' drive, in axis order.
+///   - `counts_per_unit` (number, default 100000): encoder counts per rad (or m) of the drives'
+///     axis coordinates (the motors' side of the transmission, a = M q).
+///   - `bitrate` (number, bit/s, default 1000000): the bus' bit rate, for the bus-load check.
+///   - `following_error_window` (number, rad, default 0.05) and `following_error_timeout_ms`
+///     (integer, default 10): the drives' following-error monitor.
+///   - `silent_cycles` (integer, default 10): cycles without an answer before a drive is lost.
+///   - `bring_up_timeout_s` (number, default 5).
+///   - `heartbeat_ms` (integer, default 100).
+/// The cyclic traffic's bus load is computed at configure time and printed; a worst case above
+/// 100 % is refused, above 70 % warned about (docs/hil.md).
+///
+/// Joint coordinates q and drive coordinates a are related by the robot's transmission coupling
+/// (parameters.toml [robot.transmission] coupling, default identity): targets are sent as a = M q
+/// and positions read back as q = M^-1 a. Positions are incremental (zero at the drives' power-on);
+/// the EDP's SYNCHRO finds the offset by the home switch each drive reports in its TPDO.
+/// Emergency stop sends the drives quick stop (they decelerate at the robot's largest
+/// acceleration, in drive coordinates, and hold); release re-enables them where they stand.
+#include <Eigen/Dense>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "mrroc/can/bus.hpp"
+#include "mrroc/can/canopen.hpp"
+#include "mrroc/can/cia402_master.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/edp/hardware.hpp"
+#include "mrroc/robot/robot_model.hpp"
+
+namespace mrroc::edp {
+namespace {
+
+class CanHardware final : public Hardware {
+ public:
+  [[nodiscard]] std::string name() const override { return "can"; }
+  [[nodiscard]] std::size_t axis_count() const override { return axes_; }
+
+  void configure(const HardwareSetup& setup) override {
+    master_.reset();
+    bus_.reset();
+    const Params& params = setup.params;
+    const RobotModel model = load_robot_model(setup.model_dir);
+    axes_ = model.axes();
+    const std::string url = params.get_string("bus");
+    std::vector<std::int64_t> nodes;
+    if (params.has("nodes")) {
+      for (const double n : params.get_doubles("nodes")) {
+        if (n != std::floor(n) || n < 1 || n > canopen_max_node())
+          throw ConfigError(fmt::format("{}: error: node id {} in 'nodes' must be an integer in "
+                                        "1..127",
+                                        params.location_of("nodes").str(), n));
+        nodes.push_back(static_cast<std::int64_t>(n));
+      }
+      if (nodes.size() != axes_)
+        throw ConfigError(fmt::format("{}: error: 'nodes' lists {} node ids, robot '{}' has {} "
+                                      "axes",
+                                      params.location_of("nodes").str(), nodes.size(), model.name,
+                                      axes_));
+    } else {
+      for (std::size_t i = 0; i < axes_; ++i) nodes.push_back(static_cast<std::int64_t>(i + 1));
+    }
+    const double counts = params.get_double("counts_per_unit", 100000.0);
+    const double bitrate = params.get_double("bitrate", 1e6);
+    const double window = params.get_double("following_error_window", 0.05);
+    const std::int64_t window_ms = params.get_int("following_error_timeout_ms", 10);
+    const std::int64_t silent = params.get_int("silent_cycles", 10);
+    const double timeout_s = params.get_double("bring_up_timeout_s", 5.0);
+    const std::int64_t heartbeat = params.get_int("heartbeat_ms", 100);
+    params.reject_unread("robot.edp.params");
+    const auto positive = [&](const char* key, double value, const char* unit) {
+      if (!(value > 0.0) || !std::isfinite(value))
+        throw ConfigError(fmt::format("{}: error: '{}' = {} {} must be a positive number",
+                                      params.location_of(key).str(), key, value, unit));
+    };
+    positive("counts_per_unit", counts, "counts/unit");
+    positive("bitrate", bitrate, "bit/s");
+    positive("following_error_window", window, "rad");
+    positive("bring_up_timeout_s", timeout_s, "s");
+    if (window_ms < 1 || window_ms > 65535)
+      throw ConfigError(fmt::format("{}: error: 'following_error_timeout_ms' = {} ms must be in "
+                                    "1..65535 ms",
+                                    params.location_of("following_error_timeout_ms").str(),
+                                    window_ms));
+    if (silent < 2 || silent > 1000)
+      throw ConfigError(fmt::format("{}: error: 'silent_cycles' = {} must be in 2..1000",
+                                    params.location_of("silent_cycles").str(), silent));
+    if (heartbeat < 0 || heartbeat > 65535)
+      throw ConfigError(fmt::format("{}: error: 'heartbeat_ms' = {} ms must be in 0..65535 ms",
+                                    params.location_of("heartbeat_ms").str(), heartbeat));
+
+    // Transmission a = M q.
+    const auto n = static_cast<Eigen::Index>(axes_);
+    coupling_ = Eigen::MatrixXd::Identity(n, n);
+    for (std::size_t r = 0; r < model.coupling.size(); ++r)
+      for (std::size_t c = 0; c < model.coupling[r].size(); ++c)
+        coupling_(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = model.coupling[r][c];
+    const Eigen::FullPivLU<Eigen::MatrixXd> lu(coupling_);
+    if (!lu.isInvertible())
+      throw ConfigError(setup.model_dir.string() +
+                        "/parameters.toml: error: robot.transmission.coupling is singular");
+    inverse_ = lu.inverse();
+
+    // Bus load of the cyclic traffic.
+    const double heartbeat_s = static_cast<double>(heartbeat) / 1000.0;
+    const can::canopen::BusLoad load =
+        can::canopen::cyclic_bus_load(axes_, setup.servo_period_s, bitrate, heartbeat_s);
+    load_text_ = fmt::format(
+        "can: {} for robot '{}': {} drives, cycle {:.3g} ms, {} frames per cycle, bus load "
+        "{:.0f} % nominal, {:.0f} % worst case at {:.0f} kbit/s",
+        url, setup.robot, axes_, setup.servo_period_s * 1000.0, load.frames_per_cycle,
+        load.load_nominal * 100.0, load.load_worst * 100.0, bitrate / 1000.0);
+    std::fprintf(stderr, "%s\n", load_text_.c_str());
+    if (load.load_worst > 1.0)
+      throw ConfigError(fmt::format(
+          "{}: error: robot '{}' needs {:.0f} % of bus {} at {:.0f} kbit/s with a {:.3g} ms cycle "
+          "(limit 100 %, recommended at most {:.0f} %): lengthen servo_period_ms or split the "
+          "drives over more buses",
+          params.location().str(), setup.robot, load.load_worst * 100.0, url, bitrate / 1000.0,
+          setup.servo_period_s * 1000.0, can::canopen::kRecommendedMaxLoad * 100.0));
+    if (load.load_worst > can::canopen::kRecommendedMaxLoad)
+      std::fprintf(stderr, "can: warning: worst-case bus load %.0f %% is above the recommended "
+                   "%.0f %%\n", load.load_worst * 100.0, can::canopen::kRecommendedMaxLoad * 100.0);
+
+    std::vector<can::MasterAxis> axes;
+    for (std::size_t i = 0; i < axes_; ++i) {
+      can::MasterAxis a;
+      a.name = model.joint_names[i];
+      a.node = static_cast<std::uint8_t>(nodes[i]);
+      a.counts_per_unit = counts;
+      // Deceleration in drive coordinates: |M| times the joints' largest accelerations.
+      double decel = 0.0;
+      for (std::size_t c = 0; c < axes_; ++c)
+        decel += std::abs(coupling_(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c))) *
+                 model.max_acceleration[c];
+      a.quick_stop_deceleration = decel;
+      a.following_error_window = window;
+      a.following_error_timeout_ms = static_cast<std::uint16_t>(window_ms);
+      axes.push_back(a);
+    }
+    can::MasterOptions options;
+    options.period_s = setup.servo_period_s;
+    options.silent_cycles = static_cast<int>(silent);
+    options.heartbeat_ms = static_cast<std::uint16_t>(heartbeat);
+    timeout_ = std::chrono::milliseconds(std::llround(timeout_s * 1000.0));
+    period_s_ = setup.servo_period_s;
+    bus_ = can::open_bus(url);
+    bus_->receive_error_frames(true);
+    master_ = std::make_unique<can::Cia402Master>(*bus_, std::move(axes), options);
+    a_.resize(n);
+    q_.resize(n);
+    q_previous_.resize(n);
+    target_a_.assign(axes_, 0.0);
+    first_read_ = true;
+  }
+
+  void activate() override {
+    master_->bring_up(timeout_);
+    active_ = true;
+    first_read_ = true;
+  }
+
+  void deactivate() override {
+    if (master_ && active_) master_->shut_down();
+    active_ = false;
+  }
+
+  CycleStatus read(std::span<AxisFeedback> out) override {
+    master_->receive();
+    for (std::size_t i = 0; i < axes_; ++i) a_(static_cast<Eigen::Index>(i)) = master_->status(i).position;
+    q_.noalias() = inverse_ * a_;
+    for (std::size_t i = 0; i < axes_; ++i) {
+      const auto k = static_cast<Eigen::Index>(i);
+      out[i].position = q_(k);
+      out[i].velocity = first_read_ ? 0.0 : (q_(k) - q_previous_(k)) / period_s_;
+      out[i].synchro_switch = master_->status(i).home_switch;
+    }
+    q_previous_ = q_;
+    first_read_ = false;
+    return master_->faulted() ? CycleStatus::fault : CycleStatus::ok;
+  }
+
+  CycleStatus write(std::span<const double> setpoints) override {
+    for (std::size_t i = 0; i < axes_; ++i) q_(static_cast<Eigen::Index>(i)) = setpoints[i];
+    a_.noalias() = coupling_ * q_;
+    for (std::size_t i = 0; i < axes_; ++i) target_a_[i] = a_(static_cast<Eigen::Index>(i));
+    master_->send(target_a_, quick_stop_.load(std::memory_order_relaxed));
+    return master_->faulted() ? CycleStatus::fault : CycleStatus::ok;
+  }
+
+  void emergency_stop(bool engaged) override {
+    quick_stop_.store(engaged, std::memory_order_relaxed);
+  }
+
+  [[nodiscard]] std::string fault_text() const override {
+    return master_ ? std::string(master_->fault_text()) : std::string();
+  }
+
+ private:
+  static double canopen_max_node() { return static_cast<double>(can::canopen::kMaxNode); }
+
+  std::size_t axes_ = 0;
+  std::unique_ptr<can::Bus> bus_;
+  std::unique_ptr<can::Cia402Master> master_;
+  Eigen::MatrixXd coupling_;
+  Eigen::MatrixXd inverse_;
+  Eigen::VectorXd a_;
+  Eigen::VectorXd q_;
+  Eigen::VectorXd q_previous_;
+  std::vector<double> target_a_;
+  std::chrono::milliseconds timeout_{5000};
+  double period_s_ = 0.002;
+  bool active_ = false;
+  bool first_read_ = true;
+  std::atomic<bool> quick_stop_{false};
+  std::string load_text_;
+};
+
+}  // namespace
+
+MRROC_REGISTER_HARDWARE("can", CanHardware);
+
+}  // namespace mrroc::edp

@@ -1,0 +1,414 @@
+/// @file
+/// The cell's physics (see cell_world.hpp).
+
+#include "cell_world.hpp"
+
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::emu {
+namespace {
+
+std::size_t index(int i) { return static_cast<std::size_t>(i); }
+
+Range range_if(bool limited, const mjtNum* pair) {
+  return limited ? Range{pair[0], pair[1]} : Range{};
+}
+
+/// Loads MJCF text through a MuJoCo virtual file system (no temporary file).
+sim::ModelPtr load_from_memory(const std::string& text, std::string& error) {
+  const char* const file = "cell.xml";
+  auto vfs = std::make_unique<mjVFS>();  // large (file name table): not on the stack
+  mj_defaultVFS(vfs.get());
+  if (mj_makeEmptyFileVFS(vfs.get(), file, static_cast<int>(text.size())) != 0) {
+    error = "cannot make the virtual file";
+    return nullptr;
+  }
+  const int slot = mj_findFileVFS(vfs.get(), file);
+  std::memcpy(vfs->filedata[slot], text.data(), text.size());
+  sim::ModelPtr model = sim::load_mjcf(file, vfs.get(), error);
+  mj_deleteVFS(vfs.get());
+  return model;
+}
+
+/// The name (without NUL) as a NUL-terminated string in `buffer`; false when it does not fit.
+bool terminated(std::string_view name, std::array<char, 256>& buffer) noexcept {
+  if (name.size() >= buffer.size()) return false;
+  std::memcpy(buffer.data(), name.data(), name.size());
+  buffer[name.size()] = '\0';
+  return true;
+}
+
+}  // namespace
+
+CellWorld::CellWorld(const Scene& scene) { build(scene); }
+
+CellWorld::CellWorld(const std::filesystem::path& scene_file) { build(load_scene(scene_file)); }
+
+void CellWorld::build(const Scene& scene) {
+  name_ = scene.name;
+  ComposedScene composed = compose_scene(scene);
+  xml_ = std::move(composed.xml);
+  std::string error;
+  model_ = load_from_memory(xml_, error);
+  if (!model_) {
+    throw ConfigError(fmt::format("{}: error: MuJoCo cannot load the composed scene: {}",
+                                  scene.where.str(), error));
+  }
+  const mjModel* m = model_.get();
+  const ComposedRobot& last = composed.robots.back();
+  if (last.first_actuator + last.actuator_count != m->nu ||
+      last.first_equality + last.equality_count != m->neq) {
+    throw HardwareError(fmt::format("cell '{}': the composed model has {} actuators and {} "
+                                    "equality constraints, its robots {} and {}",
+                                    name_, m->nu, m->neq, last.first_actuator + last.actuator_count,
+                                    last.first_equality + last.equality_count));
+  }
+
+  joint_robot_.assign(index(m->njnt), -1);
+  joint_axis_.assign(index(m->njnt), -1);
+  std::vector<sim::ModelContext> contexts;
+  std::vector<sim::PowerOnRequest> requests;
+  std::vector<std::vector<int>> robot_joints;
+  for (std::size_t k = 0; k < scene.robots.size(); ++k) {
+    const SceneRobot& source = scene.robots[k];
+    const ComposedRobot& composed_robot = composed.robots[k];
+    const sim::ModelContext context{fmt::format("cell '{}', robot '{}'", name_, source.name),
+                                    composed_robot.mjcf, composed_robot.parameters.path};
+    // The robot's joints: those in the subtree of its base body.
+    const int base = mj_name2id(m, mjOBJ_BODY, source.name.c_str());
+    std::vector<int> joints;
+    for (int j = 0; j < m->njnt; ++j) {
+      int body = m->jnt_bodyid[j];
+      while (body > 0 && body != base) body = m->body_parentid[body];
+      if (body == base) joints.push_back(j);
+    }
+    sim::check_hinge_or_slide(m, joints, context);
+
+    RobotState robot;
+    robot.axes = sim::map_axes(m, composed_robot.first_actuator, composed_robot.actuator_count,
+                               source.name + "/", context);
+    sim::check_axis_names(robot.axes, composed_robot.parameters.joint_names, context);
+    const std::size_t axes = robot.axes.size();
+    sim::Coupling coupling =
+        sim::Coupling::from_parameters(composed_robot.parameters, axes, composed_robot.mjcf);
+    if (!composed_robot.parameters.synchro) {
+      throw ConfigError(composed_robot.parameters.path.string() +
+                        ":0: error: missing key robot.synchro_joint_positions [rad]");
+    }
+    sim::PowerOnRequest request{source.initial_joint_positions, source.initial_where.str()};
+    sim::plan_power_on(m, robot.axes, std::move(coupling), *composed_robot.parameters.synchro,
+                       sim::quoted(composed_robot.parameters.path), request, context);
+    robot.first_equality = composed_robot.first_equality;
+    robot.equality_count = composed_robot.equality_count;
+    for (const int j : joints) {
+      joint_robot_[index(j)] = static_cast<int>(k);
+      robot.dofs.push_back(m->jnt_dofadr[j]);
+      (source.gravity_compensation ? compensated_dofs_ : plain_dofs_).push_back(m->jnt_dofadr[j]);
+    }
+    for (std::size_t i = 0; i < axes; ++i) {
+      const int j = robot.axes.joint[i];
+      if (joint_robot_[index(j)] != static_cast<int>(k)) {
+        throw HardwareError(fmt::format("{}: actuator '{}' drives joint '{}', which is not the "
+                                        "robot's",
+                                        context.who, robot.axes.names[i], sim::joint_name(m, j)));
+      }
+      joint_axis_[index(j)] = static_cast<int>(i);
+    }
+    robot.feed_forward.assign(axes, 0.0);
+    robot.scratch.assign(axes, 0.0);
+
+    CellRobot& info = robot.info;
+    info.name = source.name;
+    info.model_dir = source.model_dir;
+    info.mjcf = composed_robot.mjcf;
+    info.base = source.base;
+    info.gravity_compensation = source.gravity_compensation;
+    info.axis_names = robot.axes.names;
+    info.coupling = robot.axes.coupling.matrix();
+    info.coupled = robot.axes.coupling.coupled();
+    info.synchro_joint_positions = robot.axes.synchro;
+    info.power_on_joint_positions = robot.axes.power_on;
+    info.power_on_actuator_positions = robot.axes.power_on_actuators;
+    for (std::size_t i = 0; i < axes; ++i) {
+      const int a = robot.axes.actuator[i];
+      const int j = robot.axes.joint[i];
+      const int r = robot.axes.range_joint[i];
+      info.linear.push_back(m->jnt_type[j] == mjJNT_SLIDE);
+      info.actuator_ranges.push_back(range_if(m->jnt_limited[j] != 0, m->jnt_range + 2 * j));
+      info.joint_ranges.push_back(
+          r >= 0 ? range_if(m->jnt_limited[r] != 0, m->jnt_range + 2 * r) : Range{});
+      info.target_ranges.push_back(
+          range_if(m->actuator_ctrllimited[a] != 0, m->actuator_ctrlrange + 2 * a));
+      info.force_limits.push_back(
+          range_if(m->actuator_forcelimited[a] != 0, m->actuator_forcerange + 2 * a));
+      info.position_gains.push_back(m->actuator_gainprm[index(a) * static_cast<std::size_t>(mjNGAIN)]);
+      info.damping.push_back(m->dof_damping[robot.axes.dof_adr[i]]);
+    }
+    robots_.push_back(std::move(robot));
+    contexts.push_back(context);
+    requests.push_back(std::move(request));
+    robot_joints.push_back(std::move(joints));
+  }
+
+  // The power-on state: every robot's actuator joints at M q, passive joints closing the loops.
+  data_.reset(mj_makeData(m));
+  if (!data_) throw HardwareError(fmt::format("cell '{}': cannot allocate MuJoCo data", name_));
+  mjData* d = data_.get();
+  mj_resetData(m, d);
+  std::vector<int> qpos_adr;
+  std::vector<double> targets;
+  for (const RobotState& robot : robots_) {
+    qpos_adr.insert(qpos_adr.end(), robot.axes.qpos_adr.begin(), robot.axes.qpos_adr.end());
+    targets.insert(targets.end(), robot.axes.power_on_actuators.begin(),
+                   robot.axes.power_on_actuators.end());
+  }
+  sim::close_loops(m, d, qpos_adr, targets);
+  for (std::size_t k = 0; k < robots_.size(); ++k) {
+    const RobotState& robot = robots_[k];
+    const double violation =
+        robot.equality_count > 0
+            ? sim::equality_violation(d, robot.first_equality, robot.equality_count)
+            : 0.0;
+    sim::check_power_on_state(m, d, robot.axes, robot_joints[k], violation, requests[k],
+                              contexts[k]);
+  }
+  power_on_qpos_.assign(d->qpos, d->qpos + m->nq);
+  reset();
+}
+
+std::size_t CellWorld::robot_index(std::string_view robot_name) const {
+  std::string known;
+  for (std::size_t k = 0; k < robots_.size(); ++k) {
+    if (robots_[k].info.name == robot_name) return k;
+    known += (k == 0 ? "" : ", ") + robots_[k].info.name;
+  }
+  throw Error(fmt::format("cell '{}': no robot named '{}' (robots: {})", name_, robot_name, known));
+}
+
+void CellWorld::reset() noexcept {
+  const mjModel* m = model_.get();
+  mjData* d = data_.get();
+  mj_resetData(m, d);
+  std::copy(power_on_qpos_.begin(), power_on_qpos_.end(), d->qpos);
+  for (RobotState& robot : robots_) {
+    for (std::size_t i = 0; i < robot.axes.size(); ++i)
+      d->ctrl[robot.axes.actuator[i]] = d->qpos[robot.axes.qpos_adr[i]];
+    std::fill(robot.feed_forward.begin(), robot.feed_forward.end(), 0.0);
+  }
+  mj_forward(m, d);
+  for (const int v : compensated_dofs_) d->qfrc_applied[v] = d->qfrc_bias[v];
+  warnings_at_reset_ = sim::warning_total(d);
+  faulted_ = false;
+  fault_[0] = '\0';
+}
+
+bool CellWorld::set_targets(std::size_t k, std::span<const double> positions) noexcept {
+  if (!valid(k, positions.size())) return false;
+  for (const double p : positions)
+    if (!std::isfinite(p)) return false;
+  const sim::RobotAxes& axes = robots_[k].axes;
+  for (std::size_t i = 0; i < positions.size(); ++i) data_->ctrl[axes.actuator[i]] = positions[i];
+  return true;
+}
+
+bool CellWorld::set_velocity_feed_forward(std::size_t k,
+                                          std::span<const double> velocities) noexcept {
+  if (!valid(k, velocities.size())) return false;
+  for (const double v : velocities)
+    if (!std::isfinite(v)) return false;
+  RobotState& robot = robots_[k];
+  for (std::size_t i = 0; i < velocities.size(); ++i)
+    robot.feed_forward[i] = model_->dof_damping[robot.axes.dof_adr[i]] * velocities[i];
+  return true;
+}
+
+bool CellWorld::step() noexcept {
+  if (faulted_) return false;
+  const mjModel* m = model_.get();
+  mjData* d = data_.get();
+  // qfrc_bias is that of the current state: computed by mj_forward (reset) or by the mj_step1
+  // that ends every step. Splitting the step this way keeps body poses and constraint
+  // violations current for the readings between steps.
+  for (const int v : compensated_dofs_) d->qfrc_applied[v] = d->qfrc_bias[v];
+  for (const int v : plain_dofs_) d->qfrc_applied[v] = 0.0;
+  for (const RobotState& robot : robots_) {
+    for (std::size_t i = 0; i < robot.axes.size(); ++i)
+      d->qfrc_applied[robot.axes.dof_adr[i]] += robot.feed_forward[i];
+  }
+  mj_step2(m, d);
+  mj_step1(m, d);
+  return check_stable();
+}
+
+void CellWorld::set_fault(const char* format, ...) noexcept {
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(fault_.data(), fault_.size(), format, args);
+  va_end(args);
+  faulted_ = true;
+}
+
+void CellWorld::describe_joint(int joint, std::array<char, 256>& out) const noexcept {
+  const char* name = mj_id2name(model_.get(), mjOBJ_JOINT, joint);
+  name = name != nullptr ? name : "(unnamed)";
+  const int k = joint >= 0 && joint < model_->njnt ? joint_robot_[index(joint)] : -1;
+  if (k < 0) {
+    std::snprintf(out.data(), out.size(), "object joint '%s'", name);
+    return;
+  }
+  const RobotState& robot = robots_[index(k)];
+  const int axis = joint_axis_[index(joint)];
+  if (axis < 0) {
+    std::snprintf(out.data(), out.size(), "robot '%s', passive joint '%s'",
+                  robot.info.name.c_str(), name);
+  } else {
+    std::snprintf(out.data(), out.size(), "robot '%s', joint '%s' (axis %d '%s')",
+                  robot.info.name.c_str(), name, axis,
+                  robot.info.axis_names[index(axis)].c_str());
+  }
+}
+
+bool CellWorld::check_stable() noexcept {
+  const mjModel* m = model_.get();
+  const mjData* d = data_.get();
+  std::array<char, 256> where{};
+  if (const int joint = sim::non_finite_joint(m, d); joint >= 0) {
+    describe_joint(joint, where);
+    set_fault("cell '%s' unstable at t = %.6f s: non-finite state of %s", name_.c_str(), d->time,
+              where.data());
+    return false;
+  }
+  if (sim::warning_total(d) != warnings_at_reset_) {
+    for (int w = 0; w < mjNWARNING; ++w) {
+      const mjWarningStat& stat = d->warning[w];
+      if (stat.number == 0) continue;
+      // The bad-number warnings name a qpos address or a degree of freedom.
+      int joint = -1;
+      if (w == mjWARN_BADQPOS) {
+        for (int j = 0; j < m->njnt; ++j)
+          if (m->jnt_qposadr[j] <= stat.lastinfo) joint = j;
+      } else if ((w == mjWARN_BADQVEL || w == mjWARN_BADQACC) && stat.lastinfo >= 0 &&
+                 stat.lastinfo < m->nv) {
+        joint = m->dof_jntid[stat.lastinfo];
+      }
+      if (joint >= 0) {
+        describe_joint(joint, where);
+      } else {
+        std::snprintf(where.data(), where.size(), "index %d", stat.lastinfo);
+      }
+      set_fault("cell '%s' unstable at t = %.6f s: MuJoCo warning '%s' raised %d time(s), last "
+                "at %s",
+                name_.c_str(), d->time, sim::warning_text(w), stat.number, where.data());
+      return false;
+    }
+  }
+  for (const RobotState& robot : robots_) {
+    if (robot.equality_count == 0) continue;
+    const double violation =
+        sim::equality_violation(d, robot.first_equality, robot.equality_count);
+    if (violation > kLoopOpenFault) {
+      set_fault("cell '%s' unstable at t = %.6f s: robot '%s': a closed kinematic loop opened by "
+                "%.3g (limit %.3g)",
+                name_.c_str(), d->time, robot.info.name.c_str(), violation, kLoopOpenFault);
+      return false;
+    }
+  }
+  return true;
+}
+
+bool CellWorld::actuator_positions(std::size_t k, std::span<double> out) const noexcept {
+  if (!valid(k, out.size())) return false;
+  const sim::RobotAxes& axes = robots_[k].axes;
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = data_->qpos[axes.qpos_adr[i]];
+  return true;
+}
+
+bool CellWorld::actuator_velocities(std::size_t k, std::span<double> out) const noexcept {
+  if (!valid(k, out.size())) return false;
+  const sim::RobotAxes& axes = robots_[k].axes;
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = data_->qvel[axes.dof_adr[i]];
+  return true;
+}
+
+bool CellWorld::actuator_forces(std::size_t k, std::span<double> out) const noexcept {
+  if (!valid(k, out.size())) return false;
+  const sim::RobotAxes& axes = robots_[k].axes;
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] = data_->actuator_force[axes.actuator[i]] + data_->qfrc_applied[axes.dof_adr[i]];
+  return true;
+}
+
+bool CellWorld::joint_positions(std::size_t k, std::span<double> out) const noexcept {
+  if (!valid(k, out.size())) return false;
+  const RobotState& robot = robots_[k];
+  (void)actuator_positions(k, robot.scratch);
+  robot.axes.coupling.joints_from_actuators(robot.scratch.data(), out.data());
+  return true;
+}
+
+bool CellWorld::joint_velocities(std::size_t k, std::span<double> out) const noexcept {
+  if (!valid(k, out.size())) return false;
+  const RobotState& robot = robots_[k];
+  (void)actuator_velocities(k, robot.scratch);
+  robot.axes.coupling.joints_from_actuators(robot.scratch.data(), out.data());
+  return true;
+}
+
+bool CellWorld::synchro_switch(std::size_t k, std::size_t axis) const noexcept {
+  if (k >= robots_.size() || axis >= robots_[k].axes.size()) return false;
+  const RobotState& robot = robots_[k];
+  (void)actuator_positions(k, robot.scratch);
+  return robot.axes.coupling.joint_from_actuators(robot.scratch.data(), axis) >
+         robot.axes.synchro[axis];
+}
+
+int CellWorld::body_id(std::string_view body_name) const noexcept {
+  std::array<char, 256> buffer{};
+  return terminated(body_name, buffer) ? mj_name2id(model_.get(), mjOBJ_BODY, buffer.data()) : -1;
+}
+
+int CellWorld::site_id(std::string_view site_name) const noexcept {
+  std::array<char, 256> buffer{};
+  return terminated(site_name, buffer) ? mj_name2id(model_.get(), mjOBJ_SITE, buffer.data()) : -1;
+}
+
+FramePose CellWorld::body_pose(int id) const noexcept {
+  FramePose pose;
+  if (id < 0 || id >= model_->nbody) return pose;
+  const std::size_t i = index(id);
+  std::copy(data_->xpos + 3 * i, data_->xpos + 3 * i + 3, pose.position.begin());
+  std::copy(data_->xquat + 4 * i, data_->xquat + 4 * i + 4, pose.quaternion.begin());
+  return pose;
+}
+
+FramePose CellWorld::site_pose(int id) const noexcept {
+  FramePose pose;
+  if (id < 0 || id >= model_->nsite) return pose;
+  const std::size_t i = index(id);
+  std::copy(data_->site_xpos + 3 * i, data_->site_xpos + 3 * i + 3, pose.position.begin());
+  mju_mat2Quat(pose.quaternion.data(), data_->site_xmat + 9 * i);
+  return pose;
+}
+
+FramePose CellWorld::body_pose(std::string_view body_name) const {
+  const int id = body_id(body_name);
+  if (id < 0) throw Error(fmt::format("cell '{}': no body named '{}'", name_, body_name));
+  return body_pose(id);
+}
+
+FramePose CellWorld::site_pose(std::string_view site_name) const {
+  const int id = site_id(site_name);
+  if (id < 0) throw Error(fmt::format("cell '{}': no site named '{}'", name_, site_name));
+  return site_pose(id);
+}
+
+}  // namespace mrroc::emu

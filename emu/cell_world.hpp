@@ -1,0 +1,220 @@
+#pragma once
+/// @file
+/// `CellWorld`: the physics of a whole robot cell in ONE MuJoCo 2.2 world — several robots (two
+/// IRb-6s, the conveyor, the RNT, ...) and objects, as a scene file lists them (scene.hpp). The
+/// axis emulator exposes every axis of it as an emulated drive.
+///
+/// Robots and axes. Robot k is the k-th `[[scene.robot]]`; every MuJoCo name of it is prefixed
+/// with "<robot>/" ("left/column", "left/flange"), and its base body is named after the robot
+/// ("left"). Its axes are its MJCF's actuators in order: axis i is a position servo on one hinge
+/// or slide joint, its *actuator joint*, whose position is a_i. The robot's joint coordinates q
+/// (its URDF's serial chain) follow from a = M q, M being the coupling of parameters.toml
+/// (identity by default; the RNT's elbow drive turns q1 + q2). Drives work in actuator
+/// coordinates a: `set_targets`, `actuator_positions`, ... take and give a; `joint_positions`
+/// converts to q.
+///
+/// Units: rad (hinge) or m (slide) for positions; per second for velocities; N m or N for forces;
+/// s for time; world frame in m with quaternions (w, x, y, z).
+///
+/// Physics per step (`step()`): the actuators' position servos track their targets (clamped into
+/// the actuators' ctrlrange); a robot with gravity compensation gets the gravity/Coriolis
+/// feed-forward qfrc_applied = qfrc_bias on all its degrees of freedom (as the `mujoco` EDP
+/// plugin does; objects attached to a robot's body are compensated with it, free objects are
+/// not); a velocity feed-forward damping * v_target adds to each actuator joint. Kinematic loops
+/// are closed at power-on exactly as in the plugin (sim::close_loops).
+///
+/// Instability (a non-finite state, a MuJoCo warning, a closed loop opening by more than
+/// `kLoopOpenFault`) makes `step()` return false with `fault_text()` naming the robot and axis
+/// (or object); the fault is latched — `step()` does nothing — until `reset()`.
+///
+/// Real time: set_targets, set_velocity_feed_forward, step, every read (`time`, `actuator_*`,
+/// `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`) and `reset` neither allocate
+/// nor throw. A CellWorld is not thread-safe: call it from one thread (or guard it).
+
+#include <array>
+#include <cstddef>
+#include <filesystem>
+#include <limits>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <mujoco/mujoco.h>
+
+#include "mrroc/sim/mujoco_support.hpp"
+#include "mrroc/sim/robot_axes.hpp"
+#include "scene.hpp"
+
+namespace mrroc::emu {
+
+/// Limits of a value; +-infinity where the model sets none.
+struct Range {
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+};
+
+/// A frame in the world: position [m] and unit quaternion (w, x, y, z).
+struct FramePose {
+  std::array<double, 3> position{};
+  std::array<double, 4> quaternion = {1.0, 0.0, 0.0, 0.0};
+};
+
+/// What one robot of the cell is (fixed after construction). Per-axis vectors have one entry
+/// per axis, in axis order.
+struct CellRobot {
+  std::string name;                  ///< scene name, also the prefix "<name>/" of its names
+  std::filesystem::path model_dir;   ///< robots/<model>/
+  std::filesystem::path mjcf;        ///< its own MJCF file
+  std::array<double, 6> base{};      ///< base pose in the world: x y z [m], rotation vector [rad]
+  bool gravity_compensation = true;
+  std::vector<std::string> axis_names;  ///< actuator names without the prefix
+  std::vector<bool> linear;             ///< true: slide joint (m), false: hinge (rad)
+  std::vector<double> coupling;         ///< M of a = M q, row-major axes x axes
+  bool coupled = false;                 ///< M is not the identity
+  std::vector<double> synchro_joint_positions;      ///< q at the synchronisation switches
+  std::vector<double> power_on_joint_positions;     ///< q at power-on (after reset())
+  std::vector<double> power_on_actuator_positions;  ///< a = M q at power-on
+  std::vector<Range> actuator_ranges;  ///< of the actuator joints' positions a
+  std::vector<Range> joint_ranges;     ///< of the joint positions q (where the model has them)
+  std::vector<Range> target_ranges;    ///< actuator ctrlrange (targets are clamped into it)
+  std::vector<Range> force_limits;     ///< actuator forcerange [N m or N]
+  std::vector<double> position_gains;  ///< servo kp [N m/rad or N/m]
+  std::vector<double> damping;         ///< actuator joints' viscous damping [N m s/rad or N s/m]
+
+  [[nodiscard]] std::size_t axis_count() const noexcept { return axis_names.size(); }
+};
+
+class CellWorld {
+ public:
+  /// A closed kinematic loop opening by more than this is a fault [m or rad].
+  static constexpr double kLoopOpenFault = sim::kLoopOpenFault;
+
+  /// Composes the scene (compose_scene), loads it into MuJoCo, closes every robot's kinematic
+  /// loops at its power-on pose and resets to that state.
+  /// @throws ConfigError (scene, robot files, a given power-on pose) or HardwareError (a robot
+  ///   model that cannot be driven: an actuator not on a joint, a coupling that does not match
+  ///   the model, a default power-on pose outside a range ...), naming the robot and the file.
+  explicit CellWorld(const Scene& scene);
+  /// load_scene(file), then as above.
+  explicit CellWorld(const std::filesystem::path& scene_file);
+
+  CellWorld(const CellWorld&) = delete;
+  CellWorld& operator=(const CellWorld&) = delete;
+  CellWorld(CellWorld&&) noexcept = default;
+  CellWorld& operator=(CellWorld&&) noexcept = default;
+  ~CellWorld() = default;
+
+  // ---- Description ----
+  [[nodiscard]] const std::string& name() const noexcept { return name_; }
+  /// The composed MJCF document (what MuJoCo loaded), e.g. for a --print-scene option.
+  [[nodiscard]] const std::string& composed_xml() const noexcept { return xml_; }
+  [[nodiscard]] std::size_t robot_count() const noexcept { return robots_.size(); }
+  /// Robot k (k < robot_count()).
+  [[nodiscard]] const CellRobot& robot(std::size_t k) const { return robots_.at(k).info; }
+  /// Index of the robot named `robot_name`. @throws Error listing the robots when unknown.
+  [[nodiscard]] std::size_t robot_index(std::string_view robot_name) const;
+  /// Number of axes of robot k (0 for an unknown k).
+  [[nodiscard]] std::size_t axis_count(std::size_t k) const noexcept {
+    return k < robots_.size() ? robots_[k].info.axis_count() : 0;
+  }
+  /// The MuJoCo step [s].
+  [[nodiscard]] double timestep() const noexcept { return model_->opt.timestep; }
+  /// The MuJoCo model and data, read-only (for viewers and tests).
+  [[nodiscard]] const mjModel* model() const noexcept { return model_.get(); }
+  [[nodiscard]] const mjData* data() const noexcept { return data_.get(); }
+
+  // ---- Commands (real time) ----
+  /// Position targets a of robot k's axes, held until the next call [rad or m]; MuJoCo clamps
+  /// them into the actuators' ctrlrange. Returns false (and changes nothing) for an unknown k, a
+  /// wrong number of values or a value that is not finite.
+  [[nodiscard]] bool set_targets(std::size_t k, std::span<const double> positions) noexcept;
+  /// Velocity feed-forward of robot k's axes [rad/s or m/s], held until the next call (like a
+  /// CiA 402 velocity offset): each actuator joint gets damping * velocity added to its force,
+  /// which removes the lag of a position servo against its joint's viscous friction. Zero after
+  /// construction and reset(). Returns false (and changes nothing) as set_targets().
+  [[nodiscard]] bool set_velocity_feed_forward(std::size_t k,
+                                               std::span<const double> velocities) noexcept;
+  /// Advances the world by one MuJoCo step (timestep()). Returns false when the simulation is
+  /// (or already was) unstable; see fault_text().
+  [[nodiscard]] bool step() noexcept;
+  /// Back to the power-on state: time 0, every robot at its power-on pose with closed loops and
+  /// targets there, velocity feed-forward 0, objects at their initial poses, fault cleared.
+  void reset() noexcept;
+
+  // ---- Readings (real time) ----
+  /// Simulated time since reset() [s].
+  [[nodiscard]] double time() const noexcept { return data_->time; }
+  /// Robot k's actuator joint positions a [rad or m]. Returns false (out untouched) for an
+  /// unknown k or out.size() != axis_count(k); likewise every reading below.
+  bool actuator_positions(std::size_t k, std::span<double> out) const noexcept;
+  /// Actuator joint velocities [rad/s or m/s].
+  bool actuator_velocities(std::size_t k, std::span<double> out) const noexcept;
+  /// The force each drive applied in the last step [N m or N]: the position servo's actuator
+  /// force plus the feed-forward on the actuator joint (gravity compensation and velocity
+  /// feed-forward).
+  bool actuator_forces(std::size_t k, std::span<double> out) const noexcept;
+  /// Joint positions q = M^-1 a [rad or m].
+  bool joint_positions(std::size_t k, std::span<double> out) const noexcept;
+  /// Joint velocities M^-1 da/dt [rad/s or m/s].
+  bool joint_velocities(std::size_t k, std::span<double> out) const noexcept;
+  /// Synchronisation switch of robot k's axis i: closed (true) while q_i is strictly above the
+  /// synchronisation position (as the `mujoco` plugin). False for an unknown robot or axis.
+  [[nodiscard]] bool synchro_switch(std::size_t k, std::size_t axis) const noexcept;
+
+  /// Id of a body ("part", "left", "left/column_link"), or -1 when there is none.
+  [[nodiscard]] int body_id(std::string_view body_name) const noexcept;
+  /// Id of a site ("left/flange"), or -1.
+  [[nodiscard]] int site_id(std::string_view site_name) const noexcept;
+  /// World pose of body `id` (identity for a bad id), as of the last step or reset.
+  [[nodiscard]] FramePose body_pose(int id) const noexcept;
+  /// World pose of site `id` (identity for a bad id).
+  [[nodiscard]] FramePose site_pose(int id) const noexcept;
+  /// By name. @throws Error naming the body or site when there is none.
+  [[nodiscard]] FramePose body_pose(std::string_view body_name) const;
+  [[nodiscard]] FramePose site_pose(std::string_view site_name) const;
+
+  // ---- Faults ----
+  [[nodiscard]] bool faulted() const noexcept { return faulted_; }
+  /// Why the simulation is unstable (empty when it is not), e.g. "cell 'two-irb6': robot
+  /// 'left' unstable: non-finite state of joint 'left/lower_arm' (axis 1 'lower_arm') at
+  /// t = 0.123000 s".
+  [[nodiscard]] const char* fault_text() const noexcept { return fault_.data(); }
+
+ private:
+  /// A robot's description plus what the cycle needs (sizes fixed at construction).
+  struct RobotState {
+    CellRobot info;
+    sim::RobotAxes axes;
+    int first_equality = 0;
+    int equality_count = 0;
+    std::vector<int> dofs;                 ///< all degrees of freedom of the robot's joints
+    std::vector<double> feed_forward;      ///< per axis [N m or N]
+    mutable std::vector<double> scratch;   ///< per axis
+  };
+
+  void build(const Scene& scene);
+  bool check_stable() noexcept;
+  /// Writes "robot 'r' ... joint 'j' (axis i 'a')" (or the object's joint) into `out`.
+  void describe_joint(int joint, std::array<char, 256>& out) const noexcept;
+  [[gnu::format(printf, 2, 3)]] void set_fault(const char* format, ...) noexcept;
+  bool valid(std::size_t k, std::size_t values) const noexcept {
+    return k < robots_.size() && values == robots_[k].info.axis_count();
+  }
+
+  std::string name_;
+  std::string xml_;
+  sim::ModelPtr model_;
+  sim::DataPtr data_;
+  std::vector<RobotState> robots_;
+  std::vector<double> power_on_qpos_;   ///< the whole world's qpos at power-on
+  std::vector<int> compensated_dofs_;   ///< dofs with gravity feed-forward
+  std::vector<int> plain_dofs_;         ///< robot dofs without it (qfrc_applied = 0)
+  std::vector<int> joint_robot_;        ///< per model joint: robot index, -1 for objects
+  std::vector<int> joint_axis_;         ///< per model joint: axis index, -1 for passive joints
+  int warnings_at_reset_ = 0;
+  bool faulted_ = false;
+  std::array<char, 512> fault_{};
+};
+
+}  // namespace mrroc::emu

@@ -1,0 +1,38 @@
+#pragma once
+/// @file
+/// Fault injection of the cell emulator: what `mrroc-axis-emu --fault SPEC` and the process set's
+/// `[emulator] faults = [...]` take.
+///
+///   drive:<robot>/<axis>@<t>[=<code>]  the drive goes to fault with an EMCY code (hex, default
+///                                      0x5000 device hardware)
+///   silent:<robot>/<axis>@<t>          the drive's node falls silent (sends and hears nothing)
+///   drop:<robot>@<t>=<fraction>        the robot's drives lose that fraction (0..1) of the
+///                                      frames they send
+///   busoff:<robot>@<t>[+<seconds>]     the robot's drives go bus-off (an error frame
+///                                      CAN_ERR_BUSOFF is sent), for ever or for that long
+///
+/// <axis> is an axis name or index (0-based); <t> is in seconds after all the robot's drives
+/// first reached operation enabled.
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+namespace mrroc::emu {
+
+enum class FaultKind { drive, silent, drop, bus_off };
+
+struct FaultSpec {
+  FaultKind kind = FaultKind::drive;
+  std::string robot;
+  std::string axis;              ///< name or index; empty for drop and busoff
+  double at_s = 0.0;             ///< [s] after the robot's drives were first enabled
+  std::uint16_t code = 0x5000;   ///< EMCY code (drive)
+  double fraction = 0.0;         ///< drop
+  double duration_s = -1.0;      ///< busoff; negative: for ever
+  std::string text;              ///< the spec as written
+};
+
+/// @throws mrroc::ConfigError naming the spec and what is wrong with it.
+FaultSpec parse_fault(std::string_view spec);
+
+}  // namespace mrroc::emu

@@ -1,0 +1,488 @@
+// mrroc-axis-emu: the cell emulator. One MuJoCo world holds the whole cell (a scene file: several
+// robots, the conveyor, objects); every axis appears on its CAN bus as an emulated CiA 402 drive
+// (include/mrroc/can/cia402_drive.hpp), so that an EDP with the `can` plugin cannot tell it from
+// real drives. Runs in real time, or lock-step (physics advances with the masters' SYNCs, as
+// fast as they come). Faults can be injected (emu/faults.hpp). docs/hil.md.
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <pthread.h>
+#include <sched.h>
+#include <linux/can/error.h>
+#include <sys/prctl.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cell_world.hpp"
+#include "drives.hpp"
+#include "faults.hpp"
+#include "mrroc/can/bus.hpp"
+#include "mrroc/can/canopen.hpp"
+#include "mrroc/can/cia402_drive.hpp"
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
+#include "mrroc/core/reporter.hpp"
+
+namespace {
+
+using namespace mrroc;
+namespace co = can::canopen;
+
+struct Options {
+  std::filesystem::path scene;
+  bool lock_step = false;
+  std::vector<std::string> faults;
+  std::map<std::string, std::string> buses;
+  std::string lcm_url;
+  std::vector<int> cpus;
+  double run_for_s = 0.0;
+  bool print_scene = false;
+};
+
+struct Port;
+
+struct Drive {
+  std::size_t robot = 0;
+  std::size_t axis = 0;
+  std::unique_ptr<can::Cia402Drive> drive;
+  co::DriveState reported = co::DriveState::switch_on_disabled;
+  Port* port = nullptr;
+};
+
+struct Port {
+  std::string url;
+  std::unique_ptr<can::Bus> bus;
+  std::vector<Drive*> drives;
+  std::uint64_t syncs = 0;
+  double period_s = 0.002;
+};
+
+struct RobotRun {
+  std::vector<Drive*> drives;
+  double enabled_at = -1.0;  ///< sim time all drives first reached operation enabled
+  bool off = false;          ///< bus-off
+  double off_until = -1.0;
+  double drop = 0.0;
+  std::uint64_t dropped = 0;
+  std::vector<double> targets, feed_forward, position, velocity, force;
+};
+
+struct Scheduled {
+  emu::FaultSpec spec;
+  std::size_t robot = 0;
+  std::size_t axis = 0;
+  bool done = false;
+};
+
+class Emulator {
+ public:
+  Emulator(const Options& options, Reporter* reporter)
+      : options_(options), reporter_(reporter), world_(options.scene) {}
+
+  void setup() {
+    const std::vector<emu::RobotDrives> wiring =
+        emu::read_drive_wiring(options_.scene, world_, options_.buses);
+    robots_.resize(world_.robot_count());
+    for (std::size_t k = 0; k < world_.robot_count(); ++k) {
+      const emu::CellRobot& robot = world_.robot(k);
+      const emu::RobotDrives& w = wiring[k];
+      Port* port = nullptr;
+      for (auto& p : ports_)
+        if (p->url == w.bus) port = p.get();
+      if (port == nullptr) {
+        ports_.push_back(std::make_unique<Port>());
+        port = ports_.back().get();
+        port->url = w.bus;
+        port->bus = can::open_bus(w.bus);
+      }
+      RobotRun& run = robots_[k];
+      const std::size_t n = robot.axis_count();
+      run.targets.assign(n, 0.0);
+      run.feed_forward.assign(n, 0.0);
+      run.position.assign(n, 0.0);
+      run.velocity.assign(n, 0.0);
+      run.force.assign(n, 0.0);
+      for (std::size_t i = 0; i < n; ++i) {
+        can::DriveConfig c;
+        c.node = static_cast<std::uint8_t>(w.nodes[i]);
+        c.counts_per_unit = w.counts_per_unit;
+        c.current_limit = w.current_limit[i];
+        auto d = std::make_unique<Drive>();
+        d->robot = k;
+        d->axis = i;
+        d->port = port;
+        d->drive = std::make_unique<can::Cia402Drive>(c, [this, port, k](const can_frame& f) {
+          RobotRun& r = robots_[k];
+          if (r.off) return;
+          if (r.drop > 0.0 && uniform_(random_) < r.drop) {
+            ++r.dropped;
+            return;
+          }
+          (void)port->bus->send(f);
+        });
+        port->drives.push_back(d.get());
+        run.drives.push_back(d.get());
+        drives_.push_back(std::move(d));
+      }
+      std::cout << fmt::format("mrroc-axis-emu: robot '{}': {} drives on {} (nodes {}), {} counts "
+                               "per unit\n",
+                               robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit);
+    }
+    for (const std::string& text : options_.faults) {
+      Scheduled s;
+      s.spec = emu::parse_fault(text);
+      s.robot = world_.robot_index(s.spec.robot);
+      if (!s.spec.axis.empty()) {
+        const emu::CellRobot& robot = world_.robot(s.robot);
+        bool found = false;
+        for (std::size_t i = 0; i < robot.axis_count(); ++i)
+          if (robot.axis_names[i] == s.spec.axis || std::to_string(i) == s.spec.axis) {
+            s.axis = i;
+            found = true;
+          }
+        if (!found)
+          throw ConfigError(fmt::format("fault '{}': robot '{}' has no axis '{}' (axes: {})", text,
+                                        robot.name, s.spec.axis, fmt::join(robot.axis_names, ", ")));
+      }
+      schedule_.push_back(s);
+    }
+    // Power on every drive where its axis is.
+    for (std::size_t k = 0; k < robots_.size(); ++k) {
+      sample(k);
+      for (Drive* d : robots_[k].drives) d->drive->power_on(axis_sample(k, d->axis), world_.time());
+    }
+  }
+
+  void run() {
+    if (options_.lock_step)
+      run_lock_step();
+    else
+      run_real_time();
+  }
+
+  [[nodiscard]] std::uint64_t steps() const { return steps_; }
+
+ private:
+  can::AxisSample axis_sample(std::size_t k, std::size_t i) const {
+    const RobotRun& r = robots_[k];
+    return {r.position[i], r.velocity[i], r.force[i], world_.synchro_switch(k, i)};
+  }
+
+  void sample(std::size_t k) {
+    RobotRun& r = robots_[k];
+    world_.actuator_positions(k, r.position);
+    world_.actuator_velocities(k, r.velocity);
+    world_.actuator_forces(k, r.force);
+  }
+
+  void dispatch(Port& port, const can::Received& r) {
+    const double now = world_.time();
+    if (!r.is_error() && (r.frame.can_id & CAN_SFF_MASK) == co::kSyncId) ++port.syncs;
+    for (Drive* d : port.drives) {
+      if (robots_[d->robot].off) continue;
+      d->drive->on_frame(r.frame, now);
+    }
+  }
+
+  void drain() {
+    can::Received r;
+    for (auto& p : ports_)
+      while (p->bus->receive(r, std::chrono::nanoseconds(0))) dispatch(*p, r);
+  }
+
+  void physics_step() {
+    for (std::size_t k = 0; k < robots_.size(); ++k) {
+      RobotRun& r = robots_[k];
+      for (std::size_t i = 0; i < r.drives.size(); ++i) {
+        r.targets[i] = r.drives[i]->drive->demand();
+        r.feed_forward[i] = r.drives[i]->drive->demand_velocity();
+      }
+      (void)world_.set_targets(k, r.targets);
+      (void)world_.set_velocity_feed_forward(k, r.feed_forward);
+    }
+    if (!world_.step() && !world_fault_reported_) {
+      world_fault_reported_ = true;
+      report_error(co::emcy::kDeviceHardware, std::string("physics: ") + world_.fault_text());
+      for (auto& d : drives_) d->drive->inject_fault(co::emcy::kDeviceHardware, world_.time());
+    }
+    ++steps_;
+    const double now = world_.time();
+    for (std::size_t k = 0; k < robots_.size(); ++k) {
+      sample(k);
+      RobotRun& r = robots_[k];
+      if (r.off && r.off_until >= 0.0 && now >= r.off_until) {
+        r.off = false;
+        report_warning(fmt::format("robot '{}': drives back on the bus after bus-off",
+                                   world_.robot(k).name));
+      }
+      bool all_enabled = true;
+      for (Drive* d : r.drives) {
+        d->drive->update(axis_sample(k, d->axis), now);
+        all_enabled = all_enabled && d->drive->state() == co::DriveState::operation_enabled;
+        watch(*d);
+      }
+      if (all_enabled && r.enabled_at < 0.0) {
+        r.enabled_at = now;
+        std::cout << fmt::format("mrroc-axis-emu: robot '{}': all drives operation enabled at "
+                                 "t = {:.3f} s\n",
+                                 world_.robot(k).name, now)
+                  << std::flush;
+      }
+    }
+    inject_due_faults(now);
+  }
+
+  void watch(Drive& d) {
+    const co::DriveState state = d.drive->state();
+    if (state == d.reported) return;
+    d.reported = state;
+    if (state == co::DriveState::fault) {
+      const std::uint16_t code = d.drive->last_emcy();
+      report_error(code, fmt::format("robot '{}' axis {} '{}' (node {} on {}): drive fault, EMCY "
+                                     "0x{:04X} {}",
+                                     world_.robot(d.robot).name, d.axis,
+                                     world_.robot(d.robot).axis_names[d.axis], d.drive->node(),
+                                     d.port->url, code, co::describe_emcy(code)));
+    }
+  }
+
+  void inject_due_faults(double now) {
+    for (Scheduled& s : schedule_) {
+      RobotRun& r = robots_[s.robot];
+      if (s.done || r.enabled_at < 0.0 || now < r.enabled_at + s.spec.at_s) continue;
+      s.done = true;
+      report_warning(fmt::format("injecting fault {}", s.spec.text));
+      switch (s.spec.kind) {
+        case emu::FaultKind::drive:
+          r.drives[s.axis]->drive->inject_fault(s.spec.code, now);
+          break;
+        case emu::FaultKind::silent:
+          r.drives[s.axis]->drive->set_silent(true);
+          break;
+        case emu::FaultKind::drop:
+          r.drop = s.spec.fraction;
+          break;
+        case emu::FaultKind::bus_off: {
+          can_frame f{};
+          f.can_id = CAN_ERR_FLAG | CAN_ERR_BUSOFF;
+          f.len = CAN_ERR_DLC;
+          (void)r.drives.front()->port->bus->send(f);
+          r.off = true;
+          r.off_until = s.spec.duration_s > 0.0 ? now + s.spec.duration_s : -1.0;
+          break;
+        }
+      }
+    }
+  }
+
+  void report_error(int code, const std::string& text) {
+    std::cerr << "mrroc-axis-emu: " << text << "\n";
+    if (reporter_ != nullptr) reporter_->error(code, text);
+  }
+  void report_warning(const std::string& text) {
+    std::cerr << "mrroc-axis-emu: " << text << "\n";
+    if (reporter_ != nullptr) reporter_->warning(text);
+  }
+
+  bool done() const {
+    return stop_requested() || (options_.run_for_s > 0.0 && world_.time() >= options_.run_for_s);
+  }
+
+  void run_real_time() {
+    const auto step_ns = static_cast<std::int64_t>(std::llround(world_.timestep() * 1e9));
+    timespec ts{};
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    auto now_ns = [] {
+      timespec t{};
+      clock_gettime(CLOCK_MONOTONIC, &t);
+      return static_cast<std::int64_t>(t.tv_sec) * 1000000000LL + t.tv_nsec;
+    };
+    std::int64_t deadline = now_ns();
+    can::Received r;
+    while (!done()) {
+      deadline += step_ns;
+      for (;;) {
+        drain();
+        const std::int64_t left = deadline - now_ns();
+        if (left <= 0) break;
+        if (ports_.size() == 1) {
+          if (ports_[0]->bus->receive(r, std::chrono::nanoseconds(left))) dispatch(*ports_[0], r);
+        } else {
+          std::this_thread::sleep_for(std::chrono::nanoseconds(std::min<std::int64_t>(left, 200000)));
+        }
+      }
+      physics_step();
+      // After a long stall, do not run a burst of steps to catch up.
+      if (now_ns() - deadline > 20 * step_ns) deadline = now_ns();
+    }
+  }
+
+  void run_lock_step() {
+    can::Received r;
+    while (!done()) {
+      bool got = false;
+      for (auto& p : ports_) {
+        const auto wait = ports_.size() == 1 ? std::chrono::nanoseconds(100000000)
+                                             : std::chrono::nanoseconds(0);
+        while (p->bus->receive(r, wait)) {
+          dispatch(*p, r);
+          got = true;
+          if ((r.frame.can_id & CAN_SFF_MASK) == co::kSyncId) break;
+        }
+      }
+      if (!got && ports_.size() > 1) std::this_thread::sleep_for(std::chrono::microseconds(100));
+      // Physics catches up with the furthest master (SYNCs times its cycle).
+      double target = 0.0;
+      for (auto& p : ports_) {
+        if (!p->drives.empty()) p->period_s = p->drives.front()->drive->interpolation_period_s();
+        target = std::max(target, static_cast<double>(p->syncs) * p->period_s);
+      }
+      while (world_.time() + 0.5 * world_.timestep() < target && !done()) physics_step();
+    }
+  }
+
+  Options options_;
+  Reporter* reporter_;
+  emu::CellWorld world_;
+  std::vector<std::unique_ptr<Port>> ports_;
+  std::vector<std::unique_ptr<Drive>> drives_;
+  std::vector<RobotRun> robots_;
+  std::vector<Scheduled> schedule_;
+  std::mt19937 random_{12345};
+  std::uniform_real_distribution<double> uniform_{0.0, 1.0};
+  bool world_fault_reported_ = false;
+  std::uint64_t steps_ = 0;
+};
+
+void real_time_priority() {
+  sched_param sp{};
+  sp.sched_priority = 70;
+  if (pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) != 0)
+    prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "mrroc-axis-emu: the cell emulator. One MuJoCo world from a scene file; every axis is an "
+      "emulated CANopen CiA 402 drive on a CAN bus (virtual or SocketCAN), so the EDP's `can` "
+      "plugin drives it like real hardware. See docs/hil.md."};
+  Options options;
+  std::string config;
+  std::string scene;
+  std::vector<std::string> bus_overrides;
+  app.add_option("-c,--config", config,
+                 "process-set config file (TOML); its [emulator] table gives the scene, lock_step "
+                 "and faults");
+  app.add_option("-s,--scene", scene, "scene file (TOML; configs/scenes/); instead of --config");
+  app.add_flag("--lock-step", options.lock_step,
+               "advance the physics by the masters' SYNCs (as fast as they come) instead of in "
+               "real time");
+  app.add_option("--fault", options.faults,
+                 "inject a fault (repeatable): drive:<robot>/<axis>@<s>[=<hex code>], "
+                 "silent:<robot>/<axis>@<s>, drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>]; "
+                 "<s> counts from the robot's drives being enabled");
+  app.add_option("--bus", bus_overrides,
+                 "put a robot's drives on another bus: <robot>=<url>, e.g. irb6=socketcan:vcan0 "
+                 "(repeatable)");
+  app.add_option("--lcm-url", options.lcm_url, "LCM URL for SRP messages (default: the config's)");
+  app.add_option("--run-for", options.run_for_s, "stop after this much simulated time [s]")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--print-scene", options.print_scene, "print the composed MJCF and exit");
+  CLI11_PARSE(app, argc, argv);
+
+  using namespace mrroc;
+  install_stop_handlers();
+  std::string process = "emu";
+  try {
+    if (config.empty() == scene.empty())
+      throw ConfigError("give exactly one of --config (a process set with [emulator]) or --scene");
+    if (!config.empty()) {
+      const ProcessSetConfig set = load_process_set(config);
+      if (!set.emulator)
+        throw ConfigError(set.file.string() + ": error: no [emulator] table in the process set");
+      options.scene = set.emulator->scene;
+      options.lock_step = options.lock_step || set.emulator->lock_step;
+      options.faults.insert(options.faults.begin(), set.emulator->faults.begin(),
+                            set.emulator->faults.end());
+      options.cpus = set.emulator->options.cpus;
+      if (options.lcm_url.empty()) options.lcm_url = set.lcm_url;
+    } else {
+      options.scene = scene;
+    }
+    for (const std::string& b : bus_overrides) {
+      const std::size_t eq = b.find('=');
+      if (eq == std::string::npos || eq == 0 || eq + 1 == b.size())
+        throw ConfigError("--bus '" + b + "' must be <robot>=<url>, e.g. irb6=socketcan:vcan0");
+      options.buses[b.substr(0, eq)] = b.substr(eq + 1);
+    }
+    for (const std::string& f : options.faults) (void)emu::parse_fault(f);  // errors before start
+  } catch (const Error& e) {
+    std::fprintf(stderr, "mrroc-axis-emu: %s\n", e.what());
+    return 2;
+  }
+
+  if (options.print_scene) {
+    try {
+      const emu::CellWorld world(options.scene);
+      std::cout << world.composed_xml();
+      return 0;
+    } catch (const Error& e) {
+      std::fprintf(stderr, "mrroc-axis-emu: %s\n", e.what());
+      return 2;
+    }
+  }
+
+  apply_cpu_affinity(options.cpus);
+  std::unique_ptr<comm::Bus> lcm;
+  std::unique_ptr<Reporter> reporter;
+  try {
+    lcm = std::make_unique<comm::Bus>(options.lcm_url);
+    lcm->start();
+    reporter = std::make_unique<Reporter>(*lcm, process);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "mrroc-axis-emu: LCM unavailable (%s); SRP messages only on stderr\n",
+                 e.what());
+  }
+  try {
+    Emulator emulator(options, reporter.get());
+    emulator.setup();
+    std::cout << "mrroc-axis-emu: " << lock_memory() << "; "
+              << (options.lock_step ? "lock-step" : "real time") << "\n"
+              << std::flush;
+    if (reporter) {
+      reporter->set_state(ProcessState::ready);
+      reporter->info(std::string("cell emulator ready (") +
+                     (options.lock_step ? "lock-step" : "real time") + ")");
+    }
+    real_time_priority();
+    emulator.run();
+    std::cout << fmt::format("mrroc-axis-emu: stopped after {} physics steps\n", emulator.steps());
+    if (reporter) reporter->set_state(ProcessState::finished);
+    return 0;
+  } catch (const ConfigError& e) {
+    std::fprintf(stderr, "mrroc-axis-emu: %s\n", e.what());
+    if (reporter) reporter->error(2, e.what());
+    return 2;
+  } catch (const Error& e) {
+    std::fprintf(stderr, "mrroc-axis-emu: %s\n", e.what());
+    if (reporter) {
+      reporter->error(3, e.what());
+      reporter->set_state(ProcessState::failed, e.what());
+    }
+    return 3;
+  }
+}

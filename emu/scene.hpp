@@ -1,0 +1,147 @@
+#pragma once
+/// @file
+/// A cell scene file: the robots and objects that `mrroc-axis-emu` simulates in one MuJoCo world.
+///
+///     [scene]
+///     name = "two-irb6"
+///     timestep = 0.001                # s, MuJoCo step (optional: the robots' MJCF timestep)
+///
+///     [[scene.robot]]
+///     name = "left"                   # prefix of every MuJoCo name of the robot: "left/..."
+///     model = "../../robots/irb6"     # model folder, relative to the scene file
+///     base = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # optional: x y z [m], rotation vector [rad]
+///     mjcf = "irb6.xml"               # optional: MJCF file in the model folder (default:
+///                                     #   robot.mjcf of its parameters.toml)
+///     initial_joint_positions = [...] # optional: joint pose q at power-on [rad or m]; default:
+///                                     #   synchronisation pose + 0.05 clamped into the ranges
+///     gravity_compensation = true     # optional: gravity/Coriolis feed-forward on its joints
+///
+///     [[scene.object]]
+///     name = "part"
+///     type = "box"                    # box | sphere | cylinder | capsule
+///     size = [0.05, 0.05, 0.05]       # m, MuJoCo geom sizes: box half-sizes x y z; sphere
+///                                     #   radius; cylinder and capsule radius, half-length
+///     pos = [1.0, 0.0, 0.8]           # m, in the frame of `attach` (default: the world)
+///     rotation = [0.0, 0.0, 0.0]      # optional: rotation vector [rad] (same frame)
+///     mass = 0.5                      # kg (> 0)
+///     rgba = [0.8, 0.2, 0.2, 1.0]     # optional colour
+///     attach = "conveyor/belt_link"   # optional: a body the object is fixed to ("world" or a
+///                                     #   body of a robot or an earlier object); without it
+///                                     #   the object is a free body (6 degrees of freedom)
+///
+/// The base pose uses the same convention as `[[robot]] base` of process-set configs (position
+/// and rotation vector of the robot's base frame in the cell). Robot and object names must be
+/// unique, non-empty, without '/' or spaces, and other than "world", "floor", "light" and "scene"
+/// (the world body, the scene's own floor and light).
+///
+/// Errors are `ConfigError`s "file:line: error: ..." naming the key, the value, its unit and the
+/// limit. Unknown keys are rejected.
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mrroc/config/params.hpp"
+#include "mrroc/sim/robot_parameters.hpp"
+
+namespace mrroc::emu {
+
+/// One robot of the cell.
+struct SceneRobot {
+  std::string name;
+  std::filesystem::path model_dir;  ///< absolute, normalised
+  std::optional<std::string> mjcf;  ///< MJCF file name override (relative to model_dir)
+  std::array<double, 6> base{};     ///< x, y, z [m], rotation vector [rad]
+  std::optional<std::vector<double>> initial_joint_positions;  ///< [rad or m]
+  bool gravity_compensation = true;
+  SourceLocation where;          ///< of the [[scene.robot]] table
+  SourceLocation initial_where;  ///< of initial_joint_positions (when given)
+};
+
+enum class ObjectShape { box, sphere, cylinder, capsule };
+
+/// One object of the cell: a rigid body with one geom.
+struct SceneObject {
+  std::string name;
+  ObjectShape shape = ObjectShape::box;
+  std::vector<double> size;           ///< [m], MuJoCo geom size (see the file comment)
+  std::array<double, 3> position{};   ///< [m]
+  std::array<double, 3> rotation{};   ///< rotation vector [rad]
+  double mass = 0.0;                  ///< [kg]
+  std::array<double, 4> rgba = {0.8, 0.3, 0.2, 1.0};
+  std::string attach;                 ///< body it is fixed to; empty: a free body
+  SourceLocation where;               ///< of the [[scene.object]] table
+};
+
+struct Scene {
+  std::filesystem::path file;
+  std::string name;
+  std::optional<double> timestep;  ///< [s]
+  std::vector<SceneRobot> robots;
+  std::vector<SceneObject> objects;
+  SourceLocation where;  ///< of the [scene] table
+};
+
+/// Smallest and largest accepted MuJoCo timestep [s].
+inline constexpr double kMinTimestep = 1e-5;
+inline constexpr double kMaxTimestep = 0.01;
+
+/// Reads a scene file. @throws ConfigError "file:line: error: ..." (see the file comment).
+Scene load_scene(const std::filesystem::path& file);
+/// Parses scene text; `origin` names it in messages and relative paths start at its folder.
+/// @throws ConfigError as load_scene().
+Scene parse_scene(const std::string& text, const std::filesystem::path& origin);
+
+/// One robot of a composed scene: what the cell world needs to find the robot in the model.
+struct ComposedRobot {
+  std::filesystem::path mjcf;       ///< the robot's own MJCF file (absolute)
+  sim::RobotParameters parameters;  ///< its parameters.toml
+  int first_actuator = 0;           ///< its actuators are first_actuator .. + actuator_count - 1
+  int actuator_count = 0;
+  int first_equality = 0;           ///< its equality constraints, likewise
+  int equality_count = 0;
+};
+
+/// The scene as one MJCF document.
+struct ComposedScene {
+  std::string xml;        ///< the MJCF text (load it with MuJoCo; print it for debugging)
+  double timestep = 0.0;  ///< [s]
+  std::vector<ComposedRobot> robots;  ///< in scene order
+};
+
+/// Builds one MJCF document (MuJoCo 2.2) from the robots' MJCF files and the objects:
+///   - each robot's worldbody content goes into a body named after the robot, placed at its base
+///     pose (the robot's world-level lights and plane geoms are dropped; the scene has one floor
+///     "floor" and one light "light");
+///   - every name of a robot and every reference to one is prefixed with "<robot>/"; a reference
+///     to the body "world" becomes the robot's base body; unnamed file assets are named
+///     "<robot>/<file stem>" and their files are given as absolute paths;
+///   - the robot's top-level <default> becomes the class "<robot>/main" (nested classes keep
+///     their nesting, prefixed), used as the childclass of the base body and the class of its
+///     class-less actuators, tendons, equality constraints, contact pairs, meshes and materials;
+///   - <asset>, <contact>, <equality>, <tendon>, <actuator>, <sensor> and <custom> sections are
+///     merged in robot order (so robot k's actuators and equality constraints are consecutive);
+///     <size> njmax, nconmax and nstack are summed, nuser_* and nuserdata take the maximum;
+///   - <visual>, <statistic> and <keyframe> are not carried over (keyframes do not fit a larger
+///     model; MuJoCo computes the statistics of the whole scene);
+///   - <compiler>: angle must be "radian" and coordinate "local"; the scene uses
+///     inertiafromgeom="auto" (a robot with "false" must give every body an <inertial>, one with
+///     "true" none); meshdir/texturedir/assetdir/strippath are resolved into the file paths;
+///     every other compiler attribute must be the same in all robots;
+///   - <option>: every physics option but the timestep must be the same in all robots (compared
+///     on the models MuJoCo compiles from each file alone); the scene's timestep replaces it.
+/// Objects are bodies named after the object, with one geom of the same name (class "main":
+/// MuJoCo's defaults, so they collide with the floor and with each other); a free object has a
+/// free joint of the same name.
+/// @throws ConfigError "scene:line: error: robot 'x': ..." naming the robot's file and the problem
+///   (a file that MuJoCo cannot load alone, disagreeing <compiler>/<option>, an unsupported
+///   element such as <include> or <composite>, a missing parameters.toml, an `attach` naming no
+///   body).
+ComposedScene compose_scene(const Scene& scene);
+
+/// The name of a shape in scene files ("box", ...).
+const char* shape_name(ObjectShape shape) noexcept;
+
+}  // namespace mrroc::emu

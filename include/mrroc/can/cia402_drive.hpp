@@ -1,0 +1,138 @@
+#pragma once
+/// @file
+/// One emulated CiA 402 servo drive: the slave side of mrroc's drive protocol (canopen.hpp).
+///
+/// The drive is pure protocol and drive logic; the axis it moves is someone else's (the cell
+/// emulator's MuJoCo world, or a simple model in a test). Each physics step the owner samples the
+/// axis into an `AxisSample`, calls `update()`, and servoes the axis to `demand()` (with
+/// `demand_velocity()` as feed-forward) while `powered()`; when not powered the holding brake is
+/// applied (the owner holds the axis where `demand()` says: the position where the brake fell in).
+///
+/// Behaviour:
+///  - NMT: boot-up message at power-on, then pre-operational (SDO only); start -> operational
+///    (PDOs, SYNC); stop; reset node (back to power-on) and reset communication.
+///  - CiA 402 device control (transitions 2-12, 15, 16), modes 8 (cyclic synchronous position).
+///  - At each SYNC (operational only): the RPDO1 received since the last SYNC takes effect
+///    (controlword, then target position), and a TPDO1 sampled at the SYNC is sent.
+///  - CSP: the demand moves linearly from the previous target to the new one over one
+///    interpolation period (0x60C2), so the axis follows a ramp, not steps.
+///  - Monitors (operation enabled): following error |demand - actual| > 0x6065 counts for longer
+///    than 0x6066 ms -> fault, EMCY 0x8611; |force| above the current limit for longer than
+///    `over_current_time_s` -> fault, EMCY 0x2310; no SYNC for longer than `sync_timeout_s`
+///    (the master is gone) -> fault, EMCY 0x8130. A fault stops the axis (brake) at once.
+///  - Quick stop: the demand decelerates at 0x6085 to standstill and holds (quick stop option
+///    code 6: stays in quick stop active until enable operation or disable voltage).
+///  - Heartbeat every 0x1017 ms when non-zero.
+///  - Fault injection: `inject_fault(code)` (drive fault with that EMCY code), `set_silent(true)`
+///    (the node neither sends nor receives: a dead or disconnected node).
+#include <linux/can.h>
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+
+#include "mrroc/can/canopen.hpp"
+
+namespace mrroc::can {
+
+struct DriveConfig {
+  std::uint8_t node = 1;                ///< node id 1..127
+  double counts_per_unit = 100000.0;    ///< encoder counts per rad (or per m)
+  std::uint32_t following_error_window = 20000;  ///< [counts] (0x6065; 0 switches it off)
+  std::uint16_t following_error_timeout_ms = 10;  ///< 0x6066
+  double current_limit = std::numeric_limits<double>::infinity();  ///< |force| limit [N m or N]
+  double over_current_time_s = 0.05;    ///< how long the limit may be exceeded
+  double quick_stop_deceleration = 5.0;  ///< [units/s^2] (0x6085 is in counts/s^2)
+  double interpolation_period_s = 0.002;  ///< 0x60C2 (the master sets it to its cycle)
+  double sync_timeout_s = 0.05;          ///< SYNC watchdog in operation enabled
+};
+
+/// What the owner samples from the axis every physics step.
+struct AxisSample {
+  double position = 0.0;  ///< [rad or m], the axis' own coordinate
+  double velocity = 0.0;  ///< [units/s]
+  double force = 0.0;     ///< motor torque or force [N m or N]
+  bool home_switch = false;
+};
+
+class Cia402Drive {
+ public:
+  using Output = std::function<void(const can_frame&)>;
+
+  Cia402Drive(const DriveConfig& config, Output output);
+
+  /// Powers the drive: the encoder counts from `sample.position` (incremental encoder), boot-up
+  /// message, NMT pre-operational, switch on disabled.
+  void power_on(const AxisSample& sample, double now_s);
+  /// Every frame seen on the bus (the drive picks what concerns it).
+  void on_frame(const can_frame& frame, double now_s);
+  /// Once per physics step, after sampling the axis.
+  void update(const AxisSample& sample, double now_s);
+
+  /// Position the axis should be at now [units] (servo target, or the brake's hold position).
+  [[nodiscard]] double demand() const noexcept { return demand_; }
+  /// Velocity feed-forward for the demand [units/s] (0 when not powered).
+  [[nodiscard]] double demand_velocity() const noexcept { return powered() ? demand_velocity_ : 0.0; }
+  /// Motor torque on (operation enabled or quick stop active); otherwise the brake holds.
+  [[nodiscard]] bool powered() const noexcept;
+
+  [[nodiscard]] canopen::DriveState state() const noexcept { return state_; }
+  [[nodiscard]] canopen::NmtState nmt_state() const noexcept { return nmt_; }
+  [[nodiscard]] std::uint16_t statusword() const noexcept;
+  [[nodiscard]] std::uint8_t node() const noexcept { return config_.node; }
+  [[nodiscard]] std::uint16_t last_emcy() const noexcept { return last_emcy_; }
+  [[nodiscard]] std::uint64_t syncs() const noexcept { return syncs_; }
+  /// Interpolation period (0x60C2) [s]: the master's cycle.
+  [[nodiscard]] double interpolation_period_s() const noexcept {
+    return config_.interpolation_period_s;
+  }
+  [[nodiscard]] std::int32_t counts(double position) const noexcept;
+
+  /// Drive fault with an EMCY code (e.g. canopen::emcy::kDeviceHardware).
+  void inject_fault(std::uint16_t code, double now_s);
+  /// A silent node sends nothing and ignores every frame.
+  void set_silent(bool silent) noexcept { silent_ = silent; }
+  [[nodiscard]] bool silent() const noexcept { return silent_; }
+
+ private:
+  void send(const can_frame& frame);
+  void enter(canopen::DriveState state, double now_s);
+  void fault(std::uint16_t code, double now_s);
+  void apply_controlword(std::uint16_t controlword, double now_s);
+  void on_sync(double now_s);
+  void on_sdo(const can_frame& frame, double now_s);
+  void on_nmt(const can_frame& frame, double now_s);
+  [[nodiscard]] double position_of(std::int32_t counts) const noexcept;
+
+  DriveConfig config_;
+  Output output_;
+  canopen::NmtState nmt_ = canopen::NmtState::boot_up;
+  canopen::DriveState state_ = canopen::DriveState::not_ready_to_switch_on;
+  bool silent_ = false;
+  double zero_ = 0.0;  ///< axis position at power-on (encoder zero) [units]
+  AxisSample sample_{};
+  // RPDO1 received since the last SYNC.
+  bool rpdo_pending_ = false;
+  canopen::Rpdo1 rpdo_{};
+  std::uint16_t controlword_ = 0;
+  std::int8_t mode_ = canopen::kModeCyclicSyncPosition;
+  std::int32_t target_ = 0;
+  bool target_valid_ = false;
+  // Interpolation from `from_` to `to_` starting at `segment_start_s_`.
+  double from_ = 0.0;
+  double to_ = 0.0;
+  double segment_start_s_ = 0.0;
+  double demand_ = 0.0;
+  double demand_velocity_ = 0.0;
+  double last_update_s_ = 0.0;
+  double last_sync_s_ = 0.0;
+  double following_error_since_s_ = -1.0;
+  double over_current_since_s_ = -1.0;
+  bool following_error_ = false;
+  std::uint16_t heartbeat_ms_ = 0;
+  double next_heartbeat_s_ = 0.0;
+  std::uint16_t last_emcy_ = 0;
+  std::uint64_t syncs_ = 0;
+};
+
+}  // namespace mrroc::can

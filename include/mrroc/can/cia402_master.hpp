@@ -1,0 +1,112 @@
+#pragma once
+/// @file
+/// The master side of mrroc's drive protocol (canopen.hpp): brings a robot's CiA 402 drives on
+/// one CAN bus to operation enabled and streams cyclic synchronous positions to them.
+///
+/// Bring-up (`bring_up`, blocking, not for the servo loop): every node must answer an SDO read
+/// of its device type (a CiA 402 servo drive) and show the fixed PDO mapping; the master then
+/// writes mode 8 (CSP), the interpolation period (= the cycle), the following-error window and
+/// time, the quick-stop deceleration and the heartbeat time; resets a drive that is in fault;
+/// starts the nodes (NMT) and steps the drives through shutdown -> switch on -> enable operation
+/// with the target held at each drive's actual position, so nothing moves.
+///
+/// Cycle (`receive` then `send`, from the servo loop; no allocation, no blocking): `receive`
+/// drains the bus and checks each drive; `send` sends one RPDO1 per drive and then SYNC. A drive
+/// answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions sampled at the
+/// last SYNC (one cycle old).
+///
+/// Faults (after which `faulted()` is true and `fault_text()` says which drive, which axis and
+/// why): an EMCY with a non-zero code; a statusword in fault; a drive that left operation enabled
+/// by itself; no TPDO from a drive for `silent_cycles` cycles; the bus going bus-off (error frame
+/// or failed send). On a fault the master quick-stops every other drive.
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "mrroc/can/bus.hpp"
+#include "mrroc/can/canopen.hpp"
+
+namespace mrroc::can {
+
+/// One axis (one drive) of the robot.
+struct MasterAxis {
+  std::string name;                      ///< axis name, for messages
+  std::uint8_t node = 1;                 ///< CANopen node id 1..127
+  double counts_per_unit = 100000.0;     ///< encoder counts per rad (or m)
+  double quick_stop_deceleration = 5.0;  ///< [units/s^2]
+  double following_error_window = 0.2;   ///< [units]
+  std::uint16_t following_error_timeout_ms = 10;
+};
+
+struct MasterOptions {
+  double period_s = 0.002;  ///< cycle; must be a whole number of milliseconds (0x60C2)
+  int silent_cycles = 10;   ///< cycles without a TPDO before a drive counts as silent
+  std::chrono::milliseconds sdo_timeout{100};
+  int sdo_attempts = 3;
+  std::uint16_t heartbeat_ms = 100;  ///< producer heartbeat the drives are told to send
+};
+
+/// What the master knows about one drive after `receive`.
+struct DriveStatus {
+  double position = 0.0;  ///< [units] from the encoder's zero (power-on), sampled at the last SYNC
+  std::uint16_t statusword = 0;
+  canopen::DriveState state = canopen::DriveState::not_ready_to_switch_on;
+  bool home_switch = false;
+  std::uint64_t last_tpdo_cycle = 0;  ///< cycle number of the last TPDO
+  std::uint16_t last_emcy = 0;
+};
+
+class Cia402Master {
+ public:
+  Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterOptions& options);
+
+  /// Brings every drive to operation enabled at its actual position.
+  /// @throws mrroc::HardwareError naming the bus, node, axis and the step that failed.
+  void bring_up(std::chrono::milliseconds timeout);
+  /// Disables the drives (brakes on) and sends them to NMT pre-operational. Never throws.
+  void shut_down() noexcept;
+
+  /// Drains the bus; updates every drive's status; detects faults.
+  void receive() noexcept;
+  /// One RPDO1 per drive with its target [units from the encoder's zero], then SYNC.
+  /// While `quick_stop` is set the drives are told to quick-stop (targets are ignored by them);
+  /// clearing it re-enables them (the caller must then send targets at the actual positions).
+  void send(std::span<const double> targets, bool quick_stop) noexcept;
+
+  [[nodiscard]] std::size_t axis_count() const noexcept { return axes_.size(); }
+  [[nodiscard]] const DriveStatus& status(std::size_t axis) const noexcept { return status_[axis]; }
+  [[nodiscard]] bool faulted() const noexcept { return faulted_; }
+  [[nodiscard]] const char* fault_text() const noexcept { return fault_; }
+  [[nodiscard]] std::uint64_t cycle() const noexcept { return cycle_; }
+  /// Drives' targets at the last `send` [counts]; for tests.
+  [[nodiscard]] std::int32_t target_counts(std::size_t axis) const noexcept { return targets_[axis]; }
+
+  /// Expedited SDO transfers (blocking; for bring-up and tools). @throws mrroc::HardwareError.
+  std::uint32_t sdo_read(std::uint8_t node, std::uint16_t index, std::uint8_t subindex);
+  void sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_t subindex,
+                 std::uint32_t value, std::uint8_t size);
+
+ private:
+  void handle(const Received& frame) noexcept;
+  void set_fault(std::size_t axis, const char* what) noexcept;
+  [[nodiscard]] std::string who(std::size_t axis) const;
+  [[nodiscard]] std::int32_t counts(std::size_t axis, double position) const noexcept;
+  void cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets);
+
+  Bus& bus_;
+  std::vector<MasterAxis> axes_;
+  MasterOptions options_;
+  std::vector<DriveStatus> status_;
+  std::vector<std::int32_t> targets_;
+  std::vector<std::int32_t> held_;  ///< bring-up / re-enable: targets at the actual positions
+  std::uint64_t cycle_ = 0;
+  bool faulted_ = false;
+  bool quick_stopping_ = false;
+  bool enabled_ = false;  ///< bring-up done: drives are expected in operation enabled
+  char fault_[256] = {};
+};
+
+}  // namespace mrroc::can

@@ -1,0 +1,32 @@
+#pragma once
+/// @file
+/// What the simulations (the `mujoco` EDP plugin, the axis emulator's cell world) read from a
+/// robot's `robots/<name>/parameters.toml`: the `[robot]` table's MJCF file name, synchronisation
+/// pose, joint names and the linear coupling a = M q of `[robot.transmission]`.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace mrroc::sim {
+
+struct RobotParameters {
+  std::filesystem::path path;  ///< the file read
+  /// robot.mjcf: MJCF file name relative to the model folder.
+  std::optional<std::string> mjcf;
+  /// robot.synchro_joint_positions: joint pose q at the synchronisation switches [rad or m].
+  std::optional<std::vector<double>> synchro;
+  /// robot.joint_names: the axis names, in axis order.
+  std::optional<std::vector<std::string>> joint_names;
+  /// robot.transmission.coupling, row by row (a = M q), and "file:line" of it.
+  std::optional<std::vector<std::vector<double>>> coupling;
+  std::string coupling_where;
+};
+
+/// Reads the keys above (other keys are ignored: the file serves several readers).
+/// @throws ConfigError "file:line: error: ..." on a TOML syntax error or a value of the wrong
+///   type (naming the key and the expected type and unit).
+RobotParameters read_robot_parameters(const std::filesystem::path& path);
+
+}  // namespace mrroc::sim

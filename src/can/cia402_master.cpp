@@ -1,0 +1,337 @@
+/// @file
+/// The CiA 402 master (see cia402_master.hpp).
+#include "mrroc/can/cia402_master.hpp"
+
+#include <linux/can/error.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::can {
+
+using canopen::DriveState;
+namespace od = canopen::od;
+
+namespace {
+std::string hex(std::uint32_t value, int digits) {
+  char buffer[16];
+  std::snprintf(buffer, sizeof buffer, "0x%0*X", digits, value);
+  return buffer;
+}
+}  // namespace
+
+Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterOptions& options)
+    : bus_(bus), axes_(std::move(axes)), options_(options), status_(axes_.size()),
+      targets_(axes_.size(), 0), held_(axes_.size(), 0) {
+  if (axes_.empty()) throw HardwareError(bus_.url() + ": a CiA 402 master needs at least one axis");
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    const MasterAxis& a = axes_[i];
+    if (a.node < 1 || a.node > canopen::kMaxNode)
+      throw HardwareError(bus_.url() + ": axis '" + a.name + "': node id " +
+                          std::to_string(a.node) + " outside 1..127");
+    for (std::size_t j = 0; j < i; ++j)
+      if (axes_[j].node == a.node)
+        throw HardwareError(bus_.url() + ": axes '" + axes_[j].name + "' and '" + a.name +
+                            "' have the same node id " + std::to_string(a.node));
+    if (!(a.counts_per_unit > 0.0) || !std::isfinite(a.counts_per_unit))
+      throw HardwareError(bus_.url() + ": axis '" + a.name + "': counts_per_unit " +
+                          std::to_string(a.counts_per_unit) + " must be a positive number");
+  }
+  const double ms = options_.period_s * 1000.0;
+  if (!(ms >= 1.0) || std::abs(ms - std::round(ms)) > 1e-9 || ms > 255.0)
+    throw HardwareError(bus_.url() + ": cycle " + std::to_string(options_.period_s) +
+                        " s must be a whole number of milliseconds in 1..255 ms (0x60C2)");
+}
+
+std::string Cia402Master::who(std::size_t axis) const {
+  return bus_.url() + " node " + std::to_string(axes_[axis].node) + " (axis '" +
+         axes_[axis].name + "')";
+}
+
+std::int32_t Cia402Master::counts(std::size_t axis, double position) const noexcept {
+  const double c = std::round(position * axes_[axis].counts_per_unit);
+  return static_cast<std::int32_t>(std::clamp(c, -2147483648.0, 2147483647.0));
+}
+
+void Cia402Master::set_fault(std::size_t axis, const char* what) noexcept {
+  if (faulted_) return;
+  faulted_ = true;
+  std::snprintf(fault_, sizeof fault_, "drive node %u (axis '%s') on %s: %s",
+                static_cast<unsigned>(axes_[axis].node), axes_[axis].name.c_str(),
+                bus_.url().c_str(), what);
+}
+
+void Cia402Master::handle(const Received& r) noexcept {
+  if (r.is_error()) {
+    if ((r.frame.can_id & CAN_ERR_BUSOFF) != 0U && !faulted_) {
+      faulted_ = true;
+      std::snprintf(fault_, sizeof fault_, "CAN bus %s: bus-off", bus_.url().c_str());
+    }
+    return;
+  }
+  const canopen::CobId id = canopen::split_id(r.frame.can_id);
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    if (axes_[i].node != id.node) continue;
+    DriveStatus& s = status_[i];
+    if (r.frame.can_id == canopen::tpdo1_id(id.node)) {
+      const auto pdo = canopen::decode_tpdo1(r.frame);
+      if (!pdo) return;
+      s.position = static_cast<double>(pdo->position_actual) / axes_[i].counts_per_unit;
+      s.statusword = pdo->statusword;
+      s.state = canopen::decode_state(pdo->statusword);
+      s.home_switch = (pdo->inputs & canopen::kHomeSwitchBit) != 0U;
+      s.last_tpdo_cycle = cycle_;
+      if (enabled_ && !faulted_) {
+        char text[160];
+        if (s.state == DriveState::fault || s.state == DriveState::fault_reaction_active) {
+          const std::string_view what = canopen::describe_emcy(s.last_emcy);
+          std::snprintf(text, sizeof text, "in fault (statusword 0x%04X, last EMCY 0x%04X %.*s)",
+                        s.statusword, s.last_emcy, static_cast<int>(what.size()), what.data());
+          set_fault(i, text);
+        } else if (s.state != DriveState::operation_enabled &&
+                   !(quick_stopping_ && s.state == DriveState::quick_stop_active)) {
+          const std::string_view state = canopen::to_string(s.state);
+          std::snprintf(text, sizeof text, "left operation enabled by itself: %.*s",
+                        static_cast<int>(state.size()), state.data());
+          set_fault(i, text);
+        }
+      }
+    } else if (r.frame.can_id == canopen::emcy_id(id.node)) {
+      const auto e = canopen::decode_emcy(r.frame);
+      if (!e) return;
+      s.last_emcy = e->code;
+      if (e->code != canopen::emcy::kErrorReset && enabled_) {
+        char text[160];
+        const std::string_view what = canopen::describe_emcy(e->code);
+        std::snprintf(text, sizeof text, "EMCY 0x%04X (%.*s), error register 0x%02X", e->code,
+                      static_cast<int>(what.size()), what.data(), e->error_register);
+        set_fault(i, text);
+      }
+    }
+    return;
+  }
+}
+
+void Cia402Master::receive() noexcept {
+  Received r;
+  while (bus_.receive(r, std::chrono::nanoseconds(0))) handle(r);
+  if (!enabled_ || faulted_) return;
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    const std::uint64_t silent = cycle_ - status_[i].last_tpdo_cycle;
+    if (silent >= static_cast<std::uint64_t>(options_.silent_cycles)) {
+      char text[128];
+      std::snprintf(text, sizeof text, "silent: no TPDO for %llu cycles (%.0f ms)",
+                    static_cast<unsigned long long>(silent),
+                    static_cast<double>(silent) * options_.period_s * 1000.0);
+      set_fault(i, text);
+    }
+  }
+}
+
+void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets) {
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    canopen::Rpdo1 pdo{controlword, targets[i]};
+    targets_[i] = targets[i];
+    const SendResult result = bus_.send(canopen::encode(axes_[i].node, pdo));
+    if (result == SendResult::bus_off && !faulted_) {
+      faulted_ = true;
+      std::snprintf(fault_, sizeof fault_, "CAN bus %s: bus-off (send failed)", bus_.url().c_str());
+    }
+  }
+  (void)bus_.send(canopen::sync_frame());
+  ++cycle_;
+}
+
+void Cia402Master::send(std::span<const double> targets, bool quick_stop) noexcept {
+  const bool stop = quick_stop || faulted_;
+  if (quick_stopping_ && !stop) {
+    // Leaving quick stop: re-enable at the actual positions.
+    quick_stopping_ = false;
+    for (std::size_t i = 0; i < axes_.size(); ++i) held_[i] = counts(i, status_[i].position);
+    cycle_once(canopen::controlword::kEnableOperation, held_);
+    return;
+  }
+  quick_stopping_ = stop;
+  for (std::size_t i = 0; i < axes_.size(); ++i) held_[i] = counts(i, targets[i]);
+  cycle_once(stop ? canopen::controlword::kQuickStop : canopen::controlword::kEnableOperation,
+             held_);
+}
+
+std::uint32_t Cia402Master::sdo_read(std::uint8_t node, std::uint16_t index,
+                                     std::uint8_t subindex) {
+  canopen::SdoRequest q;
+  q.index = index;
+  q.subindex = subindex;
+  for (int attempt = 0; attempt < options_.sdo_attempts; ++attempt) {
+    (void)bus_.send(canopen::encode_request(node, q));
+    const auto deadline = std::chrono::steady_clock::now() + options_.sdo_timeout;
+    Received r;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (!bus_.receive(r, deadline - std::chrono::steady_clock::now())) break;
+      if (r.frame.can_id != canopen::sdo_response_id(node)) {
+        handle(r);
+        continue;
+      }
+      const auto response = canopen::decode_response(r.frame);
+      if (!response || response->index != index || response->subindex != subindex) continue;
+      if (response->abort)
+        throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": SDO read of " +
+                            hex(index, 4) + ":" + std::to_string(subindex) + " aborted: " +
+                            hex(response->abort_code, 8) + " " +
+                            std::string(canopen::describe_sdo_abort(response->abort_code)));
+      return response->value;
+    }
+  }
+  throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": no answer to an SDO read of " +
+                      hex(index, 4) + ":" + std::to_string(subindex) + " (" +
+                      std::to_string(options_.sdo_attempts) + " attempts of " +
+                      std::to_string(options_.sdo_timeout.count()) +
+                      " ms; is the drive powered and on this bus?)");
+}
+
+void Cia402Master::sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_t subindex,
+                             std::uint32_t value, std::uint8_t size) {
+  canopen::SdoRequest q;
+  q.write = true;
+  q.index = index;
+  q.subindex = subindex;
+  q.value = value;
+  q.size = size;
+  for (int attempt = 0; attempt < options_.sdo_attempts; ++attempt) {
+    (void)bus_.send(canopen::encode_request(node, q));
+    const auto deadline = std::chrono::steady_clock::now() + options_.sdo_timeout;
+    Received r;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (!bus_.receive(r, deadline - std::chrono::steady_clock::now())) break;
+      if (r.frame.can_id != canopen::sdo_response_id(node)) {
+        handle(r);
+        continue;
+      }
+      const auto response = canopen::decode_response(r.frame);
+      if (!response || response->index != index || response->subindex != subindex) continue;
+      if (response->abort)
+        throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": SDO write of " +
+                            std::to_string(value) + " to " + hex(index, 4) + ":" +
+                            std::to_string(subindex) + " aborted: " +
+                            hex(response->abort_code, 8) + " " +
+                            std::string(canopen::describe_sdo_abort(response->abort_code)));
+      if (response->write_confirmed) return;
+    }
+  }
+  throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": no answer to an SDO write of " +
+                      hex(index, 4) + ":" + std::to_string(subindex) + " (" +
+                      std::to_string(options_.sdo_attempts) + " attempts of " +
+                      std::to_string(options_.sdo_timeout.count()) + " ms)");
+}
+
+void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
+  enabled_ = false;
+  faulted_ = false;
+  quick_stopping_ = false;
+  fault_[0] = '\0';
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  // Configure every drive over SDO (pre-operational: no PDOs yet).
+  (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::enter_pre_operational, 0));
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    const MasterAxis& a = axes_[i];
+    const std::uint8_t n = a.node;
+    std::uint32_t type = 0;
+    try {
+      type = sdo_read(n, od::kDeviceType, 0);
+    } catch (const HardwareError& e) {
+      throw HardwareError("axis '" + a.name + "': " + e.what());
+    }
+    if ((type & 0xFFFFU) != 0x0192U)
+      throw HardwareError(who(i) + ": device type " + hex(type, 8) +
+                          " is not a CiA 402 drive (expected 0x....0192)");
+    const auto check_mapping = [&](std::uint16_t index, std::span<const std::uint32_t> entries) {
+      const std::uint32_t count = sdo_read(n, index, 0);
+      bool same = count == entries.size();
+      for (std::size_t k = 0; same && k < entries.size(); ++k)
+        same = sdo_read(n, index, static_cast<std::uint8_t>(k + 1)) == entries[k];
+      if (!same)
+        throw HardwareError(who(i) + ": PDO mapping " + hex(index, 4) +
+                            " differs from mrroc's fixed mapping (see docs/hil.md)");
+    };
+    check_mapping(od::kRpdo1Mapping, od::kRpdo1Entries);
+    check_mapping(od::kTpdo1Mapping, od::kTpdo1Entries);
+    const std::uint16_t sw = static_cast<std::uint16_t>(sdo_read(n, od::kStatusword, 0));
+    if (canopen::decode_state(sw) == DriveState::fault) {
+      sdo_write(n, od::kControlword, 0, canopen::controlword::kDisableVoltage, 2);
+      sdo_write(n, od::kControlword, 0, canopen::controlword::kFaultReset, 2);
+    }
+    sdo_write(n, od::kControlword, 0, canopen::controlword::kDisableVoltage, 2);
+    sdo_write(n, od::kModesOfOperation, 0,
+              static_cast<std::uint8_t>(canopen::kModeCyclicSyncPosition), 1);
+    sdo_write(n, od::kInterpolationPeriod, 1,
+              static_cast<std::uint32_t>(std::lround(options_.period_s * 1000.0)), 1);
+    sdo_write(n, od::kInterpolationPeriod, 2, 0xFDU, 1);  // 10^-3 s
+    sdo_write(n, od::kFollowingErrorWindow, 0,
+              static_cast<std::uint32_t>(std::lround(a.following_error_window * a.counts_per_unit)),
+              4);
+    sdo_write(n, od::kFollowingErrorTimeout, 0, a.following_error_timeout_ms, 2);
+    sdo_write(n, od::kQuickStopDeceleration, 0,
+              static_cast<std::uint32_t>(
+                  std::max(1L, std::lround(a.quick_stop_deceleration * a.counts_per_unit))),
+              4);
+    sdo_write(n, od::kHeartbeatTime, 0, options_.heartbeat_ms, 2);
+    const auto actual = static_cast<std::int32_t>(sdo_read(n, od::kPositionActual, 0));
+    held_[i] = actual;
+    status_[i].position = static_cast<double>(actual) / a.counts_per_unit;
+    status_[i].last_emcy = 0;
+  }
+  (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::start, 0));
+  // Step the drives to operation enabled, holding them where they are.
+  const auto period = std::chrono::duration<double>(options_.period_s);
+  const std::uint16_t steps[] = {canopen::controlword::kShutdown, canopen::controlword::kSwitchOn,
+                                 canopen::controlword::kEnableOperation};
+  const DriveState expected[] = {DriveState::ready_to_switch_on, DriveState::switched_on,
+                                 DriveState::operation_enabled};
+  for (std::size_t step = 0; step < 3; ++step) {
+    for (;;) {
+      cycle_once(steps[step], held_);
+      std::this_thread::sleep_for(period);
+      Received r;
+      while (bus_.receive(r, std::chrono::nanoseconds(0))) handle(r);
+      bool all = true;
+      for (std::size_t i = 0; i < axes_.size(); ++i)
+        all = all && status_[i].state == expected[step] && status_[i].last_tpdo_cycle == cycle_;
+      if (all) break;
+      if (std::chrono::steady_clock::now() > deadline) {
+        for (std::size_t i = 0; i < axes_.size(); ++i) {
+          if (status_[i].last_tpdo_cycle != cycle_)
+            throw HardwareError(who(i) + ": no TPDO after SYNC while enabling (NMT start sent; "
+                                "is the node operational?)");
+          if (status_[i].state != expected[step])
+            throw HardwareError(who(i) + ": did not reach '" +
+                                std::string(canopen::to_string(expected[step])) + "' within " +
+                                std::to_string(timeout.count()) + " ms; it is in '" +
+                                std::string(canopen::to_string(status_[i].state)) +
+                                "' (statusword " + hex(status_[i].statusword, 4) + ")");
+        }
+      }
+    }
+  }
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    held_[i] = counts(i, status_[i].position);
+    targets_[i] = held_[i];
+  }
+  enabled_ = true;
+}
+
+void Cia402Master::shut_down() noexcept {
+  enabled_ = false;
+  quick_stopping_ = false;
+  for (std::size_t i = 0; i < axes_.size(); ++i) held_[i] = counts(i, status_[i].position);
+  try {
+    cycle_once(canopen::controlword::kDisableVoltage, held_);
+  } catch (...) {
+  }
+  (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::enter_pre_operational, 0));
+}
+
+}  // namespace mrroc::can

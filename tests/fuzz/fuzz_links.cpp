@@ -1,0 +1,221 @@
+// Raw buffers delivered to the real receiving endpoints, through LCM's in-process transport
+// (memq://, no network): the request/reply servers of the EDP and ECP links (comm::EdpServer,
+// comm::EcpServer), the clients' reply handlers (comm::Client) and the SRP's SystemListener.
+//
+// Input: a sequence of records [channel][flags][length, 2 bytes little-endian][payload]; the last
+// record takes what is left. Each input gets fresh endpoints, so that it replays alike.
+//
+// Properties (docs/fuzzing.md), checked after every record:
+// - nothing throws out of the handlers, whatever the bytes;
+// - a server counts each request exactly once, as new, duplicate, in progress, stale or malformed,
+//   and malformed exactly when the bytes do not decode;
+// - a new request reaches the queue once, decoded exactly when comm::decode accepts it (else with
+//   a non-empty decode error); per client, queued sequence numbers only increase (a request is
+//   never executed twice);
+// - a client counts undecodable replies as malformed;
+// - the SystemListener either counts a message as malformed or hands over one with a known
+//   severity or state.
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "fuzz_common.hpp"
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/links.hpp"
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/core/reporter.hpp"
+#include "mrroc_lcm/process_status_t.hpp"
+#include "mrroc_lcm/srp_message_t.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+using mrroc::comm::LinkStats;
+
+constexpr const char* kRobot = "fuzz";
+
+mrroc::comm::Bus& bus() {
+  static mrroc::comm::Bus b("memq://");
+  return b;
+}
+
+/// Dispatches everything queued on the in-process transport.
+void deliver() {
+  for (int i = 0; i < 1000; ++i) {
+    int handled = 0;
+    fuzz::no_throw("LCM dispatch", [&] { handled = bus().lcm().handleTimeout(0); });
+    if (handled <= 0) return;
+  }
+  fuzz::fail("the in-process transport never ran empty (a handler publishing in a loop?)");
+}
+
+std::uint64_t total(const LinkStats& s) {
+  return s.requests + s.duplicates + s.in_progress + s.stale + s.malformed;
+}
+
+template <class Msg>
+std::optional<Msg> lcm_decode(const std::string& bytes) {
+  Msg m;
+  int n = -1;
+  fuzz::no_throw("LCM decode", [&] { n = m.decode(bytes.data(), 0, static_cast<int>(bytes.size())); });
+  if (n < 0) return std::nullopt;
+  return m;
+}
+
+/// One server side of a link (EDP or ECP) plus what it has queued so far.
+template <class PlainServer, class LcmReq, class PlainRep>
+struct ServerSide {
+  PlainServer server;
+  std::string channel;
+  std::map<std::string, std::int64_t> last_queued;  // client -> highest queued sequence
+
+  ServerSide(const std::string& name, const std::string& request_channel,
+             const std::string& reply_channel)
+      : server(bus(), name, request_channel, reply_channel), channel(request_channel) {}
+
+  void receive(const std::string& payload, std::uint8_t flags) {
+    const LinkStats before = server.stats();
+    bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
+    deliver();
+    const LinkStats after = server.stats();
+    const std::optional<LcmReq> raw = lcm_decode<LcmReq>(payload);
+    fuzz::expect(total(after) == total(before) + 1,
+                 fmt::format("server on '{}' counted a request {} times", channel,
+                             total(after) - total(before)));
+    fuzz::expect((after.malformed == before.malformed + 1) == !raw.has_value(),
+                 fmt::format("server on '{}': malformed count {} -> {} for bytes that {}", channel,
+                             before.malformed, after.malformed,
+                             raw ? "decode" : "do not decode"));
+    const std::uint64_t accepted = after.requests - before.requests;
+
+    std::uint64_t queued = 0;
+    for (;;) {
+      std::optional<typename PlainServer::Incoming> in;
+      fuzz::no_throw("wait_request", [&] { in = server.wait_request(0ms); });
+      if (!in) break;
+      ++queued;
+      fuzz::expect(raw.has_value(), "a request that does not decode reached the queue");
+      const std::string& client = raw->header.sender;
+      const std::int64_t seq = raw->header.seq;
+      fuzz::expect(in->responder.client() == client, "queued request names another client");
+      auto last = last_queued.find(client);
+      fuzz::expect(last == last_queued.end() || seq > last->second,
+                   fmt::format("request {} of client {} queued again (after {})", seq,
+                               fuzz::escaped(client), last == last_queued.end() ? 0 : last->second));
+      last_queued[client] = seq;
+      bool decodes = false;
+      fuzz::guarded<mrroc::comm::DecodeError>(
+          "comm::decode", [&] { (void)mrroc::comm::decode(*raw); decodes = true; },
+          [](const mrroc::comm::DecodeError&) {});
+      fuzz::expect(in->request.has_value() == decodes,
+                   "the server's decode verdict differs from comm::decode");
+      fuzz::expect(in->request.has_value() || !in->decode_error.empty(),
+                   "a request that failed to decode carries no reason");
+      if ((flags & 1U) != 0) {
+        PlainRep reply{};
+        if (!in->request) reply.error_text = "malformed: " + in->decode_error;
+        fuzz::no_throw("Responder::reply", [&] { in->responder.reply(reply); });
+      }
+    }
+    fuzz::expect(queued == accepted,
+                 fmt::format("server on '{}' accepted {} requests but queued {}", channel,
+                             accepted, queued));
+    deliver();  // the replies (and re-sent cached replies) go to the clients
+  }
+};
+
+template <class LcmReq, class LcmRep>
+struct ClientSide {
+  mrroc::comm::Client<LcmReq, LcmRep> client;
+  std::string channel;
+  ClientSide(const std::string& request_channel, const std::string& reply_channel)
+      : client(bus(), "client", "fuzz server", request_channel, reply_channel),
+        channel(reply_channel) {}
+
+  void receive(const std::string& payload) {
+    const LinkStats before = client.stats();
+    bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
+    deliver();
+    const LinkStats after = client.stats();
+    const bool decodes = lcm_decode<LcmRep>(payload).has_value();
+    fuzz::expect((after.malformed == before.malformed + 1) == !decodes,
+                 fmt::format("client on '{}': malformed count {} -> {} for bytes that {}",
+                             channel, before.malformed, after.malformed,
+                             decodes ? "decode" : "do not decode"));
+    fuzz::expect(after.stale <= before.stale + 1, "client counted one reply twice as stale");
+  }
+};
+
+struct ListenerSide {
+  std::uint64_t messages = 0;
+  std::uint64_t statuses = 0;
+  mrroc::SystemListener listener;
+  ListenerSide()
+      : listener(
+            bus(),
+            [this](const mrroc::SrpMessage& m) {
+              ++messages;
+              const int s = static_cast<int>(m.severity);
+              fuzz::expect(s >= 0 && s <= 4, fmt::format("SRP message with severity {}", s));
+            },
+            [this](const mrroc::ProcessStatus& st) {
+              ++statuses;
+              const int s = static_cast<int>(st.state);
+              fuzz::expect(s >= 1 && s <= 6, fmt::format("process status with state {}", s));
+            }) {}
+
+  void receive(const char* channel, const std::string& payload) {
+    const std::uint64_t malformed = listener.malformed();
+    const std::uint64_t handled = messages + statuses;
+    bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
+    deliver();
+    const std::uint64_t dropped = listener.malformed() - malformed;
+    const std::uint64_t passed = messages + statuses - handled;
+    fuzz::expect(dropped + passed == 1,
+                 fmt::format("SystemListener on '{}' dropped {} and passed on {} of one message",
+                             channel, dropped, passed));
+  }
+};
+
+using EdpSide = ServerSide<mrroc::comm::EdpServer, mrroc_lcm::edp_instruction_t, mrroc::edp::Reply>;
+using EcpSide = ServerSide<mrroc::comm::EcpServer, mrroc_lcm::mp_ecp_command_t, mrroc::ecp::EcpReply>;
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  namespace channels = mrroc::channels;
+  deliver();  // nothing may be left from the previous input
+  EdpSide edp("edp/fuzz", channels::edp_command(kRobot), channels::edp_reply(kRobot));
+  EcpSide ecp("ecp/fuzz", channels::ecp_command(kRobot), channels::ecp_reply(kRobot));
+  ClientSide<mrroc_lcm::edp_instruction_t, mrroc_lcm::edp_reply_t> edp_client(
+      channels::edp_command(kRobot), channels::edp_reply(kRobot));
+  ClientSide<mrroc_lcm::mp_ecp_command_t, mrroc_lcm::ecp_mp_reply_t> ecp_client(
+      channels::ecp_command(kRobot), channels::ecp_reply(kRobot));
+  ListenerSide srp;
+
+  std::size_t pos = 0;
+  while (pos + 4 <= size) {
+    const std::uint8_t channel = data[pos];
+    const std::uint8_t flags = data[pos + 1];
+    std::size_t length = static_cast<std::size_t>(data[pos + 2]) |
+                         (static_cast<std::size_t>(data[pos + 3]) << 8U);
+    pos += 4;
+    if (length > size - pos) length = size - pos;
+    const std::string payload(reinterpret_cast<const char*>(data + pos), length);
+    pos += length;
+    switch (channel % 6U) {
+      case 0: edp.receive(payload, flags); break;
+      case 1: edp_client.receive(payload); break;
+      case 2: ecp.receive(payload, flags); break;
+      case 3: ecp_client.receive(payload); break;
+      case 4: srp.receive(channels::srp, payload); break;
+      default: srp.receive(channels::status, payload); break;
+    }
+  }
+  return 0;
+}

@@ -1,0 +1,296 @@
+// One LCM message type, decoded from raw bytes the way every handler decodes it
+// (comm::detail::decode_received), then, for the link messages, into plain values by the codec
+// (comm::decode). Built once per type: MRROC_FUZZ_MESSAGE selects it (tests/fuzz/CMakeLists.txt).
+//
+// Properties (docs/fuzzing.md):
+// - decoding never throws: bytes either decode or are rejected;
+// - bytes that decode re-encode to the bytes that were read (LCM's encoding is canonical), except
+//   for the byte that ends each string (the decoder skips it, the encoder writes NUL), unless a
+//   string holds a NUL, which LCM's encoder cuts; the re-encoding decodes again and encodes to
+//   itself;
+// - comm::decode throws only DecodeError, naming the field; a message it accepts holds only named
+//   enumerators, encodes without an error, and decodes again to the same value, also through bytes.
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "fuzz_common.hpp"
+#include "mrroc/comm/codec.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc_lcm/ecp_mp_reply_t.hpp"
+#include "mrroc_lcm/edp_instruction_t.hpp"
+#include "mrroc_lcm/edp_reply_t.hpp"
+#include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/mp_ecp_command_t.hpp"
+#include "mrroc_lcm/process_status_t.hpp"
+#include "mrroc_lcm/srp_message_t.hpp"
+
+// A named namespace: each build uses the overloads of one message type only.
+namespace fuzz_message {
+
+using fuzz::bits;
+using fuzz::escaped;
+
+// ---- The string fields of each LCM type (the ones LCM's encoder cuts at a NUL). ----
+
+std::vector<const std::string*> strings_of(const mrroc_lcm::header_t& h) {
+  return {&h.sender, &h.recipient};
+}
+template <class Msg>
+std::vector<const std::string*> with_header(const Msg& m, std::vector<const std::string*> more) {
+  std::vector<const std::string*> out = strings_of(m.header);
+  out.insert(out.end(), more.begin(), more.end());
+  return out;
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::edp_instruction_t& m) {
+  return with_header(m, {});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::edp_reply_t& m) {
+  return with_header(m, {&m.error_text});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::mp_ecp_command_t& m) {
+  return with_header(m, {&m.state_name, &m.arguments});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::ecp_mp_reply_t& m) {
+  return with_header(m, {&m.error_text});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::emergency_stop_t& m) {
+  return with_header(m, {&m.robot, &m.reason});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::srp_message_t& m) {
+  return with_header(m, {&m.process, &m.robot, &m.text});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::process_status_t& m) {
+  return with_header(m, {&m.process, &m.robot, &m.detail});
+}
+
+// ---- Plain values as canonical text (all fields; doubles by bits). `wire` applies LCM's cut of
+// strings at a NUL, for values that went through bytes. ----
+
+std::string str(const std::string& s, bool wire) {
+  return escaped(wire ? fuzz::wire_string(s) : s);
+}
+std::string doubles(const std::vector<double>& v) {
+  std::string out = "[";
+  for (const double d : v) out += bits(d) + ",";
+  return out + "]";
+}
+std::string bytes(const std::vector<std::int8_t>& v) {
+  std::string out = "[";
+  for (const std::int8_t b : v) out += fmt::format("{},", b);
+  return out + "]";
+}
+int code(auto e) { return static_cast<int>(e); }
+
+std::string canonical(const mrroc::edp::Instruction& v, bool) {
+  return fmt::format(
+      "type={} set={} get={} set_arm_type={} get_arm_type={} motion_type={} motion_steps={} "
+      "value_in_step_no={} arm={} tool_type={} tool={} kinematic_model_no={} corrector_no={} "
+      "servo_algorithm={} servo_parameters_no={} output_values={}",
+      code(v.type), v.set, v.get, code(v.set_arm_type), code(v.get_arm_type), code(v.motion_type),
+      v.motion_steps, v.value_in_step_no, doubles(v.arm), code(v.tool_type), doubles(v.tool),
+      v.kinematic_model_no, v.corrector_no, bytes(v.servo_algorithm), bytes(v.servo_parameters_no),
+      v.output_values);
+}
+std::string canonical(const mrroc::edp::Reply& v, bool wire) {
+  return fmt::format(
+      "type={} error_code={} error_text={} synchronised={} step_no={} servo_cycle={} arm_type={} "
+      "arm={} joints={} desired_joints={} joint_velocities={} tool_type={} tool={} "
+      "kinematic_model_no={} corrector_no={} servo_algorithm={} servo_parameters_no={} "
+      "input_values={} servo_cycles={} servo_overruns={} servo_period_us={} lateness_p50_us={} "
+      "lateness_p99_us={} lateness_max_us={}",
+      code(v.type), v.error_code, str(v.error_text, wire), v.synchronised, v.step_no,
+      v.servo_cycle, code(v.arm_type), doubles(v.arm), doubles(v.joints), doubles(v.desired_joints),
+      doubles(v.joint_velocities), code(v.tool_type), doubles(v.tool), v.kinematic_model_no,
+      v.corrector_no, bytes(v.servo_algorithm), bytes(v.servo_parameters_no), v.input_values,
+      v.servo_cycles, v.servo_overruns, bits(v.servo_period_us), bits(v.lateness_p50_us),
+      bits(v.lateness_p99_us), bits(v.lateness_max_us));
+}
+std::string canonical(const mrroc::ecp::MpCommand& v, bool wire) {
+  return fmt::format(
+      "type={} state_name={} arguments={} arm_type={} motion_type={} motion_steps={} "
+      "value_in_step_no={} arm={}",
+      code(v.type), str(v.state_name, wire), str(v.arguments, wire), code(v.arm_type),
+      code(v.motion_type), v.motion_steps, v.value_in_step_no, doubles(v.arm));
+}
+std::string canonical(const mrroc::ecp::EcpReply& v, bool wire) {
+  return fmt::format(
+      "type={} error_code={} error_class={} error_text={} synchronised={} joints={} "
+      "desired_joints={} arm_type={} arm={}",
+      code(v.type), v.error_code, code(v.error_class), str(v.error_text, wire), v.synchronised,
+      doubles(v.joints), doubles(v.desired_joints), code(v.arm_type), doubles(v.arm));
+}
+
+// ---- Enumerators a decoded value may hold must have names. ----
+
+void expect_named(mrroc::edp::ArmRepresentation r, const char* field) {
+  fuzz::expect(std::strcmp(mrroc::edp::to_string(r), "?") != 0,
+               fmt::format("decoded {} holds the unnamed value {}", field, code(r)));
+}
+void check_enums(const mrroc::edp::Instruction& v) {
+  fuzz::expect(std::strcmp(mrroc::edp::to_string(v.type), "?") != 0,
+               fmt::format("decoded instruction type {} has no name", code(v.type)));
+  expect_named(v.set_arm_type, "set_arm_type");
+  expect_named(v.get_arm_type, "get_arm_type");
+  expect_named(v.tool_type, "tool_type");
+  fuzz::expect(v.motion_type == mrroc::edp::MotionType::absolute ||
+                   v.motion_type == mrroc::edp::MotionType::relative,
+               "decoded motion_type is neither absolute nor relative");
+  fuzz::expect((v.set & ~0x7f) == 0 && (v.get & ~0x7f) == 0, "decoded masks have unknown bits");
+  fuzz::expect(v.servo_algorithm.size() == v.servo_parameters_no.size(),
+               "decoded servo vectors differ in length");
+}
+void check_enums(const mrroc::edp::Reply& v) {
+  fuzz::expect(code(v.type) >= 1 && code(v.type) <= 3,
+               fmt::format("decoded reply type {} is unknown", code(v.type)));
+  expect_named(v.arm_type, "arm_type");
+  expect_named(v.tool_type, "tool_type");
+  fuzz::expect(v.desired_joints.size() == v.joints.size() &&
+                   v.joint_velocities.size() == v.joints.size(),
+               "decoded joint vectors differ in length");
+}
+void check_enums(const mrroc::ecp::MpCommand& v) {
+  fuzz::expect(std::strcmp(mrroc::ecp::to_string(v.type), "?") != 0,
+               fmt::format("decoded MP command {} has no name", code(v.type)));
+  expect_named(v.arm_type, "arm_type");
+  fuzz::expect(v.motion_type == mrroc::edp::MotionType::absolute ||
+                   v.motion_type == mrroc::edp::MotionType::relative,
+               "decoded motion_type is neither absolute nor relative");
+}
+void check_enums(const mrroc::ecp::EcpReply& v) {
+  fuzz::expect(code(v.type) >= 1 && code(v.type) <= 3,
+               fmt::format("decoded ECP reply type {} is unknown", code(v.type)));
+  fuzz::expect(code(v.error_class) >= 0 && code(v.error_class) <= 3,
+               fmt::format("decoded error_class {} is unknown", code(v.error_class)));
+  expect_named(v.arm_type, "arm_type");
+  fuzz::expect(v.desired_joints.size() == v.joints.size(),
+               "decoded joint vectors differ in length");
+}
+
+// ---- LCM level. ----
+
+template <class Msg>
+std::vector<std::uint8_t> encode_bytes(const Msg& m, const char* what) {
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(m.getEncodedSize()));
+  int written = -1;
+  fuzz::no_throw(what, [&] { written = m.encode(out.data(), 0, static_cast<int>(out.size())); });
+  fuzz::expect(written >= 0 && static_cast<std::size_t>(written) <= out.size(),
+               fmt::format("{}: encode returned {} for a buffer of {} bytes", what, written,
+                           out.size()));
+  out.resize(static_cast<std::size_t>(written));
+  return out;
+}
+
+/// Decodes `data` as the handlers do. Nothing when the bytes are rejected.
+template <class Msg>
+std::optional<Msg> decode_as_handlers_do(const std::uint8_t* data, std::size_t size) {
+  lcm::ReceiveBuffer buffer{};
+  buffer.data = const_cast<std::uint8_t*>(data);
+  buffer.data_size = static_cast<std::uint32_t>(size);
+  Msg msg;
+  bool ok = false;
+  fuzz::no_throw("comm::detail::decode_received",
+                 [&] { ok = mrroc::comm::detail::decode_received(&buffer, msg); });
+  if (!ok) return std::nullopt;
+  return msg;
+}
+
+template <class Msg>
+void check_lcm_round_trip(const Msg& msg, const std::uint8_t* data, std::size_t size) {
+  Msg again;
+  const int read = again.decode(data, 0, static_cast<int>(size));
+  fuzz::expect(read >= 0 && static_cast<std::size_t>(read) <= size,
+               fmt::format("a second decode of the same bytes returned {}", read));
+  bool has_nul = false;
+  for (const std::string* s : strings_of(msg)) has_nul = has_nul || s->find('\0') != std::string::npos;
+
+  const std::vector<std::uint8_t> encoded = encode_bytes(msg, "LCM encode of a decoded message");
+  if (!has_nul) {
+    // The same bytes, except that the decoder does not look at the byte that ends a string, which
+    // the encoder writes as NUL: at most one such difference per string.
+    fuzz::expect(encoded.size() == static_cast<std::size_t>(read),
+                 fmt::format("decoded {} bytes re-encode to {} bytes", read, encoded.size()));
+    std::size_t differences = 0;
+    for (std::size_t i = 0; i < encoded.size(); ++i) {
+      if (encoded[i] == data[i]) continue;
+      fuzz::expect(encoded[i] == 0 && ++differences <= strings_of(msg).size(),
+                   fmt::format("decoded bytes re-encode differently at byte {} ({:#04x} -> "
+                               "{:#04x})", i, data[i], encoded[i]));
+    }
+  }
+  Msg decoded;
+  const int n = decoded.decode(encoded.data(), 0, static_cast<int>(encoded.size()));
+  fuzz::expect(n == static_cast<int>(encoded.size()),
+               fmt::format("a re-encoded message of {} bytes decodes with result {}",
+                           encoded.size(), n));
+  const std::vector<std::uint8_t> twice = encode_bytes(decoded, "LCM encode of a re-decoded message");
+  fuzz::expect(twice == encoded, "a re-encoded message does not encode to itself");
+}
+
+// ---- Codec level (the four link messages). ----
+
+template <class Msg>
+void check_codec(const Msg& msg) {
+  using Plain = decltype(mrroc::comm::decode(msg));
+  std::optional<Plain> plain;
+  fuzz::guarded<mrroc::comm::DecodeError>(
+      "comm::decode", [&] { plain = mrroc::comm::decode(msg); },
+      [](const mrroc::comm::DecodeError& e) {
+        const std::string_view text = e.what();
+        fuzz::expect(text.starts_with("field '") || text.starts_with("set_mask "),
+                     fmt::format("DecodeError does not name the field: {}", escaped(text)));
+      });
+  if (!plain) return;
+  check_enums(*plain);
+  const std::string expected = canonical(*plain, false);
+
+  Msg encoded;
+  fuzz::no_throw("comm::encode of a decoded value", [&] { encoded = mrroc::comm::encode(*plain); });
+  std::optional<Plain> again;
+  fuzz::no_throw("comm::decode of a re-encoded value",
+                 [&] { again = mrroc::comm::decode(encoded); });
+  const std::string got = canonical(*again, false);
+  fuzz::expect(got == expected,
+               fmt::format("decode(encode(x)) != x\n  x:    {}\n  got: {}", expected, got));
+
+  const std::vector<std::uint8_t> wire = encode_bytes(encoded, "LCM encode of a re-encoded value");
+  Msg received;
+  fuzz::expect(received.decode(wire.data(), 0, static_cast<int>(wire.size())) ==
+                   static_cast<int>(wire.size()),
+               "a re-encoded value does not decode from its bytes");
+  std::optional<Plain> through_bytes;
+  fuzz::no_throw("comm::decode of a re-encoded value through bytes",
+                 [&] { through_bytes = mrroc::comm::decode(received); });
+  const std::string expected_wire = canonical(*plain, true);
+  const std::string got_wire = canonical(*through_bytes, true);
+  fuzz::expect(got_wire == expected_wire,
+               fmt::format("decode(bytes(encode(x))) != x\n  x:    {}\n  got: {}", expected_wire,
+                           got_wire));
+}
+
+template <class Msg>
+void check_codec_if_any(const Msg& msg) {
+  if constexpr (requires { mrroc::comm::decode(msg); }) check_codec(msg);
+}
+
+#ifndef MRROC_FUZZ_MESSAGE
+#error "MRROC_FUZZ_MESSAGE must name an LCM type of src/msg (e.g. edp_instruction_t)"
+#endif
+using Message = mrroc_lcm::MRROC_FUZZ_MESSAGE;
+
+}  // namespace fuzz_message
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  if (size > (1U << 20)) return -1;  // far above any message; keeps int offsets meaningful
+  using namespace fuzz_message;
+  const std::optional<Message> msg = decode_as_handlers_do<Message>(data, size);
+  if (!msg) return 0;
+  check_lcm_round_trip(*msg, data, size);
+  check_codec_if_any(*msg);
+  return 0;
+}

@@ -1,0 +1,393 @@
+// Writes the seed corpora of the fuzz targets into tests/fuzz/corpus/<target>/ (docs/fuzzing.md):
+// messages encoded by the real encoders (comm::encode, then LCM), request/reply exchanges as the
+// endpoints see them, the process-set files of configs/, the robots' parameters.toml, NEXT_STATE
+// arguments as the MP tasks write them, and trajectory files written by TrajectoryFile::to_text.
+//
+//   fuzz_make_seeds <source dir>     (scripts/fuzz --seeds runs it)
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "mrroc/comm/codec.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/ecp/generators/trajectory_file.hpp"
+#include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/process_status_t.hpp"
+#include "mrroc_lcm/srp_message_t.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace mrroc;
+
+fs::path g_corpus;
+
+void write(const std::string& target, const std::string& name, const std::string& bytes) {
+  const fs::path dir = g_corpus / target;
+  fs::create_directories(dir);
+  std::ofstream out(dir / name, std::ios::binary | std::ios::trunc);
+  out << bytes;
+  if (!out) throw std::runtime_error("cannot write " + (dir / name).string());
+}
+
+template <class Msg>
+std::string bytes_of(const Msg& m) {
+  std::string out(static_cast<std::size_t>(m.getEncodedSize()), '\0');
+  const int n = m.encode(out.data(), 0, static_cast<int>(out.size()));
+  if (n != static_cast<int>(out.size())) throw std::runtime_error("encode failed");
+  return out;
+}
+
+void header(mrroc_lcm::header_t& h, const std::string& sender, std::int64_t seq, std::int8_t kind,
+            const std::string& recipient = {}) {
+  h.utime = 1700000000000000;
+  h.sender = sender;
+  h.recipient = recipient;
+  h.seq = seq;
+  h.kind = kind;
+}
+
+// ---- Values as the processes send them. ----
+
+std::vector<edp::Instruction> instructions() {
+  std::vector<edp::Instruction> out;
+  edp::Instruction synchro;
+  synchro.type = edp::InstructionType::synchro;
+  out.push_back(synchro);
+  edp::Instruction move;  // SET ARM in joints, a macro-step of 10 servo steps
+  move.type = edp::InstructionType::set;
+  move.set = edp::item::arm;
+  move.set_arm_type = edp::ArmRepresentation::joint;
+  move.motion_steps = 10;
+  move.value_in_step_no = 8;
+  move.arm = {0.6, -1.35, 0.15, 0.5, 1.0};
+  out.push_back(move);
+  edp::Instruction query;
+  query.type = edp::InstructionType::query;
+  out.push_back(query);
+  edp::Instruction all;  // every field, as in tests/unit/test_messages.cpp
+  all.type = edp::InstructionType::set_get;
+  all.set = edp::item::arm | edp::item::tool | edp::item::outputs | edp::item::model |
+            edp::item::servo;
+  all.get = edp::item::arm | edp::item::inputs | edp::item::timing;
+  all.set_arm_type = edp::ArmRepresentation::xyz_euler_zyz;
+  all.get_arm_type = edp::ArmRepresentation::frame;
+  all.motion_type = edp::MotionType::relative;
+  all.motion_steps = 25;
+  all.value_in_step_no = 24;
+  all.arm = {0.1, 0.2, 0.3, -1.0, 0.5, 2.0};
+  all.tool_type = edp::ArmRepresentation::xyz_angle_axis;
+  all.tool = {0, 0, 0.25, 0, 0, 0};
+  all.kinematic_model_no = 1;
+  all.corrector_no = 2;
+  all.servo_algorithm = {1, 2, 1, 1, 0};
+  all.servo_parameters_no = {0, 1, 0, 3, 0};
+  all.output_values = 0xA5;
+  out.push_back(all);
+  edp::Instruction frame;  // 12 values, the most the arm representations use
+  frame.type = edp::InstructionType::set;
+  frame.set = edp::item::arm;
+  frame.set_arm_type = edp::ArmRepresentation::frame;
+  frame.motion_steps = 50;
+  frame.value_in_step_no = 51;
+  frame.arm = {1, 0, 0, 0.8, 0, 1, 0, 0.0, 0, 0, 1, 1.1};
+  out.push_back(frame);
+  return out;
+}
+
+std::vector<edp::Reply> edp_replies() {
+  std::vector<edp::Reply> out;
+  edp::Reply ack;
+  out.push_back(ack);
+  edp::Reply data;
+  data.type = edp::ReplyType::data;
+  data.synchronised = true;
+  data.step_no = 8;
+  data.servo_cycle = 123456;
+  data.arm_type = edp::ArmRepresentation::joint;
+  data.arm = {0.6, -1.35, 0.15, 0.5, 1.0};
+  data.joints = data.arm;
+  data.desired_joints = {0.6, -1.35, 0.15, 0.5, 1.0};
+  data.joint_velocities = {0, 0.01, 0, 0, -0.02};
+  data.tool = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0.25};
+  data.servo_algorithm = {1, 1, 1, 1, 1};
+  data.servo_parameters_no = {0, 0, 0, 0, 0};
+  data.input_values = 3;
+  data.servo_cycles = 5000;
+  data.servo_overruns = 1;
+  data.servo_period_us = 2000;
+  data.lateness_p50_us = 12.5;
+  data.lateness_p99_us = 80;
+  data.lateness_max_us = 950;
+  out.push_back(data);
+  edp::Reply error;
+  error.type = edp::ReplyType::error;
+  error.error_code = edp::error_code::out_of_limits;
+  error.error_text = "joint 2 (upper_arm) target 0.810000 rad exceeds upper limit 0.700000 rad";
+  out.push_back(error);
+  return out;
+}
+
+std::vector<ecp::MpCommand> mp_commands() {
+  std::vector<ecp::MpCommand> out;
+  ecp::MpCommand start;
+  start.type = ecp::MpCommandType::start_task;
+  out.push_back(start);
+  ecp::MpCommand state;
+  state.type = ecp::MpCommandType::next_state;
+  state.state_name = "visit_joint_poses";
+  state.arguments = "poses = [[1.0, -1.5708, 0.0, 0.0, 0.0], [0.0, -1.5708, 0.0, 0.0, 0.0]]\n";
+  out.push_back(state);
+  ecp::MpCommand pose;
+  pose.type = ecp::MpCommandType::next_pose;
+  pose.arm_type = edp::ArmRepresentation::xyz_angle_axis;
+  pose.motion_type = edp::MotionType::absolute;
+  pose.motion_steps = 20;
+  pose.value_in_step_no = 19;
+  pose.arm = {0.8, 0.0, 1.1, 0.0, 1.5, 0.0};
+  out.push_back(pose);
+  for (const auto t : {ecp::MpCommandType::end_motion, ecp::MpCommandType::stop,
+                       ecp::MpCommandType::pause, ecp::MpCommandType::resume}) {
+    ecp::MpCommand c;
+    c.type = t;
+    out.push_back(c);
+  }
+  return out;
+}
+
+std::vector<ecp::EcpReply> ecp_replies() {
+  std::vector<ecp::EcpReply> out;
+  ecp::EcpReply ack;
+  ack.synchronised = true;
+  ack.joints = {0.6, -1.35, 0.15, 0.5, 1.0};
+  ack.desired_joints = ack.joints;
+  out.push_back(ack);
+  ecp::EcpReply pose;
+  pose.arm_type = edp::ArmRepresentation::xyz_euler_zyz;
+  pose.arm = {0.8, 0.0, 1.1, 0.0, 1.5, 0.0};
+  out.push_back(pose);
+  ecp::EcpReply done;
+  done.type = ecp::EcpReplyType::task_terminated;
+  out.push_back(done);
+  ecp::EcpReply error;
+  error.type = ecp::EcpReplyType::error;
+  error.error_class = ecp::ErrorClass::non_fatal;
+  error.error_code = ecp::error_code::malformed;
+  error.error_text = "malformed command: field 'motion_type' has value 7, expected 1..2";
+  out.push_back(error);
+  return out;
+}
+
+template <class Plain>
+void message_seeds(const std::string& target, const std::vector<Plain>& values, std::int8_t kind) {
+  int i = 0;
+  for (const Plain& v : values) {
+    auto m = comm::encode(v);
+    header(m.header, kind == mrroc_lcm::header_t::REQUEST ? "ecp/irb6#4242" : "edp/irb6",
+           i + 1, kind, kind == mrroc_lcm::header_t::REQUEST ? "" : "ecp/irb6#4242");
+    write(target, fmt::format("{:02}", i++), bytes_of(m));
+  }
+}
+
+void other_message_seeds() {
+  mrroc_lcm::emergency_stop_t stop{};
+  header(stop.header, "ui#17", 1, mrroc_lcm::header_t::BROADCAST);
+  stop.action = mrroc_lcm::emergency_stop_t::ENGAGE;
+  stop.robot = "";
+  stop.reason = "operator pressed STOP";
+  write("emergency_stop", "00", bytes_of(stop));
+  stop.action = mrroc_lcm::emergency_stop_t::RELEASE;
+  stop.robot = "irb6";
+  stop.reason = "";
+  write("emergency_stop", "01", bytes_of(stop));
+
+  mrroc_lcm::srp_message_t srp{};
+  header(srp.header, "edp/irb6#99", 3, mrroc_lcm::header_t::BROADCAST);
+  srp.utime = 1700000000000001;
+  srp.process = "edp/irb6";
+  srp.robot = "irb6";
+  srp.severity = mrroc_lcm::srp_message_t::WARNING;
+  srp.code = 1;
+  srp.text = "malformed instruction dropped: field 'motion_type' has value 7, expected 1..2";
+  write("srp_message", "00", bytes_of(srp));
+  srp.severity = mrroc_lcm::srp_message_t::INFO;
+  srp.code = 0;
+  srp.text = "ready: plugin 'mujoco', 5 axes";
+  write("srp_message", "01", bytes_of(srp));
+
+  mrroc_lcm::process_status_t status{};
+  header(status.header, "ecp/irb6#100", 7, mrroc_lcm::header_t::BROADCAST);
+  status.process = "ecp/irb6";
+  status.robot = "irb6";
+  status.pid = 100;
+  status.state = mrroc_lcm::process_status_t::RUNNING;
+  status.uptime_us = 2500000;
+  status.detail = "";
+  write("process_status", "00", bytes_of(status));
+  status.state = mrroc_lcm::process_status_t::FAILED;
+  status.detail = "no reply from EDP irb6";
+  write("process_status", "01", bytes_of(status));
+}
+
+// ---- Request/reply exchanges for fuzz_links: records [channel][flags][length LE16][payload]. ----
+
+std::string record(int channel, int flags, const std::string& payload) {
+  std::string out;
+  out += static_cast<char>(channel);
+  out += static_cast<char>(flags);
+  out += static_cast<char>(payload.size() & 0xffU);
+  out += static_cast<char>((payload.size() >> 8U) & 0xffU);
+  return out + payload;
+}
+
+template <class Plain>
+std::string request(const Plain& v, const std::string& client, std::int64_t seq) {
+  auto m = comm::encode(v);
+  header(m.header, client, seq, mrroc_lcm::header_t::REQUEST);
+  return bytes_of(m);
+}
+
+template <class Plain>
+std::string reply(const Plain& v, std::int64_t seq, std::int8_t kind = mrroc_lcm::header_t::REPLY) {
+  auto m = comm::encode(v);
+  header(m.header, "server", seq, kind, "client");
+  return bytes_of(m);
+}
+
+void link_seeds() {
+  const auto ins = instructions();
+  const auto cmds = mp_commands();
+  enum { edp_cmd = 0, edp_reply = 1, ecp_cmd = 2, ecp_reply = 3, srp = 4, status = 5 };
+  // A new request, its duplicate while in progress, answered, duplicate again (cached reply), the
+  // next request, then a stale one.
+  std::string edp = record(edp_cmd, 0, request(ins[1], "ecp/irb6#1", 1)) +
+                    record(edp_cmd, 1, request(ins[1], "ecp/irb6#1", 1)) +
+                    record(edp_cmd, 0, request(ins[1], "ecp/irb6#1", 1)) +
+                    record(edp_cmd, 1, request(ins[2], "ecp/irb6#1", 2)) +
+                    record(edp_cmd, 0, request(ins[0], "ecp/irb6#1", 1));
+  write("links", "edp_exchange", edp);
+  std::string ecp = record(ecp_cmd, 1, request(cmds[0], "mp#1", 1)) +
+                    record(ecp_cmd, 1, request(cmds[1], "mp#1", 2)) +
+                    record(ecp_cmd, 0, request(cmds[2], "mp#2", 1)) +
+                    record(ecp_cmd, 1, request(cmds[2], "mp#2", 1));
+  write("links", "ecp_exchange", ecp);
+  // An instruction that decodes as LCM but fails validation (motion_type 7), a truncated one, and
+  // bytes that are no message at all.
+  auto invalid = comm::encode(ins[1]);
+  header(invalid.header, "ecp/irb6#1", 3, mrroc_lcm::header_t::REQUEST);
+  invalid.motion_type = 7;
+  const std::string valid = request(ins[1], "ecp/irb6#1", 4);
+  write("links", "malformed", record(edp_cmd, 1, bytes_of(invalid)) +
+                                  record(edp_cmd, 1, valid.substr(0, valid.size() / 2)) +
+                                  record(ecp_cmd, 1, std::string("\x01\x02\x03", 3)));
+  const auto reps = edp_replies();
+  const auto ecps = ecp_replies();
+  write("links", "replies",
+        record(edp_reply, 0, reply(reps[1], 1)) +
+            record(edp_reply, 0, reply(edp::Reply{}, 2, mrroc_lcm::header_t::IN_PROGRESS)) +
+            record(ecp_reply, 0, reply(ecps[0], -1)) + record(ecp_reply, 0, reply(ecps[3], 4)));
+  mrroc_lcm::srp_message_t s{};
+  header(s.header, "edp/irb6#99", 1, mrroc_lcm::header_t::BROADCAST);
+  s.process = "edp/irb6";
+  s.severity = 2;
+  s.text = "emergency stop released";
+  mrroc_lcm::process_status_t st{};
+  header(st.header, "mp#5", 1, mrroc_lcm::header_t::BROADCAST);
+  st.process = "mp";
+  st.state = 2;
+  write("links", "system", record(srp, 0, bytes_of(s)) + record(status, 0, bytes_of(st)));
+}
+
+// ---- Text inputs. ----
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void text_seeds(const fs::path& source) {
+  for (const auto& f : fs::directory_iterator(source / "configs"))
+    if (f.path().extension() == ".toml")
+      write("process_set", f.path().filename().string(), read_file(f.path()));
+  for (const auto& robot : fs::directory_iterator(source / "robots"))
+    if (fs::exists(robot.path() / "parameters.toml"))
+      write("robot_model", robot.path().filename().string() + ".toml",
+            read_file(robot.path() / "parameters.toml"));
+
+  // NEXT_STATE arguments as the MP tasks and tests write them.
+  write("params", "poses", "poses = [[0.6, -1.35, 0.15, 0.5, 1.0], [0, -1.5708, 0, 0, 0]]\n");
+  write("params", "outputs", "outputs = 1\n");
+  write("params", "poses_scale", "poses = [[0.5]]\nvelocity_scale = 0.8\n");
+  write("params", "retry",
+        "arguments = \"class = 'non_fatal'\\ntimes = 2\\n\"\nattempts = 3\n");
+  write("params", "every_type",
+        "flag = true\ncount = -3\nratio = 2.5e-3\nname = \"irb6\"\nnames = [\"a\", \"b\"]\n"
+        "empty = []\nrow = [1, 2.5]\n");
+
+  // Trajectory files: the format's examples and the writer's output in every representation.
+  write("trajectory_file", "example",
+        "# mrroc trajectory v1 representation=JOINT axes=5 robot=irb6\n"
+        "# column lower_arm upper_arm wrist_pitch wrist_roll [rad]\n"
+        "\n"
+        "0 -1.5707963267948966 0 0 0\n"
+        "  0.2\t-1.4 0.1 0 0.5 duration=2.5   # to the left\n"
+        "0.2 -1.4 0.1 0 0.5 duration=1\n"
+        "+1e-1 -1.5 -0.05 0.1 0 velocity_scale=0.5\r\n");
+  ecp::TrajectoryFile joint;
+  joint.representation = edp::ArmRepresentation::joint;
+  joint.axes = 5;
+  joint.robot = "irb6";
+  joint.points = {{{0, -1.5707963267948966, 0, 0, 0}},
+                  {{0.2, -1.4, 0.1, 0, 0.5}, 2.5, std::nullopt},
+                  {{0.1, -1.5, -0.05, 0.1, 0}, std::nullopt, 0.5}};
+  write("trajectory_file", "joint", joint.to_text());
+  ecp::TrajectoryFile motor;
+  motor.representation = edp::ArmRepresentation::motor;
+  motor.axes = 2;
+  motor.points = {{{12.5, -3e-4}}, {{1e+2, 0.25}, 1.0, std::nullopt}};
+  write("trajectory_file", "motor", motor.to_text());
+  ecp::TrajectoryFile frame;
+  frame.representation = edp::ArmRepresentation::frame;
+  frame.axes = 5;
+  frame.robot = "irb6";
+  frame.points = {{{1, 0, 0, 0.8, 0, 1, 0, 0, 0, 0, 1, 1.1}},
+                  {{0, -1, 0, 0.7, 1, 0, 0, 0.1, 0, 0, 1, 1.0}, 2.0, std::nullopt}};
+  write("trajectory_file", "frame", frame.to_text());
+  ecp::TrajectoryFile euler;
+  euler.representation = edp::ArmRepresentation::xyz_euler_zyz;
+  euler.axes = 5;
+  euler.points = {{{0.8, 0, 1.1, 0, 1.5, 0}}, {{0.7, 0.1, 1.0, 0.3, 1.4, -0.2}, std::nullopt, 1.0}};
+  write("trajectory_file", "xyz_euler_zyz", euler.to_text());
+  ecp::TrajectoryFile axis;
+  axis.representation = edp::ArmRepresentation::xyz_angle_axis;
+  axis.axes = 6;
+  axis.robot = "rnt";
+  axis.points = {{{0.8, 0, 1.1, 0, 1.5, 0}}};
+  write("trajectory_file", "xyz_angle_axis", axis.to_text());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s <mrroc source dir>\n", argv[0]);
+    return 2;
+  }
+  const fs::path source = argv[1];
+  g_corpus = source / "tests" / "fuzz" / "corpus";
+  message_seeds("edp_instruction", instructions(), mrroc_lcm::header_t::REQUEST);
+  message_seeds("edp_reply", edp_replies(), mrroc_lcm::header_t::REPLY);
+  message_seeds("mp_ecp_command", mp_commands(), mrroc_lcm::header_t::REQUEST);
+  message_seeds("ecp_mp_reply", ecp_replies(), mrroc_lcm::header_t::REPLY);
+  other_message_seeds();
+  link_seeds();
+  text_seeds(source);
+  std::printf("seeds written to %s\n", g_corpus.string().c_str());
+  return 0;
+}

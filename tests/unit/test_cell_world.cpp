@@ -1,0 +1,558 @@
+/// @file
+/// The axis emulator's cell world (emu/cell_world.hpp) and scene files (emu/scene.hpp):
+/// composition of several robots into one MuJoCo world, their physics and the scene errors.
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <new>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <mujoco/mujoco.h>
+#include <unistd.h>
+
+#include "cell_world.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/kinematics/irb6.hpp"
+#include "mrroc/kinematics/pose.hpp"
+#include "mrroc/sim/mujoco_support.hpp"
+#include "scene.hpp"
+
+#ifndef MRROC_SOURCE_DIR
+#error "MRROC_SOURCE_DIR must be defined (absolute path of the source tree)"
+#endif
+
+// ---- Heap allocation counter: the cycle calls must not allocate. ----
+namespace {
+std::atomic<bool> g_count_allocations{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+[[gnu::noinline]] void* operator new(std::size_t size) {
+  if (g_count_allocations.load(std::memory_order_relaxed)) {
+    g_allocations.fetch_add(1, std::memory_order_relaxed);
+  }
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace {
+
+namespace fs = std::filesystem;
+using mrroc::ConfigError;
+using mrroc::emu::CellWorld;
+using mrroc::emu::FramePose;
+using mrroc::emu::Scene;
+
+constexpr double kPi = std::numbers::pi;
+
+fs::path source_dir() { return fs::path(MRROC_SOURCE_DIR); }
+fs::path scene_file(const char* name) { return source_dir() / "configs" / "scenes" / name; }
+
+Eigen::Isometry3d isometry(const FramePose& pose) {
+  Eigen::Isometry3d frame = Eigen::Isometry3d::Identity();
+  frame.translation() = Eigen::Vector3d(pose.position[0], pose.position[1], pose.position[2]);
+  frame.linear() = Eigen::Quaterniond(pose.quaternion[0], pose.quaternion[1], pose.quaternion[2],
+                                      pose.quaternion[3])
+                       .toRotationMatrix();
+  return frame;
+}
+
+/// Largest difference between two frames: |dp| [m] and the largest rotation matrix entry.
+double frame_error(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return std::max((a.translation() - b.translation()).norm(),
+                  (a.linear() - b.linear()).cwiseAbs().maxCoeff());
+}
+
+std::vector<double> actuators(const CellWorld& world, std::size_t k) {
+  std::vector<double> a(world.axis_count(k));
+  EXPECT_TRUE(world.actuator_positions(k, a));
+  return a;
+}
+
+/// A scratch folder, removed at the end of the test.
+class ScratchDir {
+ public:
+  ScratchDir()
+      : path_(fs::temp_directory_path() /
+              ("mrroc_cell_" + std::to_string(::getpid()) + "_" + std::to_string(counter_++))) {
+    fs::create_directories(path_);
+  }
+  ~ScratchDir() { fs::remove_all(path_); }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+  [[nodiscard]] const fs::path& path() const { return path_; }
+  fs::path write(const std::string& name, const std::string& text) const {
+    const fs::path file = path_ / name;
+    fs::create_directories(file.parent_path());
+    std::ofstream(file) << text;
+    return file;
+  }
+
+ private:
+  static inline int counter_ = 0;
+  fs::path path_;
+};
+
+/// The exception text of `f()`, which must throw ConfigError.
+template <typename F>
+std::string config_error(F&& f) {
+  try {
+    f();
+  } catch (const ConfigError& e) {
+    std::printf("  %s\n", e.what());
+    return e.what();
+  }
+  ADD_FAILURE() << "no ConfigError";
+  return {};
+}
+
+// ---- Composition ----
+
+TEST(CellWorld, TwoIrb6SceneComposesWithPrefixedNames) {
+  const CellWorld world(scene_file("two-irb6.toml"));
+  const mjModel* m = world.model();
+  EXPECT_EQ(world.name(), "two-irb6");
+  ASSERT_EQ(world.robot_count(), 2U);
+  EXPECT_EQ(world.robot(0).name, "left");
+  EXPECT_EQ(world.robot(1).name, "right");
+  EXPECT_EQ(world.robot_index("right"), 1U);
+  EXPECT_THROW((void)world.robot_index("middle"), mrroc::Error);
+  EXPECT_DOUBLE_EQ(world.timestep(), 0.001);
+  const std::vector<std::string> axes = {"column", "lower_arm", "upper_arm", "wrist_pitch",
+                                         "wrist_roll"};
+  for (std::size_t k = 0; k < 2; ++k) {
+    EXPECT_EQ(world.robot(k).axis_names, axes);
+    EXPECT_FALSE(world.robot(k).coupled);
+  }
+  EXPECT_EQ(m->nu, 10);
+  for (const char* name : {"left/column", "right/column", "left/wrist_roll", "right/upper_arm"}) {
+    EXPECT_GE(mj_name2id(m, mjOBJ_JOINT, name), 0) << name;
+    EXPECT_GE(mj_name2id(m, mjOBJ_ACTUATOR, name), 0) << name;
+  }
+  for (const char* name : {"left", "right", "left/column_link", "right/roll_link", "bar", "table"})
+    EXPECT_GE(world.body_id(name), 0) << name;
+  EXPECT_GE(world.site_id("right/flange"), 0);
+  EXPECT_EQ(mj_name2id(m, mjOBJ_JOINT, "column"), -1) << "every robot name is prefixed";
+  EXPECT_EQ(world.body_id("column_link"), -1);
+  EXPECT_THROW((void)world.body_pose("nothing"), mrroc::Error);
+  // One floor and one light for the scene; the robots' own are dropped.
+  int planes = 0;
+  for (int g = 0; g < m->ngeom; ++g) planes += m->geom_type[g] == mjGEOM_PLANE ? 1 : 0;
+  EXPECT_EQ(planes, 1);
+  EXPECT_EQ(m->nlight, 1);
+  // The robot's defaults apply to its elements only: the arm is visual only, the bar collides.
+  EXPECT_EQ(m->geom_contype[mj_name2id(m, mjOBJ_GEOM, "left/lower_arm_geom")], 0);
+  EXPECT_EQ(m->geom_contype[mj_name2id(m, mjOBJ_GEOM, "bar")], 1);
+  EXPECT_NE(world.composed_xml().find("name=\"left/column_link\""), std::string::npos);
+  EXPECT_NE(world.composed_xml().find("childclass=\"right/main\""), std::string::npos);
+}
+
+TEST(CellWorld, FlangesAreWhereTheBasePosesSay) {
+  Scene scene = mrroc::emu::load_scene(scene_file("two-irb6.toml"));
+  const std::vector<std::vector<double>> poses = {{0.3, -1.4, 0.2, -0.5, 1.0},
+                                                  {-1.0, -1.9, 0.5, 0.8, -2.0}};
+  // The robot alone, from its own MJCF file.
+  std::string error;
+  const mrroc::sim::ModelPtr alone = mrroc::sim::load_mjcf(
+      (source_dir() / "robots" / "irb6" / "irb6.xml").string(), nullptr, error);
+  ASSERT_TRUE(alone) << error;
+  const mrroc::sim::DataPtr alone_data(mj_makeData(alone.get()));
+  const int alone_flange = mj_name2id(alone.get(), mjOBJ_SITE, "flange");
+  for (const auto& q : poses) {
+    scene.robots[0].initial_joint_positions = q;
+    scene.robots[1].initial_joint_positions = q;
+    const CellWorld world(scene);
+    for (std::size_t k = 0; k < 2; ++k) {
+      const auto& base_values = world.robot(k).base;
+      const Eigen::Isometry3d base =
+          mrroc::kinematics::from_values(base_values, mrroc::edp::ArmRepresentation::xyz_angle_axis);
+      std::vector<double> joints(5);
+      ASSERT_TRUE(world.joint_positions(k, joints));
+      EXPECT_EQ(joints, q);
+      const Eigen::Isometry3d flange =
+          isometry(world.site_pose(world.robot(k).name + "/flange"));
+      // mrroc's analytic kinematics of the IRb-6, moved to the base.
+      mrroc::robots::irb6::JointPosition jq{};
+      std::copy(q.begin(), q.end(), jq.begin());
+      const Eigen::Isometry3d expected = base * mrroc::robots::irb6::forward_kinematics(jq);
+      EXPECT_LT(frame_error(flange, expected), 1e-9) << world.robot(k).name;
+      // The single-robot MuJoCo model, moved to the base.
+      for (int j = 0; j < 5; ++j) alone_data->qpos[alone->jnt_qposadr[j]] = q[static_cast<std::size_t>(j)];
+      mj_kinematics(alone.get(), alone_data.get());
+      FramePose alone_pose;
+      const auto site = static_cast<std::size_t>(alone_flange);
+      std::copy(alone_data->site_xpos + 3 * site, alone_data->site_xpos + 3 * site + 3,
+                alone_pose.position.begin());
+      mju_mat2Quat(alone_pose.quaternion.data(), alone_data->site_xmat + 9 * site);
+      EXPECT_LT(frame_error(flange, base * isometry(alone_pose)), 1e-12) << world.robot(k).name;
+    }
+    // The right robot's base: 2 m along x, turned by pi about z.
+    const FramePose right = world.body_pose("right");
+    EXPECT_NEAR(right.position[0], 2.0, 1e-15);
+    EXPECT_NEAR(std::abs(right.quaternion[3]), 1.0, 1e-15);
+  }
+}
+
+// ---- Physics ----
+
+TEST(CellWorld, HoldingThePowerOnPoseKeepsTheArmsStillWithoutAllocating) {
+  CellWorld world(scene_file("two-irb6.toml"));
+  const std::vector<double> left0 = actuators(world, 0);
+  const std::vector<double> right0 = actuators(world, 1);
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_DOUBLE_EQ(left0[i], world.robot(0).power_on_actuator_positions[i]);
+    // Default power-on pose: synchronisation pose + 0.05 rad.
+    EXPECT_NEAR(left0[i], world.robot(0).synchro_joint_positions[i] + 0.05, 1e-15);
+  }
+  const FramePose bar0 = world.body_pose("bar");
+  const int bar = world.body_id("bar");
+  std::array<double, 5> a{};
+  std::array<double, 5> v{};
+  std::array<double, 5> f{};
+  std::array<double, 5> q{};
+  double worst = 0.0;
+  g_allocations = 0;
+  for (int s = 0; s < 2000; ++s) {
+    g_count_allocations = true;
+    const bool targets_ok = world.set_targets(0, left0) && world.set_targets(1, right0);
+    const bool ok = world.step();
+    const bool read_ok = world.actuator_positions(0, a) && world.actuator_velocities(1, v) &&
+                         world.actuator_forces(0, f) && world.joint_positions(1, q) &&
+                         world.synchro_switch(0, 2);
+    const FramePose pose = world.body_pose(bar);
+    g_count_allocations = false;
+    ASSERT_TRUE(targets_ok && ok && read_ok) << world.fault_text();
+    (void)pose;
+    for (std::size_t k = 0; k < 2; ++k) {
+      const std::vector<double> now = actuators(world, k);
+      const std::vector<double>& start = k == 0 ? left0 : right0;
+      for (std::size_t i = 0; i < 5; ++i) worst = std::max(worst, std::abs(now[i] - start[i]));
+    }
+  }
+  EXPECT_EQ(g_allocations.load(), 0) << "set_targets/step/readings allocated on the heap";
+  EXPECT_NEAR(world.time(), 2.0, 1e-9);
+  std::printf("largest axis drift over 2 s holding the power-on pose: %.3e rad\n", worst);
+  EXPECT_LT(worst, 1e-6);
+  // The drives hold the arm against gravity: the lower arm's force is the gravity feed-forward.
+  EXPECT_GT(std::abs(f[1]), 10.0);
+  // The free bar rests on the table.
+  const FramePose bar1 = world.body_pose("bar");
+  EXPECT_NEAR(bar1.position[0], bar0.position[0], 1e-3);
+  EXPECT_NEAR(bar1.position[2], bar0.position[2], 2e-3);
+  EXPECT_GT(bar1.position[2], 0.8);
+}
+
+TEST(CellWorld, ATargetStepMovesOnlyThatRobotsAxis) {
+  CellWorld world(scene_file("two-irb6.toml"));
+  const std::vector<double> left0 = actuators(world, 0);
+  const std::vector<double> right0 = actuators(world, 1);
+  std::vector<double> target = left0;
+  target[2] += 0.1;  // left upper arm
+  ASSERT_TRUE(world.set_targets(0, target));
+  const FramePose right_flange0 = world.site_pose("right/flange");
+  for (int s = 0; s < 1500; ++s) ASSERT_TRUE(world.step()) << world.fault_text();
+  const std::vector<double> left1 = actuators(world, 0);
+  const std::vector<double> right1 = actuators(world, 1);
+  EXPECT_NEAR(left1[2], target[2], 1e-4);
+  for (std::size_t i = 0; i < 5; ++i) {
+    if (i != 2) {
+      EXPECT_NEAR(left1[i], left0[i], 1e-4) << "left axis " << i;
+    }
+    EXPECT_NEAR(right1[i], right0[i], 1e-12) << "right axis " << i;
+  }
+  EXPECT_LT(frame_error(isometry(world.site_pose("right/flange")), isometry(right_flange0)), 1e-12);
+  // Refused commands change nothing.
+  EXPECT_FALSE(world.set_targets(0, std::vector<double>(4, 0.0)));
+  EXPECT_FALSE(world.set_targets(2, left0));
+  target[1] = std::nan("");
+  EXPECT_FALSE(world.set_targets(0, target));
+  std::vector<double> out(4);
+  EXPECT_FALSE(world.actuator_positions(0, out));
+  // reset() goes back to the power-on state.
+  world.reset();
+  EXPECT_EQ(world.time(), 0.0);
+  EXPECT_EQ(actuators(world, 0), left0);
+}
+
+TEST(CellWorld, SynchroSwitchesOpenBelowTheSynchroPositions) {
+  CellWorld world(scene_file("irb6.toml"));
+  ASSERT_EQ(world.robot_count(), 1U);
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_TRUE(world.synchro_switch(0, i)) << "axis " << i;
+  std::vector<double> target = actuators(world, 0);
+  target[0] -= 0.1;  // column to synchro - 0.05 rad
+  ASSERT_TRUE(world.set_targets(0, target));
+  std::vector<double> velocities(5, 0.0);
+  velocities[0] = -0.1;
+  ASSERT_TRUE(world.set_velocity_feed_forward(0, velocities));
+  ASSERT_TRUE(world.set_velocity_feed_forward(0, std::vector<double>(5, 0.0)));
+  for (int s = 0; s < 1000; ++s) ASSERT_TRUE(world.step()) << world.fault_text();
+  EXPECT_FALSE(world.synchro_switch(0, 0));
+  EXPECT_TRUE(world.synchro_switch(0, 1));
+  EXPECT_FALSE(world.synchro_switch(0, 7));
+  EXPECT_FALSE(world.synchro_switch(3, 0));
+}
+
+TEST(CellWorld, CellSceneClosesTheRntLoopAndCarriesThePartOnTheBelt) {
+  Scene scene = mrroc::emu::load_scene(scene_file("cell.toml"));
+  for (const bool given_pose : {false, true}) {
+    if (given_pose) scene.robots[2].initial_joint_positions = {0.2, 0.4, -0.3, 1.2, 0.1, 0.0};
+    CellWorld world(scene);
+    ASSERT_EQ(world.robot_count(), 3U);
+    const std::size_t rnt = world.robot_index("rnt");
+    const std::size_t conveyor = world.robot_index("conveyor");
+    const mjModel* m = world.model();
+    const mjData* d = world.data();
+    EXPECT_TRUE(world.robot(rnt).coupled);
+    EXPECT_EQ(world.axis_count(conveyor), 1U);
+    EXPECT_TRUE(world.robot(conveyor).linear[0]);
+    const int loop = mj_name2id(m, mjOBJ_EQUALITY, "rnt/parallelogram");
+    ASSERT_GE(loop, 0);
+    EXPECT_LT(mrroc::sim::equality_violation(d, loop, 1), 1e-9) << "loop closed at power-on";
+    std::vector<double> q(6);
+    ASSERT_TRUE(world.joint_positions(rnt, q));
+    const std::vector<double>& expected = given_pose ? *scene.robots[2].initial_joint_positions
+                                                     : world.robot(rnt).power_on_joint_positions;
+    for (std::size_t i = 0; i < 6; ++i) EXPECT_NEAR(q[i], expected[i], 1e-12) << "rnt axis " << i;
+    // The serial elbow joint (passive) is where the coupling says.
+    EXPECT_NEAR(d->qpos[m->jnt_qposadr[mj_name2id(m, mjOBJ_JOINT, "rnt/elbow")]], q[2], 1e-9);
+
+    // Hold everything, move the belt 0.5 m: the part travels with it along -y of the cell.
+    const FramePose part0 = world.body_pose("part");
+    const std::vector<double> rnt0 = actuators(world, rnt);
+    std::vector<double> belt = actuators(world, conveyor);
+    belt[0] += 0.5;
+    ASSERT_TRUE(world.set_targets(conveyor, belt));
+    double worst_loop = 0.0;
+    for (int s = 0; s < 2500; ++s) {
+      ASSERT_TRUE(world.step()) << world.fault_text();
+      worst_loop = std::max(worst_loop, mrroc::sim::equality_violation(d, loop, 1));
+    }
+    const FramePose part1 = world.body_pose("part");
+    EXPECT_NEAR(part1.position[1] - part0.position[1], -0.5, 1e-3);
+    EXPECT_NEAR(part1.position[0], part0.position[0], 1e-6);
+    EXPECT_NEAR(part1.position[2], part0.position[2], 1e-6);
+    const std::vector<double> rnt1 = actuators(world, rnt);
+    for (std::size_t i = 0; i < 6; ++i) EXPECT_NEAR(rnt1[i], rnt0[i], 1e-6) << "rnt axis " << i;
+    std::printf("rnt loop violation while holding: %.3e m\n", worst_loop);
+    EXPECT_LT(worst_loop, 1e-4);
+  }
+}
+
+TEST(CellWorld, UnstableRobotIsAFaultNamingItUntilReset) {
+  const ScratchDir dir;
+  dir.write("wobbly/wobbly.xml", R"(<mujoco model="wobbly">
+  <compiler angle="radian"/>
+  <option timestep="0.001"/>
+  <worldbody>
+    <body name="link">
+      <inertial pos="0.1 0 0" mass="0.001" diaginertia="1e-6 1e-6 1e-6"/>
+      <joint name="j" type="hinge" axis="0 0 1" limited="false"/>
+    </body>
+  </worldbody>
+  <actuator><position name="j" joint="j" kp="1e6" ctrllimited="true" ctrlrange="-3 3"/></actuator>
+</mujoco>
+)");
+  dir.write("wobbly/parameters.toml",
+            "[robot]\nmjcf = \"wobbly.xml\"\nsynchro_joint_positions = [0.0]\n");
+  const fs::path scene = dir.write("scene.toml", R"([scene]
+name = "shaky"
+[[scene.robot]]
+name = "irb6"
+model = ")" + (source_dir() / "robots" / "irb6").string() + R"("
+[[scene.robot]]
+name = "wobbly"
+model = "wobbly"
+gravity_compensation = false
+)");
+  CellWorld world(scene);
+  ASSERT_TRUE(world.set_targets(1, std::vector<double>{1.0}));
+  const auto previous = mju_user_warning;
+  mju_user_warning = [](const char*) {};
+  bool ok = true;
+  for (int s = 0; s < 2000 && ok; ++s) ok = world.step();
+  mju_user_warning = previous;
+  EXPECT_FALSE(ok);
+  EXPECT_TRUE(world.faulted());
+  const std::string text = world.fault_text();
+  std::printf("fault text: %s\n", text.c_str());
+  EXPECT_NE(text.find("cell 'shaky' unstable"), std::string::npos) << text;
+  EXPECT_NE(text.find("robot 'wobbly'"), std::string::npos) << text;
+  EXPECT_NE(text.find("axis 0 'j'"), std::string::npos) << text;
+  EXPECT_FALSE(world.step()) << "latched";
+  world.reset();
+  EXPECT_FALSE(world.faulted());
+  EXPECT_TRUE(world.step());
+}
+
+// ---- Scene file errors ----
+
+TEST(SceneFile, ErrorsNameTheFileTheLineAndTheProblem) {
+  const ScratchDir dir;
+  const std::string irb6 = (source_dir() / "robots" / "irb6").string();
+  const auto parse = [&](const std::string& text) {
+    return config_error([&] { (void)mrroc::emu::parse_scene(text, dir.path() / "bad.toml"); });
+  };
+  const std::string head = "[scene]\nname = \"bad\"\n[[scene.robot]]\nname = \"left\"\n";
+  std::string what = parse(head + "model = \"" + irb6 + "\"\ncolour = \"red\"\n");
+  EXPECT_NE(what.find("bad.toml:6: error: unknown key 'colour'"), std::string::npos) << what;
+  what = parse("[scene]\nstep = 0.001\n");
+  EXPECT_NE(what.find("bad.toml:2: error: unknown key 'step' in [scene]"), std::string::npos);
+  what = parse(head + "model = \"../no/such/robot\"\n");
+  EXPECT_NE(what.find("bad.toml:5: error: model folder"), std::string::npos) << what;
+  EXPECT_NE(what.find("not found"), std::string::npos) << what;
+  what = parse(head + "model = \"" + irb6 + "\"\nbase = [1.0, 2.0]\n");
+  EXPECT_NE(what.find("bad.toml:6: error: 'base' must be [x, y, z, rx, ry, rz]"),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("2 values"), std::string::npos) << what;
+  what = parse(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"left\"\nmodel = \"" +
+               irb6 + "\"\n");
+  EXPECT_NE(what.find("bad.toml:6: error: duplicate robot name 'left' (first used at "),
+            std::string::npos)
+      << what;
+  what = parse("[scene]\ntimestep = 0.5\n[[scene.robot]]\nname = \"a\"\nmodel = \"" + irb6 + "\"\n");
+  EXPECT_NE(what.find("bad.toml:2: error: 'timestep' = 0.5 s is outside"), std::string::npos)
+      << what;
+  what = parse(head + "model = \"" + irb6 + "\"\n[[scene.object]]\nname = \"ball\"\n"
+               "type = \"sphere\"\nsize = [0.1, 0.2]\npos = [0, 0, 1]\nmass = 1.0\n");
+  EXPECT_NE(what.find("bad.toml:9: error: 'size' must be [radius] (m)"), std::string::npos)
+      << what;
+  what = parse(head + "model = \"" + irb6 + "\"\n[[scene.object]]\nname = \"left\"\n");
+  EXPECT_NE(what.find("bad.toml:7: error: missing key 'type'"), std::string::npos) << what;
+  what = parse("[scene]\nname = \"x\"\n[[scene.robot]]\nname = \"le/ft\"\n");
+  EXPECT_NE(what.find("bad.toml:4: error: 'name' = \"le/ft\" must be a non-empty name"),
+            std::string::npos)
+      << what;
+  what = parse("[scene\n");
+  EXPECT_NE(what.find("bad.toml:1: error:"), std::string::npos) << what;
+  what = config_error([&] { (void)mrroc::emu::load_scene(dir.path() / "missing.toml"); });
+  EXPECT_NE(what.find("missing.toml:0: error: cannot read"), std::string::npos) << what;
+}
+
+TEST(SceneFile, CompositionAndPowerOnErrorsNameTheSceneLineAndTheFile) {
+  const ScratchDir dir;
+  const std::string irb6 = (source_dir() / "robots" / "irb6").string();
+  const std::string conveyor = (source_dir() / "robots" / "conveyor").string();
+  const auto world_error = [&](const std::string& text) {
+    const fs::path file = dir.write("scene.toml", text);
+    return config_error([&] { const CellWorld world(file); });
+  };
+  const std::string head = "[scene]\nname = \"bad\"\n[[scene.robot]]\nname = \"left\"\n";
+  // A given power-on pose of the wrong size, or outside a range.
+  std::string what = world_error(head + "model = \"" + irb6 +
+                                 "\"\ninitial_joint_positions = [0.0, -1.5]\n");
+  EXPECT_NE(what.find("scene.toml:6: error: initial_joint_positions has 2 values for 5 axes"),
+            std::string::npos)
+      << what;
+  what = world_error(head + "model = \"" + irb6 +
+                     "\"\ninitial_joint_positions = [0.0, 0.0, 0.0, 0.0, 0.0]\n");
+  EXPECT_NE(what.find("scene.toml:6: error: initial_joint_positions[1] = 0 rad is outside the "
+                      "range"),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("joint 'left/lower_arm'"), std::string::npos) << what;
+  // An object attached to a body that does not exist.
+  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.object]]\nname = \"box\"\n"
+                     "type = \"box\"\nsize = [0.1, 0.1, 0.1]\npos = [0, 0, 1]\nmass = 1.0\n"
+                     "attach = \"left/no_such_link\"\n");
+  EXPECT_NE(what.find("scene.toml:6: error: object 'box': attach = \"left/no_such_link\" names no "
+                      "body"),
+            std::string::npos)
+      << what;
+  // A model whose compiler measures angles in degrees.
+  {
+    std::ifstream in(source_dir() / "robots" / "conveyor" / "conveyor.xml");
+    std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string radian = "<compiler angle=\"radian\"/>";
+    ASSERT_NE(xml.find(radian), std::string::npos);
+    dir.write("degree/belt.xml", std::string(xml).replace(xml.find(radian), radian.size(),
+                                                          "<compiler angle=\"degree\"/>"));
+    dir.write("degree/parameters.toml", "[robot]\nmjcf = \"belt.xml\"\n"
+                                        "synchro_joint_positions = [0.0]\n");
+    std::string gravity = xml;
+    gravity.replace(gravity.find("0 0 -9.81"), 9, "0 0 -9.80");
+    dir.write("moon/belt.xml", gravity);
+    dir.write("moon/parameters.toml", "[robot]\nmjcf = \"belt.xml\"\n"
+                                      "synchro_joint_positions = [0.0]\n");
+    std::string include = xml;
+    include.replace(include.find("<worldbody>"), 11, "<include file=\"more.xml\"/><worldbody>");
+    dir.write("include/belt.xml", include);
+    dir.write("include/more.xml", "<mujoco/>");
+    dir.write("include/parameters.toml", "[robot]\nmjcf = \"belt.xml\"\n"
+                                         "synchro_joint_positions = [0.0]\n");
+  }
+  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"belt\"\n"
+                     "model = \"degree\"\n");
+  EXPECT_NE(what.find("scene.toml:6: error: robot 'belt': '" + (dir.path() / "degree" / "belt.xml").string() +
+                      "': <compiler angle> is 'degree'"),
+            std::string::npos)
+      << what;
+  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"belt\"\n"
+                     "model = \"moon\"\n");
+  EXPECT_NE(what.find("scene.toml:6: error: robot 'belt': <option> gravity of '" +
+                      (dir.path() / "moon" / "belt.xml").string() +
+                      "' differs from that of robot 'left'"),
+            std::string::npos)
+      << what;
+  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"belt\"\n"
+                     "model = \"include\"\n");
+  EXPECT_NE(what.find("scene.toml:6: error: robot 'belt':"), std::string::npos) << what;
+  EXPECT_NE(what.find("<include> is not supported"), std::string::npos) << what;
+  // A model folder without parameters.toml, and an MJCF override that does not exist.
+  dir.write("bare/readme.txt", "no parameters here\n");
+  what = world_error(head + "model = \"bare\"\n");
+  EXPECT_NE(what.find("scene.toml:3: error: robot 'left': robot parameter file"), std::string::npos)
+      << what;
+  what = world_error(head + "model = \"" + conveyor + "\"\nmjcf = \"no_such.xml\"\n");
+  EXPECT_NE(what.find("scene.toml:3: error: robot 'left': cannot load MJCF model"),
+            std::string::npos)
+      << what;
+}
+
+TEST(SceneFile, TheRobotsMjcfCanBeOverridden) {
+  const ScratchDir dir;
+  const fs::path scene = dir.write(
+      "scene.toml", "[scene]\n[[scene.robot]]\nname = \"belt\"\nmodel = \"" +
+                        (source_dir() / "robots" / "conveyor").string() +
+                        "\"\nmjcf = \"conveyor.xml\"\nbase = [0, 0, 0.1, 0, 0, 0]\n");
+  const CellWorld world(scene);
+  EXPECT_EQ(world.name(), "scene");  // default: the file's stem
+  EXPECT_EQ(world.robot(0).mjcf, source_dir() / "robots" / "conveyor" / "conveyor.xml");
+  EXPECT_NEAR(world.body_pose("belt/belt_link").position[2], 0.85, 1e-12);
+  EXPECT_EQ(world.robot(0).axis_names, std::vector<std::string>{"belt"});
+  EXPECT_DOUBLE_EQ(world.robot(0).target_ranges[0].upper, 2.0);
+}
+
+// ---- Performance (printed, not asserted) ----
+
+TEST(CellWorld, StepTime) {
+  for (const char* name : {"irb6.toml", "two-irb6.toml", "cell.toml"}) {
+    const auto built = std::chrono::steady_clock::now();
+    CellWorld world(scene_file(name));
+    const double build_time =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - built).count();
+    constexpr int kSteps = 5000;
+    const auto started = std::chrono::steady_clock::now();
+    for (int s = 0; s < kSteps; ++s) ASSERT_TRUE(world.step()) << world.fault_text();
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    std::printf("%-14s nq %2d nv %2d nu %2d: %.1f us per step of %.0f us (%d steps), built in "
+                "%.1f ms\n",
+                name, world.model()->nq, world.model()->nv, world.model()->nu,
+                elapsed / kSteps * 1e6, world.timestep() * 1e6, kSteps, build_time * 1e3);
+  }
+}
+
+}  // namespace

@@ -1,0 +1,421 @@
+// The drive protocol (CANopen / CiA 402 subset): codecs, the drive state machine, bus-load
+// figures, and the master bringing emulated drives up, streaming positions and handling faults.
+// The drives and the master talk over a small in-memory bus here; tests/unit/test_can_bus.cpp
+// tests the real buses and tests/integration the same exchange between processes.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "mrroc/can/canopen.hpp"
+#include "mrroc/can/cia402_drive.hpp"
+#include "mrroc/can/cia402_master.hpp"
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::can {
+namespace {
+
+using namespace std::chrono_literals;
+namespace co = canopen;
+
+TEST(Canopen, StatewordRoundTripsEveryState) {
+  for (auto s : {co::DriveState::not_ready_to_switch_on, co::DriveState::switch_on_disabled,
+                 co::DriveState::ready_to_switch_on, co::DriveState::switched_on,
+                 co::DriveState::operation_enabled, co::DriveState::quick_stop_active,
+                 co::DriveState::fault_reaction_active, co::DriveState::fault}) {
+    EXPECT_EQ(co::decode_state(co::state_bits(s)), s) << co::to_string(s);
+    // Bits outside the state pattern do not change the state.
+    EXPECT_EQ(co::decode_state(static_cast<std::uint16_t>(co::state_bits(s) | 0x1610U)), s);
+  }
+}
+
+TEST(Canopen, DeviceControlTransitionsFollowCia402) {
+  using S = co::DriveState;
+  using C = co::DriveCommand;
+  EXPECT_EQ(co::transition(S::switch_on_disabled, C::shutdown), S::ready_to_switch_on);  // 2
+  EXPECT_EQ(co::transition(S::ready_to_switch_on, C::switch_on), S::switched_on);       // 3
+  EXPECT_EQ(co::transition(S::switched_on, C::enable_operation), S::operation_enabled); // 4
+  EXPECT_EQ(co::transition(S::operation_enabled, C::quick_stop), S::quick_stop_active); // 11
+  EXPECT_EQ(co::transition(S::quick_stop_active, C::enable_operation), S::operation_enabled);
+  EXPECT_EQ(co::transition(S::fault, C::fault_reset), S::switch_on_disabled);  // 15
+  EXPECT_EQ(co::transition(S::fault, C::enable_operation), std::nullopt);
+  EXPECT_EQ(co::transition(S::switch_on_disabled, C::enable_operation), std::nullopt);
+  EXPECT_EQ(co::decode_command(co::controlword::kShutdown), C::shutdown);
+  EXPECT_EQ(co::decode_command(co::controlword::kSwitchOn), C::switch_on);
+  EXPECT_EQ(co::decode_command(co::controlword::kEnableOperation), C::enable_operation);
+  EXPECT_EQ(co::decode_command(co::controlword::kQuickStop), C::quick_stop);
+  EXPECT_EQ(co::decode_command(co::controlword::kDisableVoltage), C::disable_voltage);
+  EXPECT_EQ(co::decode_command(co::controlword::kFaultReset), C::fault_reset);
+}
+
+TEST(Canopen, PdoEmcyAndSdoCodecsRoundTrip) {
+  const co::Tpdo1 t{0x1237, -123456789, co::kHomeSwitchBit};
+  const can_frame tf = co::encode(5, t);
+  EXPECT_EQ(tf.can_id, 0x185U);
+  EXPECT_EQ(tf.len, 8);
+  const auto t2 = co::decode_tpdo1(tf);
+  ASSERT_TRUE(t2);
+  EXPECT_EQ(t2->statusword, t.statusword);
+  EXPECT_EQ(t2->position_actual, t.position_actual);
+  EXPECT_EQ(t2->inputs, t.inputs);
+  can_frame short_frame = tf;
+  short_frame.len = 5;
+  EXPECT_FALSE(co::decode_tpdo1(short_frame));
+
+  const auto r = co::decode_rpdo1(co::encode(7, co::Rpdo1{0x000F, 42}));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->target_position, 42);
+
+  co::Emergency e;
+  e.code = co::emcy::kFollowingError;
+  e.error_register = 0x21;
+  const auto e2 = co::decode_emcy(co::encode_emcy(3, e));
+  ASSERT_TRUE(e2);
+  EXPECT_EQ(e2->code, 0x8611);
+  EXPECT_EQ(co::describe_emcy(0x8611), "following error");
+
+  co::SdoRequest w{true, 0x6065, 0, 0x12345678, 4};
+  const auto w2 = co::decode_request(co::encode_request(2, w));
+  ASSERT_TRUE(w2);
+  EXPECT_TRUE(w2->write);
+  EXPECT_EQ(w2->value, 0x12345678U);
+  co::SdoRequest b{true, 0x6060, 0, 0xFFFFFF08, 1};  // only the low byte travels
+  EXPECT_EQ(co::decode_request(co::encode_request(2, b))->value, 0x08U);
+  co::SdoResponse a;
+  a.abort = true;
+  a.abort_code = co::sdo_abort::kNoObject;
+  a.index = 0x1234;
+  const auto a2 = co::decode_response(co::encode_response(2, a));
+  ASSERT_TRUE(a2);
+  EXPECT_TRUE(a2->abort);
+  EXPECT_EQ(a2->abort_code, co::sdo_abort::kNoObject);
+  EXPECT_EQ(a2->index, 0x1234);
+}
+
+TEST(Canopen, BusLoadMatchesTheFrameArithmetic) {
+  EXPECT_EQ(co::frame_bits(8).nominal, 111);
+  EXPECT_EQ(co::frame_bits(8).worst, 135);
+  EXPECT_EQ(co::frame_bits(0).nominal, 47);
+  // Five IRb-6 axes at 2 ms on 1 Mbit/s: SYNC + 5 RPDO (6 bytes) + 5 TPDO (8 bytes).
+  const co::BusLoad irb6 = co::cyclic_bus_load(5, 0.002, 1e6, 0.0);
+  EXPECT_EQ(irb6.frames_per_cycle, 11);
+  EXPECT_NEAR(irb6.load_nominal, (47 + 5 * (95 + 111)) / 2000.0, 1e-12);
+  EXPECT_LT(irb6.load_worst, co::kRecommendedMaxLoad);
+  // Six axes at 1 kHz do not fit one 1 Mbit/s bus; at 2 ms they do (nominally).
+  EXPECT_GT(co::cyclic_bus_load(6, 0.001, 1e6, 0.0).load_nominal, 1.0);
+  EXPECT_LT(co::cyclic_bus_load(6, 0.002, 1e6, 0.0).load_nominal, co::kRecommendedMaxLoad);
+}
+
+/// An in-memory bus: every node sees every other node's frames (a stand-in for the real buses,
+/// which test_can_bus.cpp tests).
+class MemoryHub {
+ public:
+  class Node final : public Bus {
+   public:
+    explicit Node(MemoryHub& hub) : hub_(hub) {}
+    [[nodiscard]] std::string url() const override { return "memory:test"; }
+    SendResult send(const can_frame& frame) noexcept override {
+      hub_.broadcast(this, frame);
+      ++stats_.sent;
+      return SendResult::sent;
+    }
+    bool receive(Received& out, std::chrono::nanoseconds timeout) noexcept override {
+      std::unique_lock lock(mutex_);
+      if (!cv_.wait_for(lock, timeout, [&] { return !queue_.empty(); })) return false;
+      out.frame = queue_.front();
+      queue_.pop_front();
+      ++stats_.received;
+      return true;
+    }
+    void set_filters(std::span<const can_filter>) override {}
+    void receive_error_frames(bool) override {}
+    [[nodiscard]] BusStats stats() const noexcept override { return stats_; }
+    [[nodiscard]] std::string last_error() const override { return {}; }
+    void push(const can_frame& f) {
+      {
+        std::lock_guard lock(mutex_);
+        queue_.push_back(f);
+      }
+      cv_.notify_all();
+    }
+
+   private:
+    MemoryHub& hub_;
+    std::mutex mutex_;
+    std::condition_variable cv_;
+    std::deque<can_frame> queue_;
+    BusStats stats_;
+  };
+
+  Node& add() {
+    std::lock_guard lock(mutex_);
+    nodes_.push_back(std::make_unique<Node>(*this));
+    return *nodes_.back();
+  }
+  void broadcast(const Node* from, const can_frame& f) {
+    std::lock_guard lock(mutex_);
+    for (auto& n : nodes_)
+      if (n.get() != from) n->push(f);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<Node>> nodes_;
+};
+
+/// Drives on their own thread, each moving a perfect axis (position = demand) in 1 ms steps.
+class DriveRack {
+ public:
+  DriveRack(MemoryHub& hub, int count) : bus_(hub.add()) {
+    for (int i = 0; i < count; ++i) {
+      DriveConfig c;
+      c.node = static_cast<std::uint8_t>(i + 1);
+      drives_.push_back(std::make_unique<Cia402Drive>(c, [this](const can_frame& f) {
+        (void)bus_.send(f);
+      }));
+      positions_.push_back(0.3 * i);
+    }
+    start_ = std::chrono::steady_clock::now();
+    for (std::size_t i = 0; i < drives_.size(); ++i) drives_[i]->power_on(sample(i), now());
+    thread_ = std::thread([this] { run(); });
+  }
+  ~DriveRack() {
+    stop_ = true;
+    thread_.join();
+  }
+  double now() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  AxisSample sample(std::size_t i) const { return {positions_[i], 0.0, 0.0, positions_[i] > 0.5}; }
+  template <typename F>
+  auto with(F f) {
+    std::lock_guard lock(mutex_);
+    return f(drives_, positions_);
+  }
+
+ private:
+  void run() {
+    while (!stop_) {
+      Received r;
+      const auto step_end = std::chrono::steady_clock::now() + 1ms;
+      while (bus_.receive(r, step_end - std::chrono::steady_clock::now())) {
+        std::lock_guard lock(mutex_);
+        for (auto& d : drives_) d->on_frame(r.frame, now());
+      }
+      std::lock_guard lock(mutex_);
+      for (std::size_t i = 0; i < drives_.size(); ++i) {
+        if (drives_[i]->powered()) positions_[i] = drives_[i]->demand();
+        drives_[i]->update(sample(i), now());
+      }
+    }
+  }
+  Bus& bus_;
+  std::vector<std::unique_ptr<Cia402Drive>> drives_;
+  std::vector<double> positions_;
+  std::chrono::steady_clock::time_point start_;
+  std::mutex mutex_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+std::vector<MasterAxis> axes(int count) {
+  std::vector<MasterAxis> out;
+  for (int i = 0; i < count; ++i) {
+    MasterAxis a;
+    a.name = "axis" + std::to_string(i);
+    a.node = static_cast<std::uint8_t>(i + 1);
+    out.push_back(a);
+  }
+  return out;
+}
+
+/// Runs `cycles` master cycles of 2 ms, each with `targets(cycle)`.
+template <typename F>
+void run_cycles(Cia402Master& master, int cycles, F targets, bool quick_stop = false) {
+  auto next = std::chrono::steady_clock::now();
+  for (int k = 0; k < cycles; ++k) {
+    next += 2ms;
+    std::this_thread::sleep_until(next);
+    master.receive();
+    const std::vector<double> t = targets(k);
+    master.send(t, quick_stop);
+  }
+}
+
+TEST(Cia402Master, BringsDrivesUpStreamsPositionsAndReadsThemBack) {
+  MemoryHub hub;
+  DriveRack rack(hub, 3);
+  Bus& bus = hub.add();
+  Cia402Master master(bus, axes(3), MasterOptions{});
+  master.bring_up(2000ms);
+  rack.with([](auto& drives, auto&) {
+    for (auto& d : drives) EXPECT_EQ(d->state(), co::DriveState::operation_enabled);
+    return 0;
+  });
+  // Encoders count from power-on: the master sees 0 everywhere at first.
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_NEAR(master.status(i).position, 0.0, 1e-5);
+  // Move axis 1 by 0.1 rad in 50 cycles.
+  run_cycles(master, 60, [](int k) {
+    return std::vector<double>{0.0, 0.1 * std::min(1.0, (k + 1) / 50.0), 0.0};
+  });
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_NEAR(master.status(1).position, 0.1, 1e-5);
+  EXPECT_NEAR(master.status(0).position, 0.0, 1e-5);
+  rack.with([](auto&, auto& positions) {
+    EXPECT_NEAR(positions[1], 0.3 + 0.1, 1e-5);
+    return 0;
+  });
+  // The home switch (closed above 0.5 rad of the axis' own coordinate) travels in the TPDO.
+  EXPECT_FALSE(master.status(1).home_switch);
+  EXPECT_TRUE(master.status(2).home_switch);
+  master.shut_down();
+}
+
+TEST(Cia402Master, InjectedDriveFaultIsReportedWithNodeAxisAndCode) {
+  MemoryHub hub;
+  DriveRack rack(hub, 2);
+  Cia402Master master(hub.add(), axes(2), MasterOptions{});
+  master.bring_up(2000ms);
+  rack.with([&](auto& drives, auto&) {
+    drives[1]->inject_fault(co::emcy::kDeviceHardware, rack.now());
+    return 0;
+  });
+  run_cycles(master, 5, [](int) { return std::vector<double>{0.0, 0.0}; });
+  ASSERT_TRUE(master.faulted());
+  const std::string text = master.fault_text();
+  EXPECT_NE(text.find("node 2"), std::string::npos) << text;
+  EXPECT_NE(text.find("axis1"), std::string::npos) << text;
+  EXPECT_NE(text.find("0x5000"), std::string::npos) << text;
+  // The other drive was quick-stopped.
+  run_cycles(master, 3, [](int) { return std::vector<double>{0.0, 0.0}; });
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->state(), co::DriveState::quick_stop_active);
+    return 0;
+  });
+  // A new bring-up resets the fault.
+  master.bring_up(2000ms);
+  EXPECT_FALSE(master.faulted());
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[1]->state(), co::DriveState::operation_enabled);
+    return 0;
+  });
+}
+
+TEST(Cia402Master, SilentDriveIsDetectedWithinTheConfiguredCycles) {
+  MemoryHub hub;
+  DriveRack rack(hub, 2);
+  MasterOptions options;
+  options.silent_cycles = 5;
+  Cia402Master master(hub.add(), axes(2), options);
+  master.bring_up(2000ms);
+  rack.with([](auto& drives, auto&) {
+    drives[0]->set_silent(true);
+    return 0;
+  });
+  int detected_after = -1;
+  for (int k = 0; k < 20 && detected_after < 0; ++k) {
+    run_cycles(master, 1, [](int) { return std::vector<double>{0.0, 0.0}; });
+    if (master.faulted()) detected_after = k + 1;
+  }
+  ASSERT_GT(detected_after, 0);
+  EXPECT_LE(detected_after, 7);
+  EXPECT_NE(std::string(master.fault_text()).find("silent"), std::string::npos)
+      << master.fault_text();
+}
+
+TEST(Cia402Master, QuickStopDeceleratesAndReleaseReenablesWhereTheAxisStands) {
+  MemoryHub hub;
+  DriveRack rack(hub, 1);
+  std::vector<MasterAxis> a = axes(1);
+  a[0].quick_stop_deceleration = 2.0;
+  Cia402Master master(hub.add(), a, MasterOptions{});
+  master.bring_up(2000ms);
+  // Ramp up to 1 rad/s, then quick-stop: v^2 / (2 a) = 0.25 rad of braking distance.
+  double target = 0.0;
+  run_cycles(master, 50, [&](int k) {
+    target += 0.002 * std::min(1.0, (k + 1) / 25.0);
+    return std::vector<double>{target};
+  });
+  const double at_stop = master.status(0).position;
+  run_cycles(master, 400, [&](int) { return std::vector<double>{target}; }, true);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->state(), co::DriveState::quick_stop_active);
+    return 0;
+  });
+  const double stopped = master.status(0).position;
+  EXPECT_GT(stopped - at_stop, 0.15);
+  EXPECT_LT(stopped - at_stop, 0.35);
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  // Release: the drive is re-enabled at its actual position and holds there.
+  run_cycles(master, 20, [&](int) { return std::vector<double>{stopped}; });
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->state(), co::DriveState::operation_enabled);
+    return 0;
+  });
+  EXPECT_NEAR(master.status(0).position, stopped, 1e-4);
+}
+
+TEST(Cia402Drive, SyncWatchdogFaultsWhenTheMasterIsGone) {
+  MemoryHub hub;
+  DriveRack rack(hub, 1);
+  Cia402Master master(hub.add(), axes(1), MasterOptions{});
+  master.bring_up(2000ms);
+  std::this_thread::sleep_for(150ms);  // no SYNC any more
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->state(), co::DriveState::fault);
+    EXPECT_EQ(drives[0]->last_emcy(), co::emcy::kHeartbeatError);
+    return 0;
+  });
+}
+
+TEST(Cia402Master, NoDriveOnTheBusIsAClearError) {
+  MemoryHub hub;
+  MasterOptions options;
+  options.sdo_timeout = 20ms;
+  Cia402Master master(hub.add(), axes(1), options);
+  try {
+    master.bring_up(500ms);
+    FAIL() << "bring_up succeeded without drives";
+  } catch (const HardwareError& e) {
+    const std::string text = e.what();
+    EXPECT_NE(text.find("axis 'axis0'"), std::string::npos) << text;
+    EXPECT_NE(text.find("no answer to an SDO read of 0x1000"), std::string::npos) << text;
+  }
+}
+
+TEST(Cia402Master, RejectsBadAxesAndCycles) {
+  MemoryHub hub;
+  std::vector<MasterAxis> twice = axes(2);
+  twice[1].node = 1;
+  EXPECT_THROW(Cia402Master(hub.add(), twice, MasterOptions{}), HardwareError);
+  MasterOptions odd;
+  odd.period_s = 0.0025;
+  EXPECT_THROW(Cia402Master(hub.add(), axes(1), odd), HardwareError);
+}
+
+TEST(Cia402Drive, SdoServerAnswersAndRefuses) {
+  MemoryHub hub;
+  DriveRack rack(hub, 1);
+  Cia402Master master(hub.add(), axes(1), MasterOptions{});
+  EXPECT_EQ(master.sdo_read(1, co::od::kDeviceType, 0), co::od::kServoDeviceType);
+  master.sdo_write(1, co::od::kFollowingErrorWindow, 0, 777, 4);
+  EXPECT_EQ(master.sdo_read(1, co::od::kFollowingErrorWindow, 0), 777U);
+  try {
+    master.sdo_read(1, 0x6502, 0);
+    FAIL();
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find("0x06020000"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(master.sdo_write(1, co::od::kStatusword, 0, 1, 2), HardwareError);  // read only
+  EXPECT_THROW(master.sdo_write(1, co::od::kModesOfOperation, 0, 1, 1), HardwareError);  // range
+}
+
+}  // namespace
+}  // namespace mrroc::can

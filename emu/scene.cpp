@@ -401,6 +401,9 @@ class SceneComposer {
   explicit SceneComposer(const Scene& scene) : scene_(scene) {}
 
   ComposedScene compose() {
+    if (scene_.robots.empty()) {
+      throw ConfigError(scene_.where.str() + ": error: the scene has no [[scene.robot]]");
+    }
     for (const SceneRobot& robot : scene_.robots) sources_.push_back(load(robot));
     start_document();
     merge_compiler();

@@ -15,6 +15,8 @@
 ///     initial_joint_positions = [...] # optional: joint pose q at power-on [rad or m]; default:
 ///                                     #   synchronisation pose + 0.05 clamped into the ranges
 ///     gravity_compensation = true     # optional: gravity/Coriolis feed-forward on its joints
+///     [scene.robot.drives]            # optional: the axes' wiring as CAN drives, read by the
+///                                     #   emulator (emu/drives.hpp), not by load_scene()
 ///
 ///     [[scene.object]]
 ///     name = "part"

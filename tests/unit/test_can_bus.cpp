@@ -41,6 +41,8 @@ thread_local bool t_count_allocations = false;
 std::atomic<long> g_allocations{0};
 }  // namespace
 
+// The replacements pair malloc with free; gcc cannot see that they match.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 void* operator new(std::size_t size) {
   if (t_count_allocations) g_allocations.fetch_add(1, std::memory_order_relaxed);
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;

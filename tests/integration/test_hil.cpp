@@ -1,0 +1,196 @@
+// Hardware in the loop on emulated drives: whole process sets whose EDPs use the `can` plugin over
+// the virtual CAN bus against mrroc-axis-emu (one MuJoCo world for the cell), and every fault the
+// emulator can inject, with its documented reaction (docs/hil.md):
+//   drive fault   -> the EDP holds the robot (other drives quick-stopped), SRP names drive, axis
+//                    and EMCY code, the task gets the error, every process exits normally;
+//   silent node   -> the same, "silent: no TPDO for N cycles";
+//   bus-off       -> the same, "bus-off";
+//   dropped frames-> tolerated while no drive misses `silent_cycles` answers in a row.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RunResult {
+  int exit_code = -1;
+  std::string output;
+};
+
+RunResult launch(const fs::path& file) {
+  const std::string command =
+      std::string(MRROC_BIN_DIR) + "/mrroc-launch " + file.string() + " 2>&1";
+  RunResult r;
+  FILE* pipe = popen(command.c_str(), "r");
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, pipe) != nullptr) r.output += buf;
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string read(const fs::path& file) {
+  std::ifstream in(file);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void replace(std::string& text, const std::string& from, const std::string& to) {
+  const std::size_t at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  text.replace(at, from.size(), to);
+}
+
+bool has(const std::string& text, const std::string& what) {
+  return text.find(what) != std::string::npos;
+}
+
+/// Every process ended by itself with exit code 0 when the launcher stopped it (none crashed,
+/// none needed SIGKILL).
+void expect_clean_shutdown(const RunResult& r) {
+  for (const char* p : {"emu", "edp/irb6", "ecp/irb6", "srp"})
+    EXPECT_TRUE(has(r.output, std::string(p) + " exited with code 0")) << p << "\n" << r.output;
+  EXPECT_FALSE(has(r.output, "killed")) << r.output;
+  EXPECT_FALSE(std::regex_search(r.output, std::regex("signal [0-9]+"))) << r.output;
+  EXPECT_TRUE(has(r.output, "mrroc-launch: all processes stopped")) << r.output;
+}
+
+class Hil : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("mrroc-hil-" + std::to_string(getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  /// configs/demo-irb6-can.toml with absolute paths and `emulator_extra` in its [emulator].
+  fs::path demo(const std::string& name, const std::string& emulator_extra) {
+    const fs::path source = fs::path(MRROC_SOURCE_DIR) / "configs";
+    std::string text = read(source / "demo-irb6-can.toml");
+    replace(text, "scene = \"scenes/irb6.toml\"",
+            "scene = \"" + (source / "scenes/irb6.toml").string() + "\"\n" + emulator_extra);
+    replace(text, "model = \"../robots/irb6\"",
+            "model = \"" + (fs::path(MRROC_SOURCE_DIR) / "robots/irb6").string() + "\"");
+    const fs::path file = dir_ / (name + ".toml");
+    std::ofstream(file) << text;
+    return file;
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(Hil, DemoRunsOverTheVirtualBusAgainstTheEmulator) {
+  const RunResult r = launch(fs::path(MRROC_SOURCE_DIR) / "configs/demo-irb6-can.toml");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // The EDP computed and showed the bus load of its cyclic traffic.
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("can: virtual:irb6 for robot 'irb6': 5 drives, cycle 2 ms, 11 frames "
+                           "per cycle, bus load 54 % nominal, 66 % worst case at 1000 kbit/s")))
+      << r.output;
+  EXPECT_TRUE(has(r.output, "robot 'irb6': all drives operation enabled")) << r.output;
+  EXPECT_TRUE(has(r.output, "pose 3/3 reached: joints [0.0000, -1.5708, 0.0000, 0.0000, 0.0000]"))
+      << r.output;
+  EXPECT_TRUE(has(r.output, "task 'start_and_wait' finished")) << r.output;
+  expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, DemoRunsLockStep) {
+  const RunResult r = launch(demo("lockstep", "lock_step = true"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r.output, "lock-step")) << r.output;
+  EXPECT_TRUE(has(r.output, "pose 3/3 reached")) << r.output;
+  expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, TwoRobotsCarryTheBarInOneEmulatedWorld) {
+  const RunResult r = launch(fs::path(MRROC_SOURCE_DIR) / "configs/tight-bar-can.toml");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r.output, "robot 'left': 5 drives on virtual:left")) << r.output;
+  EXPECT_TRUE(has(r.output, "robot 'right': 5 drives on virtual:right")) << r.output;
+  // The task checks the grip distance itself (tolerance 1 mm) and fails otherwise.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m,
+                                std::regex("grip distance within ([0-9.]+) mm of its start value")))
+      << r.output;
+  EXPECT_LT(std::stod(m[1]), 1.0);
+  EXPECT_TRUE(has(r.output, "task 'carry_bar' finished")) << r.output;
+}
+
+TEST_F(Hil, DriveFaultHoldsTheRobotAndNamesDriveAxisAndCode) {
+  const RunResult r = launch(demo("drive", "faults = [\"drive:irb6/upper_arm@1.5=0x8611\"]"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;  // the task failed
+  // SRP: the emulator's report and the EDP's, each naming drive, axis and EMCY code.
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("\\[srp\\].*emu +error .*robot 'irb6' axis 2 'upper_arm' \\(node 3 on "
+                           "virtual:irb6\\): drive fault, EMCY 0x8611 following error")))
+      << r.output;
+  EXPECT_TRUE(std::regex_search(
+      r.output,
+      std::regex("\\[srp\\].*edp/irb6 .*drive node 3 \\(axis 'upper_arm'\\) on virtual:irb6: "
+                 "EMCY 0x8611 \\(following error\\)")))
+      << r.output;
+  EXPECT_TRUE(has(r.output, "the robot is held")) << r.output;
+  // The task got the error.
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("mp: fatal: ecp/irb6: .*EMCY 0x8611")))
+      << r.output;
+  expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, SilentNodeIsDetected) {
+  const RunResult r = launch(demo("silent", "faults = [\"silent:irb6/wrist_pitch@1.5\"]"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("\\[srp\\].*edp/irb6 .*drive node 4 \\(axis 'wrist_pitch'\\) on "
+                           "virtual:irb6: silent: no TPDO for 10 cycles \\(20 ms\\)")))
+      << r.output;
+  EXPECT_TRUE(has(r.output, "the robot is held")) << r.output;
+  expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, BusOffIsDetected) {
+  const RunResult r = launch(demo("busoff", "faults = [\"busoff:irb6@1.5\"]"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(std::regex_search(r.output,
+                                std::regex("\\[srp\\].*edp/irb6 .*CAN bus virtual:irb6: bus-off")))
+      << r.output;
+  expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, OccasionalDroppedFramesAreTolerated) {
+  // A fifth of the drives' frames lost: positions are a cycle older now and then; the task ends
+  // at the same poses.
+  const RunResult r = launch(demo("drop", "faults = [\"drop:irb6@0.2=0.2\"]"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r.output, "injecting fault drop:irb6@0.2=0.2")) << r.output;
+  EXPECT_TRUE(has(r.output, "pose 3/3 reached: joints [0.0000, -1.5708, 0.0000, 0.0000, 0.0000]"))
+      << r.output;
+  expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, LosingEveryFrameIsASilentDrive) {
+  const RunResult r = launch(demo("drop-all", "faults = [\"drop:irb6@1.5=1.0\"]"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6 .*silent: no TPDO"))) << r.output;
+  expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, BadFaultSpecIsAConfigErrorBeforeAnythingMoves) {
+  const RunResult r = launch(demo("bad", "faults = [\"drive:irb6/elbow@1\"]"));
+  EXPECT_EQ(r.exit_code, 3) << r.output;  // the emulator refused to start
+  EXPECT_TRUE(has(r.output, "robot 'irb6' has no axis 'elbow' (axes: column, lower_arm, "
+                            "upper_arm, wrist_pitch, wrist_roll)"))
+      << r.output;
+  EXPECT_FALSE(has(r.output, "synchronising")) << r.output;
+}
+
+}  // namespace

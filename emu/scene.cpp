@@ -23,7 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr std::array<const char*, 4> kReservedNames = {"world", "floor", "light", "scene"};
+constexpr std::array<const char*, 3> kReservedNames = {"world", "floor", "light"};
 
 /// Reads one table of the scene; every error names the file and line of the offending node.
 class TableReader {
@@ -72,7 +72,7 @@ class TableReader {
     }
     for (const char* reserved : kReservedNames) {
       if (*value == reserved) {
-        fail(node, fmt::format("'{}' = \"{}\" is reserved (world, floor, light, scene)", key,
+        fail(node, fmt::format("'{}' = \"{}\" is reserved (world, floor, light)", key,
                                *value));
       }
     }

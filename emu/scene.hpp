@@ -33,8 +33,8 @@
 ///
 /// The base pose uses the same convention as `[[robot]] base` of process-set configs (position
 /// and rotation vector of the robot's base frame in the cell). Robot and object names must be
-/// unique, non-empty, without '/' or spaces, and other than "world", "floor", "light" and "scene"
-/// (the world body, the scene's own floor and light).
+/// unique, non-empty, without '/' or spaces, and other than "world", "floor" and "light" (the
+/// world body, the scene's own floor and light).
 ///
 /// Errors are `ConfigError`s "file:line: error: ..." naming the key, the value, its unit and the
 /// limit. Unknown keys are rejected.

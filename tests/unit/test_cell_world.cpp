@@ -230,15 +230,18 @@ TEST(CellWorld, HoldingThePowerOnPoseKeepsTheArmsStillWithoutAllocating) {
   g_heap.allocations = 0;
   for (int s = 0; s < 2000; ++s) {
     g_heap.counting = true;
-    const bool targets_ok = world.set_targets(0, left0) && world.set_targets(1, right0);
+    const bool targets_ok = world.set_targets(0, left0) && world.set_targets(1, right0) &&
+                            world.set_velocity_feed_forward(1, std::array<double, 5>{});
     const bool ok = world.step();
     const bool read_ok = world.actuator_positions(0, a) && world.actuator_velocities(1, v) &&
                          world.actuator_forces(0, f) && world.joint_positions(1, q) &&
                          world.synchro_switch(0, 2);
     const FramePose pose = world.body_pose(bar);
+    const FramePose flange = world.site_pose(world.site_id("left/flange"));
     g_heap.counting = false;
     ASSERT_TRUE(targets_ok && ok && read_ok) << world.fault_text();
     (void)pose;
+    (void)flange;
     for (std::size_t k = 0; k < 2; ++k) {
       const std::vector<double> now = actuators(world, k);
       const std::vector<double>& start = k == 0 ? left0 : right0;
@@ -284,8 +287,12 @@ TEST(CellWorld, ATargetStepMovesOnlyThatRobotsAxis) {
   EXPECT_FALSE(world.set_targets(0, target));
   std::vector<double> out(4);
   EXPECT_FALSE(world.actuator_positions(0, out));
-  // reset() goes back to the power-on state.
+  // reset() goes back to the power-on state (without allocating).
+  g_heap.allocations = 0;
+  g_heap.counting = true;
   world.reset();
+  g_heap.counting = false;
+  EXPECT_EQ(g_heap.allocations.load(), 0);
   EXPECT_EQ(world.time(), 0.0);
   EXPECT_EQ(actuators(world, 0), left0);
 }
@@ -392,6 +399,77 @@ gravity_compensation = false
   world.reset();
   EXPECT_FALSE(world.faulted());
   EXPECT_TRUE(world.step());
+}
+
+TEST(SceneFile, AssetsDefaultsSensorsAndTendonsArePrefixedPerRobot) {
+  // One model used twice: every name and reference must become the robot's own.
+  const ScratchDir dir;
+  dir.write("gizmo/meshes/tetra.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  dir.write("gizmo/gizmo.xml", R"(<mujoco model="gizmo">
+  <compiler angle="radian" meshdir="meshes"/>
+  <option timestep="0.001"/>
+  <default>
+    <default class="shiny"><geom material="steel" contype="0" conaffinity="0"/></default>
+  </default>
+  <asset>
+    <texture name="grid" type="2d" builtin="checker" width="8" height="8" rgb1="0 0 0" rgb2="1 1 1"/>
+    <material name="steel" texture="grid"/>
+    <mesh file="tetra.obj"/>
+  </asset>
+  <worldbody>
+    <light name="sun" pos="0 0 3" dir="0 0 -1"/>
+    <geom name="ground" type="plane" size="1 1 0.1"/>
+    <body name="arm">
+      <joint name="swing" axis="0 0 1" damping="10"/>
+      <geom name="shell" class="shiny" type="mesh" mesh="tetra" mass="1"/>
+      <site name="tip" pos="0.5 0 0"/>
+    </body>
+  </worldbody>
+  <tendon><fixed name="spring"><joint joint="swing" coef="1"/></fixed></tendon>
+  <actuator><position name="swing" joint="swing" kp="100"/></actuator>
+  <sensor>
+    <jointpos name="angle" joint="swing"/>
+    <framepos name="tip_position" objtype="site" objname="tip"/>
+  </sensor>
+  <contact><exclude body1="arm" body2="world"/></contact>
+</mujoco>
+)");
+  dir.write("gizmo/parameters.toml",
+            "[robot]\nmjcf = \"gizmo.xml\"\njoint_names = [\"swing\"]\n"
+            "synchro_joint_positions = [0.0]\n");
+  const fs::path scene = dir.write("scene.toml", R"([scene]
+[[scene.robot]]
+name = "a"
+model = "gizmo"
+[[scene.robot]]
+name = "b"
+model = "gizmo"
+base = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+)");
+  const CellWorld world(scene);
+  const mjModel* m = world.model();
+  EXPECT_EQ(m->nlight, 1);
+  EXPECT_EQ(m->nmesh, 2);
+  for (const char* robot : {"a", "b"}) {
+    const std::string p = std::string(robot) + "/";
+    const int shell = mj_name2id(m, mjOBJ_GEOM, (p + "shell").c_str());
+    ASSERT_GE(shell, 0) << robot;
+    EXPECT_EQ(m->geom_dataid[shell], mj_name2id(m, mjOBJ_MESH, (p + "tetra").c_str())) << robot;
+    EXPECT_EQ(m->geom_matid[shell], mj_name2id(m, mjOBJ_MATERIAL, (p + "steel").c_str()));
+    EXPECT_EQ(m->geom_contype[shell], 0) << "class 'shiny' of the robot";
+    EXPECT_EQ(m->mat_texid[m->geom_matid[shell]],
+              mj_name2id(m, mjOBJ_TEXTURE, (p + "grid").c_str()));
+    const int sensor = mj_name2id(m, mjOBJ_SENSOR, (p + "tip_position").c_str());
+    ASSERT_GE(sensor, 0);
+    EXPECT_EQ(m->sensor_objid[sensor], world.site_id(p + "tip"));
+    EXPECT_GE(mj_name2id(m, mjOBJ_TENDON, (p + "spring").c_str()), 0);
+  }
+  // The robots' "world" is their base body.
+  ASSERT_EQ(m->nexclude, 2);
+  // Both sites sit where their bases put them.
+  EXPECT_NEAR(world.site_pose("b/tip").position[0] - world.site_pose("a/tip").position[0], 1.0,
+              1e-12);
 }
 
 // ---- Scene file errors ----

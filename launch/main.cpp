@@ -65,6 +65,10 @@ std::vector<Stage> plan(const ProcessSetConfig& config, const fs::path& bin_dir,
   if (config.emulator)
     stages.push_back({"emu", child("emu", {exe("mrroc-axis-emu"), "--config", cfg},
                                    config.emulator->options.stop_grace_s)});
+  for (const auto& v : config.vsps)
+    stages.push_back({"vsp/" + v.name, child("vsp/" + v.name,
+                                             {exe("mrroc-vsp"), "--config", cfg, "--vsp", v.name},
+                                             v.options.stop_grace_s)});
   for (const auto& r : config.robots)
     stages.push_back({"edp/" + r.name, child("edp/" + r.name,
                                              {exe("mrroc-edp"), "--config", cfg, "--robot", r.name},

@@ -190,6 +190,16 @@ Params params_from_toml(const std::string& text, const std::string& origin) {
   }
 }
 
+const VspConfig& ProcessSetConfig::vsp(const std::string& vsp_name) const {
+  std::string known;
+  for (const auto& v : vsps) {
+    if (v.name == vsp_name) return v;
+    known += (known.empty() ? "" : ", ") + v.name;
+  }
+  throw ConfigError(fmt::format("{}: error: no [[vsp]] named '{}' (known: {})", file.string(),
+                                vsp_name, known.empty() ? "none" : known));
+}
+
 const RobotConfig& ProcessSetConfig::robot(const std::string& robot_name) const {
   for (const auto& r : robots)
     if (r.name == robot_name) return r;
@@ -206,7 +216,7 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
   ProcessSetConfig config;
   config.file = file;
   Reader r(config.file);
-  r.only_keys(root, "top level", {"system", "srp", "emulator", "mp", "robot"});
+  r.only_keys(root, "top level", {"system", "srp", "emulator", "vsp", "mp", "robot"});
 
   const toml::table& system = r.table(root, "system", "");
   r.only_keys(system, "system", {"name", "lcm_url", "ready_timeout_s"});
@@ -245,6 +255,58 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     }
     e.options = r.options(t);
     config.emulator = std::move(e);
+  }
+
+  if (const toml::node* vsps = root.get("vsp")) {
+    const toml::array* list = vsps->as_array();
+    if (list == nullptr || !list->is_array_of_tables())
+      r.fail(*vsps, "'vsp' must be an array of tables ([[vsp]])");
+    static const std::regex vsp_name_re("[a-z][a-z0-9_]{0,30}");
+    std::set<std::string> vsp_names;
+    for (const auto& node : *list) {
+      const toml::table& t = *node.as_table();
+      r.only_keys(t, "vsp", {"name", "plugin", "library", "sources", "mode", "period_ms",
+                             "stale_after_ms", "params", "cpus", "stop_grace_s"});
+      VspConfig v;
+      v.where = r.where(t);
+      v.name = r.string(t, "name", "vsp");
+      if (!std::regex_match(v.name, vsp_name_re))
+        r.fail(*t.get("name"), fmt::format("VSP name '{}' must match [a-z][a-z0-9_]* and have at "
+                                           "most 31 characters",
+                                           v.name));
+      if (!vsp_names.insert(v.name).second)
+        r.fail(*t.get("name"), fmt::format("VSP name '{}' is used twice", v.name));
+      v.plugin = r.string(t, "plugin", "vsp");
+      if (const std::string lib = r.string(t, "library", "vsp", std::string{}); !lib.empty()) {
+        v.library = r.resolve(lib);
+        if (!fs::exists(v.library))
+          r.fail(*t.get("library"),
+                 fmt::format("sensor plugin library '{}' not found", v.library.string()));
+      }
+      const toml::node* sources = t.get("sources");
+      if (sources == nullptr)
+        throw ConfigError(fmt::format("{}: error: missing key 'sources' in [[vsp]] '{}' (the raw "
+                                      "sensor devices that feed it)",
+                                      r.where(t).str(), v.name));
+      const toml::array* arr = sources->as_array();
+      if (arr == nullptr || arr->empty() || !arr->is_homogeneous(toml::node_type::string))
+        r.fail(*sources, "'sources' must be a non-empty list of raw sensor device names");
+      for (const auto& s : *arr) v.sources.emplace_back(**s.as_string());
+      const std::string mode = r.string(t, "mode", "vsp", std::string("on_demand"));
+      if (mode != "on_demand" && mode != "periodic")
+        r.fail(*t.get("mode"), fmt::format("mode '{}' must be \"on_demand\" or \"periodic\"", mode));
+      v.periodic = mode == "periodic";
+      v.period_s = r.number(t, "period_ms", 10.0, 1.0, 10000.0, "ms") / 1000.0;
+      v.stale_after_s = r.number(t, "stale_after_ms", 100.0, 1.0, 60000.0, "ms") / 1000.0;
+      if (const toml::node* p = t.get("params")) {
+        if (!p->is_table()) r.fail(*p, "'params' must be a table");
+        v.params = r.params(*p->as_table(), "vsp.params");
+      } else {
+        v.params = Params(r.where(t));
+      }
+      v.options = r.options(t);
+      config.vsps.push_back(std::move(v));
+    }
   }
 
   config.mp = r.task(r.table(root, "mp", ""), "mp");

@@ -11,6 +11,10 @@
 #include "mrroc_lcm/edp_instruction_t.hpp"
 #include "mrroc_lcm/edp_reply_t.hpp"
 #include "mrroc_lcm/mp_ecp_command_t.hpp"
+#include "mrroc_lcm/raw_sensor_t.hpp"
+#include "mrroc_lcm/vsp_command_t.hpp"
+#include "mrroc_lcm/vsp_reply_t.hpp"
+#include "mrroc/vsp/reading.hpp"
 
 namespace mrroc::comm {
 
@@ -31,5 +35,15 @@ mrroc_lcm::mp_ecp_command_t encode(const ecp::MpCommand& in);
 ecp::MpCommand decode(const mrroc_lcm::mp_ecp_command_t& msg);
 mrroc_lcm::ecp_mp_reply_t encode(const ecp::EcpReply& in);
 ecp::EcpReply decode(const mrroc_lcm::ecp_mp_reply_t& msg);
+
+mrroc_lcm::vsp_command_t encode(const vsp::Request& in);
+vsp::Request decode(const mrroc_lcm::vsp_command_t& msg);
+mrroc_lcm::vsp_reply_t encode(const vsp::Reply& in);
+vsp::Reply decode(const mrroc_lcm::vsp_reply_t& msg);
+mrroc_lcm::raw_sensor_t encode(const vsp::RawSample& in);
+vsp::RawSample decode(const mrroc_lcm::raw_sensor_t& msg);
+
+/// Largest number of values in a raw sample or a reading.
+inline constexpr int kMaxSensorValues = 256;
 
 }  // namespace mrroc::comm

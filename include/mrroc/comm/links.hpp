@@ -85,4 +85,10 @@ using EcpClient = PlainClient<ecp::MpCommand, ecp::EcpReply, mrroc_lcm::mp_ecp_c
 using EcpServer = PlainServer<ecp::MpCommand, ecp::EcpReply, mrroc_lcm::mp_ecp_command_t,
                               mrroc_lcm::ecp_mp_reply_t>;
 
+/// ECP or MP (client) <-> VSP (server), channels vsp/<name>/cmd and vsp/<name>/reply.
+using VspClient = PlainClient<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t,
+                              mrroc_lcm::vsp_reply_t>;
+using VspServer = PlainServer<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t,
+                              mrroc_lcm::vsp_reply_t>;
+
 }  // namespace mrroc::comm

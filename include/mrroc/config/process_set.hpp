@@ -62,6 +62,20 @@ struct EmulatorConfig {
   SourceLocation where;
 };
 
+/// A virtual sensor process ([[vsp]]; docs/sensors.md).
+struct VspConfig {
+  std::string name;                  ///< e.g. "wrist_force"; channels vsp/<name>/...
+  std::string plugin;                ///< sensor plugin name, e.g. "force_torque"
+  std::filesystem::path library;     ///< shared library registering the plugin (optional)
+  std::vector<std::string> sources;  ///< raw sensor devices feeding it (mrroc/raw/<device>)
+  bool periodic = false;             ///< readings made every period (else on INITIATE_READING)
+  double period_s = 0.01;            ///< periodic mode [s]
+  double stale_after_s = 0.1;        ///< a source silent for longer makes readings invalid [s]
+  Params params;                     ///< the plugin's own parameters ([vsp.params])
+  ProcessOptions options;
+  SourceLocation where;
+};
+
 struct ProcessSetConfig {
   std::filesystem::path file;  ///< absolute path of the config file
   std::string name;            ///< name of the set (for messages)
@@ -71,9 +85,12 @@ struct ProcessSetConfig {
   ProcessOptions srp;
   std::optional<EmulatorConfig> emulator;  ///< started after the SRP, before the EDPs
   std::vector<RobotConfig> robots;
+  std::vector<VspConfig> vsps;  ///< started after the emulator, before the EDPs
 
   /// @throws ConfigError when no robot has this name.
   [[nodiscard]] const RobotConfig& robot(const std::string& name) const;
+  /// @throws ConfigError when no VSP has this name.
+  [[nodiscard]] const VspConfig& vsp(const std::string& name) const;
 };
 
 /// Parses `key = value` lines (TOML) into Params, e.g. the arguments of a NEXT_STATE command.
@@ -94,6 +111,10 @@ inline std::string edp_command(const std::string& robot) { return robot + "/edp/
 inline std::string edp_reply(const std::string& robot) { return robot + "/edp/reply"; }
 inline std::string ecp_command(const std::string& robot) { return robot + "/ecp/cmd"; }
 inline std::string ecp_reply(const std::string& robot) { return robot + "/ecp/reply"; }
+inline std::string vsp_command(const std::string& vsp) { return "vsp/" + vsp + "/cmd"; }
+inline std::string vsp_reply(const std::string& vsp) { return "vsp/" + vsp + "/reply"; }
+/// Raw sensor samples of one device (raw_sensor_t).
+inline std::string raw_sensor(const std::string& device) { return "mrroc/raw/" + device; }
 inline constexpr const char* srp = "mrroc/srp";
 inline constexpr const char* status = "mrroc/status";
 inline constexpr const char* emergency_stop = "mrroc/estop";

@@ -1,0 +1,228 @@
+/// @file
+/// The VSP shell (see shell.hpp).
+#include "shell.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+#include "mrroc/comm/codec.hpp"
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/time.hpp"
+
+namespace mrroc::vsp {
+
+Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
+             std::unique_ptr<SensorPlugin> plugin)
+    : bus_(bus),
+      reporter_(reporter),
+      config_(config),
+      plugin_(std::move(plugin)),
+      server_(bus, "vsp/" + config.name, channels::vsp_command(config.name),
+              channels::vsp_reply(config.name)),
+      last_rx_(config.sources.size()),
+      last_sample_utime_(config.sources.size(), 0) {
+  SensorSetup setup;
+  setup.name = config.name;
+  setup.sources = config.sources;
+  setup.params = config.params;
+  plugin_->configure(setup);
+  for (std::size_t i = 0; i < config.sources.size(); ++i) {
+    const std::string channel = channels::raw_sensor(config.sources[i]);
+    if (!source_of_channel_.emplace(channel, i).second)
+      throw ConfigError(fmt::format("{}: error: VSP '{}' lists source '{}' twice",
+                                    config.where.str(), config.name, config.sources[i]));
+    subscriptions_.push_back(bus_.lcm().subscribeFunction<Shell*>(channel, &Shell::on_raw, this));
+  }
+  if (config_.periodic) {
+    periodic_ = std::thread([this] {
+      auto next = std::chrono::steady_clock::now();
+      const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(config_.period_s));
+      std::unique_lock lock(mutex_);
+      while (!stopping_) {
+        next += period;
+        cv_.wait_until(lock, next, [&] { return stopping_; });
+        if (stopping_) break;
+        if (!terminated_) {
+          lock.unlock();
+          make_reading(Params{});
+          lock.lock();
+        }
+      }
+    });
+  }
+}
+
+Shell::~Shell() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  if (periodic_.joinable()) periodic_.join();
+  for (lcm::Subscription* s : subscriptions_) bus_.lcm().unsubscribe(s);
+}
+
+std::uint64_t Shell::malformed() const {
+  std::lock_guard lock(mutex_);
+  return malformed_;
+}
+
+void Shell::on_raw(const lcm::ReceiveBuffer* buffer, const std::string& channel, Shell* self) {
+  mrroc_lcm::raw_sensor_t message;
+  std::optional<RawSample> sample;
+  std::string error;
+  if (comm::detail::decode_received(buffer, message)) {
+    try {
+      sample = comm::decode(message);
+    } catch (const comm::DecodeError& e) {
+      error = e.what();
+    }
+  } else {
+    error = "not a raw_sensor_t";
+  }
+  const auto it = self->source_of_channel_.find(channel);
+  if (it == self->source_of_channel_.end()) return;
+  std::unique_lock lock(self->mutex_);
+  if (!sample) {
+    ++self->malformed_;
+    if (!self->malformed_reported_) {
+      self->malformed_reported_ = true;
+      lock.unlock();
+      self->reporter_.warning(fmt::format("malformed raw sample on {} dropped ({}); further ones "
+                                          "are only counted",
+                                          channel, error));
+    }
+    return;
+  }
+  const std::size_t source = it->second;
+  self->last_rx_[source] = std::chrono::steady_clock::now();
+  self->last_sample_utime_[source] = sample->sample_utime;
+  self->plugin_->on_sample(source, *sample);
+}
+
+void Shell::make_reading(const Params& context) {
+  std::unique_lock lock(mutex_);
+  Reading r;
+  const auto now = std::chrono::steady_clock::now();
+  std::string stale;
+  for (std::size_t i = 0; i < config_.sources.size() && stale.empty(); ++i) {
+    if (!last_rx_[i]) {
+      stale = fmt::format("no sample from source '{}' yet", config_.sources[i]);
+    } else {
+      const double age = std::chrono::duration<double>(now - *last_rx_[i]).count();
+      if (age > config_.stale_after_s)
+        stale = fmt::format("source '{}' stale for {:.0f} ms (limit {:.0f} ms)",
+                            config_.sources[i], age * 1000.0, config_.stale_after_s * 1000.0);
+    }
+  }
+  if (stale.empty()) {
+    try {
+      r = plugin_->make_reading(context);
+    } catch (const std::exception& e) {
+      r = Reading{};
+      r.valid = false;
+      r.invalid_reason = fmt::format("plugin '{}' failed: {}", plugin_->plugin_name(), e.what());
+    }
+  } else {
+    r.valid = false;
+    r.invalid_reason = stale;
+  }
+  std::int64_t oldest = 0;
+  for (std::size_t i = 0; i < last_sample_utime_.size(); ++i)
+    if (last_rx_[i] && (oldest == 0 || last_sample_utime_[i] < oldest)) oldest = last_sample_utime_[i];
+  r.reading_utime = oldest;
+  r.reading_no = ++reading_no_;
+  reading_ = r;
+  const bool report_invalid = !r.valid && was_valid_;
+  const bool report_valid = r.valid && !was_valid_;
+  was_valid_ = r.valid;
+  lock.unlock();
+  if (report_invalid)
+    reporter_.warning(fmt::format("VSP '{}': reading invalid: {}", config_.name, r.invalid_reason));
+  if (report_valid) reporter_.info(fmt::format("VSP '{}': readings valid again", config_.name));
+}
+
+Reply Shell::handle(const Request& request) {
+  Reply reply;
+  const auto fail = [&](int code, const std::string& text) {
+    reply.kind = ReplyKind::error;
+    reply.error_code = code;
+    reply.error_text = text;
+    return reply;
+  };
+  Params args;
+  try {
+    args = params_from_toml(request.arguments, std::string(to_string(request.command)));
+  } catch (const ConfigError& e) {
+    return fail(error_code::bad_argument, e.what());
+  }
+  switch (request.command) {
+    case Command::configure: {
+      try {
+        std::lock_guard lock(mutex_);
+        plugin_->command(args);
+        terminated_ = false;
+        reading_no_ = 0;
+        reading_.reset();
+      } catch (const ConfigError& e) {
+        return fail(error_code::bad_argument, e.what());
+      }
+      return reply;
+    }
+    case Command::initiate_reading: {
+      {
+        std::lock_guard lock(mutex_);
+        if (terminated_)
+          return fail(error_code::terminated, fmt::format("VSP '{}' was terminated; CONFIGURE "
+                                                          "starts it again",
+                                                          config_.name));
+      }
+      if (!config_.periodic) make_reading(args);
+      return reply;
+    }
+    case Command::get_reading: {
+      std::lock_guard lock(mutex_);
+      if (terminated_)
+        return fail(error_code::terminated,
+                    fmt::format("VSP '{}' was terminated; CONFIGURE starts it again", config_.name));
+      if (!reading_)
+        return fail(error_code::not_configured,
+                    fmt::format("VSP '{}' has no reading yet ({})", config_.name,
+                                config_.periodic ? "the first period has not ended"
+                                                 : "send INITIATE_READING first"));
+      reply.kind = ReplyKind::reading;
+      reply.reading = *reading_;
+      reply.reading.age_us =
+          reading_->reading_utime > 0 ? std::max<std::int64_t>(0, now_utime() - reading_->reading_utime) : 0;
+      return reply;
+    }
+    case Command::terminate: {
+      std::lock_guard lock(mutex_);
+      terminated_ = true;
+      reading_.reset();
+      return reply;
+    }
+  }
+  return fail(error_code::bad_argument, "unknown command");
+}
+
+void Shell::serve(const std::function<bool()>& keep_going) {
+  while (keep_going()) {
+    auto incoming = server_.wait_request(std::chrono::milliseconds(100));
+    if (!incoming) continue;
+    if (!incoming->request) {
+      Reply r;
+      r.kind = ReplyKind::error;
+      r.error_code = error_code::bad_argument;
+      r.error_text = incoming->decode_error;
+      incoming->responder.reply(r);
+      continue;
+    }
+    incoming->responder.reply(handle(*incoming->request));
+  }
+}
+
+}  // namespace mrroc::vsp

@@ -1,0 +1,75 @@
+#pragma once
+/// @file
+/// The VSP shell: raw samples in (mrroc/raw/<device> for every source), readings out
+/// (CONFIGURE, INITIATE_READING, GET_READING, TERMINATE on vsp/<name>/cmd), staleness, SRP reports.
+///
+/// Readings: on demand (default) a reading is made at INITIATE_READING; periodic VSPs make one
+/// every period and INITIATE_READING only acknowledges. GET_READING returns the last reading with
+/// its age. A reading is invalid when any source has sent nothing for longer than
+/// `stale_after_ms` (or nothing yet), or when the plugin failed or found its samples unusable;
+/// the reason says which source. The first invalid reading after valid ones (and the return to
+/// valid) is reported to the SRP naming the VSP and the source. TERMINATE stops the readings
+/// (GET_READING answers an error) until the next CONFIGURE; the process keeps running.
+#include <chrono>
+#include <condition_variable>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/links.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/core/reporter.hpp"
+#include "mrroc/vsp/sensor.hpp"
+
+namespace mrroc::vsp {
+
+class Shell {
+ public:
+  Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
+        std::unique_ptr<SensorPlugin> plugin);
+  ~Shell();
+  Shell(const Shell&) = delete;
+  Shell& operator=(const Shell&) = delete;
+
+  /// Answers requests until `keep_going()` returns false.
+  void serve(const std::function<bool()>& keep_going);
+
+  /// Raw samples that did not decode (counted and dropped).
+  [[nodiscard]] std::uint64_t malformed() const;
+
+ private:
+  static void on_raw(const lcm::ReceiveBuffer* buffer, const std::string& channel, Shell* self);
+  void make_reading(const Params& context);
+  Reply handle(const Request& request);
+
+  comm::Bus& bus_;
+  Reporter& reporter_;
+  VspConfig config_;
+  std::unique_ptr<SensorPlugin> plugin_;
+  comm::VspServer server_;
+  std::vector<lcm::Subscription*> subscriptions_;
+  std::map<std::string, std::size_t> source_of_channel_;
+
+  mutable std::mutex mutex_;
+  std::vector<std::optional<std::chrono::steady_clock::time_point>> last_rx_;
+  std::vector<std::int64_t> last_sample_utime_;
+  std::optional<Reading> reading_;
+  std::int64_t reading_no_ = 0;
+  bool terminated_ = false;
+  bool was_valid_ = true;
+  std::uint64_t malformed_ = 0;
+  bool malformed_reported_ = false;
+
+  std::thread periodic_;
+  bool stopping_ = false;
+  std::condition_variable cv_;
+};
+
+}  // namespace mrroc::vsp

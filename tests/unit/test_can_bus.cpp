@@ -517,26 +517,30 @@ TEST(VirtualBus, SenderThatDiedAfterClaimingDoesNotBlockReaders) {
 }
 
 TEST(VirtualBus, ProcessesCreatingTheBusAtOnceShareIt) {
+  // Children open a bus that does not exist yet at the same moment (released together by the
+  // parent closing a pipe), then each sends one frame and must receive the others'.
   TestBus bus("create");
   constexpr int kChildren = 4;
-  int ready_pipe[2];
-  int go_pipe[2];
-  ASSERT_EQ(pipe(ready_pipe), 0);
-  ASSERT_EQ(pipe(go_pipe), 0);
+  int start[2];
+  int go[2];
+  int ready[2];
+  ASSERT_EQ(pipe(start), 0);
+  ASSERT_EQ(pipe(go), 0);
+  ASSERT_EQ(pipe(ready), 0);
   std::vector<pid_t> pids;
   for (int c = 0; c < kChildren; ++c) {
     const pid_t pid = fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {
-      close(ready_pipe[0]);
-      close(go_pipe[1]);
+      close(start[1]);
+      close(go[1]);
+      close(ready[0]);
       try {
-        char go = 0;
-        // Everybody opens at the same moment: the parent releases all children at once.
-        if (read(go_pipe[0], &go, 1) != 1) _exit(6);
+        char byte = 0;
+        if (read(start[0], &byte, 1) != 0) _exit(6);  // EOF: the parent released everybody
         auto node = can::open_bus(bus.url());
-        if (write(ready_pipe[1], "r", 1) != 1) _exit(6);
-        if (read(go_pipe[0], &go, 1) != 1) _exit(6);
+        if (write(ready[1], "r", 1) != 1) _exit(6);
+        if (read(go[0], &byte, 1) != 0) _exit(6);
         if (node->send(make_frame(static_cast<canid_t>(0x10 + c))) != can::SendResult::sent) _exit(3);
         int seen = 0;
         can::Received r;
@@ -551,18 +555,17 @@ TEST(VirtualBus, ProcessesCreatingTheBusAtOnceShareIt) {
     }
     pids.push_back(pid);
   }
-  close(ready_pipe[1]);
-  close(go_pipe[0]);
-  const std::string go(kChildren, 'g');
-  ASSERT_EQ(write(go_pipe[1], go.data(), go.size()), static_cast<ssize_t>(go.size()));
-  for (int c = 0; c < kChildren; ++c) {
-    char ready = 0;
-    ASSERT_EQ(read(ready_pipe[0], &ready, 1), 1);
-  }
-  ASSERT_EQ(write(go_pipe[1], go.data(), go.size()), static_cast<ssize_t>(go.size()));
+  close(start[0]);
+  close(go[0]);
+  close(ready[1]);
+  close(start[1]);  // release: every child opens the bus now
+  int opened = 0;
+  char byte = 0;
+  while (opened < kChildren && read(ready[0], &byte, 1) == 1) ++opened;
+  EXPECT_EQ(opened, kChildren) << "a child could not open the bus";
+  close(go[1]);  // every node is on the bus: send
   for (const pid_t pid : pids) EXPECT_EQ(wait_child(pid), 0) << "child " << pid;
-  close(ready_pipe[0]);
-  close(go_pipe[1]);
+  close(ready[0]);
 }
 
 TEST(VirtualBus, LeftOverObjectIsReusedOrRejectedClearly) {

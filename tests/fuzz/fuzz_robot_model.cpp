@@ -8,11 +8,14 @@
 // - an accepted model is consistent: every per-axis list (limits from the URDF, velocities,
 //   accelerations, synchronisation positions) has one value per joint name; every kinematic
 //   model file exists.
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -65,7 +68,18 @@ void check_model(const mrroc::RobotModel& m) {
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   // urdfdom reports every URDF it cannot parse on the console; the target checks the result.
   console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
-  g_folder = fs::temp_directory_path() / ("mrroc-fuzz-robot-" + std::to_string(::getpid()));
+  // A run that crashed could not remove its folder: remove those of processes that are gone.
+  const std::string prefix = "mrroc-fuzz-robot-";
+  for (const auto& old : fs::directory_iterator(fs::temp_directory_path())) {
+    const std::string name = old.path().filename().string();
+    if (!name.starts_with(prefix)) continue;
+    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
+      std::error_code ec;
+      fs::remove_all(old.path(), ec);
+    }
+  }
+  g_folder = fs::temp_directory_path() / (prefix + std::to_string(::getpid()));
   fs::remove_all(g_folder);
   fs::create_directories(g_folder);
   for (const auto& robot : fs::directory_iterator(fs::path(MRROC_SOURCE_DIR) / "robots")) {
@@ -81,6 +95,11 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 }
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  // The file names the URDF to read: a device such as /dev/zero or /dev/stdin would hang the run
+  // (the parameters file is trusted, not hostile input).
+  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  for (const std::string_view device : {"/dev", "/proc", "/sys"})
+    if (text.find(device) != std::string_view::npos) return -1;
   {
     std::ofstream out(g_folder / "parameters.toml", std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));

@@ -1,0 +1,349 @@
+// The VSP: its config, the shell (on-demand and periodic readings, staleness, malformed samples,
+// TERMINATE/CONFIGURE), the stock plugins, and the ECP/MP side (VirtualSensor) including a dead
+// VSP. Raw samples are published on LCM here as a device driver (or mrroc-axis-emu) would.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <thread>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/codec.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/core/reporter.hpp"
+#include "mrroc/ecp/virtual_sensor.hpp"
+#include "shell.hpp"
+
+namespace fs = std::filesystem;
+using namespace mrroc;
+using namespace std::chrono_literals;
+
+namespace {
+
+std::string test_url() {
+  const char* url = std::getenv("MRROC_TEST_LCM_URL");
+  return url != nullptr && *url != '\0' ? url : "memq://";
+}
+
+/// A process set with the given [[vsp]] tables (and a minimal robot), loaded.
+ProcessSetConfig config_with(const std::string& vsps) {
+  const fs::path file = fs::temp_directory_path() /
+                        ("mrroc-vsp-test-" + std::to_string(::getpid()) + ".toml");
+  std::ofstream(file) << "[system]\nname = \"t\"\n" << vsps
+                      << "\n[mp]\ntask = \"start_and_wait\"\n[[robot]]\nname = \"irb6\"\n"
+                      << "model = \"" << MRROC_SOURCE_DIR << "/robots/irb6\"\n"
+                      << "[robot.edp]\nplugin = \"mock\"\n[robot.ecp]\ntask = \"follow_mp\"\n";
+  ProcessSetConfig c = load_process_set(file);
+  fs::remove(file);
+  return c;
+}
+
+void publish(comm::Bus& bus, const std::string& device, std::vector<double> values,
+             bool valid = true) {
+  static std::atomic<std::int64_t> no{0};
+  vsp::RawSample s;
+  s.device = device;
+  s.sample_utime = now_utime();
+  s.sample_no = no++;
+  s.valid = valid;
+  s.values = std::move(values);
+  s.names.resize(s.values.size());
+  s.units.resize(s.values.size());
+  mrroc_lcm::raw_sensor_t m = comm::encode(s);
+  bus.lcm().publish(channels::raw_sensor(device), &m);
+}
+
+/// A running VSP shell on its own thread.
+struct RunningVsp {
+  RunningVsp(comm::Bus& bus, Reporter& reporter, const VspConfig& config)
+      : shell(bus, reporter, config, vsp::make_sensor(config.plugin)),
+        thread([this] { shell.serve([this] { return !stop; }); }) {}
+  ~RunningVsp() {
+    stop = true;
+    thread.join();
+  }
+  vsp::Shell shell;
+  std::atomic<bool> stop{false};
+  std::thread thread;
+};
+
+/// Publishes `values` on `device` every 2 ms until destroyed.
+struct Publisher {
+  Publisher(comm::Bus& bus, std::string device, std::vector<double> values)
+      : thread([&bus, this, device = std::move(device), values = std::move(values)] {
+          while (!stop) {
+            {
+              std::lock_guard lock(mutex);
+              publish(bus, device, override.empty() ? values : override);
+            }
+            std::this_thread::sleep_for(2ms);
+          }
+        }) {}
+  ~Publisher() {
+    stop = true;
+    thread.join();
+  }
+  void set(std::vector<double> v) {
+    std::lock_guard lock(mutex);
+    override = std::move(v);
+  }
+  std::mutex mutex;
+  std::vector<double> override;
+  std::atomic<bool> stop{false};
+  std::thread thread;
+};
+
+void refresh(ecp::VirtualSensor& s) {
+  s.initiate_reading();
+  s.get_reading();
+}
+
+}  // namespace
+
+TEST(VspConfig, ReadsVspTablesAndRefusesMistakes) {
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"gauges\"]\n"
+      "mode = \"periodic\"\nperiod_ms = 5\nstale_after_ms = 50\n[vsp.params]\nfilter_hz = 30\n");
+  ASSERT_EQ(c.vsps.size(), 1U);
+  EXPECT_EQ(c.vsp("wrist").plugin, "force_torque");
+  EXPECT_TRUE(c.vsp("wrist").periodic);
+  EXPECT_DOUBLE_EQ(c.vsp("wrist").period_s, 0.005);
+  EXPECT_DOUBLE_EQ(c.vsp("wrist").stale_after_s, 0.05);
+  EXPECT_THROW((void)c.vsp("elbow"), ConfigError);
+  try {
+    (void)config_with("[[vsp]]\nname = \"w\"\nplugin = \"range\"\n");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing key 'sources'"), std::string::npos) << e.what();
+  }
+  try {
+    (void)config_with("[[vsp]]\nname = \"w\"\nplugin = \"range\"\nsources = [\"a\"]\nmode = \"fast\"\n");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("mode 'fast' must be"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Vsp, ForceTorqueCalibratesZeroesAndCompensatesTheToolsWeight) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"gauges\"]\n"
+      "[vsp.params]\ncalibration = [[2,0,0,0,0,0],[0,2,0,0,0,0],[0,0,2,0,0,0],[0,0,0,1,0,0],"
+      "[0,0,0,0,1,0],[0,0,0,0,0,1]]\ntool_mass = 1.0\ntool_com = [0.0, 0.0, 0.1]\ngravity = 10.0\n");
+  RunningVsp vsp(bus, reporter, c.vsp("wrist"));
+  bus.start();
+  Publisher gauges(bus, "gauges", {1.0, 0.0, -5.0, 0.0, 0.0, 0.0});
+  ecp::VirtualSensor sensor(bus, "wrist", "test");
+  std::this_thread::sleep_for(30ms);
+  // Sensor frame = world frame: the tool weighs 10 N along -z; the gauges say fz = -10 N after
+  // calibration, so the compensated force along z is 0 and fx = 2 N remains.
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("fx"), 2.0, 1e-9);
+  EXPECT_NEAR(sensor.value("fz"), 0.0, 1e-9);
+  // Sensor turned upside down (rotation pi about x): the weight pulls along +z of the sensor.
+  sensor.set_context("rotation = [1, 0, 0, 0, -1, 0, 0, 0, -1]");
+  refresh(sensor);
+  EXPECT_NEAR(sensor.value("fz"), -20.0, 1e-9);
+  // Zeroing removes what is measured now.
+  sensor.set_context("");
+  sensor.configure("zero = true");
+  refresh(sensor);
+  EXPECT_NEAR(sensor.value("fx"), 0.0, 1e-9);
+  gauges.set({1.5, 0.0, -5.0, 0.0, 0.0, 0.0});
+  std::this_thread::sleep_for(20ms);
+  refresh(sensor);
+  EXPECT_NEAR(sensor.value("fx"), 1.0, 1e-9);
+  EXPECT_GE(sensor.image().reading_no, 1);
+  EXPECT_LT(sensor.image().age_us, 50000);
+  // A bad CONFIGURE argument is refused with its name.
+  try {
+    sensor.configure("zeroo = true");
+    FAIL();
+  } catch (const ecp::SensorError& e) {
+    EXPECT_NE(std::string(e.what()).find("zeroo"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Vsp, StaleSourceMakesReadingsInvalidAndNamesIt) {
+  comm::Bus bus(test_url());
+  std::mutex m;
+  std::vector<std::string> srp;
+  SystemListener listener(
+      bus, [&](const SrpMessage& msg) {
+        std::lock_guard lock(m);
+        srp.push_back(msg.text);
+      },
+      [](const ProcessStatus&) {});
+  Reporter reporter(bus, "vsp/range");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\nstale_after_ms = 40\n");
+  RunningVsp vsp(bus, reporter, c.vsp("range"));
+  bus.start();
+  ecp::VirtualSensor sensor(bus, "range", "test");
+  refresh(sensor);
+  EXPECT_FALSE(sensor.image().valid);
+  EXPECT_NE(sensor.image().invalid_reason.find("no sample from source 'sonar' yet"),
+            std::string::npos)
+      << sensor.image().invalid_reason;
+  {
+    Publisher sonar(bus, "sonar", {0.5});
+    std::this_thread::sleep_for(20ms);
+    refresh(sensor);
+    ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+    EXPECT_NEAR(sensor.value("distance"), 0.5, 1e-12);
+  }
+  std::this_thread::sleep_for(80ms);
+  refresh(sensor);
+  EXPECT_FALSE(sensor.image().valid);
+  EXPECT_NE(sensor.image().invalid_reason.find("source 'sonar' stale for"), std::string::npos)
+      << sensor.image().invalid_reason;
+  EXPECT_THROW((void)sensor.valid_image(), ecp::SensorError);
+  std::this_thread::sleep_for(50ms);
+  std::lock_guard lock(m);
+  bool reported = false;
+  for (const auto& t : srp) reported = reported || t.find("VSP 'range': reading invalid: source 'sonar' stale") != std::string::npos;
+  EXPECT_TRUE(reported);
+}
+
+TEST(Vsp, OneRawSensorFeedsTwoVirtualSensors) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"near\"\nplugin = \"range\"\nsources = [\"ir\", \"sonar\"]\n"
+      "[[vsp]]\nname = \"sonar_only\"\nplugin = \"range\"\nsources = [\"sonar\"]\n"
+      "[vsp.params]\nmedian = 3\n");
+  RunningVsp a(bus, reporter, c.vsp("near"));
+  RunningVsp b(bus, reporter, c.vsp("sonar_only"));
+  bus.start();
+  Publisher ir(bus, "ir", {0.3});
+  Publisher sonar(bus, "sonar", {0.8});
+  std::this_thread::sleep_for(30ms);
+  ecp::VirtualSensor near(bus, "near", "test");
+  ecp::VirtualSensor far(bus, "sonar_only", "test");
+  refresh(near);
+  refresh(far);
+  EXPECT_NEAR(near.value("distance"), 0.3, 1e-12);  // the nearer of the two
+  EXPECT_NEAR(far.value("distance"), 0.8, 1e-12);
+}
+
+TEST(Vsp, PeriodicTerminateAndConfigure) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"belt\"\nplugin = \"conveyor\"\nsources = [\"belt_encoder\"]\n"
+      "mode = \"periodic\"\nperiod_ms = 5\n");
+  RunningVsp vsp(bus, reporter, c.vsp("belt"));
+  bus.start();
+  std::atomic<bool> stop{false};
+  std::thread belt([&] {  // 0.1 m/s
+    const auto start = std::chrono::steady_clock::now();
+    while (!stop) {
+      const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      publish(bus, "belt_encoder", {0.1 * t});
+      std::this_thread::sleep_for(2ms);
+    }
+  });
+  ecp::VirtualSensor sensor(bus, "belt", "test");
+  std::this_thread::sleep_for(300ms);
+  sensor.get_reading();  // periodic: no INITIATE_READING needed
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  const std::int64_t first = sensor.image().reading_no;
+  EXPECT_NEAR(sensor.value("speed"), 0.1, 0.02);
+  std::this_thread::sleep_for(50ms);
+  sensor.get_reading();
+  EXPECT_GE(sensor.image().reading_no, first + 5);
+  sensor.terminate();
+  sensor.get_reading();
+  EXPECT_FALSE(sensor.image().valid);
+  EXPECT_NE(sensor.image().invalid_reason.find("terminated"), std::string::npos);
+  sensor.configure();
+  std::this_thread::sleep_for(30ms);
+  sensor.get_reading();
+  EXPECT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  stop = true;
+  belt.join();
+}
+
+TEST(Vsp, ObjectPoseSaysWhetherTheObjectIsSeen) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"camera\"\nplugin = \"object_pose\"\nsources = [\"cam\"]\n");
+  RunningVsp vsp(bus, reporter, c.vsp("camera"));
+  bus.start();
+  ecp::VirtualSensor sensor(bus, "camera", "test");
+  publish(bus, "cam", {}, false);
+  std::this_thread::sleep_for(20ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_EQ(sensor.value("visible"), 0.0);
+  publish(bus, "cam", {1.0, 0.2, 0.9, 1.0, 0.0, 0.0, 0.0});
+  std::this_thread::sleep_for(20ms);
+  refresh(sensor);
+  EXPECT_EQ(sensor.value("visible"), 1.0);
+  EXPECT_NEAR(sensor.value("y"), 0.2, 1e-12);
+}
+
+TEST(Vsp, DeadVspMakesTheImageInvalidQuickly) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\n");
+  bus.start();
+  Publisher sonar(bus, "sonar", {1.0});
+  ecp::VirtualSensor sensor(bus, "range", "test");
+  {
+    RunningVsp vsp(bus, reporter, c.vsp("range"));
+    std::this_thread::sleep_for(20ms);
+    refresh(sensor);
+    ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  refresh(sensor);
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_FALSE(sensor.image().valid);
+  EXPECT_NE(sensor.image().invalid_reason.find("VSP 'range' did not answer"), std::string::npos)
+      << sensor.image().invalid_reason;
+  EXPECT_LT(took, 0.5);  // two calls of 3 attempts of 40 ms
+  try {
+    (void)sensor.valid_image();
+    FAIL();
+  } catch (const ecp::SensorError& e) {
+    EXPECT_EQ(e.code(), ecp::error_code::sensor_invalid);
+    EXPECT_EQ(e.error_class(), ecp::ErrorClass::system);
+  }
+}
+
+TEST(Vsp, MalformedRawSamplesAreCountedAndDropped) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\n");
+  RunningVsp vsp(bus, reporter, c.vsp("range"));
+  bus.start();
+  const std::string junk = "not an LCM message";
+  bus.lcm().publish(channels::raw_sensor("sonar"), junk.data(), static_cast<unsigned>(junk.size()));
+  mrroc_lcm::raw_sensor_t bad{};  // decodes as LCM, but a value is not a number
+  bad.device = "sonar";
+  bad.valid = 1;
+  bad.n = 1;
+  bad.values = {std::nan("")};
+  bad.names = {"d"};
+  bad.units = {"m"};
+  bus.lcm().publish(channels::raw_sensor("sonar"), &bad);
+  std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(vsp.shell.malformed(), 2U);
+  // Nothing reached the plugin: still no sample.
+  ecp::VirtualSensor sensor(bus, "range", "test");
+  refresh(sensor);
+  EXPECT_NE(sensor.image().invalid_reason.find("no sample from source 'sonar' yet"),
+            std::string::npos)
+      << sensor.image().invalid_reason;
+}

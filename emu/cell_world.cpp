@@ -67,10 +67,11 @@ void CellWorld::build(const Scene& scene) {
   const ComposedRobot& last = composed.robots.back();
   if (last.first_actuator + last.actuator_count != m->nu ||
       last.first_equality + last.equality_count != m->neq) {
-    throw HardwareError(fmt::format("cell '{}': the composed model has {} actuators and {} "
-                                    "equality constraints, its robots {} and {}",
-                                    name_, m->nu, m->neq, last.first_actuator + last.actuator_count,
-                                    last.first_equality + last.equality_count));
+    throw HardwareError(
+        fmt::format("cell '{}': the composed model has {} actuators and {} "
+                    "equality constraints, its robots {} and {}",
+                    name_, m->nu, m->neq, last.first_actuator + last.actuator_count,
+                    last.first_equality + last.equality_count));
   }
 
   joint_robot_.assign(index(m->njnt), -1);
@@ -117,9 +118,10 @@ void CellWorld::build(const Scene& scene) {
     for (std::size_t i = 0; i < axes; ++i) {
       const int j = robot.axes.joint[i];
       if (joint_robot_[index(j)] != static_cast<int>(k)) {
-        throw HardwareError(fmt::format("{}: actuator '{}' drives joint '{}', which is not the "
-                                        "robot's",
-                                        context.who, robot.axes.names[i], sim::joint_name(m, j)));
+        throw HardwareError(
+            fmt::format("{}: actuator '{}' drives joint '{}', which is not the "
+                        "robot's",
+                        context.who, robot.axes.names[i], sim::joint_name(m, j)));
       }
       joint_axis_[index(j)] = static_cast<int>(i);
     }
@@ -144,13 +146,14 @@ void CellWorld::build(const Scene& scene) {
       const int r = robot.axes.range_joint[i];
       info.linear.push_back(m->jnt_type[j] == mjJNT_SLIDE);
       info.actuator_ranges.push_back(range_if(m->jnt_limited[j] != 0, m->jnt_range + 2 * j));
-      info.joint_ranges.push_back(
-          r >= 0 ? range_if(m->jnt_limited[r] != 0, m->jnt_range + 2 * r) : Range{});
+      info.joint_ranges.push_back(r >= 0 ? range_if(m->jnt_limited[r] != 0, m->jnt_range + 2 * r)
+                                         : Range{});
       info.target_ranges.push_back(
           range_if(m->actuator_ctrllimited[a] != 0, m->actuator_ctrlrange + 2 * a));
       info.force_limits.push_back(
           range_if(m->actuator_forcelimited[a] != 0, m->actuator_forcerange + 2 * a));
-      info.position_gains.push_back(m->actuator_gainprm[index(a) * static_cast<std::size_t>(mjNGAIN)]);
+      info.position_gains.push_back(
+          m->actuator_gainprm[index(a) * static_cast<std::size_t>(mjNGAIN)]);
       info.damping.push_back(m->dof_damping[robot.axes.dof_adr[i]]);
     }
     robots_.push_back(std::move(robot));
@@ -268,12 +271,11 @@ void CellWorld::describe_joint(int joint, std::array<char, 256>& out) const noex
   const RobotState& robot = robots_[index(k)];
   const int axis = joint_axis_[index(joint)];
   if (axis < 0) {
-    std::snprintf(out.data(), out.size(), "robot '%s', passive joint '%s'",
-                  robot.info.name.c_str(), name);
+    std::snprintf(out.data(), out.size(), "robot '%s', passive joint '%s'", robot.info.name.c_str(),
+                  name);
   } else {
     std::snprintf(out.data(), out.size(), "robot '%s', joint '%s' (axis %d '%s')",
-                  robot.info.name.c_str(), name, axis,
-                  robot.info.axis_names[index(axis)].c_str());
+                  robot.info.name.c_str(), name, axis, robot.info.axis_names[index(axis)].c_str());
   }
 }
 
@@ -305,20 +307,21 @@ bool CellWorld::check_stable() noexcept {
       } else {
         std::snprintf(where.data(), where.size(), "index %d", stat.lastinfo);
       }
-      set_fault("cell '%s' unstable at t = %.6f s: MuJoCo warning '%s' raised %d time(s), last "
-                "at %s",
-                name_.c_str(), d->time, sim::warning_text(w), stat.number, where.data());
+      set_fault(
+          "cell '%s' unstable at t = %.6f s: MuJoCo warning '%s' raised %d time(s), last "
+          "at %s",
+          name_.c_str(), d->time, sim::warning_text(w), stat.number, where.data());
       return false;
     }
   }
   for (const RobotState& robot : robots_) {
     if (robot.equality_count == 0) continue;
-    const double violation =
-        sim::equality_violation(d, robot.first_equality, robot.equality_count);
+    const double violation = sim::equality_violation(d, robot.first_equality, robot.equality_count);
     if (violation > kLoopOpenFault) {
-      set_fault("cell '%s' unstable at t = %.6f s: robot '%s': a closed kinematic loop opened by "
-                "%.3g (limit %.3g)",
-                name_.c_str(), d->time, robot.info.name.c_str(), violation, kLoopOpenFault);
+      set_fault(
+          "cell '%s' unstable at t = %.6f s: robot '%s': a closed kinematic loop opened by "
+          "%.3g (limit %.3g)",
+          name_.c_str(), d->time, robot.info.name.c_str(), violation, kLoopOpenFault);
       return false;
     }
   }

@@ -63,19 +63,19 @@ struct FramePose {
 /// What one robot of the cell is (fixed after construction). Per-axis vectors have one entry
 /// per axis, in axis order.
 struct CellRobot {
-  std::string name;                  ///< scene name, also the prefix "<name>/" of its names
-  std::filesystem::path model_dir;   ///< robots/<model>/
-  std::filesystem::path mjcf;        ///< its own MJCF file
-  std::array<double, 6> base{};      ///< base pose in the world: x y z [m], rotation vector [rad]
+  std::string name;                 ///< scene name, also the prefix "<name>/" of its names
+  std::filesystem::path model_dir;  ///< robots/<model>/
+  std::filesystem::path mjcf;       ///< its own MJCF file
+  std::array<double, 6> base{};     ///< base pose in the world: x y z [m], rotation vector [rad]
   bool gravity_compensation = true;
-  std::vector<std::string> axis_names;  ///< actuator names without the prefix
-  std::vector<bool> linear;             ///< true: slide joint (m), false: hinge (rad)
-  std::vector<double> coupling;         ///< M of a = M q, row-major axes x axes
-  bool coupled = false;                 ///< M is not the identity
+  std::vector<std::string> axis_names;              ///< actuator names without the prefix
+  std::vector<bool> linear;                         ///< true: slide joint (m), false: hinge (rad)
+  std::vector<double> coupling;                     ///< M of a = M q, row-major axes x axes
+  bool coupled = false;                             ///< M is not the identity
   std::vector<double> synchro_joint_positions;      ///< q at the synchronisation switches
   std::vector<double> power_on_joint_positions;     ///< q at power-on (after reset())
   std::vector<double> power_on_actuator_positions;  ///< a = M q at power-on
-  std::vector<Range> actuator_ranges;  ///< of the actuator joints' positions a
+  std::vector<Range> actuator_ranges;               ///< of the actuator joints' positions a
   std::vector<Range> joint_ranges;     ///< of the joint positions q (where the model has them)
   std::vector<Range> target_ranges;    ///< actuator ctrlrange (targets are clamped into it)
   std::vector<Range> force_limits;     ///< actuator forcerange [N m or N]
@@ -176,9 +176,9 @@ class CellWorld {
 
   // ---- Faults ----
   [[nodiscard]] bool faulted() const noexcept { return faulted_; }
-  /// Why the simulation is unstable (empty when it is not), e.g. "cell 'two-irb6': robot
-  /// 'left' unstable: non-finite state of joint 'left/lower_arm' (axis 1 'lower_arm') at
-  /// t = 0.123000 s".
+  /// Why the simulation is unstable (empty when it is not), e.g. "cell 'two-irb6' unstable at
+  /// t = 0.123000 s: non-finite state of robot 'left', joint 'left/lower_arm' (axis 1
+  /// 'lower_arm')".
   [[nodiscard]] const char* fault_text() const noexcept { return fault_.data(); }
 
  private:
@@ -188,9 +188,9 @@ class CellWorld {
     sim::RobotAxes axes;
     int first_equality = 0;
     int equality_count = 0;
-    std::vector<int> dofs;                 ///< all degrees of freedom of the robot's joints
-    std::vector<double> feed_forward;      ///< per axis [N m or N]
-    mutable std::vector<double> scratch;   ///< per axis
+    std::vector<int> dofs;                ///< all degrees of freedom of the robot's joints
+    std::vector<double> feed_forward;     ///< per axis [N m or N]
+    mutable std::vector<double> scratch;  ///< per axis
   };
 
   void build(const Scene& scene);
@@ -207,11 +207,11 @@ class CellWorld {
   sim::ModelPtr model_;
   sim::DataPtr data_;
   std::vector<RobotState> robots_;
-  std::vector<double> power_on_qpos_;   ///< the whole world's qpos at power-on
-  std::vector<int> compensated_dofs_;   ///< dofs with gravity feed-forward
-  std::vector<int> plain_dofs_;         ///< robot dofs without it (qfrc_applied = 0)
-  std::vector<int> joint_robot_;        ///< per model joint: robot index, -1 for objects
-  std::vector<int> joint_axis_;         ///< per model joint: axis index, -1 for passive joints
+  std::vector<double> power_on_qpos_;  ///< the whole world's qpos at power-on
+  std::vector<int> compensated_dofs_;  ///< dofs with gravity feed-forward
+  std::vector<int> plain_dofs_;        ///< robot dofs without it (qfrc_applied = 0)
+  std::vector<int> joint_robot_;       ///< per model joint: robot index, -1 for objects
+  std::vector<int> joint_axis_;        ///< per model joint: axis index, -1 for passive joints
   int warnings_at_reset_ = 0;
   bool faulted_ = false;
   std::array<char, 512> fault_{};

@@ -10,10 +10,10 @@
 #include <memory>
 #include <sstream>
 
-#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <tinyxml2.h>
 #include <toml++/toml.h>
+#include <Eigen/Geometry>
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/sim/mujoco_support.hpp"
@@ -46,7 +46,8 @@ class TableReader {
     for (const auto& [key, node] : table_) {
       if (std::find(known.begin(), known.end(), key.str()) != known.end()) continue;
       std::string allowed;
-      for (const std::string_view k : known) allowed += (allowed.empty() ? "" : ", ") + std::string(k);
+      for (const std::string_view k : known)
+        allowed += (allowed.empty() ? "" : ", ") + std::string(k);
       fail(node, fmt::format("unknown key '{}' in [{}] (allowed: {})", key.str(), name_, allowed));
     }
   }
@@ -72,8 +73,7 @@ class TableReader {
     }
     for (const char* reserved : kReservedNames) {
       if (*value == reserved) {
-        fail(node, fmt::format("'{}' = \"{}\" is reserved (world, floor, light)", key,
-                               *value));
+        fail(node, fmt::format("'{}' = \"{}\" is reserved (world, floor, light)", key, *value));
       }
     }
     return *value;
@@ -98,8 +98,8 @@ class TableReader {
     if (node == nullptr) return std::nullopt;
     const double value = number_of(*node, fmt::format("'{}' [{}]", key, unit));
     if (!(value >= min && value <= max)) {
-      fail(*node, fmt::format("'{}' = {} {} is outside the accepted range {} .. {} {}", key,
-                              value, unit, min, max, unit));
+      fail(*node, fmt::format("'{}' = {} {} is outside the accepted range {} .. {} {}", key, value,
+                              unit, min, max, unit));
     }
     return value;
   }
@@ -143,9 +143,11 @@ std::vector<const toml::table*> table_list(const TableReader& scene, const char*
   const toml::node* node = scene.find(key);
   if (node == nullptr) return out;
   const toml::array* array = node->as_array();
-  if (array == nullptr) scene.fail(*node, fmt::format("'{}' must be [[scene.{}]] tables", key, key));
+  if (array == nullptr)
+    scene.fail(*node, fmt::format("'{}' must be [[scene.{}]] tables", key, key));
   for (const toml::node& element : *array) {
-    if (!element.is_table()) scene.fail(element, fmt::format("'{}' must be [[scene.{}]] tables", key, key));
+    if (!element.is_table())
+      scene.fail(element, fmt::format("'{}' must be [[scene.{}]] tables", key, key));
     out.push_back(element.as_table());
   }
   return out;
@@ -196,12 +198,12 @@ SceneObject read_object(const fs::path& file, const toml::table& table) {
     }
   }
   if (sizes == 0) {
-    r.fail(*r.find("type"), fmt::format("'type' = \"{}\" is not box, sphere, cylinder or capsule",
-                                        *type));
+    r.fail(*r.find("type"),
+           fmt::format("'type' = \"{}\" is not box, sphere, cylinder or capsule", *type));
   }
-  const std::string size_shape =
-      sizes == 3 ? "[hx, hy, hz] (half-sizes in m)"
-                 : sizes == 1 ? "[radius] (m)" : "[radius, half-length] (m)";
+  const std::string size_shape = sizes == 3   ? "[hx, hy, hz] (half-sizes in m)"
+                                 : sizes == 1 ? "[radius] (m)"
+                                              : "[radius, half-length] (m)";
   const auto size = r.numbers("size", sizes, size_shape);
   if (!size) r.fail_missing("size", size_shape.c_str());
   for (const double s : *size) {
@@ -237,11 +239,11 @@ namespace xml = tinyxml2;
 
 /// Attributes that refer to a named element of the same robot (so they are prefixed too).
 constexpr std::array<std::string_view, 29> kReferences = {
-    "class",    "childclass", "joint",     "joint1",     "joint2",    "jointinparent",
-    "body",     "body1",      "body2",     "geom",       "geom1",     "geom2",
-    "site",     "sidesite",   "slidersite", "cranksite", "refsite",   "tendon",
-    "tendon1",  "tendon2",    "actuator",  "mesh",       "material",  "texture",
-    "hfield",   "skin",       "target",    "objname",    "refname"};
+    "class",   "childclass", "joint",      "joint1",    "joint2",   "jointinparent",
+    "body",    "body1",      "body2",      "geom",      "geom1",    "geom2",
+    "site",    "sidesite",   "slidersite", "cranksite", "refsite",  "tendon",
+    "tendon1", "tendon2",    "actuator",   "mesh",      "material", "texture",
+    "hfield",  "skin",       "target",     "objname",   "refname"};
 /// Of those, the ones naming a body (where "world" means the robot's base body).
 constexpr std::array<std::string_view, 4> kBodyReferences = {"body", "body1", "body2", "target"};
 /// Sections merged from every robot into one (in robot order).
@@ -250,13 +252,13 @@ constexpr std::array<std::string_view, 6> kMergedSections = {"contact",  "equali
 /// Elements whose default class is the robot's "<robot>/main" when they name none (inside the
 /// worldbody the base body's childclass does that).
 constexpr std::array<std::string_view, 17> kClassElements = {
-    "mesh",   "material", "spatial", "fixed",    "connect",  "weld",     "joint",  "distance",
-    "tendon", "pair",     "general", "motor",    "position", "velocity", "cylinder", "muscle",
-    "adhesion"};
+    "mesh",     "material", "spatial",  "fixed",  "connect", "weld",
+    "joint",    "distance", "tendon",   "pair",   "general", "motor",
+    "position", "velocity", "cylinder", "muscle", "adhesion"};
 /// Compiler attributes the composition handles itself (the rest must agree between robots).
 constexpr std::array<std::string_view, 8> kOwnCompilerAttributes = {
-    "angle", "coordinate", "inertiafromgeom", "meshdir", "texturedir", "assetdir", "strippath",
-    "fusestatic"};
+    "angle",      "coordinate", "inertiafromgeom", "meshdir",
+    "texturedir", "assetdir",   "strippath",       "fusestatic"};
 constexpr std::array<std::string_view, 7> kTextureFiles = {
     "file", "fileright", "fileleft", "fileup", "filedown", "filefront", "fileback"};
 
@@ -268,15 +270,12 @@ bool among(const std::array<std::string_view, N>& list, std::string_view value) 
 std::string text_of(double value) { return fmt::format("{}", value); }
 
 /// "x y z" and "w x y z" of a position and a rotation vector.
-std::string position_text(double x, double y, double z) {
-  return fmt::format("{} {} {}", x, y, z);
-}
+std::string position_text(double x, double y, double z) { return fmt::format("{} {} {}", x, y, z); }
 std::string quaternion_text(const std::array<double, 3>& rotation_vector) {
   const Eigen::Vector3d v(rotation_vector[0], rotation_vector[1], rotation_vector[2]);
   const double angle = v.norm();
-  const Eigen::Quaterniond q =
-      angle > 0.0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, v / angle))
-                  : Eigen::Quaterniond::Identity();
+  const Eigen::Quaterniond q = angle > 0.0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, v / angle))
+                                           : Eigen::Quaterniond::Identity();
   return fmt::format("{} {} {} {}", q.w(), q.x(), q.y(), q.z());
 }
 
@@ -315,8 +314,8 @@ struct Naming {
         bool body = among(kBodyReferences, key);
         if (key == "objname" || key == "refname") {
           const char* type = e->Attribute(key == "objname" ? "objtype" : "reftype");
-          body = type != nullptr && (std::string_view(type) == "body" ||
-                                     std::string_view(type) == "xbody");
+          body = type != nullptr &&
+                 (std::string_view(type) == "body" || std::string_view(type) == "xbody");
         }
         changes.emplace_back(std::string(key), body && value == "world" ? base : prefix + value);
       }
@@ -428,7 +427,8 @@ class SceneComposer {
     }
     for (const SceneObject& object : scene_.objects) add_object(object);
     for (xml::XMLElement* section : children(root_)) {
-      if (section->NoChildren() && section->FirstAttribute() == nullptr) root_->DeleteChild(section);
+      if (section->NoChildren() && section->FirstAttribute() == nullptr)
+        root_->DeleteChild(section);
     }
     xml::XMLPrinter printer;
     document_.Print(&printer);
@@ -449,7 +449,8 @@ class SceneComposer {
     const std::filesystem::path parameters = robot.model_dir / "parameters.toml";
     if (!std::filesystem::exists(parameters)) {
       fail(source, fmt::format("robot parameter file {} not found (needed for the "
-                               "synchronisation pose)", sim::quoted(parameters)));
+                               "synchronisation pose)",
+                               sim::quoted(parameters)));
     }
     source.parameters = sim::read_robot_parameters(parameters);
     const std::optional<std::string> mjcf = robot.mjcf ? robot.mjcf : source.parameters.mjcf;
@@ -470,8 +471,8 @@ class SceneComposer {
     }
     source.root = source.document->RootElement();
     if (source.root == nullptr || std::string_view(source.root->Name()) != "mujoco") {
-      fail(source, fmt::format("{} is not an MJCF file (no <mujoco> root)",
-                               sim::quoted(source.mjcf)));
+      fail(source,
+           fmt::format("{} is not an MJCF file (no <mujoco> root)", sim::quoted(source.mjcf)));
     }
     std::vector<xml::XMLElement*> all;
     collect(source.root, all);
@@ -495,8 +496,8 @@ class SceneComposer {
     root_ = document_.NewElement("mujoco");
     root_->SetAttribute("model", scene_.name.c_str());
     document_.InsertEndChild(root_);
-    for (const char* tag : {"compiler", "option", "size", "default", "custom", "asset",
-                            "worldbody", "contact", "equality", "tendon", "actuator", "sensor"}) {
+    for (const char* tag : {"compiler", "option", "size", "default", "custom", "asset", "worldbody",
+                            "contact", "equality", "tendon", "actuator", "sensor"}) {
       sections_[tag] = root_->InsertNewChildElement(tag);
     }
     xml::XMLElement* light = sections_["worldbody"]->InsertNewChildElement("light");
@@ -546,12 +547,12 @@ class SceneComposer {
         const bool has_inertial = body->FirstChildElement("inertial") != nullptr;
         if (has_inertial != (inertia == "false")) {
           const char* name = body->Attribute("name");
-          fail(source, fmt::format("{} line {}: with <compiler inertiafromgeom=\"{}\"> body '{}' "
-                                   "{} an <inertial>; the cell scene uses \"auto\", which would "
-                                   "treat it differently",
-                                   file, body->GetLineNum(), inertia,
-                                   name != nullptr ? name : "(unnamed)",
-                                   inertia == "false" ? "needs" : "must not have"));
+          fail(source,
+               fmt::format("{} line {}: with <compiler inertiafromgeom=\"{}\"> body '{}' "
+                           "{} an <inertial>; the cell scene uses \"auto\", which would "
+                           "treat it differently",
+                           file, body->GetLineNum(), inertia, name != nullptr ? name : "(unnamed)",
+                           inertia == "false" ? "needs" : "must not have"));
         }
       }
     }
@@ -582,8 +583,10 @@ class SceneComposer {
     compiler->SetAttribute("inertiafromgeom", "auto");
     for (xml::XMLElement* own : children(sources_.front().root, "compiler")) {
       for (const xml::XMLAttribute* a = own->FirstAttribute(); a != nullptr; a = a->Next())
-        if (!among(kOwnCompilerAttributes, a->Name())) compiler->SetAttribute(a->Name(), a->Value());
-      for (xml::XMLElement* child : children(own)) compiler->InsertEndChild(child->DeepClone(&document_));
+        if (!among(kOwnCompilerAttributes, a->Name()))
+          compiler->SetAttribute(a->Name(), a->Value());
+      for (xml::XMLElement* child : children(own))
+        compiler->InsertEndChild(child->DeepClone(&document_));
     }
   }
 
@@ -593,9 +596,9 @@ class SceneComposer {
     for (const RobotSource& source : sources_) {
       const std::string field = option_difference(source.model->opt, first.model->opt);
       if (!field.empty()) {
-        fail(source, fmt::format("<option> {} of {} differs from that of robot '{}' in {}", field,
-                                 sim::quoted(source.mjcf), first.robot->name,
-                                 sim::quoted(first.mjcf)));
+        fail(source,
+             fmt::format("<option> {} of {} differs from that of robot '{}' in {}", field,
+                         sim::quoted(source.mjcf), first.robot->name, sim::quoted(first.mjcf)));
       }
       if (!scene_.timestep && source.model->opt.timestep != first.model->opt.timestep) {
         throw ConfigError(fmt::format(
@@ -658,8 +661,7 @@ class SceneComposer {
 
   void give_class(const RobotSource& source, xml::XMLElement* element) const {
     const std::string_view tag = element->Name();
-    if (element->Attribute("class") == nullptr &&
-        among(kClassElements, tag)) {
+    if (element->Attribute("class") == nullptr && among(kClassElements, tag)) {
       element->SetAttribute("class", source.naming.main_class().c_str());
     }
   }
@@ -672,8 +674,8 @@ class SceneComposer {
       fail(source, fmt::format("{} has {} top-level <default> elements (one is supported)",
                                sim::quoted(source.mjcf), defaults.size()));
     }
-    xml::XMLElement* main = defaults.empty() ? document_.NewElement("default")
-                                             : copy(source, defaults.front());
+    xml::XMLElement* main =
+        defaults.empty() ? document_.NewElement("default") : copy(source, defaults.front());
     main->SetAttribute("class", naming.main_class().c_str());
     sections_["default"]->InsertEndChild(main);
 
@@ -754,12 +756,12 @@ class SceneComposer {
     }
     xml::XMLElement* body = parent->InsertNewChildElement("body");
     body->SetAttribute("name", object.name.c_str());
-    body->SetAttribute("pos",
-                       position_text(object.position[0], object.position[1], object.position[2])
-                           .c_str());
+    body->SetAttribute(
+        "pos", position_text(object.position[0], object.position[1], object.position[2]).c_str());
     body->SetAttribute("quat", quaternion_text(object.rotation).c_str());
     body->SetAttribute("childclass", "main");
-    if (object.attach.empty()) body->InsertNewChildElement("freejoint")->SetAttribute("name", object.name.c_str());
+    if (object.attach.empty())
+      body->InsertNewChildElement("freejoint")->SetAttribute("name", object.name.c_str());
     xml::XMLElement* geom = body->InsertNewChildElement("geom");
     geom->SetAttribute("name", object.name.c_str());
     geom->SetAttribute("type", shape_name(object.shape));
@@ -801,8 +803,8 @@ Scene parse_scene(const std::string& text, const fs::path& origin) {
   try {
     root = toml::parse(text, origin.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(fmt::format("{}:{}: error: {}", origin.string(), e.source().begin.line,
-                                  e.description()));
+    throw ConfigError(
+        fmt::format("{}:{}: error: {}", origin.string(), e.source().begin.line, e.description()));
   }
   const TableReader top(origin, root, "");
   top.reject_unknown({"scene"});
@@ -812,7 +814,8 @@ Scene parse_scene(const std::string& text, const fs::path& origin) {
   }
   const toml::table& table = *scene_node->as_table();
   const TableReader r(origin, table, "scene");
-  r.reject_unknown({"name", "timestep", "robot", "object"});
+  // `sensor` (raw sensor devices) is read by the emulator (emu/sensors.hpp).
+  r.reject_unknown({"name", "timestep", "robot", "object", "sensor"});
 
   Scene scene;
   scene.file = origin;

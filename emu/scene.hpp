@@ -68,13 +68,13 @@ enum class ObjectShape { box, sphere, cylinder, capsule };
 struct SceneObject {
   std::string name;
   ObjectShape shape = ObjectShape::box;
-  std::vector<double> size;           ///< [m], MuJoCo geom size (see the file comment)
-  std::array<double, 3> position{};   ///< [m]
-  std::array<double, 3> rotation{};   ///< rotation vector [rad]
-  double mass = 0.0;                  ///< [kg]
+  std::vector<double> size;          ///< [m], MuJoCo geom size (see the file comment)
+  std::array<double, 3> position{};  ///< [m]
+  std::array<double, 3> rotation{};  ///< rotation vector [rad]
+  double mass = 0.0;                 ///< [kg]
   std::array<double, 4> rgba = {0.8, 0.3, 0.2, 1.0};
-  std::string attach;                 ///< body it is fixed to; empty: a free body
-  SourceLocation where;               ///< of the [[scene.object]] table
+  std::string attach;    ///< body it is fixed to; empty: a free body
+  SourceLocation where;  ///< of the [[scene.object]] table
 };
 
 struct Scene {
@@ -102,7 +102,7 @@ struct ComposedRobot {
   sim::RobotParameters parameters;  ///< its parameters.toml
   int first_actuator = 0;           ///< its actuators are first_actuator .. + actuator_count - 1
   int actuator_count = 0;
-  int first_equality = 0;           ///< its equality constraints, likewise
+  int first_equality = 0;  ///< its equality constraints, likewise
   int equality_count = 0;
 };
 

@@ -96,8 +96,8 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   for (int j = 0; j < m->njnt; ++j) joints[index(j)] = j;
   sim::check_hinge_or_slide(m, joints, context);
   if (m->nq != m->njnt || m->nv != m->njnt) {
-    throw HardwareError("mujoco: model " + sim::quoted(mjcf_path) + ": nq = " +
-                        std::to_string(m->nq) + ", nv = " + std::to_string(m->nv) +
+    throw HardwareError("mujoco: model " + sim::quoted(mjcf_path) +
+                        ": nq = " + std::to_string(m->nq) + ", nv = " + std::to_string(m->nv) +
                         " differ from the " + std::to_string(m->njnt) + " joints");
   }
   sim::RobotAxes robot = sim::map_axes(m, 0, m->nu, "", context);
@@ -137,8 +137,7 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
 
   sim::DataPtr data(mj_makeData(m));
   if (!data) {
-    throw HardwareError("mujoco: cannot allocate the simulation data of " +
-                        sim::quoted(mjcf_path));
+    throw HardwareError("mujoco: cannot allocate the simulation data of " + sim::quoted(mjcf_path));
   }
   // The whole state at power-on: actuator joints at M q, passive joints closing the loops.
   mjData* d = data.get();
@@ -325,13 +324,12 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
   // makes a position servo lag by damping / kp * velocity; feeding the commanded velocity's
   // friction force forward removes that lag.
   for (std::size_t i = 0; i < axes_; ++i) {
-    const double velocity = have_previous_ctrl_
-                                ? (data_->ctrl[i] - previous_ctrl_[i]) / (substeps_ * model_->opt.timestep)
-                                : 0.0;
+    const double velocity = have_previous_ctrl_ ? (data_->ctrl[i] - previous_ctrl_[i]) /
+                                                      (substeps_ * model_->opt.timestep)
+                                                : 0.0;
     previous_ctrl_[i] = data_->ctrl[i];
-    feed_forward_[i] = servo_algorithm_[i] == 1
-                           ? model_->dof_damping[robot_.dof_adr[i]] * velocity
-                           : 0.0;
+    feed_forward_[i] =
+        servo_algorithm_[i] == 1 ? model_->dof_damping[robot_.dof_adr[i]] * velocity : 0.0;
   }
   have_previous_ctrl_ = true;
   for (int s = 0; s < substeps_; ++s) {
@@ -346,7 +344,8 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
         data_->qfrc_applied[robot_.dof_adr[i]] += feed_forward_[i];
       mj_step2(model_, data_);
     } else {
-      for (std::size_t i = 0; i < axes_; ++i) data_->qfrc_applied[robot_.dof_adr[i]] = feed_forward_[i];
+      for (std::size_t i = 0; i < axes_; ++i)
+        data_->qfrc_applied[robot_.dof_adr[i]] = feed_forward_[i];
       mj_step(model_, data_);
     }
   }

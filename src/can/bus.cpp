@@ -3,6 +3,8 @@
 
 #include <net/if.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "mrroc/core/error.hpp"
@@ -19,6 +21,15 @@ constexpr const char* kKnownSchemes = "known: socketcan:<interface>, virtual:<na
   throw ConfigError("CAN bus URL '" + std::string(url) + "': " + why);
 }
 
+/// 'c', or \xNN for a character that would not show.
+std::string quoted(char c) {
+  if (c > ' ' && c <= '~') return std::string("'") + c + "'";
+  if (c == ' ') return "' '";
+  char hex[8];
+  std::snprintf(hex, sizeof hex, "\\x%02x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+  return hex;
+}
+
 bool is_name_character(char c) {
   return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' ||
          c == '-';
@@ -31,8 +42,24 @@ void check_virtual_name(std::string_view url, std::string_view name) {
                      std::to_string(detail::kVirtualBusNameMax));
   for (const char c : name)
     if (!is_name_character(c))
-      bad_url(url, std::string("bus name has the character '") + c +
-                       "'; names use only A-Z, a-z, 0-9, '_' and '-'");
+      bad_url(url, "bus name has the character " + quoted(c) +
+                       "; names use only A-Z, a-z, 0-9, '_' and '-'");
+}
+
+/// MRROC_CAN_NAMESPACE, when set, follows the rules of bus names.
+void check_virtual_namespace(std::string_view url) {
+  const char* space = std::getenv(detail::kVirtualBusNamespaceVariable);
+  if (space == nullptr || *space == '\0') return;
+  const std::string_view value(space);
+  const std::string what =
+      std::string(detail::kVirtualBusNamespaceVariable) + "='" + std::string(value) + "'";
+  if (value.size() > detail::kVirtualBusNameMax)
+    bad_url(url, what + " is " + std::to_string(value.size()) + " characters long, the limit is " +
+                     std::to_string(detail::kVirtualBusNameMax));
+  for (const char c : value)
+    if (!is_name_character(c))
+      bad_url(url, what + " has the character " + quoted(c) +
+                       "; names use only A-Z, a-z, 0-9, '_' and '-'");
 }
 
 void check_interface_name(std::string_view url, std::string_view interface) {
@@ -44,7 +71,7 @@ void check_interface_name(std::string_view url, std::string_view interface) {
                      " (IFNAMSIZ - 1)");
   for (const char c : interface)
     if (c == '/' || c == ':' || c <= ' ' || c > '~')
-      bad_url(url, std::string("interface name has the character '") + c + "'");
+      bad_url(url, "interface name has the character " + quoted(c));
 }
 
 }  // namespace
@@ -65,6 +92,7 @@ std::unique_ptr<Bus> open_bus(std::string_view url) {
   }
   if (scheme == "virtual") {
     check_virtual_name(url, rest);
+    check_virtual_namespace(url);
     return detail::open_virtual_bus(url, rest);
   }
   bad_url(url, "unknown scheme '" + std::string(scheme) + "' (" + kKnownSchemes + ")");

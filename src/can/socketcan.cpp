@@ -31,18 +31,30 @@ std::int64_t clock_ns(clockid_t clock) {
 
 const char* errno_name(int error) {
   switch (error) {
-    case EAFNOSUPPORT: return "EAFNOSUPPORT";
-    case EPROTONOSUPPORT: return "EPROTONOSUPPORT";
-    case ENODEV: return "ENODEV";
-    case ENXIO: return "ENXIO";
-    case ENETDOWN: return "ENETDOWN";
-    case ENOBUFS: return "ENOBUFS";
-    case EAGAIN: return "EAGAIN";
-    case EINVAL: return "EINVAL";
-    case EPERM: return "EPERM";
-    case EACCES: return "EACCES";
-    case EMSGSIZE: return "EMSGSIZE";
-    default: return "errno";
+    case EAFNOSUPPORT:
+      return "EAFNOSUPPORT";
+    case EPROTONOSUPPORT:
+      return "EPROTONOSUPPORT";
+    case ENODEV:
+      return "ENODEV";
+    case ENXIO:
+      return "ENXIO";
+    case ENETDOWN:
+      return "ENETDOWN";
+    case ENOBUFS:
+      return "ENOBUFS";
+    case EAGAIN:
+      return "EAGAIN";
+    case EINVAL:
+      return "EINVAL";
+    case EPERM:
+      return "EPERM";
+    case EACCES:
+      return "EACCES";
+    case EMSGSIZE:
+      return "EMSGSIZE";
+    default:
+      return "errno";
   }
 }
 
@@ -54,11 +66,13 @@ class SocketCan final : public Bus {
     if (fd_ < 0) {
       const int e = errno;
       if (e == EAFNOSUPPORT)
-        throw HardwareError(url_ + ": AF_CAN not supported by the running kernel (EAFNOSUPPORT); "
-                                   "load the can and can_raw modules, or use a virtual:<name> bus");
+        throw HardwareError(url_ +
+                            ": AF_CAN not supported by the running kernel (EAFNOSUPPORT); "
+                            "load the can and can_raw modules, or use a virtual:<name> bus");
       if (e == EPROTONOSUPPORT)
-        throw HardwareError(url_ + ": CAN_RAW not supported by the running kernel "
-                                   "(EPROTONOSUPPORT); load the can_raw module");
+        throw HardwareError(url_ +
+                            ": CAN_RAW not supported by the running kernel "
+                            "(EPROTONOSUPPORT); load the can_raw module");
       fail("socket(PF_CAN, SOCK_RAW, CAN_RAW)", e);
     }
     try {
@@ -117,7 +131,9 @@ class SocketCan final : public Bus {
   }
 
   bool receive(Received& out, std::chrono::nanoseconds timeout) noexcept override {
-    const std::int64_t timeout_ns = std::max<std::int64_t>(0, timeout.count());
+    // Clamped to 10^15 ns (11.6 days) so that the deadline cannot overflow.
+    const std::int64_t timeout_ns =
+        std::clamp<std::int64_t>(timeout.count(), 0, 1'000'000'000'000'000LL);
     const std::int64_t deadline = clock_ns(CLOCK_MONOTONIC) + timeout_ns;
     for (;;) {
       if (read_one(out)) return true;

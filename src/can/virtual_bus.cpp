@@ -35,6 +35,7 @@
 #include <cerrno>
 #include <climits>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -77,7 +78,7 @@ struct alignas(64) Header {
   std::uint32_t slot_size;
   std::uint32_t header_size;
   std::uint64_t total_size;
-  alignas(64) std::atomic<std::uint64_t> write_index;  // next ring position to claim
+  alignas(64) std::atomic<std::uint64_t> write_index;    // next ring position to claim
   alignas(64) std::atomic<std::uint32_t> publish_count;  // the futex word
   std::atomic<std::uint32_t> waiters;  // nodes sleeping on it (a node that died asleep stays)
   alignas(64) std::atomic<std::uint64_t> next_node;  // node ids, unique per bus
@@ -141,7 +142,8 @@ std::string errno_text(int error) { return std::string(std::strerror(error)); }
 /// the same bus uses it), so that ThreadSanitizer sees one address for one atomic.
 class Mapping {
  public:
-  Mapping(Shared* shared, dev_t device, ino_t inode) : shared_(shared), device_(device), inode_(inode) {}
+  Mapping(Shared* shared, dev_t device, ino_t inode)
+      : shared_(shared), device_(device), inode_(inode) {}
   Mapping(const Mapping&) = delete;
   Mapping& operator=(const Mapping&) = delete;
   ~Mapping() { munmap(shared_, kSharedSize); }
@@ -194,8 +196,7 @@ std::shared_ptr<Mapping> map_bus(std::string_view url, std::string_view name) {
   if (fd.get() < 0)
     throw HardwareError(where + ": cannot open the shared-memory object: " + errno_text(errno));
   struct stat st {};
-  if (fstat(fd.get(), &st) != 0)
-    throw HardwareError(where + ": fstat: " + errno_text(errno));
+  if (fstat(fd.get(), &st) != 0) throw HardwareError(where + ": fstat: " + errno_text(errno));
 
   std::lock_guard lock(registry_mutex);
   if (auto it = registry.find(object); it != registry.end()) {
@@ -237,8 +238,8 @@ std::shared_ptr<Mapping> map_bus(std::string_view url, std::string_view name) {
     std::snprintf(found, sizeof found, "magic %#llx, version %u, %u slots of %u bytes",
                   static_cast<unsigned long long>(magic), shared->header.version,
                   shared->header.slot_count, shared->header.slot_size);
-    throw HardwareError(where + ": the existing shared-memory object has another layout (" +
-                        found + "; expected version " + std::to_string(kVersion) + ", " +
+    throw HardwareError(where + ": the existing shared-memory object has another layout (" + found +
+                        "; expected version " + std::to_string(kVersion) + ", " +
                         std::to_string(kVirtualBusSlots) + " slots of " +
                         std::to_string(sizeof(Slot)) +
                         " bytes); stop the processes using the bus and remove the file");
@@ -294,9 +295,10 @@ class VirtualBus final : public Bus {
   }
 
   bool receive(Received& out, std::chrono::nanoseconds timeout) noexcept override {
-    const std::int64_t timeout_ns = std::max<std::int64_t>(0, timeout.count());
-    const std::int64_t deadline =
-        timeout_ns > 0 ? clock_ns(CLOCK_MONOTONIC) + timeout_ns : 0;
+    // Clamped to 10^15 ns (11.6 days) so that the deadline cannot overflow.
+    const std::int64_t timeout_ns =
+        std::clamp<std::int64_t>(timeout.count(), 0, 1'000'000'000'000'000LL);
+    const std::int64_t deadline = timeout_ns > 0 ? clock_ns(CLOCK_MONOTONIC) + timeout_ns : 0;
     Header& h = shared_->header;
     for (;;) {
       const Poll p = poll(out);
@@ -328,8 +330,7 @@ class VirtualBus final : public Bus {
   [[nodiscard]] std::string last_error() const override { return last_error_; }
 
   void abandon_claim(bool marked) {
-    const std::uint64_t index =
-        shared_->header.write_index.fetch_add(1, std::memory_order_relaxed);
+    const std::uint64_t index = shared_->header.write_index.fetch_add(1, std::memory_order_relaxed);
     if (!marked) return;
     Slot& slot = shared_->slots[index & kSlotMask];
     std::uint64_t seq = slot.seq.load(std::memory_order_relaxed);
@@ -467,7 +468,14 @@ class VirtualBus final : public Bus {
 }  // namespace
 
 std::string virtual_bus_object(std::string_view name) {
-  return "/mrroc-can-" + std::string(name);
+  std::string object = "/mrroc-can-";
+  if (const char* space = std::getenv(kVirtualBusNamespaceVariable);
+      space != nullptr && *space != '\0') {
+    object += space;
+    object += '.';
+  }
+  object += name;
+  return object;
 }
 
 std::unique_ptr<Bus> open_virtual_bus(std::string_view url, std::string_view name) {

@@ -36,7 +36,13 @@ inline constexpr std::size_t kVirtualBusNameMax = 64;
 /// A claimed but unpublished slot is skipped by readers after this long [ns].
 inline constexpr std::int64_t kVirtualBusStallNs = 10'000'000;
 
-/// The shared-memory object's name for a bus name: "/mrroc-can-<name>".
+/// Environment variable that puts every virtual bus of a process (and of the processes it
+/// starts) into a namespace of its own: with MRROC_CAN_NAMESPACE=t1, `virtual:cell1` is the
+/// object "/mrroc-can-t1.cell1". Same character rules and limit as bus names.
+inline constexpr const char* kVirtualBusNamespaceVariable = "MRROC_CAN_NAMESPACE";
+
+/// The shared-memory object's name for a bus name: "/mrroc-can-<name>", or
+/// "/mrroc-can-<namespace>.<name>" when MRROC_CAN_NAMESPACE is set.
 std::string virtual_bus_object(std::string_view name);
 
 /// Opens (creating it if needed) the virtual bus `name` (already validated) as a new node.

@@ -42,8 +42,9 @@ Coupling Coupling::from_parameters(const RobotParameters& parameters, std::size_
   bool square = rows.size() == axes;
   for (const auto& row : rows) square = square && row.size() == axes;
   if (!square) {
-    throw ConfigError(parameters.coupling_where + ": error: robot.transmission.coupling must be a " +
-                      std::to_string(axes) + " x " + std::to_string(axes) +
+    throw ConfigError(parameters.coupling_where +
+                      ": error: robot.transmission.coupling must be a " + std::to_string(axes) +
+                      " x " + std::to_string(axes) +
                       " matrix (one row and one column per actuator of " + quoted(model) + ")");
   }
   const auto n = static_cast<Eigen::Index>(axes);

@@ -165,7 +165,7 @@ double close_loops(const mjModel* m, mjData* d, std::span<const int> actuator_qp
                    std::span<const double> targets) {
   // Passive degrees of freedom: those of hinge and slide joints that no actuator holds (one
   // coordinate each, so qpos and qvel addresses correspond through the joint).
-  std::vector<int> passive;      // dof addresses
+  std::vector<int> passive;       // dof addresses
   std::vector<int> passive_qpos;  // their qpos addresses
   for (int j = 0; j < m->njnt; ++j) {
     if (m->jnt_type[j] != mjJNT_HINGE && m->jnt_type[j] != mjJNT_SLIDE) continue;

@@ -10,13 +10,14 @@
 // Baseline: the same exchange of the same 16 bytes (a struct can_frame) as UDP datagrams between
 // two sockets on 127.0.0.1, both sides blocking in recv, the echo also a forked child.
 //
-// Same run, same pacing, nothing pinned, default scheduling for both: each series is paced at
-// 1 kHz (a servo-like cycle; clock_nanosleep to absolute deadlines), and half of the baseline
-// runs before the virtual-bus series and half after it, so that slow drift of the host affects
-// both alike. An unpaced series (requests back to back) of each is reported in the note.
+// Same run, same pacing, nothing pinned, default scheduling for both, both echo processes alive
+// throughout: the two transports take turns every 0.5 ms (clock_nanosleep to absolute
+// deadlines), so that each one sends a request every 1 ms (a servo-like cycle) and the load of
+// the shared host hits both alike. An unpaced series (requests back to back, alternating blocks
+// of 1000 per transport) is reported in the note.
 //
 // Usage (inside scripts/netns-run: a private network namespace and /dev/shm):
-//   bench_can [samples]   (default 6000 per transport)
+//   bench_can [samples]   (default 8000 per transport)
 // Prints "RESULT B6 ..." and "NOTE B6 ...".
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -47,8 +48,8 @@ using namespace std::chrono_literals;
 
 constexpr canid_t kRequestId = 0x601;
 constexpr canid_t kReplyId = 0x581;
-constexpr canid_t kStopId = 0x000;  // NMT: the echo stops
-constexpr std::int64_t kPeriodNs = 1'000'000;
+constexpr canid_t kStopId = 0x000;           // NMT: the echo stops
+constexpr std::int64_t kPeriodNs = 500'000;  // 2 kHz: each transport at 1 kHz
 
 std::int64_t now_ns() {
   timespec t{};
@@ -62,7 +63,7 @@ double percentile(std::vector<double> v, double p) {
   return v[static_cast<std::size_t>(p * static_cast<double>(v.size() - 1))];
 }
 
-/// 1 kHz deadlines.
+/// Deadlines every kPeriodNs.
 class Pacer {
  public:
   Pacer() : next_(now_ns() + kPeriodNs) {}
@@ -215,18 +216,13 @@ class UdpPinger final : public Pinger {
 
 // ---- Series ----
 
-void measure(Pinger& p, int samples, bool paced, std::uint64_t& seq, Series& out) {
-  for (int i = 0; i < 200; ++i) (void)p.ping(++seq);  // warm-up
-  Pacer pacer;
-  for (int i = 0; i < samples; ++i) {
-    if (paced) pacer.wait();
-    const std::int64_t t0 = now_ns();
-    if (!p.ping(++seq)) {
-      ++out.lost;
-      continue;
-    }
-    out.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
+void sample(Pinger& p, std::uint64_t& seq, Series& out) {
+  const std::int64_t t0 = now_ns();
+  if (!p.ping(++seq)) {
+    ++out.lost;
+    return;
   }
+  out.us.push_back(static_cast<double>(now_ns() - t0) / 1000.0);
 }
 
 int wait_child(pid_t pid) {
@@ -235,8 +231,16 @@ int wait_child(pid_t pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
 }
 
-/// Runs `paced` and `unpaced` samples over UDP loopback with a forked echo.
-void run_udp(int paced, int unpaced, Series& paced_out, Series& unpaced_out) {
+struct Figures {
+  Series udp_paced;
+  Series udp_unpaced;
+  Series can_paced;
+  Series can_unpaced;
+  mrroc::can::BusStats stats;
+};
+
+Figures run(const std::string& url, int paced, int unpaced) {
+  // UDP: two connected sockets on 127.0.0.1; the echo's end goes to the child.
   sockaddr_in a{};
   sockaddr_in b{};
   const int mine = udp_socket(a);
@@ -244,30 +248,20 @@ void run_udp(int paced, int unpaced, Series& paced_out, Series& unpaced_out) {
   connect_to(mine, b);
   connect_to(theirs, a);
   std::fflush(stdout);
-  const pid_t pid = fork();
-  if (pid < 0) throw mrroc::Error("fork failed");
-  if (pid == 0) {
+  const pid_t udp_echo = fork();
+  if (udp_echo < 0) throw mrroc::Error("fork failed");
+  if (udp_echo == 0) {
     ::close(mine);
     _exit(run_udp_echo(theirs));
   }
   ::close(theirs);
-  UdpPinger pinger(mine);
-  std::uint64_t seq = 0;
-  measure(pinger, paced, true, seq, paced_out);
-  measure(pinger, unpaced, false, seq, unpaced_out);
-  pinger.stop();
-  if (const int rc = wait_child(pid); rc != 0)
-    throw mrroc::Error("the UDP echo failed (exit code " + std::to_string(rc) + ")");
-}
+  UdpPinger udp(mine);
 
-/// Runs `paced` and `unpaced` samples over the virtual bus with a forked echo.
-void run_can(const std::string& url, int paced, int unpaced, Series& paced_out,
-             Series& unpaced_out, mrroc::can::BusStats& stats) {
-  CanPinger pinger(url);  // opened before the fork: the echo's ready frame cannot be missed
+  CanPinger can(url);  // opened before the fork: the echo's ready frame cannot be missed
   std::fflush(stdout);
-  const pid_t pid = fork();
-  if (pid < 0) throw mrroc::Error("fork failed");
-  if (pid == 0) {
+  const pid_t can_echo = fork();
+  if (can_echo < 0) throw mrroc::Error("fork failed");
+  if (can_echo == 0) {
     int rc = 5;
     try {
       rc = run_can_echo(url);
@@ -275,31 +269,53 @@ void run_can(const std::string& url, int paced, int unpaced, Series& paced_out,
     }
     _exit(rc);
   }
-  pinger.wait_ready();
-  std::uint64_t seq = 0;
-  measure(pinger, paced, true, seq, paced_out);
-  measure(pinger, unpaced, false, seq, unpaced_out);
-  pinger.stop();
-  stats = pinger.stats();
-  if (const int rc = wait_child(pid); rc != 0)
+  can.wait_ready();
+
+  Figures f;
+  std::uint64_t udp_seq = 0;
+  std::uint64_t can_seq = 0;
+  Series warm_up;
+  for (int i = 0; i < 200; ++i) {
+    sample(udp, udp_seq, warm_up);
+    sample(can, can_seq, warm_up);
+  }
+  Pacer pacer;
+  for (int i = 0; i < 2 * paced; ++i) {
+    pacer.wait();
+    // Which transport goes first in a pair flips every 1000 pairs.
+    if ((i % 2 == 0) == ((i / 2000) % 2 == 0))
+      sample(udp, udp_seq, f.udp_paced);
+    else
+      sample(can, can_seq, f.can_paced);
+  }
+  constexpr int kBlock = 1000;
+  for (int done = 0; done < unpaced; done += kBlock) {
+    for (int i = 0; i < kBlock; ++i) sample(udp, udp_seq, f.udp_unpaced);
+    for (int i = 0; i < kBlock; ++i) sample(can, can_seq, f.can_unpaced);
+  }
+  udp.stop();
+  can.stop();
+  f.stats = can.stats();
+  if (const int rc = wait_child(udp_echo); rc != 0)
+    throw mrroc::Error("the UDP echo failed (exit code " + std::to_string(rc) + ")");
+  if (const int rc = wait_child(can_echo); rc != 0)
     throw mrroc::Error("the virtual-bus echo failed (exit code " + std::to_string(rc) + ")");
+  return f;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int samples = argc > 1 ? std::max(100, std::atoi(argv[1])) : 6000;
+  const int samples = argc > 1 ? std::max(100, std::atoi(argv[1])) : 8000;
   const int unpaced = 20000;
   try {
     const std::string url = "virtual:bench-b6-" + std::to_string(getpid());
-    Series udp_paced;
-    Series udp_unpaced;
-    Series can_paced;
-    Series can_unpaced;
-    mrroc::can::BusStats stats;
-    run_udp(samples / 2, unpaced / 2, udp_paced, udp_unpaced);
-    run_can(url, samples, unpaced, can_paced, can_unpaced, stats);
-    run_udp(samples - samples / 2, unpaced - unpaced / 2, udp_paced, udp_unpaced);
+    const Figures f = run(url, samples, unpaced);
+    const Series& udp_paced = f.udp_paced;
+    const Series& udp_unpaced = f.udp_unpaced;
+    const Series& can_paced = f.can_paced;
+    const Series& can_unpaced = f.can_unpaced;
+    const mrroc::can::BusStats& stats = f.stats;
 
     const double b50 = percentile(udp_paced.us, 0.5);
     const double b99 = percentile(udp_paced.us, 0.99);
@@ -309,32 +325,36 @@ int main(int argc, char** argv) {
     const double ub99 = percentile(udp_unpaced.us, 0.99);
     const double uv50 = percentile(can_unpaced.us, 0.5);
     const double uv99 = percentile(can_unpaced.us, 0.99);
-    std::printf("B6 round trip of one 8-byte CAN frame between two processes, %d samples each, "
-                "paced at 1 kHz\n",
-                samples);
+    std::printf(
+        "B6 round trip of one 8-byte CAN frame between two processes, %d samples each, "
+        "each transport paced at 1 kHz, taking turns\n",
+        samples);
     std::printf("  UDP loopback:    p50 %.1f us, p99 %.1f us (%d lost)\n", b50, b99,
                 udp_paced.lost);
     std::printf("  virtual CAN bus: p50 %.1f us, p99 %.1f us (%d lost)\n", v50, v99,
                 can_paced.lost);
-    std::printf("  unpaced, %d samples each: UDP p50 %.1f us, p99 %.1f us; virtual CAN p50 %.1f "
-                "us, p99 %.1f us (%d lost)\n",
-                unpaced, ub50, ub99, uv50, uv99, can_unpaced.lost);
+    std::printf(
+        "  unpaced, %d samples each: UDP p50 %.1f us, p99 %.1f us; virtual CAN p50 %.1f "
+        "us, p99 %.1f us (%d lost)\n",
+        unpaced, ub50, ub99, uv50, uv99, can_unpaced.lost);
     std::printf("  parent node: %llu sent, %llu received, %llu overruns\n",
                 static_cast<unsigned long long>(stats.sent),
                 static_cast<unsigned long long>(stats.received),
                 static_cast<unsigned long long>(stats.overruns));
-    std::printf("NOTE B6 request 0x601 -> reply 0x581 (8 data bytes) between this process and a "
-                "forked echo, each blocking in Bus::receive (futex in the shared ring) against the "
-                "same 16-byte can_frame as UDP datagrams on 127.0.0.1 (blocking recv), %d samples "
-                "each paced at 1 kHz, half of the UDP series before and half after; nothing "
-                "pinned, SCHED_OTHER. Unpaced (back to back, %d each): UDP p50 %.1f / p99 %.1f us, "
-                "virtual CAN p50 %.1f / p99 %.1f us (ratio %.2f / %.2f). Lost: UDP %d, virtual "
-                "CAN %d. Raw frames only: no CANopen SDO or CiA 402 processing on either side.\n",
-                samples, unpaced, ub50, ub99, uv50, uv99, uv50 / ub50, uv99 / ub99,
-                udp_paced.lost + udp_unpaced.lost, can_paced.lost + can_unpaced.lost);
-    std::printf("RESULT B6 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
-                "samples=%d unit=us\n",
-                b50, b99, v50, v99, samples);
+    std::printf(
+        "NOTE B6 request 0x601 -> reply 0x581 (8 data bytes) between this process and a "
+        "forked echo, each blocking in Bus::receive (futex in the shared ring) against the "
+        "same 16-byte can_frame as UDP datagrams on 127.0.0.1 (blocking recv), %d samples "
+        "each, each transport paced at 1 kHz, the two taking turns every 0.5 ms; nothing "
+        "pinned, SCHED_OTHER. Unpaced (back to back, %d each): UDP p50 %.1f / p99 %.1f us, "
+        "virtual CAN p50 %.1f / p99 %.1f us (ratio %.2f / %.2f). Lost: UDP %d, virtual "
+        "CAN %d. Raw frames only: no CANopen SDO or CiA 402 processing on either side.\n",
+        samples, unpaced, ub50, ub99, uv50, uv99, uv50 / ub50, uv99 / ub99,
+        udp_paced.lost + udp_unpaced.lost, can_paced.lost + can_unpaced.lost);
+    std::printf(
+        "RESULT B6 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
+        "samples=%d unit=us\n",
+        b50, b99, v50, v99, samples);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_can: %s\n", e.what());

@@ -68,7 +68,8 @@ void no_throw(const char* where, Body&& body) {
 }
 
 /// True when `text` starts with "<file>:<line>: error: " and line >= 1; `line` receives it.
-inline bool has_location_prefix(std::string_view text, std::string_view file, long* line = nullptr) {
+inline bool has_location_prefix(std::string_view text, std::string_view file,
+                                long* line = nullptr) {
   if (!text.starts_with(file)) return false;
   text.remove_prefix(file.size());
   if (!text.starts_with(':')) return false;

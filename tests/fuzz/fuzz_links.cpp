@@ -1,9 +1,12 @@
 // Raw buffers delivered to the real receiving endpoints, through LCM's in-process transport
-// (memq://, no network): the request/reply servers of the EDP and ECP links (comm::EdpServer,
-// comm::EcpServer), the clients' reply handlers (comm::Client) and the SRP's SystemListener.
+// (memq://, no network): the request/reply servers of the EDP, ECP and VSP links
+// (comm::EdpServer, comm::EcpServer, comm::VspServer), the clients' reply handlers (comm::Client)
+// and the SRP's SystemListener.
 //
 // Input: a sequence of records [channel][flags][length, 2 bytes little-endian][payload]; the last
-// record takes what is left. Each input gets fresh endpoints, so that it replays alike.
+// record takes what is left. Channel (mod 8): 0 EDP requests, 1 EDP replies, 2 ECP requests, 3 ECP
+// replies, 4 SRP messages, 5 process statuses, 6 VSP requests, 7 VSP replies. Flag bit 0: answer
+// the requests the server queued. Each input gets fresh endpoints, so that it replays alike.
 //
 // Properties (docs/fuzzing.md), checked after every record:
 // - nothing throws out of the handlers, whatever the bytes;
@@ -62,7 +65,8 @@ template <class Msg>
 std::optional<Msg> lcm_decode(const std::string& bytes) {
   Msg m;
   int n = -1;
-  fuzz::no_throw("LCM decode", [&] { n = m.decode(bytes.data(), 0, static_cast<int>(bytes.size())); });
+  fuzz::no_throw("LCM decode",
+                 [&] { n = m.decode(bytes.data(), 0, static_cast<int>(bytes.size())); });
   if (n < 0) return std::nullopt;
   return m;
 }
@@ -89,8 +93,7 @@ struct ServerSide {
                              total(after) - total(before)));
     fuzz::expect((after.malformed == before.malformed + 1) == !raw.has_value(),
                  fmt::format("server on '{}': malformed count {} -> {} for bytes that {}", channel,
-                             before.malformed, after.malformed,
-                             raw ? "decode" : "do not decode"));
+                             before.malformed, after.malformed, raw ? "decode" : "do not decode"));
     const std::uint64_t accepted = after.requests - before.requests;
 
     std::uint64_t queued = 0;
@@ -104,13 +107,18 @@ struct ServerSide {
       const std::int64_t seq = raw->header.seq;
       fuzz::expect(in->responder.client() == client, "queued request names another client");
       auto last = last_queued.find(client);
-      fuzz::expect(last == last_queued.end() || seq > last->second,
-                   fmt::format("request {} of client {} queued again (after {})", seq,
-                               fuzz::escaped(client), last == last_queued.end() ? 0 : last->second));
+      fuzz::expect(
+          last == last_queued.end() || seq > last->second,
+          fmt::format("request {} of client {} queued again (after {})", seq, fuzz::escaped(client),
+                      last == last_queued.end() ? 0 : last->second));
       last_queued[client] = seq;
       bool decodes = false;
       fuzz::guarded<mrroc::comm::DecodeError>(
-          "comm::decode", [&] { (void)mrroc::comm::decode(*raw); decodes = true; },
+          "comm::decode",
+          [&] {
+            (void)mrroc::comm::decode(*raw);
+            decodes = true;
+          },
           [](const mrroc::comm::DecodeError&) {});
       fuzz::expect(in->request.has_value() == decodes,
                    "the server's decode verdict differs from comm::decode");
@@ -123,8 +131,8 @@ struct ServerSide {
       }
     }
     fuzz::expect(queued == accepted,
-                 fmt::format("server on '{}' accepted {} requests but queued {}", channel,
-                             accepted, queued));
+                 fmt::format("server on '{}' accepted {} requests but queued {}", channel, accepted,
+                             queued));
     deliver();  // the replies (and re-sent cached replies) go to the clients
   }
 };
@@ -143,10 +151,10 @@ struct ClientSide {
     deliver();
     const LinkStats after = client.stats();
     const bool decodes = lcm_decode<LcmRep>(payload).has_value();
-    fuzz::expect((after.malformed == before.malformed + 1) == !decodes,
-                 fmt::format("client on '{}': malformed count {} -> {} for bytes that {}",
-                             channel, before.malformed, after.malformed,
-                             decodes ? "decode" : "do not decode"));
+    fuzz::expect(
+        (after.malformed == before.malformed + 1) == !decodes,
+        fmt::format("client on '{}': malformed count {} -> {} for bytes that {}", channel,
+                    before.malformed, after.malformed, decodes ? "decode" : "do not decode"));
     fuzz::expect(after.stale <= before.stale + 1, "client counted one reply twice as stale");
   }
 };
@@ -183,7 +191,9 @@ struct ListenerSide {
 };
 
 using EdpSide = ServerSide<mrroc::comm::EdpServer, mrroc_lcm::edp_instruction_t, mrroc::edp::Reply>;
-using EcpSide = ServerSide<mrroc::comm::EcpServer, mrroc_lcm::mp_ecp_command_t, mrroc::ecp::EcpReply>;
+using EcpSide =
+    ServerSide<mrroc::comm::EcpServer, mrroc_lcm::mp_ecp_command_t, mrroc::ecp::EcpReply>;
+using VspSide = ServerSide<mrroc::comm::VspServer, mrroc_lcm::vsp_command_t, mrroc::vsp::Reply>;
 
 }  // namespace
 
@@ -197,24 +207,46 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   ClientSide<mrroc_lcm::mp_ecp_command_t, mrroc_lcm::ecp_mp_reply_t> ecp_client(
       channels::ecp_command(kRobot), channels::ecp_reply(kRobot));
   ListenerSide srp;
+  const std::string vsp_command = channels::vsp_command(kRobot);
+  const std::string vsp_reply = channels::vsp_reply(kRobot);
+  VspSide vsp("vsp/fuzz", vsp_command, vsp_reply);
+  ClientSide<mrroc_lcm::vsp_command_t, mrroc_lcm::vsp_reply_t> vsp_client(vsp_command, vsp_reply);
 
   std::size_t pos = 0;
   while (pos + 4 <= size) {
     const std::uint8_t channel = data[pos];
     const std::uint8_t flags = data[pos + 1];
-    std::size_t length = static_cast<std::size_t>(data[pos + 2]) |
-                         (static_cast<std::size_t>(data[pos + 3]) << 8U);
+    std::size_t length =
+        static_cast<std::size_t>(data[pos + 2]) | (static_cast<std::size_t>(data[pos + 3]) << 8U);
     pos += 4;
     if (length > size - pos) length = size - pos;
     const std::string payload(reinterpret_cast<const char*>(data + pos), length);
     pos += length;
-    switch (channel % 6U) {
-      case 0: edp.receive(payload, flags); break;
-      case 1: edp_client.receive(payload); break;
-      case 2: ecp.receive(payload, flags); break;
-      case 3: ecp_client.receive(payload); break;
-      case 4: srp.receive(channels::srp, payload); break;
-      default: srp.receive(channels::status, payload); break;
+    switch (channel % 8U) {
+      case 0:
+        edp.receive(payload, flags);
+        break;
+      case 1:
+        edp_client.receive(payload);
+        break;
+      case 2:
+        ecp.receive(payload, flags);
+        break;
+      case 3:
+        ecp_client.receive(payload);
+        break;
+      case 4:
+        srp.receive(channels::srp, payload);
+        break;
+      case 5:
+        srp.receive(channels::status, payload);
+        break;
+      case 6:
+        vsp.receive(payload, flags);
+        break;
+      default:
+        vsp_client.receive(payload);
+        break;
     }
   }
   return 0;

@@ -29,11 +29,15 @@ template <class Get>
 bool reads(const char* getter, const std::string& key, const mrroc::SourceLocation& at, Get&& get) {
   bool ok = false;
   fuzz::guarded<mrroc::ConfigError>(
-      getter, [&] { get(); ok = true; },
+      getter,
+      [&] {
+        get();
+        ok = true;
+      },
       [&](const mrroc::ConfigError& e) {
         fuzz::expect(std::string_view(e.what()).starts_with(at.str() + ": error: '" + key + "'"),
-                     fmt::format("{} of {}: ConfigError not at {}: {}", getter,
-                                 fuzz::escaped(key), at.str(), fuzz::escaped(e.what())));
+                     fmt::format("{} of {}: ConfigError not at {}: {}", getter, fuzz::escaped(key),
+                                 at.str(), fuzz::escaped(e.what())));
       });
   return ok;
 }
@@ -46,15 +50,16 @@ void check_key(const mrroc::Params& p, const std::string& key, const mrroc::Para
   const bool is_int = std::holds_alternative<std::int64_t>(value);
   const bool is_double = std::holds_alternative<double>(value);
   auto expect_reads = [&](const char* getter, bool expected, bool got) {
-    fuzz::expect(got == expected, fmt::format("{} of {} (value index {}) {}", getter,
-                                              fuzz::escaped(key), value.index(),
-                                              got ? "succeeded" : "failed"));
+    fuzz::expect(got == expected,
+                 fmt::format("{} of {} (value index {}) {}", getter, fuzz::escaped(key),
+                             value.index(), got ? "succeeded" : "failed"));
   };
   double d = 0;
   expect_reads("get_double", is_int || is_double,
                reads("get_double", key, at, [&] { d = p.get_double(key); }));
   if (is_double)
-    fuzz::expect(fuzz::bits(d) == fuzz::bits(std::get<double>(value)), "get_double changed the value");
+    fuzz::expect(fuzz::bits(d) == fuzz::bits(std::get<double>(value)),
+                 "get_double changed the value");
   expect_reads("get_double(fallback)", is_int || is_double,
                reads("get_double(fallback)", key, at, [&] { (void)p.get_double(key, 0.5); }));
   expect_reads("get_int", is_int, reads("get_int", key, at, [&] { (void)p.get_int(key); }));

@@ -5,10 +5,11 @@
 // Properties (docs/fuzzing.md):
 // - the only exception is ConfigError, reading "<file>:<line>: error: " with line >= 1 (the one
 //   whole-file error, "<file>: error: no [[robot]] defined", has no line);
-// - an accepted file holds what the schema promises: at least one robot, names unique and
-//   [a-z][a-z0-9_]{0,30}, model folders that exist, periods, timeouts and grace periods in range,
-//   CPUs >= 0, every parameter located in the file at a line >= 1; robot(name) finds each robot
-//   and throws ConfigError for an unknown one;
+// - an accepted file holds what the schema promises: at least one robot; robot and VSP names
+//   unique and [a-z][a-z0-9_]{0,30}; model folders, libraries and the emulator's scene that
+//   exist; VSPs with sources; periods, timeouts and grace periods in range; CPUs >= 0; every table
+//   and parameter located in the file at a line >= 1; robot(name) and vsp(name) find each one and
+//   throw ConfigError for an unknown name;
 // - parsing is deterministic.
 #include <cstddef>
 #include <cstdint>
@@ -36,9 +37,9 @@ void check_error(const mrroc::ConfigError& e) {
   const std::string file = config_file().lexically_normal().string();
   const std::string_view text = e.what();
   if (text == file + ": error: no [[robot]] defined") return;
-  fuzz::expect(fuzz::has_location_prefix(text, file),
-               fmt::format("ConfigError without '{}:<line>: error: ': {}", file,
-                           fuzz::escaped(text)));
+  fuzz::expect(
+      fuzz::has_location_prefix(text, file),
+      fmt::format("ConfigError without '{}:<line>: error: ': {}", file, fuzz::escaped(text)));
 }
 
 void check_params(const mrroc::Params& p, const std::string& file, const char* table) {
@@ -68,12 +69,44 @@ void check_task(const mrroc::TaskConfig& t, const std::string& file, const char*
   check_options(t.options, table);
 }
 
+void check_vsps(const mrroc::ProcessSetConfig& c, const std::string& file) {
+  static const std::regex name_re("[a-z][a-z0-9_]{0,30}");
+  std::set<std::string> names;
+  for (const auto& v : c.vsps) {
+    fuzz::expect(std::regex_match(v.name, name_re),
+                 fmt::format("VSP name {} accepted", fuzz::escaped(v.name)));
+    fuzz::expect(names.insert(v.name).second, fmt::format("VSP name {} twice", v.name));
+    fuzz::expect(v.where.file == file && v.where.line >= 1, "[[vsp]] not located");
+    fuzz::expect(v.library.empty() || fs::exists(v.library),
+                 "sensor plugin library accepted but missing");
+    fuzz::expect(!v.sources.empty(), fmt::format("VSP {} without sources accepted", v.name));
+    fuzz::expect(v.period_s >= 0.001 && v.period_s <= 10.0,
+                 fmt::format("VSP period {} s accepted", v.period_s));
+    fuzz::expect(v.stale_after_s >= 0.001 && v.stale_after_s <= 60.0,
+                 fmt::format("VSP stale_after {} s accepted", v.stale_after_s));
+    check_params(v.params, file, "vsp.params");
+    check_options(v.options, "vsp");
+    const mrroc::VspConfig* found = nullptr;
+    fuzz::no_throw("ProcessSetConfig::vsp", [&] { found = &c.vsp(v.name); });
+    fuzz::expect(found == &v, "vsp(name) returns another VSP");
+  }
+  bool unknown_refused = false;
+  fuzz::guarded<mrroc::ConfigError>(
+      "ProcessSetConfig::vsp (unknown name)", [&] { (void)c.vsp("no such vsp"); },
+      [&](const mrroc::ConfigError&) { unknown_refused = true; });
+  fuzz::expect(unknown_refused, "vsp() of an unknown name did not throw ConfigError");
+}
+
 std::string summary(const mrroc::ProcessSetConfig& c) {
   std::string out = fmt::format("{} {} {} {} {}", c.name, c.lcm_url, c.ready_timeout_s, c.mp.name,
                                 c.robots.size());
   for (const auto& r : c.robots)
     out += fmt::format(" {} {} {} {} {} {}", r.name, r.model_dir.string(), r.edp.plugin,
                        r.edp.servo_period_s, r.ecp.name, r.edp.params.values().size());
+  for (const auto& v : c.vsps)
+    out += fmt::format(" {} {} {} {} {}", v.name, v.plugin, v.sources.size(), v.period_s,
+                       v.stale_after_s);
+  if (c.emulator) out += " " + c.emulator->scene.string();
   return out;
 }
 
@@ -86,6 +119,14 @@ void check_config(const mrroc::ProcessSetConfig& c) {
                fmt::format("ready_timeout_s {} accepted", c.ready_timeout_s));
   check_task(c.mp, file, "mp");
   check_options(c.srp, "srp");
+  if (c.emulator) {
+    fuzz::expect(fs::is_regular_file(c.emulator->scene),
+                 fmt::format("emulator scene {} accepted", c.emulator->scene.string()));
+    fuzz::expect(c.emulator->where.file == file && c.emulator->where.line >= 1,
+                 "[emulator] not located");
+    check_options(c.emulator->options, "emulator");
+  }
+  check_vsps(c, file);
   fuzz::expect(!c.robots.empty(), "a process set without robots accepted");
   static const std::regex name_re("[a-z][a-z0-9_]{0,30}");
   std::set<std::string> names;
@@ -137,6 +178,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                "parsing the same text twice gave different results");
   if (!config) return 0;
   check_config(*config);
-  fuzz::expect(summary(*config) == summary(*again), "parsing the same text twice gave different configs");
+  fuzz::expect(summary(*config) == summary(*again),
+               "parsing the same text twice gave different configs");
   return 0;
 }

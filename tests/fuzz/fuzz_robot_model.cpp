@@ -42,10 +42,10 @@ void check_error(const mrroc::ConfigError& e) {
   const std::string file = (g_folder / "parameters.toml").string();
   const std::string_view text = e.what();
   if (fuzz::has_location_prefix(text, file)) return;
-  fuzz::expect(text.starts_with(g_folder.string() + "/") &&
-                   text.find(": error: ") != std::string_view::npos,
-               fmt::format("ConfigError names neither '{}:<line>' nor a file of the folder: {}",
-                           file, fuzz::escaped(text)));
+  fuzz::expect(
+      text.starts_with(g_folder.string() + "/") && text.find(": error: ") != std::string_view::npos,
+      fmt::format("ConfigError names neither '{}:<line>' nor a file of the folder: {}", file,
+                  fuzz::escaped(text)));
 }
 
 void check_model(const mrroc::RobotModel& m) {

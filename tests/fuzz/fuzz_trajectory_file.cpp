@@ -29,8 +29,8 @@ void check_file(const mrroc::ecp::TrajectoryFile& t) {
   fuzz::no_throw("values_per_point", [&] { expected = t.values_per_point(); });
   for (std::size_t i = 0; i < t.points.size(); ++i) {
     const mrroc::ecp::TrajectoryPoint& p = t.points[i];
-    fuzz::expect(p.values.size() == expected,
-                 fmt::format("point {} has {} values, expected {}", i + 1, p.values.size(), expected));
+    fuzz::expect(p.values.size() == expected, fmt::format("point {} has {} values, expected {}",
+                                                          i + 1, p.values.size(), expected));
     for (const double v : p.values)
       fuzz::expect(std::isfinite(v), fmt::format("point {} holds {}", i + 1, v));
     fuzz::expect(!(p.duration_s && p.velocity_scale), "a point with duration and velocity scale");
@@ -50,8 +50,8 @@ std::optional<mrroc::ecp::TrajectoryFile> parse(std::string_view text, const cha
       what, [&] { out = mrroc::ecp::TrajectoryFile::parse(text, kName); },
       [&](const mrroc::ConfigError& e) {
         if (must_parse)
-          fuzz::fail(fmt::format("{}: the writer's own text does not parse: {}\n{}", what,
-                                 e.what(), text));
+          fuzz::fail(fmt::format("{}: the writer's own text does not parse: {}\n{}", what, e.what(),
+                                 text));
         long line = 0;
         fuzz::expect(fuzz::has_location_prefix(e.what(), kName, &line),
                      fmt::format("ConfigError without '{}:<line>: error: ': {}", kName,
@@ -67,7 +67,8 @@ std::optional<mrroc::ecp::TrajectoryFile> parse(std::string_view text, const cha
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
-  const std::optional<mrroc::ecp::TrajectoryFile> file = parse(text, "TrajectoryFile::parse", false);
+  const std::optional<mrroc::ecp::TrajectoryFile> file =
+      parse(text, "TrajectoryFile::parse", false);
   if (!file) return 0;
   check_file(*file);
   std::string written;

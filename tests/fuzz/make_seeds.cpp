@@ -17,6 +17,7 @@
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
+#include "mrroc/vsp/reading.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
@@ -73,8 +74,8 @@ std::vector<edp::Instruction> instructions() {
   out.push_back(query);
   edp::Instruction all;  // every field, as in tests/unit/test_messages.cpp
   all.type = edp::InstructionType::set_get;
-  all.set = edp::item::arm | edp::item::tool | edp::item::outputs | edp::item::model |
-            edp::item::servo;
+  all.set =
+      edp::item::arm | edp::item::tool | edp::item::outputs | edp::item::model | edp::item::servo;
   all.get = edp::item::arm | edp::item::inputs | edp::item::timing;
   all.set_arm_type = edp::ArmRepresentation::xyz_euler_zyz;
   all.get_arm_type = edp::ArmRepresentation::frame;
@@ -184,13 +185,78 @@ std::vector<ecp::EcpReply> ecp_replies() {
   return out;
 }
 
+std::vector<vsp::Request> vsp_requests() {
+  return {{vsp::Command::configure, "zero = true\n"},
+          {vsp::Command::initiate_reading, "tool_rotation = [0.0, 0.0, 1.5708]\n"},
+          {vsp::Command::get_reading, ""},
+          {vsp::Command::terminate, ""}};
+}
+
+std::vector<vsp::Reply> vsp_replies() {
+  std::vector<vsp::Reply> out;
+  out.emplace_back();  // ACKNOWLEDGE
+  vsp::Reply force;
+  force.kind = vsp::ReplyKind::reading;
+  force.reading.valid = true;
+  force.reading.reading_utime = 1700000000000000;
+  force.reading.age_us = 850;
+  force.reading.reading_no = 12;
+  force.reading.values = {0.5, -1.25, 9.81, 0.01, -0.02, 0.0};
+  force.reading.names = {"fx", "fy", "fz", "tx", "ty", "tz"};
+  force.reading.units = {"N", "N", "N", "N m", "N m", "N m"};
+  out.push_back(force);
+  vsp::Reply stale;
+  stale.kind = vsp::ReplyKind::reading;
+  stale.reading.invalid_reason = "source left_wrist_gauges stale for 120 ms";
+  stale.reading.values = {0.0};
+  stale.reading.names = {"range"};
+  stale.reading.units = {"m"};
+  out.push_back(stale);
+  vsp::Reply error;
+  error.kind = vsp::ReplyKind::error;
+  error.error_code = vsp::error_code::bad_argument;
+  error.error_text = "unknown key 'zeroo' in CONFIGURE arguments";
+  out.push_back(error);
+  return out;
+}
+
+std::vector<vsp::RawSample> raw_samples() {
+  std::vector<vsp::RawSample> out;
+  vsp::RawSample gauges;
+  gauges.device = "left_wrist_gauges";
+  gauges.sample_utime = 1700000000000000;
+  gauges.sample_no = 41;
+  gauges.values = {0.011, -0.002, 0.0005, 0.3, -0.12, 0.07};
+  gauges.names = {"g0", "g1", "g2", "g3", "g4", "g5"};
+  gauges.units = {"V", "V", "V", "V", "V", "V"};
+  out.push_back(gauges);
+  vsp::RawSample range;
+  range.device = "sonar";
+  range.sample_no = 7;
+  range.valid = false;
+  range.values = {0.0};
+  range.names = {"d"};
+  range.units = {"m"};
+  out.push_back(range);
+  return out;
+}
+
 template <class Plain>
 void message_seeds(const std::string& target, const std::vector<Plain>& values, std::int8_t kind) {
   int i = 0;
   for (const Plain& v : values) {
     auto m = comm::encode(v);
-    header(m.header, kind == mrroc_lcm::header_t::REQUEST ? "ecp/irb6#4242" : "edp/irb6",
-           i + 1, kind, kind == mrroc_lcm::header_t::REQUEST ? "" : "ecp/irb6#4242");
+    switch (kind) {
+      case mrroc_lcm::header_t::REQUEST:
+        header(m.header, "ecp/irb6#4242", i + 1, kind);
+        break;
+      case mrroc_lcm::header_t::REPLY:
+        header(m.header, "edp/irb6", i + 1, kind, "ecp/irb6#4242");
+        break;
+      default:
+        header(m.header, "mrroc-axis-emu#77", i + 1, kind);
+        break;
+    }
     write(target, fmt::format("{:02}", i++), bytes_of(m));
   }
 }
@@ -263,7 +329,16 @@ std::string reply(const Plain& v, std::int64_t seq, std::int8_t kind = mrroc_lcm
 void link_seeds() {
   const auto ins = instructions();
   const auto cmds = mp_commands();
-  enum { edp_cmd = 0, edp_reply = 1, ecp_cmd = 2, ecp_reply = 3, srp = 4, status = 5 };
+  enum {
+    edp_cmd = 0,
+    edp_reply = 1,
+    ecp_cmd = 2,
+    ecp_reply = 3,
+    srp = 4,
+    status = 5,
+    vsp_cmd = 6,
+    vsp_reply = 7
+  };
   // A new request, its duplicate while in progress, answered, duplicate again (cached reply), the
   // next request, then a stale one.
   std::string edp = record(edp_cmd, 0, request(ins[1], "ecp/irb6#1", 1)) +
@@ -277,15 +352,24 @@ void link_seeds() {
                     record(ecp_cmd, 0, request(cmds[2], "mp#2", 1)) +
                     record(ecp_cmd, 1, request(cmds[2], "mp#2", 1));
   write("links", "ecp_exchange", ecp);
+  const auto vreq = vsp_requests();
+  const auto vrep = vsp_replies();
+  write("links", "vsp_exchange",
+        record(vsp_cmd, 1, request(vreq[0], "ecp/irb6#1", 1)) +
+            record(vsp_cmd, 0, request(vreq[1], "ecp/irb6#1", 2)) +
+            record(vsp_cmd, 1, request(vreq[1], "ecp/irb6#1", 2)) +
+            record(vsp_cmd, 1, request(vreq[2], "ecp/irb6#1", 3)) +
+            record(vsp_reply, 0, reply(vrep[1], 3)) + record(vsp_reply, 0, reply(vrep[3], 1)));
   // An instruction that decodes as LCM but fails validation (motion_type 7), a truncated one, and
   // bytes that are no message at all.
   auto invalid = comm::encode(ins[1]);
   header(invalid.header, "ecp/irb6#1", 3, mrroc_lcm::header_t::REQUEST);
   invalid.motion_type = 7;
   const std::string valid = request(ins[1], "ecp/irb6#1", 4);
-  write("links", "malformed", record(edp_cmd, 1, bytes_of(invalid)) +
-                                  record(edp_cmd, 1, valid.substr(0, valid.size() / 2)) +
-                                  record(ecp_cmd, 1, std::string("\x01\x02\x03", 3)));
+  write("links", "malformed",
+        record(edp_cmd, 1, bytes_of(invalid)) +
+            record(edp_cmd, 1, valid.substr(0, valid.size() / 2)) +
+            record(ecp_cmd, 1, std::string("\x01\x02\x03", 3)));
   const auto reps = edp_replies();
   const auto ecps = ecp_replies();
   write("links", "replies",
@@ -315,6 +399,15 @@ void text_seeds(const fs::path& source) {
   for (const auto& f : fs::directory_iterator(source / "configs"))
     if (f.path().extension() == ".toml")
       write("process_set", f.path().filename().string(), read_file(f.path()));
+  // A set with virtual sensors, as tests/unit/test_vsp.cpp writes it (no file of configs/ has one).
+  write("process_set", "vsp.toml",
+        "[system]\nname = \"t\"\n"
+        "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"gauges\"]\n"
+        "mode = \"periodic\"\nperiod_ms = 5\nstale_after_ms = 50\n[vsp.params]\nfilter_hz = 30\n"
+        "[[vsp]]\nname = \"sonar\"\nplugin = \"range\"\nsources = [\"sonar\"]\n"
+        "\n[mp]\ntask = \"start_and_wait\"\n[[robot]]\nname = \"irb6\"\n"
+        "model = \"../robots/irb6\"\n[robot.edp]\nplugin = \"mock\"\n"
+        "[robot.ecp]\ntask = \"follow_mp\"\n");
   for (const auto& robot : fs::directory_iterator(source / "robots"))
     if (fs::exists(robot.path() / "parameters.toml"))
       write("robot_model", robot.path().filename().string() + ".toml",
@@ -324,8 +417,7 @@ void text_seeds(const fs::path& source) {
   write("params", "poses", "poses = [[0.6, -1.35, 0.15, 0.5, 1.0], [0, -1.5708, 0, 0, 0]]\n");
   write("params", "outputs", "outputs = 1\n");
   write("params", "poses_scale", "poses = [[0.5]]\nvelocity_scale = 0.8\n");
-  write("params", "retry",
-        "arguments = \"class = 'non_fatal'\\ntimes = 2\\n\"\nattempts = 3\n");
+  write("params", "retry", "arguments = \"class = 'non_fatal'\\ntimes = 2\\n\"\nattempts = 3\n");
   write("params", "every_type",
         "flag = true\ncount = -3\nratio = 2.5e-3\nname = \"irb6\"\nnames = [\"a\", \"b\"]\n"
         "empty = []\nrow = [1, 2.5]\n");
@@ -385,6 +477,9 @@ int main(int argc, char** argv) {
   message_seeds("edp_reply", edp_replies(), mrroc_lcm::header_t::REPLY);
   message_seeds("mp_ecp_command", mp_commands(), mrroc_lcm::header_t::REQUEST);
   message_seeds("ecp_mp_reply", ecp_replies(), mrroc_lcm::header_t::REPLY);
+  message_seeds("vsp_command", vsp_requests(), mrroc_lcm::header_t::REQUEST);
+  message_seeds("vsp_reply", vsp_replies(), mrroc_lcm::header_t::REPLY);
+  message_seeds("raw_sensor", raw_samples(), mrroc_lcm::header_t::BROADCAST);
   other_message_seeds();
   link_seeds();
   text_seeds(source);

@@ -2,7 +2,7 @@
 # Hardware in the loop without hardware: boots Debian's own kernel (the linux-image-6.1.0-*-amd64
 # package that linux-image-amd64 depends on) under qemu, with the CAN modules and a virtual CAN
 # interface, and runs test scripts there against the real kernel's SocketCAN (see
-# /work/shared/HIL.md and tests/hil/README.md).
+# tests/hil/README.md).
 #
 # The VM has no network device at all (-nic none). The host's root directory is shared into it
 # read-only over 9p (virtio) and the tests run chrooted into it, so build-tree binaries run
@@ -19,7 +19,9 @@
 #   SCRIPT: shell scripts run in the VM one after the other with sh (default: tests/hil/vm-tests.sh).
 # Environment: MRROC_HIL_TIMEOUT (seconds until qemu is killed, default 240),
 #   MRROC_HIL_CACHE (where the kernel package is downloaded and unpacked, default
-#   BUILD_DIR/hil-cache), MRROC_HIL_KEEP=1 keeps the run directory (initramfs, console log).
+#   BUILD_DIR/hil-cache), MRROC_HIL_KEEP=1 keeps the run directory (initramfs, console log),
+#   MRROC_HIL_KVM=1 uses KVM instead of software emulation (nested KVM on the project's VMs
+#   hangs the guest, so it is off by default; software emulation takes a few seconds).
 # Exit codes: 0 pass, 1 fail, 77 skipped (no qemu, no busybox-static, kernel package not
 # obtainable); the reason is printed.
 set -eu
@@ -67,8 +69,17 @@ done
 mkdir -p "$cache"
 exec 9>"$cache/.lock"
 flock 9  # two runs in one build tree at once: one downloads, the other waits
-package=$(apt-cache depends linux-image-amd64 2>/dev/null |
-  awk '$1 == "Depends:" && $2 ~ /^linux-image-[0-9].*-amd64$/ { print $2; exit }')
+resolve_kernel() {
+  apt-cache depends linux-image-amd64 2>/dev/null |
+    awk '$1 == "Depends:" && $2 ~ /^linux-image-[0-9].*-amd64$/ { print $2; exit }'
+}
+package=$(resolve_kernel)
+if [ -z "$package" ] && [ "$(id -u)" = 0 ] && ! ls "$cache"/linux-image-*/.unpacked >/dev/null 2>&1; then
+  # A fresh machine whose package lists were never downloaded.
+  echo "hil: apt-cache does not know linux-image-amd64; running apt-get update"
+  apt-get update -qq >"$cache/update.log" 2>&1 || true
+  package=$(resolve_kernel)
+fi
 if [ -z "$package" ]; then
   # No package lists (apt-get update never ran): use a kernel downloaded earlier, if any.
   package=$(ls -d "$cache"/linux-image-*/.unpacked 2>/dev/null | sort -V | tail -n 1 | xargs -r dirname | xargs -r basename)
@@ -94,6 +105,9 @@ if [ ! -f "$kdir/.unpacked" ]; then
   rm -rf "$kdir"
   mv "$kdir.tmp" "$kdir"
   touch "$kdir/.unpacked"
+  for old in "$cache"/linux-image-*; do  # kernels of earlier runs
+    [ "$old" = "$kdir" ] || rm -rf "$old"
+  done
 fi
 flock -u 9
 vmlinuz=$(ls "$kdir"/boot/vmlinuz-* | head -n 1)
@@ -143,6 +157,16 @@ for s in $scripts; do
   cp "$s" "$root/scripts/$name"
   vm_scripts="$vm_scripts /run/mrroc-hil/$name"
 done
+# /tmp and /var/tmp of the VM are private tmpfs, unless the source or build tree lies below one
+# of them (then it stays the host's, read-only, and TMPDIR points to /dev/shm).
+private_tmp=""
+vm_tmp=/tmp
+for d in /tmp /var/tmp; do
+  case "$source_dir/ $build_dir/" in
+    "$d"/*|*" $d"/*) [ "$d" != /tmp ] || vm_tmp=/dev/shm ;;
+    *) private_tmp="$private_tmp $d" ;;
+  esac
+done
 cat >"$root/init" <<EOF
 #!/bin/busybox sh
 /bin/busybox --install -s /bin
@@ -162,8 +186,11 @@ mount -t sysfs sysfs /host/sys
 mount -t devtmpfs devtmpfs /host/dev
 mkdir -p /host/dev/pts /host/dev/shm
 mount -t devpts devpts /host/dev/pts
-for d in /host/dev/shm /host/tmp /host/run /host/var/tmp; do mount -t tmpfs tmpfs \$d; done
-chmod 1777 /host/dev/shm /host/tmp /host/var/tmp
+mount -t tmpfs tmpfs /host/dev/shm
+mount -t tmpfs tmpfs /host/run
+for d in $private_tmp; do mount -t tmpfs tmpfs /host\$d; done
+chmod 1777 /host/dev/shm
+for d in $private_tmp; do chmod 1777 /host\$d; done
 mkdir -p /host/run/mrroc-hil
 mount -o bind /scripts /host/run/mrroc-hil
 ip link set lo up
@@ -176,7 +203,7 @@ rc=0
 for s in $vm_scripts; do
   echo "hil: === \$s ==="
   chroot /host /usr/bin/env -i PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin \
-    HOME=/tmp TMPDIR=/tmp LANG=C.UTF-8 MRROC_IN_NETNS=1 MRROC_IN_HIL_VM=1 \
+    HOME=$vm_tmp TMPDIR=$vm_tmp LANG=C.UTF-8 MRROC_IN_NETNS=1 MRROC_IN_HIL_VM=1 \
     MRROC_SOURCE_DIR=$source_dir MRROC_BUILD_DIR=$build_dir MRROC_BIN_DIR=$build_dir/bin \
     MRROC_CAN_IFACE=vcan0 MRROC_CAN_DOWN_IFACE=vcan1 \
     /bin/sh -c 'cd "\$MRROC_BUILD_DIR" && exec /bin/sh "\$0"' \$s
@@ -213,4 +240,5 @@ if grep -q '^MRROC-HIL-RESULT: PASS' "$log"; then
   exit 0
 fi
 line=$(tr -d '\r' <"$log" | grep '^MRROC-HIL-RESULT:' | tail -n 1)
-fail "${line:-no result line on the VM's console (qemu exit code $rc)}"
+[ -n "$line" ] || line="no result line on the console of the VM (qemu exit code $rc)"
+fail "$line"

@@ -271,7 +271,7 @@ TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {
   const RunResult r = run({launcher(), file.string()}, 30.0);
   fs::remove_all(dir);
   EXPECT_EQ(r.exit_code, 3) << r.output;
-  EXPECT_NE(r.output.find("unknown hardware plugin 'mujocoo' (known: faulty, mock, mujoco)"),
+  EXPECT_NE(r.output.find("unknown hardware plugin 'mujocoo' (known: can, faulty, mock, mujoco)"),
             std::string::npos)
       << r.output;
   EXPECT_NE(r.output.find(file.string() + ":"), std::string::npos) << r.output;

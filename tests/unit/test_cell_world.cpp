@@ -13,12 +13,12 @@
 #include <fstream>
 #include <new>
 #include <numbers>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <mujoco/mujoco.h>
-#include <unistd.h>
 
 #include "cell_world.hpp"
 #include "mrroc/core/error.hpp"
@@ -85,13 +85,13 @@ std::vector<double> actuators(const CellWorld& world, std::size_t k) {
   return a;
 }
 
-/// A scratch folder, removed at the end of the test.
+/// A scratch folder of its own (mkdtemp), removed at the end of the test.
 class ScratchDir {
  public:
-  ScratchDir()
-      : path_(fs::temp_directory_path() /
-              ("mrroc_cell_" + std::to_string(::getpid()) + "_" + std::to_string(counter_++))) {
-    fs::create_directories(path_);
+  ScratchDir() {
+    std::string pattern = (fs::temp_directory_path() / "mrroc_cell_XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
   }
   ~ScratchDir() { fs::remove_all(path_); }
   ScratchDir(const ScratchDir&) = delete;
@@ -105,7 +105,6 @@ class ScratchDir {
   }
 
  private:
-  static inline int counter_ = 0;
   fs::path path_;
 };
 
@@ -180,20 +179,20 @@ TEST(CellWorld, FlangesAreWhereTheBasePosesSay) {
     const CellWorld world(scene);
     for (std::size_t k = 0; k < 2; ++k) {
       const auto& base_values = world.robot(k).base;
-      const Eigen::Isometry3d base =
-          mrroc::kinematics::from_values(base_values, mrroc::edp::ArmRepresentation::xyz_angle_axis);
+      const Eigen::Isometry3d base = mrroc::kinematics::from_values(
+          base_values, mrroc::edp::ArmRepresentation::xyz_angle_axis);
       std::vector<double> joints(5);
       ASSERT_TRUE(world.joint_positions(k, joints));
       EXPECT_EQ(joints, q);
-      const Eigen::Isometry3d flange =
-          isometry(world.site_pose(world.robot(k).name + "/flange"));
+      const Eigen::Isometry3d flange = isometry(world.site_pose(world.robot(k).name + "/flange"));
       // mrroc's analytic kinematics of the IRb-6, moved to the base.
       mrroc::robots::irb6::JointPosition jq{};
       std::copy(q.begin(), q.end(), jq.begin());
       const Eigen::Isometry3d expected = base * mrroc::robots::irb6::forward_kinematics(jq);
       EXPECT_LT(frame_error(flange, expected), 1e-9) << world.robot(k).name;
       // The single-robot MuJoCo model, moved to the base.
-      for (int j = 0; j < 5; ++j) alone_data->qpos[alone->jnt_qposadr[j]] = q[static_cast<std::size_t>(j)];
+      for (int j = 0; j < 5; ++j)
+        alone_data->qpos[alone->jnt_qposadr[j]] = q[static_cast<std::size_t>(j)];
       mj_kinematics(alone.get(), alone_data.get());
       FramePose alone_pose;
       const auto site = static_cast<std::size_t>(alone_flange);
@@ -375,7 +374,8 @@ TEST(CellWorld, UnstableRobotIsAFaultNamingItUntilReset) {
 name = "shaky"
 [[scene.robot]]
 name = "irb6"
-model = ")" + (source_dir() / "robots" / "irb6").string() + R"("
+model = ")" + (source_dir() / "robots" / "irb6").string() +
+                                                     R"("
 [[scene.robot]]
 name = "wobbly"
 model = "wobbly"
@@ -489,8 +489,7 @@ TEST(SceneFile, ErrorsNameTheFileTheLineAndTheProblem) {
   EXPECT_NE(what.find("bad.toml:5: error: model folder"), std::string::npos) << what;
   EXPECT_NE(what.find("not found"), std::string::npos) << what;
   what = parse(head + "model = \"" + irb6 + "\"\nbase = [1.0, 2.0]\n");
-  EXPECT_NE(what.find("bad.toml:6: error: 'base' must be [x, y, z, rx, ry, rz]"),
-            std::string::npos)
+  EXPECT_NE(what.find("bad.toml:6: error: 'base' must be [x, y, z, rx, ry, rz]"), std::string::npos)
       << what;
   EXPECT_NE(what.find("2 values"), std::string::npos) << what;
   what = parse(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"left\"\nmodel = \"" +
@@ -498,16 +497,16 @@ TEST(SceneFile, ErrorsNameTheFileTheLineAndTheProblem) {
   EXPECT_NE(what.find("bad.toml:6: error: duplicate robot name 'left' (first used at "),
             std::string::npos)
       << what;
-  what = parse("[scene]\ntimestep = 0.5\n[[scene.robot]]\nname = \"a\"\nmodel = \"" + irb6 + "\"\n");
+  what =
+      parse("[scene]\ntimestep = 0.5\n[[scene.robot]]\nname = \"a\"\nmodel = \"" + irb6 + "\"\n");
   EXPECT_NE(what.find("bad.toml:2: error: 'timestep' = 0.5 s is outside"), std::string::npos)
       << what;
-  what = parse(head + "model = \"" + irb6 + "\"\n[[scene.object]]\nname = \"ball\"\n"
+  what = parse(head + "model = \"" + irb6 +
+               "\"\n[[scene.object]]\nname = \"ball\"\n"
                "type = \"sphere\"\nsize = [0.1, 0.2]\npos = [0, 0, 1]\nmass = 1.0\n");
-  EXPECT_NE(what.find("bad.toml:9: error: 'size' must be [radius] (m)"), std::string::npos)
-      << what;
+  EXPECT_NE(what.find("bad.toml:9: error: 'size' must be [radius] (m)"), std::string::npos) << what;
   what = parse(head + "model = \"" + irb6 + "\"\n[[scene.object]]\nname = \"left\"\n");
-  EXPECT_NE(what.find("bad.toml:6: error: missing key 'type' in [scene.object]"),
-            std::string::npos)
+  EXPECT_NE(what.find("bad.toml:6: error: missing key 'type' in [scene.object]"), std::string::npos)
       << what;
   what = parse("[scene]\nname = \"x\"\n[[scene.robot]]\nname = \"le/ft\"\n");
   EXPECT_NE(what.find("bad.toml:4: error: 'name' = \"le/ft\" must be a non-empty name"),
@@ -529,8 +528,8 @@ TEST(SceneFile, CompositionAndPowerOnErrorsNameTheSceneLineAndTheFile) {
   };
   const std::string head = "[scene]\nname = \"bad\"\n[[scene.robot]]\nname = \"left\"\n";
   // A given power-on pose of the wrong size, or outside a range.
-  std::string what = world_error(head + "model = \"" + irb6 +
-                                 "\"\ninitial_joint_positions = [0.0, -1.5]\n");
+  std::string what =
+      world_error(head + "model = \"" + irb6 + "\"\ninitial_joint_positions = [0.0, -1.5]\n");
   EXPECT_NE(what.find("scene.toml:6: error: initial_joint_positions has 2 values for 5 axes"),
             std::string::npos)
       << what;
@@ -542,7 +541,8 @@ TEST(SceneFile, CompositionAndPowerOnErrorsNameTheSceneLineAndTheFile) {
       << what;
   EXPECT_NE(what.find("joint 'left/lower_arm'"), std::string::npos) << what;
   // An object attached to a body that does not exist.
-  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.object]]\nname = \"box\"\n"
+  what = world_error(head + "model = \"" + irb6 +
+                     "\"\n[[scene.object]]\nname = \"box\"\n"
                      "type = \"box\"\nsize = [0.1, 0.1, 0.1]\npos = [0, 0, 1]\nmass = 1.0\n"
                      "attach = \"left/no_such_link\"\n");
   EXPECT_NE(what.find("scene.toml:6: error: object 'box': attach = \"left/no_such_link\" names no "
@@ -557,34 +557,42 @@ TEST(SceneFile, CompositionAndPowerOnErrorsNameTheSceneLineAndTheFile) {
     ASSERT_NE(xml.find(radian), std::string::npos);
     dir.write("degree/belt.xml", std::string(xml).replace(xml.find(radian), radian.size(),
                                                           "<compiler angle=\"degree\"/>"));
-    dir.write("degree/parameters.toml", "[robot]\nmjcf = \"belt.xml\"\n"
-                                        "synchro_joint_positions = [0.0]\n");
+    dir.write("degree/parameters.toml",
+              "[robot]\nmjcf = \"belt.xml\"\n"
+              "synchro_joint_positions = [0.0]\n");
     std::string gravity = xml;
     gravity.replace(gravity.find("0 0 -9.81"), 9, "0 0 -9.80");
     dir.write("moon/belt.xml", gravity);
-    dir.write("moon/parameters.toml", "[robot]\nmjcf = \"belt.xml\"\n"
-                                      "synchro_joint_positions = [0.0]\n");
+    dir.write("moon/parameters.toml",
+              "[robot]\nmjcf = \"belt.xml\"\n"
+              "synchro_joint_positions = [0.0]\n");
     std::string include = xml;
     include.replace(include.find("<worldbody>"), 11, "<include file=\"more.xml\"/><worldbody>");
     dir.write("include/belt.xml", include);
-    dir.write("include/more.xml", "<mujoco><custom><numeric name=\"n\" data=\"1\"/></custom></mujoco>");
-    dir.write("include/parameters.toml", "[robot]\nmjcf = \"belt.xml\"\n"
-                                         "synchro_joint_positions = [0.0]\n");
+    dir.write("include/more.xml",
+              "<mujoco><custom><numeric name=\"n\" data=\"1\"/></custom></mujoco>");
+    dir.write("include/parameters.toml",
+              "[robot]\nmjcf = \"belt.xml\"\n"
+              "synchro_joint_positions = [0.0]\n");
   }
-  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"belt\"\n"
+  what = world_error(head + "model = \"" + irb6 +
+                     "\"\n[[scene.robot]]\nname = \"belt\"\n"
                      "model = \"degree\"\n");
-  EXPECT_NE(what.find("scene.toml:6: error: robot 'belt': '" + (dir.path() / "degree" / "belt.xml").string() +
-                      "': <compiler angle> is 'degree'"),
-            std::string::npos)
+  EXPECT_NE(
+      what.find("scene.toml:6: error: robot 'belt': '" +
+                (dir.path() / "degree" / "belt.xml").string() + "': <compiler angle> is 'degree'"),
+      std::string::npos)
       << what;
-  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"belt\"\n"
+  what = world_error(head + "model = \"" + irb6 +
+                     "\"\n[[scene.robot]]\nname = \"belt\"\n"
                      "model = \"moon\"\n");
   EXPECT_NE(what.find("scene.toml:6: error: robot 'belt': <option> gravity of '" +
                       (dir.path() / "moon" / "belt.xml").string() +
                       "' differs from that of robot 'left'"),
             std::string::npos)
       << what;
-  what = world_error(head + "model = \"" + irb6 + "\"\n[[scene.robot]]\nname = \"belt\"\n"
+  what = world_error(head + "model = \"" + irb6 +
+                     "\"\n[[scene.robot]]\nname = \"belt\"\n"
                      "model = \"include\"\n");
   EXPECT_NE(what.find("scene.toml:6: error: robot 'belt':"), std::string::npos) << what;
   EXPECT_NE(what.find("<include> is not supported"), std::string::npos) << what;
@@ -601,10 +609,10 @@ TEST(SceneFile, CompositionAndPowerOnErrorsNameTheSceneLineAndTheFile) {
 
 TEST(SceneFile, TheRobotsMjcfCanBeOverridden) {
   const ScratchDir dir;
-  const fs::path scene = dir.write(
-      "scene.toml", "[scene]\n[[scene.robot]]\nname = \"belt\"\nmodel = \"" +
-                        (source_dir() / "robots" / "conveyor").string() +
-                        "\"\nmjcf = \"conveyor.xml\"\nbase = [0, 0, 0.1, 0, 0, 0]\n");
+  const fs::path scene =
+      dir.write("scene.toml", "[scene]\n[[scene.robot]]\nname = \"belt\"\nmodel = \"" +
+                                  (source_dir() / "robots" / "conveyor").string() +
+                                  "\"\nmjcf = \"conveyor.xml\"\nbase = [0, 0, 0.1, 0, 0, 0]\n");
   const CellWorld world(scene);
   EXPECT_EQ(world.name(), "scene");  // default: the file's stem
   EXPECT_EQ(world.robot(0).mjcf, source_dir() / "robots" / "conveyor" / "conveyor.xml");
@@ -626,10 +634,11 @@ TEST(CellWorld, StepTime) {
     for (int s = 0; s < kSteps; ++s) ASSERT_TRUE(world.step()) << world.fault_text();
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-    std::printf("%-14s nq %2d nv %2d nu %2d: %.1f us per step of %.0f us (%d steps), built in "
-                "%.1f ms\n",
-                name, world.model()->nq, world.model()->nv, world.model()->nu,
-                elapsed / kSteps * 1e6, world.timestep() * 1e6, kSteps, build_time * 1e3);
+    std::printf(
+        "%-14s nq %2d nv %2d nu %2d: %.1f us per step of %.0f us (%d steps), built in "
+        "%.1f ms\n",
+        name, world.model()->nq, world.model()->nv, world.model()->nu, elapsed / kSteps * 1e6,
+        world.timestep() * 1e6, kSteps, build_time * 1e3);
   }
 }
 

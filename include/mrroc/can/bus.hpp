@@ -8,8 +8,16 @@
 ///     CAN_RAW socket, with receive filters, error frames (CAN_ERR_FLAG) and kernel timestamps.
 ///   - `virtual:<name>` (e.g. `virtual:cell1`): a bus in user space that needs no kernel support.
 ///     Every process (or Bus object) that opens the same name is a node on that bus; each node
-///     receives every frame sent by the other nodes, in one order for all of them, never its own
-///     frames (as CAN_RAW with CAN_RAW_RECV_OWN_MSGS off). Nodes may join and leave at any time.
+///     receives every frame sent by the other nodes after it joined, in one order for all of them,
+///     never its own frames (as CAN_RAW with CAN_RAW_RECV_OWN_MSGS off). Nodes may join and leave
+///     at any time. Names: 1-64 characters of A-Z a-z 0-9 _ -. The bus is the POSIX shared-memory
+///     object /dev/shm/mrroc-can-<name>, a ring of 4096 frames: a node that falls more than that
+///     behind loses the oldest frames (`BusStats::overruns`); a sender that dies half-way through
+///     a send delays the other nodes by at most 10 ms. Filters and error-frame delivery follow
+///     CAN_RAW; error frames may be sent (an emulator signals bus-off that way). A child process
+///     opens its own node (a Bus object is not shared across fork). The environment variable
+///     MRROC_CAN_NAMESPACE=<ns> (same rules as names) moves every virtual bus of the process and
+///     its children to /dev/shm/mrroc-can-<ns>.<name>, e.g. to run two cells or tests side by side.
 ///
 /// Threading: one Bus object is used by one thread at a time. `send` and `receive` do not allocate
 /// and never throw, so they may be called from a servo loop.
@@ -27,7 +35,8 @@ namespace mrroc::can {
 /// One received frame.
 struct Received {
   can_frame frame{};
-  /// Receive time [ns since the epoch, CLOCK_REALTIME], as the kernel stamps SocketCAN frames.
+  /// Time stamp [ns since the epoch, CLOCK_REALTIME]: SocketCAN: the kernel's receive time
+  /// stamp (SO_TIMESTAMPNS); virtual bus: the time the sender put the frame on the bus.
   std::int64_t timestamp_ns = 0;
   /// The frame is an error frame (CAN_ERR_FLAG set in `frame.can_id`; see <linux/can/error.h>).
   [[nodiscard]] bool is_error() const noexcept { return (frame.can_id & CAN_ERR_FLAG) != 0U; }
@@ -46,8 +55,10 @@ struct BusStats {
   std::uint64_t sent = 0;
   std::uint64_t received = 0;      ///< data/remote frames delivered by `receive`
   std::uint64_t error_frames = 0;  ///< error frames delivered by `receive`
-  std::uint64_t overruns = 0;      ///< frames lost because this node read too slowly
-  std::uint64_t send_failures = 0;
+  /// Frames lost because this node read too slowly (SocketCAN: the socket's SO_RXQ_OVFL drop
+  /// count, reported with the next frame read; virtual bus: ring positions skipped).
+  std::uint64_t overruns = 0;
+  std::uint64_t send_failures = 0;  ///< `send` calls that did not return `SendResult::sent`
 };
 
 /// One node on a CAN bus.

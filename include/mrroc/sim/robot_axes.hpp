@@ -58,18 +58,18 @@ struct PowerOnRequest {
 
 /// One robot's axes in a model.
 struct RobotAxes {
-  std::string prefix;             ///< of the robot's names in the model ("" or "left/")
-  std::vector<int> actuator;      ///< actuator id of axis i
-  std::vector<int> joint;         ///< actuator joint id of axis i
-  std::vector<int> qpos_adr;      ///< of the actuator joint
-  std::vector<int> dof_adr;       ///< of the actuator joint
-  std::vector<std::string> names; ///< actuator name (else its joint's) without the prefix
+  std::string prefix;              ///< of the robot's names in the model ("" or "left/")
+  std::vector<int> actuator;       ///< actuator id of axis i
+  std::vector<int> joint;          ///< actuator joint id of axis i
+  std::vector<int> qpos_adr;       ///< of the actuator joint
+  std::vector<int> dof_adr;        ///< of the actuator joint
+  std::vector<std::string> names;  ///< actuator name (else its joint's) without the prefix
   // Set by plan_power_on():
   Coupling coupling;
-  std::vector<int> range_joint;           ///< joint whose range is the axis' range, -1: none
-  std::vector<double> synchro;            ///< q at the synchronisation switches
-  std::vector<double> power_on;           ///< q at power-on
-  std::vector<double> power_on_actuators; ///< a = M q at power-on
+  std::vector<int> range_joint;            ///< joint whose range is the axis' range, -1: none
+  std::vector<double> synchro;             ///< q at the synchronisation switches
+  std::vector<double> power_on;            ///< q at power-on
+  std::vector<double> power_on_actuators;  ///< a = M q at power-on
 
   [[nodiscard]] std::size_t size() const noexcept { return actuator.size(); }
 };

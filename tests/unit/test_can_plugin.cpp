@@ -1,0 +1,167 @@
+// The EDP's `can` plugin against the real cell emulator (mrroc-axis-emu, lock-step, scene
+// configs/scenes/irb6.toml): bring-up of five emulated drives, cyclic positions out and back,
+// quick stop on emergency stop, and a drive fault seen as a plugin fault. By default over a
+// virtual bus; with MRROC_CAN_IFACE=vcan0 (the qemu test tests/hil) over SocketCAN on a real kernel.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mrroc/config/params.hpp"
+#include "mrroc/edp/hardware.hpp"
+
+using namespace mrroc;
+using namespace std::chrono_literals;
+
+namespace {
+
+std::string bus_url() {
+  const char* iface = std::getenv("MRROC_CAN_IFACE");
+  if (iface != nullptr && *iface != '\0') return std::string("socketcan:") + iface;
+  return "virtual:plugin-test-" + std::to_string(::getpid());
+}
+
+/// mrroc-axis-emu as a child process, killed at the end.
+class Emulator {
+ public:
+  Emulator(const std::string& url, const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> args = {std::string(MRROC_BIN_DIR) + "/mrroc-axis-emu", "--scene",
+                                     std::string(MRROC_SOURCE_DIR) + "/configs/scenes/irb6.toml",
+                                     "--bus", "irb6=" + url, "--lock-step"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    int out[2];
+    if (pipe(out) != 0) throw std::runtime_error("pipe");
+    pid_ = fork();
+    if (pid_ == 0) {
+      dup2(out[1], STDOUT_FILENO);
+      close(out[0]);
+      close(out[1]);
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execv(argv[0], argv.data());
+      _exit(127);
+    }
+    close(out[1]);
+    // Ready when it says how it runs (after loading MuJoCo and powering the drives); slow under
+    // the qemu test's software emulation.
+    FILE* in = fdopen(out[0], "r");
+    char line[512];
+    while (std::fgets(line, sizeof line, in) != nullptr)
+      if (std::strstr(line, "lock-step") != nullptr) break;
+    reader_ = std::thread([in] {
+      char rest[512];
+      while (std::fgets(rest, sizeof rest, in) != nullptr) std::fputs(rest, stdout);
+      std::fclose(in);
+    });
+  }
+  ~Emulator() {
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    reader_.join();
+  }
+
+ private:
+  pid_t pid_ = -1;
+  std::thread reader_;
+};
+
+std::unique_ptr<edp::Hardware> plugin(const std::string& url) {
+  auto hw = edp::make_hardware("can");
+  edp::HardwareSetup setup;
+  setup.robot = "irb6";
+  setup.model_dir = std::string(MRROC_SOURCE_DIR) + "/robots/irb6";
+  setup.servo_period_s = 0.002;
+  Params p;
+  p.set("bus", url, {});
+  p.set("silent_cycles", std::int64_t{200}, {});  // the VM's software emulation is slow
+  setup.params = p;
+  hw->configure(setup);
+  return hw;
+}
+
+/// One cycle every `period`; returns the last status.
+edp::CycleStatus cycle(edp::Hardware& hw, std::vector<edp::AxisFeedback>& fb,
+                       const std::vector<double>& setpoints) {
+  std::this_thread::sleep_for(4ms);
+  const edp::CycleStatus r = hw.read(fb);
+  const edp::CycleStatus w = hw.write(setpoints);
+  return r == edp::CycleStatus::ok ? w : r;
+}
+
+}  // namespace
+
+TEST(CanPlugin, DrivesTheEmulatedIrb6AndReadsItBack) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  auto hw = plugin(url);
+  ASSERT_EQ(hw->axis_count(), 5U);
+  hw->activate();
+  std::vector<edp::AxisFeedback> fb(5);
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  std::vector<double> target(5);
+  for (std::size_t i = 0; i < 5; ++i) target[i] = fb[i].position;
+  // Column +0.1 rad in 100 cycles, then hold for 100.
+  const double start = target[0];
+  for (int k = 1; k <= 200; ++k) {
+    target[0] = start + 0.1 * std::min(1.0, k / 100.0);
+    ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  }
+  EXPECT_NEAR(fb[0].position, start + 0.1, 2e-3);
+  for (std::size_t i = 1; i < 5; ++i) EXPECT_NEAR(fb[i].position, target[i], 2e-3) << i;
+
+  // Emergency stop: the drives quick-stop and hold; release re-enables them.
+  hw->emergency_stop(true);
+  for (int k = 0; k < 20; ++k) ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  hw->emergency_stop(false);
+  for (std::size_t i = 0; i < 5; ++i) target[i] = fb[i].position;
+  for (int k = 0; k < 20; ++k) ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  hw->deactivate();
+}
+
+TEST(CanPlugin, InjectedDriveFaultIsAPluginFaultNamingTheDrive) {
+  const std::string url = bus_url();
+  Emulator emu(url, {"--fault", "drive:irb6/wrist_roll@0.1=0x2310"});
+  auto hw = plugin(url);
+  hw->activate();
+  std::vector<edp::AxisFeedback> fb(5);
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  std::vector<double> target(5);
+  for (std::size_t i = 0; i < 5; ++i) target[i] = fb[i].position;
+  edp::CycleStatus status = edp::CycleStatus::ok;
+  for (int k = 0; k < 300 && status == edp::CycleStatus::ok; ++k) status = cycle(*hw, fb, target);
+  ASSERT_EQ(status, edp::CycleStatus::fault);
+  const std::string text = hw->fault_text();
+  EXPECT_NE(text.find("node 5 (axis 'wrist_roll')"), std::string::npos) << text;
+  EXPECT_NE(text.find("EMCY 0x2310 (continuous over-current)"), std::string::npos) << text;
+  // A new bring-up (what SYNCHRO does after a fault) resets the drive.
+  hw->deactivate();
+  hw->activate();
+  ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  hw->deactivate();
+}
+
+TEST(CanPlugin, NoDrivesIsAClearError) {
+  const std::string url = bus_url();
+  auto hw = plugin(url);
+  try {
+    hw->activate();
+    FAIL() << "activate succeeded without drives";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find("axis 'column': " + url + " node 1: no answer to an SDO "
+                                         "read of 0x1000"),
+              std::string::npos)
+        << e.what();
+  }
+}

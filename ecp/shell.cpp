@@ -24,13 +24,15 @@ EcpReply error_reply(ErrorClass cls, int code, const std::string& text) {
 }  // namespace
 
 EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter)
-    : config_(config),
+    : bus_(bus),
+      config_(config),
       reporter_(reporter),
       process_("ecp/" + config.name),
       robot_(bus, process_, config.name, load_robot_model(config.model_dir)),
       server_(bus, process_, channels::ecp_command(config.name), channels::ecp_reply(config.name)) {
   // Build the configured task once now, so that a wrong name or argument fails before "ready".
-  TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s};
+  TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s, &bus_,
+                      process_};
   try {
     (void)make_ecp_task(config_.ecp.name, context);
   } catch (const ConfigError& e) {
@@ -128,7 +130,7 @@ EcpReply EcpShell::state_reply(EcpReplyType type) const {
 }
 
 EcpReply EcpShell::run_task(const std::string& name, const Params& args) {
-  TaskContext context{robot_, reporter_, args, config_.edp.servo_period_s};
+  TaskContext context{robot_, reporter_, args, config_.edp.servo_period_s, &bus_, process_};
   std::unique_ptr<EcpTask> task = make_ecp_task(name, context);
   reporter_.info(fmt::format("task '{}' started", name));
   task->main_task();

@@ -58,6 +58,7 @@ class EcpShell {
   EcpReply state_reply(EcpReplyType type) const;
   void worker_loop();
 
+  comm::Bus& bus_;
   const RobotConfig& config_;
   Reporter& reporter_;
   std::string process_;

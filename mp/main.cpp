@@ -27,7 +27,7 @@ int run(const std::string& config_path) {
   Reporter reporter(bus, "mp");
   try {
     std::vector<std::unique_ptr<mp::Robot>> robots;
-    mp::TaskContext context{{}, reporter, config.mp.args, config};
+    mp::TaskContext context{{}, reporter, config.mp.args, config, &bus};
     for (const auto& robot : config.robots) {
       robots.push_back(std::make_unique<mp::Robot>(bus, robot.name));
       context.robots.push_back(robots.back().get());

@@ -12,6 +12,7 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/core/reporter.hpp"
 #include "mrroc/ecp/robot.hpp"
+#include "mrroc/ecp/virtual_sensor.hpp"
 
 namespace mrroc::ecp {
 
@@ -20,6 +21,12 @@ struct TaskContext {
   Reporter& reporter;
   const Params& args;     ///< [robot.ecp.args]
   double servo_period_s;  ///< the EDP's servo period [s]
+  comm::Bus* bus = nullptr;  ///< the ECP's LCM connection (for virtual sensors)
+  std::string process;       ///< the ECP's process name, e.g. "ecp/irb6"
+
+  /// The image of the VSP named `vsp` ([[vsp]] name): a client of it, for Move and Wait.
+  /// @throws Error when the context has no bus.
+  [[nodiscard]] std::unique_ptr<VirtualSensor> sensor(const std::string& vsp) const;
 };
 
 class EcpTask {

@@ -12,6 +12,7 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/mp/robot.hpp"
 
 namespace mrroc::mp {
@@ -21,6 +22,11 @@ struct TaskContext {
   Reporter& reporter;
   const Params& args;               ///< [mp.args]
   const ProcessSetConfig& config;   ///< the whole process set (robot models, servo periods, ...)
+  comm::Bus* bus = nullptr;         ///< the MP's LCM connection (for virtual sensors)
+
+  /// The image of the VSP named `vsp` in the MP: a client of it, for MP-level Move and Wait.
+  /// @throws Error when the context has no bus.
+  [[nodiscard]] std::unique_ptr<ecp::VirtualSensor> sensor(const std::string& vsp) const;
 
   /// @throws ConfigError naming the robots there are.
   [[nodiscard]] Robot& robot(const std::string& name) const;

@@ -1,0 +1,400 @@
+// Stock sensor-driven ECP tasks (docs/sensors.md), for an arm with a wrist force/torque sensor and
+// a probe pointing straight down (the IRb-6 of configs/scenes/sensing.toml):
+//
+//   touch           a guarded move: the probe goes down until the wrist force says contact, and
+//                   the stop must come within `stop_within` of the first contact;
+//   follow_surface  touch, then slide along the surface keeping a set contact force (force-
+//                   compliant motion: the height follows the force error every macro-step), and
+//                   check the force stayed within `force_tolerance` of the set force;
+//   pick_when_seen  Wait until the camera sees the part inside the pick region, then move the
+//                   probe above it (the start of a pick), and report where the part was.
+//
+// The wrist sensor is a VSP (force_torque) whose image Move and Wait refresh every macro-step;
+// each INITIATE_READING carries the sensor's orientation for the tool's gravity compensation.
+// An invalid reading (a stale or dead VSP) throws SensorError inside the Move: the robot stops
+// and the task fails with the VSP's name and reason.
+//
+// [robot.ecp.args] of touch and follow_surface:
+//   sensor = "wrist_force"  VSP name;   tool = 0.15  probe tip centre on the flange z axis [m]
+//   start = [x, y, z]       tip centre above the surface, in the base frame [m]
+//   speed = 0.01 [m/s], max_distance = 0.1 [m]: the guarded approach downwards
+//   contact_force = 5 [N]   force along the probe that ends the approach
+//   touch_force = 0.5 [N]   force that counts as first contact
+//   stop_within = 0.002 [m] largest travel from first contact to the stop
+// follow_surface also: force = 10 [N] set force, force_tolerance = 3 [N], direction = [1, 0, 0],
+//   length = 0.1 [m], follow_speed = 0.02 [m/s], gain = 2e-5 [m/N per macro-step],
+//   settle = 0.3 [s] (force errors before this are not counted)
+// pick_when_seen: camera = "camera" VSP, region = [xmin, xmax, ymin, ymax] (world, m) where a part
+//   may be picked, above = 0.1 [m] above the part, tool = 0.15, timeout = 30 [s],
+//   base = [x, y, z] the robot's base position in the world (rotation: none) [m].
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include "mrroc/ecp/errors.hpp"
+#include "mrroc/ecp/generators/cartesian_path.hpp"
+#include "mrroc/ecp/generators/guarded_move.hpp"
+#include "mrroc/ecp/task.hpp"
+#include "mrroc/ecp/virtual_sensor.hpp"
+#include "mrroc/kinematics/pose.hpp"
+
+namespace mrroc::ecp {
+
+namespace {
+
+Eigen::Vector3d vector3(const Params& a, const char* key, std::vector<double> fallback) {
+  const std::vector<double> v = a.get_doubles(key, fallback);
+  if (v.size() != 3)
+    throw ConfigError(fmt::format("{}: error: '{}' must be [x, y, z] (m)", a.location_of(key).str(), key));
+  return {v[0], v[1], v[2]};
+}
+
+double positive(const Params& a, const char* key, double fallback, const char* unit) {
+  const double v = a.get_double(key, fallback);
+  if (!(v > 0.0) || !std::isfinite(v))
+    throw ConfigError(fmt::format("{}: error: '{}' = {} {} must be a positive number",
+                                  a.location_of(key).str(), key, v, unit));
+  return v;
+}
+
+/// The wrist sensor as Move and Wait see it: before each INITIATE_READING it tells the VSP the
+/// sensor's orientation (the flange frame in the base frame, from the robot image), for the
+/// tool's gravity compensation.
+class WristSensor : public Sensor {
+ public:
+  WristSensor(VirtualSensor& vsp, Robot& robot, const edp::ArmKinematics& flange)
+      : vsp_(vsp), robot_(robot), flange_(flange) {}
+  void initiate_reading() override {
+    const Eigen::Matrix3d r = flange_.forward(robot_.image().joints).linear();
+    vsp_.set_context(fmt::format("rotation = [{}]", fmt::join(r.transpose().reshaped(), ", ")));
+    vsp_.initiate_reading();
+  }
+  void get_reading() override { vsp_.get_reading(); }
+  /// Force pressing the probe back along its axis [N] (the sensor's z axis is the approach
+  /// direction; a push from the surface is a force along -z on the tool).
+  [[nodiscard]] double pressing() const { return -vsp_.valid_image().value("fz"); }
+
+ private:
+  VirtualSensor& vsp_;
+  Robot& robot_;
+  const edp::ArmKinematics& flange_;
+};
+
+/// Shared by touch and follow_surface: arguments, the approach and the guarded move.
+class Touching : public EcpTask {
+ public:
+  explicit Touching(TaskContext& context) : context_(context) {
+    const Params& a = context.args;
+    sensor_name_ = a.get_string("sensor", "wrist_force");
+    tool_length_ = positive(a, "tool", 0.15, "m");
+    start_ = vector3(a, "start", {0.9, 0.0, 0.40});
+    speed_ = positive(a, "speed", 0.01, "m/s");
+    max_distance_ = positive(a, "max_distance", 0.1, "m");
+    contact_force_ = positive(a, "contact_force", 5.0, "N");
+    touch_force_ = positive(a, "touch_force", 0.5, "N");
+    stop_within_ = positive(a, "stop_within", 0.002, "m");
+  }
+
+ protected:
+  /// Synchronises, moves above the surface, zeroes the sensor there and goes down until contact.
+  /// Returns the tip position at the stop.
+  Eigen::Vector3d touch() {
+    Robot& robot = context_.robot;
+    robot.synchronise();
+    flange_ = edp::make_arm_kinematics(robot.model());
+    tip_ = edp::make_arm_kinematics(robot.model());
+    tool_ = Eigen::Isometry3d::Identity();
+    tool_.translation() = Eigen::Vector3d(0, 0, tool_length_);
+    tip_->set_tool(tool_);
+    down_ = flange_->forward(robot.image().desired_joints).linear();
+    vsp_ = context_.sensor(sensor_name_);
+    wrist_ = std::make_unique<WristSensor>(*vsp_, robot, *flange_);
+
+    CartesianOptions options;
+    options.tool = tool_;
+    options.max_linear_velocity = 0.1;
+    options.servo_period_s = context_.servo_period_s;
+    Eigen::Isometry3d above = Eigen::Isometry3d::Identity();
+    above.linear() = down_;
+    above.translation() = start_;
+    {
+      CartesianPathGenerator to_start(robot.model(), {CartesianSegment::line_to(above)}, options);
+      Move(robot, {}, to_start);
+    }
+    // In free space now: what the sensor feels is the tool's weight and its own offsets.
+    wrist_->initiate_reading();
+    wrist_->get_reading();
+    vsp_->configure("zero = true");
+    context_.reporter.info(fmt::format("above the surface at [{:.4f}, {:.4f}, {:.4f}] m; wrist "
+                                       "sensor '{}' zeroed",
+                                       start_.x(), start_.y(), start_.z(), sensor_name_));
+
+    std::optional<Eigen::Vector3d> first_contact;
+    double last_force = 0.0;
+    auto contact = [&] {
+      last_force = wrist_->pressing();  // throws SensorError for an invalid reading
+      if (!first_contact && last_force >= touch_force_)
+        first_contact = tip_->forward(robot.image().joints).translation();
+      return last_force >= contact_force_;
+    };
+    GuardedMotion motion;
+    motion.speed = speed_;
+    motion.acceleration = 0.2;
+    motion.max_distance = max_distance_;
+    auto guarded = GuardedMoveGenerator::along_line(robot.model(), Eigen::Vector3d(0, 0, -1),
+                                                    motion, contact, options);
+    Move(robot, {wrist_.get()}, guarded);
+    robot.read_state();
+    const Eigen::Vector3d stop = tip_->forward(robot.image().joints).translation();
+    if (!first_contact) throw FatalError("the guarded move ended without contact");
+    const double travel = (*first_contact - stop).norm();
+    context_.reporter.info(fmt::format(
+        "touched: first contact at z = {:.4f} m, stopped at z = {:.4f} m, {:.2f} mm after first "
+        "contact (limit {:.2f} mm), pressing {:.1f} N",
+        first_contact->z(), stop.z(), travel * 1e3, stop_within_ * 1e3, last_force));
+    if (travel > stop_within_)
+      throw FatalError(fmt::format("the guarded move stopped {:.2f} mm after first contact (limit "
+                                   "{:.2f} mm)",
+                                   travel * 1e3, stop_within_ * 1e3));
+    return stop;
+  }
+
+  TaskContext& context_;
+  std::string sensor_name_;
+  double tool_length_, speed_, max_distance_, contact_force_, touch_force_, stop_within_;
+  Eigen::Vector3d start_;
+  Eigen::Isometry3d tool_;
+  Eigen::Matrix3d down_;
+  std::unique_ptr<edp::ArmKinematics> flange_, tip_;
+  std::unique_ptr<VirtualSensor> vsp_;
+  std::unique_ptr<WristSensor> wrist_;
+};
+
+class Touch : public Touching {
+ public:
+  explicit Touch(TaskContext& context) : Touching(context) {
+    context.args.reject_unread("robot.ecp.args");
+  }
+  void main_task() override { (void)touch(); }
+};
+
+/// Force-compliant motion: each macro-step the tip advances along the surface and its height
+/// follows the force error (an admittance: dz = gain * (pressing - set force)).
+class ForceFollowing : public Generator {
+ public:
+  ForceFollowing(const WristSensor& wrist, const Eigen::Isometry3d& start, Eigen::Vector3d step,
+                 int macro_steps, double set_force, double gain, int motion_steps,
+                 const Eigen::Isometry3d& tool)
+      : wrist_(wrist), pose_(start), step_(std::move(step)), left_(macro_steps),
+        set_force_(set_force), gain_(gain), motion_steps_(motion_steps), tool_(tool) {}
+
+  bool first_step(RobotImage& robot, const SensorList&) override {
+    command(robot, 0.0);
+    edp::Instruction& c = robot.command;
+    c.set |= edp::item::tool;
+    c.tool_type = edp::ArmRepresentation::frame;
+    const auto t = kinematics::frame_to_values(tool_);
+    c.tool.assign(t.begin(), t.end());
+    return true;
+  }
+  bool next_step(RobotImage& robot, const SensorList&) override {
+    const double f = wrist_.pressing();
+    forces_.push_back(f);
+    if (--left_ <= 0) return false;
+    // Too little force: further down; too much: up. At most 0.2 mm per macro-step.
+    command(robot, std::clamp(gain_ * (set_force_ - f), -2e-4, 2e-4));
+    return true;
+  }
+  [[nodiscard]] const std::vector<double>& forces() const { return forces_; }
+
+ private:
+  void command(RobotImage& robot, double down) {
+    pose_.translation() += step_ - Eigen::Vector3d(0, 0, down);
+    edp::Instruction& c = robot.command;
+    c = edp::Instruction{};
+    c.type = edp::InstructionType::set;
+    c.set = edp::item::arm;
+    c.set_arm_type = edp::ArmRepresentation::frame;
+    c.motion_type = edp::MotionType::absolute;
+    c.motion_steps = motion_steps_;
+    c.value_in_step_no = motion_steps_ - 1;  // read one step early: seamless macro-steps
+    const auto v = kinematics::frame_to_values(pose_);
+    c.arm.assign(v.begin(), v.end());
+  }
+
+  const WristSensor& wrist_;
+  Eigen::Isometry3d pose_;
+  Eigen::Vector3d step_;
+  int left_;
+  double set_force_, gain_;
+  int motion_steps_;
+  Eigen::Isometry3d tool_;
+  std::vector<double> forces_;
+};
+
+class FollowSurface : public Touching {
+ public:
+  explicit FollowSurface(TaskContext& context) : Touching(context) {
+    const Params& a = context.args;
+    force_ = positive(a, "force", 10.0, "N");
+    tolerance_ = positive(a, "force_tolerance", 3.0, "N");
+    direction_ = vector3(a, "direction", {1.0, 0.0, 0.0});
+    length_ = positive(a, "length", 0.1, "m");
+    follow_speed_ = positive(a, "follow_speed", 0.02, "m/s");
+    gain_ = positive(a, "gain", 2e-5, "m/N");
+    settle_ = a.get_double("settle", 0.3);
+    a.reject_unread("robot.ecp.args");
+    direction_.z() = 0.0;
+    if (direction_.norm() < 1e-9)
+      throw ConfigError(fmt::format("{}: error: 'direction' must have a horizontal part",
+                                    a.location_of("direction").str()));
+    direction_.normalize();
+  }
+
+  void main_task() override {
+    const Eigen::Vector3d stop = touch();
+    Robot& robot = context_.robot;
+    const int motion_steps = 10;
+    const double dt = motion_steps * context_.servo_period_s;
+    const int macro_steps = static_cast<int>(std::ceil(length_ / (follow_speed_ * dt)));
+    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+    start.linear() = down_;
+    start.translation() = stop;
+    ForceFollowing follow(*wrist_, start, direction_ * follow_speed_ * dt, macro_steps, force_,
+                          gain_, motion_steps, tool_);
+    Move(robot, {wrist_.get()}, follow);
+    robot.read_state();
+    const std::vector<double>& f = follow.forces();
+    const auto skip = static_cast<std::size_t>(std::ceil(settle_ / dt));
+    double worst = 0.0, sum = 0.0, sum2 = 0.0;
+    std::size_t n = 0;
+    for (std::size_t i = skip; i < f.size(); ++i) {
+      worst = std::max(worst, std::abs(f[i] - force_));
+      sum += f[i];
+      sum2 += (f[i] - force_) * (f[i] - force_);
+      ++n;
+    }
+    if (n == 0) throw FatalError("the surface was too short to measure the contact force");
+    const Eigen::Vector3d end = tip_->forward(robot.image().joints).translation();
+    context_.reporter.info(fmt::format(
+        "followed the surface for {:.3f} m: contact force mean {:.2f} N, rms error {:.2f} N, "
+        "largest error {:.2f} N (set {:.1f} N, tolerance {:.1f} N, {} macro-steps after {:.1f} s "
+        "settling)",
+        (end - stop).norm(), sum / static_cast<double>(n), std::sqrt(sum2 / static_cast<double>(n)),
+        worst, force_, tolerance_, n, settle_));
+    if (worst > tolerance_)
+      throw FatalError(fmt::format("the contact force left {:.1f} +- {:.1f} N by {:.2f} N", force_,
+                                   tolerance_, worst - tolerance_));
+  }
+
+ private:
+  double force_, tolerance_, length_, follow_speed_, gain_, settle_;
+  Eigen::Vector3d direction_;
+};
+
+/// True when the camera sees the part inside the pick region.
+class PartInRegion : public Condition {
+ public:
+  PartInRegion(const VirtualSensor& camera, std::vector<double> region)
+      : camera_(camera), region_(std::move(region)) {}
+  bool check(const SensorList&) override {
+    const vsp::Reading& r = camera_.valid_image();
+    if (r.value("visible") < 0.5) return false;
+    const double x = r.value("x"), y = r.value("y");
+    return x >= region_[0] && x <= region_[1] && y >= region_[2] && y <= region_[3];
+  }
+
+ private:
+  const VirtualSensor& camera_;
+  std::vector<double> region_;
+};
+
+class PickWhenSeen : public EcpTask {
+ public:
+  explicit PickWhenSeen(TaskContext& context) : context_(context) {
+    const Params& a = context.args;
+    camera_name_ = a.get_string("camera", "camera");
+    region_ = a.get_doubles("region");
+    if (region_.size() != 4 || region_[0] >= region_[1] || region_[2] >= region_[3])
+      throw ConfigError(fmt::format("{}: error: 'region' must be [xmin, xmax, ymin, ymax] (m) "
+                                    "with min < max",
+                                    a.location_of("region").str()));
+    above_ = positive(a, "above", 0.1, "m");
+    tool_length_ = positive(a, "tool", 0.15, "m");
+    timeout_ = positive(a, "timeout", 30.0, "s");
+    base_ = vector3(a, "base", {0.0, 0.0, 0.0});
+    a.reject_unread("robot.ecp.args");
+  }
+
+  void main_task() override {
+    Robot& robot = context_.robot;
+    robot.synchronise();
+    auto camera = context_.sensor(camera_name_);
+    PartInRegion seen(*camera, region_);
+    const auto t0 = std::chrono::steady_clock::now();
+    context_.reporter.info(fmt::format("waiting for the part in x {:.3f}..{:.3f}, y {:.3f}..{:.3f} m",
+                                       region_[0], region_[1], region_[2], region_[3]));
+    WaitWithTimeout timed(seen, t0, timeout_);
+    Wait(robot, {camera.get()}, timed, 0.02);
+    const vsp::Reading& r = camera->valid_image();
+    const Eigen::Vector3d part(r.value("x"), r.value("y"), r.value("z"));
+    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    context_.reporter.info(fmt::format("part seen at [{:.4f}, {:.4f}, {:.4f}] m (reading {} ms "
+                                       "old) after {:.2f} s: starting the pick",
+                                       part.x(), part.y(), part.z(), r.age_us / 1000, waited));
+    auto kinematics = edp::make_arm_kinematics(robot.model());
+    Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+    tool.translation() = Eigen::Vector3d(0, 0, tool_length_);
+    CartesianOptions options;
+    options.tool = tool;
+    options.max_linear_velocity = 0.3;
+    options.servo_period_s = context_.servo_period_s;
+    Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+    target.linear() = kinematics->forward(robot.image().desired_joints).linear();
+    target.translation() = part - base_ + Eigen::Vector3d(0, 0, above_);
+    CartesianPathGenerator approach(robot.model(), {CartesianSegment::line_to(target)}, options);
+    Move(robot, {}, approach);
+    kinematics->set_tool(tool);
+    robot.read_state();
+    const Eigen::Vector3d tip = kinematics->forward(robot.image().joints).translation() + base_;
+    context_.reporter.info(fmt::format("above the part: tip at [{:.4f}, {:.4f}, {:.4f}] m", tip.x(),
+                                       tip.y(), tip.z()));
+  }
+
+ private:
+  /// The wrapped condition, or an error after `timeout` seconds.
+  class WaitWithTimeout : public Condition {
+   public:
+    WaitWithTimeout(Condition& inner, std::chrono::steady_clock::time_point start, double timeout)
+        : inner_(inner), start_(start), timeout_(timeout) {}
+    bool check(const SensorList& sensors) override {
+      if (inner_.check(sensors)) return true;
+      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count() > timeout_)
+        throw NonFatalError(fmt::format("no part seen in the pick region within {:.0f} s", timeout_));
+      return false;
+    }
+
+   private:
+    Condition& inner_;
+    std::chrono::steady_clock::time_point start_;
+    double timeout_;
+  };
+
+  TaskContext& context_;
+  std::string camera_name_;
+  std::vector<double> region_;
+  double above_, tool_length_, timeout_;
+  Eigen::Vector3d base_;
+};
+
+}  // namespace
+
+MRROC_REGISTER_ECP_TASK("touch", Touch);
+MRROC_REGISTER_ECP_TASK("follow_surface", FollowSurface);
+MRROC_REGISTER_ECP_TASK("pick_when_seen", PickWhenSeen);
+
+}  // namespace mrroc::ecp

@@ -249,7 +249,7 @@ TEST(LaunchDemo, CheckPrintsThePlanAndStartsNothing) {
 
 TEST(LaunchDemo, EveryBinaryAnswersHelp) {
   for (const char* name : {"mrroc-launch", "mrroc-mp", "mrroc-ecp", "mrroc-edp", "mrroc-srp",
-                           "mrroc-vsp", "mrroc-ui"}) {
+                           "mrroc-vsp", "mrroc-ui", "mrroc-axis-emu"}) {
     const RunResult r = run({(kBin / name).string(), "--help"}, 10.0);
     EXPECT_EQ(r.exit_code, 0) << name << "\n" << r.output;
     EXPECT_NE(r.output.find(name), std::string::npos) << r.output;

@@ -11,6 +11,7 @@
 #include <utility>
 
 #include <fmt/format.h>
+#include <tinyxml2.h>
 
 #include "mrroc/core/error.hpp"
 
@@ -63,6 +64,7 @@ void CellWorld::build(const Scene& scene) {
     throw ConfigError(fmt::format("{}: error: MuJoCo cannot load the composed scene: {}",
                                   scene.where.str(), error));
   }
+  convert_spring_contacts(scene);
   const mjModel* m = model_.get();
   const ComposedRobot& last = composed.robots.back();
   if (last.first_actuator + last.actuator_count != m->nu ||
@@ -188,6 +190,71 @@ void CellWorld::build(const Scene& scene) {
   reset();
 }
 
+void CellWorld::convert_spring_contacts(const Scene& scene) {
+  mjModel* m = model_.get();
+  tinyxml2::XMLDocument document;
+  bool changed = false;
+  for (const SceneObject& object : scene.objects) {
+    if (!object.spring_contact()) continue;
+    const int geom = mj_name2id(m, mjOBJ_GEOM, object.name.c_str());
+    if (geom < 0) continue;  // cannot happen: compose_scene names the geom after the object
+    const int body = m->geom_bodyid[geom];
+    // The solver's approximate inverse mass of the contact (mj_diagApprox): the bodies' mean
+    // translational inverse weights at qpos0; the other body is taken as fixed (weight 0).
+    const double inverse_weight = m->body_invweight0[2 * index(body)];
+    if (!(inverse_weight > 0.0)) {
+      throw ConfigError(fmt::format(
+          "{}: error: object '{}' does not move (fixed to the world): a stiffness solref [N/m] "
+          "needs a moving object; give it to the object or robot tool that touches this one",
+          object.solref_where.str(), object.name));
+    }
+    // Static normal force of a contact (mj_makeImpedance, efc_R; k = -solref[0] / d^2):
+    //   elliptic cone or condim 1: f = k d / R * p,  R = (1 - d) / d * w
+    //     => stiffness = -solref[0] / ((1 - d) w);
+    //   pyramidal cone, condim n: 2 (n - 1) edges, each f_e = k d / R_py * p, with
+    //     R_py = 2 mu^2 / impratio * (1 - d) / d * w (1 + mu^2)
+    //     => stiffness = -solref[0] (n - 1) impratio / (mu^2 (1 - d) w (1 + mu^2)).
+    // Damping likewise (b = -solref[1] / d, f = b / R * v), with the same factor.
+    const double d = kSpringContactImpedance;
+    const int condim = m->geom_condim[geom];
+    const double mu = m->geom_friction[3 * index(geom)];
+    double per_unit = (1.0 - d) * inverse_weight;
+    if (condim > 1 && m->opt.cone == mjCONE_PYRAMIDAL) {
+      per_unit *= mu * mu * (1.0 + mu * mu) / (static_cast<double>(condim - 1) * m->opt.impratio);
+    }
+    mjtNum* solref = m->geom_solref + mjNREF * index(geom);
+    solref[0] = (*object.solref)[0] * per_unit;
+    solref[1] = (*object.solref)[1] * per_unit;
+    // The composed document shows what MuJoCo runs.
+    if (!changed && document.Parse(xml_.c_str()) != tinyxml2::XML_SUCCESS) continue;
+    changed = true;
+    const std::string text = fmt::format("{} {}", solref[0], solref[1]);
+    std::vector<tinyxml2::XMLElement*> stack{document.RootElement()};
+    while (!stack.empty()) {
+      tinyxml2::XMLElement* e = stack.back();
+      stack.pop_back();
+      const char* name = e->Attribute("name");
+      if (std::string_view(e->Name()) == "geom" && name != nullptr && object.name == name) {
+        e->SetAttribute("solref", text.c_str());
+        e->InsertNewComment(fmt::format(" solref: {} N/m, {} N s/m (scene {}), in MuJoCo's "
+                                        "per-unit-mass form ",
+                                        -(*object.solref)[0], -(*object.solref)[1],
+                                        object.solref_where.str())
+                                .c_str());
+        break;
+      }
+      for (tinyxml2::XMLElement* c = e->FirstChildElement(); c != nullptr;
+           c = c->NextSiblingElement())
+        stack.push_back(c);
+    }
+  }
+  if (changed) {
+    tinyxml2::XMLPrinter printer;
+    document.Print(&printer);
+    xml_ = printer.CStr();
+  }
+}
+
 std::size_t CellWorld::robot_index(std::string_view robot_name) const {
   std::string known;
   for (std::size_t k = 0; k < robots_.size(); ++k) {
@@ -234,22 +301,40 @@ bool CellWorld::set_velocity_feed_forward(std::size_t k,
   return true;
 }
 
-bool CellWorld::step() noexcept {
-  if (faulted_) return false;
-  const mjModel* m = model_.get();
+void CellWorld::apply_feed_forward() noexcept {
   mjData* d = data_.get();
   // qfrc_bias is that of the current state: computed by mj_forward (reset) or by the mj_step1
-  // that ends every step. Splitting the step this way keeps body poses and constraint
-  // violations current for the readings between steps.
+  // that ends every step.
   for (const int v : compensated_dofs_) d->qfrc_applied[v] = d->qfrc_bias[v];
   for (const int v : plain_dofs_) d->qfrc_applied[v] = 0.0;
   for (const RobotState& robot : robots_) {
     for (std::size_t i = 0; i < robot.axes.size(); ++i)
       d->qfrc_applied[robot.axes.dof_adr[i]] += robot.feed_forward[i];
   }
+}
+
+bool CellWorld::step() noexcept {
+  if (faulted_) return false;
+  const mjModel* m = model_.get();
+  mjData* d = data_.get();
+  // Splitting the step this way keeps body poses and constraint violations current for the
+  // readings between steps.
+  apply_feed_forward();
   mj_step2(m, d);
   mj_step1(m, d);
   return check_stable();
+}
+
+void CellWorld::solve_constraint_forces() noexcept {
+  if (faulted_) return;
+  const mjModel* m = model_.get();
+  mjData* d = data_.get();
+  // The first half of mj_step2 without the integration: the next step() recomputes the same
+  // from the same inputs (the warm start is only saved by the integrator).
+  apply_feed_forward();
+  mj_fwdActuation(m, d);
+  mj_fwdAcceleration(m, d);
+  mj_fwdConstraint(m, d);
 }
 
 void CellWorld::set_fault(const char* format, ...) noexcept {

@@ -27,7 +27,13 @@
 /// `kLoopOpenFault`) makes `step()` return false with `fault_text()` naming the robot and axis
 /// (or object); the fault is latched — `step()` does nothing — until `reset()`.
 ///
-/// Real time: set_targets, set_velocity_feed_forward, step, every read (`time`, `actuator_*`,
+/// Contacts: objects collide as the scene file says (scene.hpp: `contact`, `solref`,
+/// `friction`); a stiffness solref [N/m, N s/m] is converted at construction into MuJoCo's
+/// per-unit-mass form so that the static contact force is stiffness * penetration against a fixed
+/// body (the conversion uses MuJoCo's own approximation of the contact's inverse mass,
+/// body_invweight0, the friction cone, the contact dimension and impratio).
+///
+/// Real time: set_targets, set_velocity_feed_forward, step, solve_constraint_forces, every read (`time`, `actuator_*`,
 /// `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`) and `reset` neither allocate
 /// nor throw. A CellWorld is not thread-safe: call it from one thread (or guard it).
 
@@ -138,6 +144,12 @@ class CellWorld {
   /// Advances the world by one MuJoCo step (timestep()). Returns false when the simulation is
   /// (or already was) unstable; see fault_text().
   [[nodiscard]] bool step() noexcept;
+  /// Solves the constraint forces (contacts, joint limits, loops) of the current state, so that
+  /// data()'s efc_force and mj_contactForce() belong to its current contacts (d->contact). step()
+  /// ends with the new state's positions and contacts but leaves the forces solved for the
+  /// previous state, in the previous constraint layout. Changes no state: the next step()
+  /// solves the same again. Does nothing while faulted.
+  void solve_constraint_forces() noexcept;
   /// Back to the power-on state: time 0, every robot at its power-on pose with closed loops and
   /// targets there, velocity feed-forward 0, objects at their initial poses, fault cleared.
   void reset() noexcept;
@@ -194,6 +206,12 @@ class CellWorld {
   };
 
   void build(const Scene& scene);
+  /// Converts the objects' stiffness solrefs (N/m, N s/m) into MuJoCo's per-unit-mass form, in
+  /// the model and in xml_. @throws ConfigError for a stiffness solref on an object that does
+  /// not move.
+  void convert_spring_contacts(const Scene& scene);
+  /// qfrc_applied: gravity/Coriolis compensation and velocity feed-forward of the current state.
+  void apply_feed_forward() noexcept;
   bool check_stable() noexcept;
   /// Writes "robot 'r' ... joint 'j' (axis i 'a')" (or the object's joint) into `out`.
   void describe_joint(int joint, std::array<char, 256>& out) const noexcept;

@@ -181,9 +181,62 @@ SceneRobot read_robot(const fs::path& file, const toml::table& table) {
   return robot;
 }
 
+/// `contact`, `solref` and `friction` of an object (see scene.hpp).
+void read_contact(const TableReader& r, SceneObject& object) {
+  object.contact = r.flag("contact").value_or(true);
+  if (const auto solref = r.fixed<2>("solref", "[timeconst, dampratio] (s, 1; both positive) or "
+                                               "[-stiffness, -damping] (N/m, N s/m; negative)")) {
+    const toml::node& node = *r.find("solref");
+    const auto [a, b] = *solref;
+    if (a > 0.0 && b > 0.0) {
+      // MuJoCo's standard form: time constant [s] and damping ratio.
+    } else if (a < 0.0 && b <= 0.0) {
+      if (-a > 1e9 || -b > 1e7) {
+        r.fail(node, fmt::format("'solref' = [{}, {}]: stiffness {} N/m or damping {} N s/m is "
+                                 "beyond 1e9 N/m or 1e7 N s/m",
+                                 a, b, -a, -b));
+      }
+    } else {
+      r.fail(node, fmt::format("'solref' = [{}, {}] mixes MuJoCo's two forms: give [timeconst, "
+                               "dampratio] (both > 0, s and 1) or [-stiffness, -damping] (stiffness "
+                               "> 0 N/m, damping >= 0 N s/m, both negated)",
+                               a, b));
+    }
+    object.solref = solref;
+    object.solref_where = r.at(node);
+  }
+  if (const auto friction =
+          r.numbers("friction", 0, "1 to 3 coefficients [sliding, torsional m, rolling m]")) {
+    const toml::node& node = *r.find("friction");
+    if (friction->empty() || friction->size() > 3) {
+      r.fail(node, fmt::format("'friction' must be 1 to 3 coefficients [sliding, torsional m, "
+                               "rolling m] ({} values)",
+                               friction->size()));
+    }
+    for (const double f : *friction) {
+      if (!(f >= 0.0 && f <= 10.0))
+        r.fail(node, fmt::format("'friction' value {} is outside 0 .. 10", f));
+    }
+    if (!((*friction)[0] > 0.0)) {
+      r.fail(node, "'friction' sliding coefficient must be > 0 (MuJoCo's pyramidal friction cone "
+                   "needs it; frictionless contacts are not supported)");
+    }
+    object.friction = *friction;
+  }
+  if (!object.contact) {
+    for (const char* key : {"solref", "friction"}) {
+      if (const toml::node* node = r.find(key)) {
+        r.fail(*node, fmt::format("'{}' has no effect on object '{}' with contact = false", key,
+                                  object.name));
+      }
+    }
+  }
+}
+
 SceneObject read_object(const fs::path& file, const toml::table& table) {
   const TableReader r(file, table, "scene.object");
-  r.reject_unknown({"name", "type", "size", "pos", "rotation", "mass", "rgba", "attach"});
+  r.reject_unknown({"name", "type", "size", "pos", "rotation", "mass", "rgba", "attach", "contact",
+                    "solref", "friction"});
   SceneObject object;
   object.where = r.at(table);
   object.name = r.name("name");
@@ -230,6 +283,7 @@ SceneObject read_object(const fs::path& file, const toml::table& table) {
   if (r.find("attach") != nullptr && object.attach.empty()) {
     r.fail(*r.find("attach"), "'attach' must name a body (or \"world\")");
   }
+  read_contact(r, object);
   return object;
 }
 
@@ -769,6 +823,26 @@ class SceneComposer {
     for (const double s : object.size) size += (size.empty() ? "" : " ") + text_of(s);
     geom->SetAttribute("size", size.c_str());
     geom->SetAttribute("mass", text_of(object.mass).c_str());
+    if (!object.contact) {
+      geom->SetAttribute("contype", 0);
+      geom->SetAttribute("conaffinity", 0);
+    }
+    if (object.solref || !object.friction.empty()) geom->SetAttribute("priority", 1);
+    if (object.solref) {
+      geom->SetAttribute("solref",
+                         fmt::format("{} {}", (*object.solref)[0], (*object.solref)[1]).c_str());
+      if (object.spring_contact()) {
+        // Converted to MuJoCo's form by CellWorld, which needs the compiled model.
+        geom->SetAttribute("solimp", fmt::format("{} {} 0.001 0.5 2", kSpringContactImpedance,
+                                                 kSpringContactImpedance)
+                                         .c_str());
+      }
+    }
+    if (!object.friction.empty()) {
+      std::string friction;
+      for (const double f : object.friction) friction += (friction.empty() ? "" : " ") + text_of(f);
+      geom->SetAttribute("friction", friction.c_str());
+    }
     geom->SetAttribute("rgba", fmt::format("{} {} {} {}", object.rgba[0], object.rgba[1],
                                            object.rgba[2], object.rgba[3])
                                    .c_str());

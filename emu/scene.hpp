@@ -30,6 +30,31 @@
 ///     attach = "conveyor/belt_link"   # optional: a body the object is fixed to ("world" or a
 ///                                     #   body of a robot or an earlier object); without it
 ///                                     #   the object is a free body (6 degrees of freedom)
+///     contact = true                  # optional: false makes it visual only (no contacts)
+///     solref = [-20000.0, -400.0]     # optional: contact softness, see below
+///     friction = [0.2]                # optional: sliding [1], torsional [m], rolling [m]
+///                                     #   coefficients (1 to 3 numbers; MuJoCo's defaults
+///                                     #   1, 0.005, 0.0001 for those not given)
+///
+/// Contacts. An object's geom collides with every other contact-capable geom (other objects, the
+/// floor) but not with robot links (their geoms are visual only). An object attached to a robot
+/// body (a tool, a probe) moves with the robot and is gravity-compensated with it.
+/// `solref` takes MuJoCo's two forms:
+///   - [timeconst, dampratio], both positive: MuJoCo's standard form [s, 1], passed on as is
+///     (MuJoCo's default is [0.02, 1]);
+///   - [-stiffness, -damping], both negative (damping may be 0): a contact spring of that stiffness
+///     [N/m] and damping [N s/m] acting along the contact normal. MuJoCo's own negative form is
+///     per unit of the contact's effective mass; the cell world converts (see
+///     CellWorld::CellWorld) so that the static contact force is stiffness * penetration. The
+///     conversion is exact for contacts with bodies fixed to the world (a table, the floor, an
+///     object attached to "world"); against another moving body the spring is softer by
+///     w / (w + w_other), w being the bodies' MuJoCo mean inverse weights (body_invweight0). Not
+///     for an object fixed to the world itself (give the spring to the moving object).
+/// An object with `solref` or `friction` gets contact priority 1, so that its parameters (and its
+/// contact dimension 3) are used for its contacts with geoms that give none (the floor, other
+/// objects); between two such objects MuJoCo combines them (friction: the larger; solref and
+/// solimp: the mean), so do not let objects with the two solref forms touch.
+/// `solref` and `friction` are refused with `contact = false`; the sliding friction must be > 0.
 ///
 /// The base pose uses the same convention as `[[robot]] base` of process-set configs (position
 /// and rotation vector of the robot's base frame in the cell). Robot and object names must be
@@ -74,8 +99,22 @@ struct SceneObject {
   double mass = 0.0;                 ///< [kg]
   std::array<double, 4> rgba = {0.8, 0.3, 0.2, 1.0};
   std::string attach;    ///< body it is fixed to; empty: a free body
-  SourceLocation where;  ///< of the [[scene.object]] table
+  bool contact = true;   ///< false: contype = conaffinity = 0 (visual only)
+  /// Contact softness as given: [timeconst s, dampratio] (positive) or [-stiffness N/m,
+  /// -damping N s/m] (negative; see the file comment); none: MuJoCo's default.
+  std::optional<std::array<double, 2>> solref;
+  std::vector<double> friction;  ///< 0 to 3 coefficients (empty: MuJoCo's defaults)
+  SourceLocation where;          ///< of the [[scene.object]] table
+  SourceLocation solref_where;   ///< of `solref` (when given)
+
+  /// True when `solref` is the stiffness form (negative numbers).
+  [[nodiscard]] bool spring_contact() const noexcept { return solref && (*solref)[0] < 0.0; }
 };
+
+/// Constant impedance (MuJoCo solimp d) of contacts of objects with a stiffness solref:
+/// solimp = (d, d, 0.001, 0.5, 2). With a constant d the static contact force does not depend on
+/// the penetration depth other than linearly.
+inline constexpr double kSpringContactImpedance = 0.9;
 
 struct Scene {
   std::filesystem::path file;
@@ -135,8 +174,11 @@ struct ComposedScene {
 ///   - <option>: every physics option but the timestep must be the same in all robots (compared
 ///     on the models MuJoCo compiles from each file alone); the scene's timestep replaces it.
 /// Objects are bodies named after the object, with one geom of the same name (class "main":
-/// MuJoCo's defaults, so they collide with the floor and with each other); a free object has a
-/// free joint of the same name.
+/// MuJoCo's defaults, so they collide with the floor and with each other, unless `contact` is
+/// false); a free object has a free joint of the same name. An object's `solref`, `friction`
+/// become its geom's, with priority="1"; a stiffness solref is written as given (negative N/m,
+/// N s/m) with solimp (kSpringContactImpedance ...): CellWorld converts it to MuJoCo's form after
+/// compiling, in the model and in its composed_xml().
 /// @throws ConfigError "scene:line: error: robot 'x': ..." naming the robot's file and the problem
 ///   (a file that MuJoCo cannot load alone, disagreeing <compiler>/<option>, an unsupported
 ///   element such as <include> or <composite>, a missing parameters.toml, an `attach` naming no

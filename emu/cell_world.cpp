@@ -3,6 +3,7 @@
 
 #include "cell_world.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -199,43 +200,49 @@ void CellWorld::convert_spring_contacts(const Scene& scene) {
     const int geom = mj_name2id(m, mjOBJ_GEOM, object.name.c_str());
     if (geom < 0) continue;  // cannot happen: compose_scene names the geom after the object
     const int body = m->geom_bodyid[geom];
-    // The solver's approximate inverse mass of the contact (mj_diagApprox): the bodies' mean
-    // translational inverse weights at qpos0; the other body is taken as fixed (weight 0).
-    const double inverse_weight = m->body_invweight0[2 * index(body)];
-    if (!(inverse_weight > 0.0)) {
+    // The solver's approximation of the contact's inverse mass (mj_diagApprox): the two bodies'
+    // mean translational inverse weights at qpos0; the other body is taken as fixed (0).
+    const double w = m->body_invweight0[2 * index(body)];
+    if (!(w > 0.0)) {
       throw ConfigError(fmt::format(
           "{}: error: object '{}' does not move (fixed to the world): a stiffness solref [N/m] "
           "needs a moving object; give it to the object or robot tool that touches this one",
           object.solref_where.str(), object.name));
     }
-    // Static normal force of a contact (mj_makeImpedance, efc_R; k = -solref[0] / d^2):
-    //   elliptic cone or condim 1: f = k d / R * p,  R = (1 - d) / d * w
-    //     => stiffness = -solref[0] / ((1 - d) w);
-    //   pyramidal cone, condim n: 2 (n - 1) edges, each f_e = k d / R_py * p, with
-    //     R_py = 2 mu^2 / impratio * (1 - d) / d * w (1 + mu^2)
-    //     => stiffness = -solref[0] (n - 1) impratio / (mu^2 (1 - d) w (1 + mu^2)).
-    // Damping likewise (b = -solref[1] / d, f = b / R * v), with the same factor.
-    const double d = kSpringContactImpedance;
+    // MuJoCo's soft contact (mj_makeImpedance, constant impedance d = solimp[0] = solimp[1],
+    // k = -solref[0] / d^2, b = -solref[1] / d): each constraint row gets R = (1 - d) / d * w
+    // (elliptic cone, condim 1). A pyramidal cone of dimension n has 2 (n - 1) edge rows, all with
+    // R = 2 mu^2 / impratio * (1 - d) / d * w (1 + mu^2). In a static contact each row pushes with
+    // k d p / R (p the penetration), its damping is b / R, so the normal force is
+    //   f = -solref[0] / ((1 - d) w g) * p - solref[1] / ((1 - d) w g) * v,
+    // g = 1 (elliptic, condim 1) or g = mu^2 (1 + mu^2) / ((n - 1) impratio) (pyramidal).
+    // Along the normal the contact also adds an inertia 1 / R_normal = d / ((1 - d) w g) (the
+    // row's regularisation): d is chosen so that it equals kSpringContactAddedMass / w.
     const int condim = m->geom_condim[geom];
     const double mu = m->geom_friction[3 * index(geom)];
-    double per_unit = (1.0 - d) * inverse_weight;
-    if (condim > 1 && m->opt.cone == mjCONE_PYRAMIDAL) {
-      per_unit *= mu * mu * (1.0 + mu * mu) / (static_cast<double>(condim - 1) * m->opt.impratio);
-    }
+    double g = 1.0;
+    if (condim > 1 && m->opt.cone == mjCONE_PYRAMIDAL)
+      g = mu * mu * (1.0 + mu * mu) / (static_cast<double>(condim - 1) * m->opt.impratio);
+    const double ratio = kSpringContactAddedMass * g;  // d / (1 - d)
+    const double d = std::clamp(ratio / (1.0 + ratio), mjMINIMP, mjMAXIMP);
     mjtNum* solref = m->geom_solref + mjNREF * index(geom);
-    solref[0] = (*object.solref)[0] * per_unit;
-    solref[1] = (*object.solref)[1] * per_unit;
+    mjtNum* solimp = m->geom_solimp + mjNIMP * index(geom);
+    solref[0] = (*object.solref)[0] * (1.0 - d) * w * g;
+    solref[1] = (*object.solref)[1] * (1.0 - d) * w * g;
+    solimp[0] = solimp[1] = d;
     // The composed document shows what MuJoCo runs.
     if (!changed && document.Parse(xml_.c_str()) != tinyxml2::XML_SUCCESS) continue;
     changed = true;
-    const std::string text = fmt::format("{} {}", solref[0], solref[1]);
     std::vector<tinyxml2::XMLElement*> stack{document.RootElement()};
     while (!stack.empty()) {
       tinyxml2::XMLElement* e = stack.back();
       stack.pop_back();
       const char* name = e->Attribute("name");
       if (std::string_view(e->Name()) == "geom" && name != nullptr && object.name == name) {
-        e->SetAttribute("solref", text.c_str());
+        e->SetAttribute("solref", fmt::format("{} {}", solref[0], solref[1]).c_str());
+        e->SetAttribute("solimp", fmt::format("{} {} {} {} {}", solimp[0], solimp[1], solimp[2],
+                                              solimp[3], solimp[4])
+                                      .c_str());
         e->InsertNewComment(fmt::format(" solref: {} N/m, {} N s/m (scene {}), in MuJoCo's "
                                         "per-unit-mass form ",
                                         -(*object.solref)[0], -(*object.solref)[1],

@@ -29,9 +29,10 @@
 ///
 /// Contacts: objects collide as the scene file says (scene.hpp: `contact`, `solref`,
 /// `friction`); a stiffness solref [N/m, N s/m] is converted at construction into MuJoCo's
-/// per-unit-mass form so that the static contact force is stiffness * penetration against a fixed
-/// body (the conversion uses MuJoCo's own approximation of the contact's inverse mass,
-/// body_invweight0, the friction cone, the contact dimension and impratio).
+/// per-unit-mass form (solref and a constant solimp) so that the static contact force is
+/// stiffness * penetration against a fixed body (the conversion uses MuJoCo's own approximation of
+/// the contact's inverse mass, body_invweight0, the friction cone, the contact dimension and
+/// impratio), with kSpringContactAddedMass.
 ///
 /// Real time: set_targets, set_velocity_feed_forward, step, solve_constraint_forces, every read (`time`, `actuator_*`,
 /// `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`) and `reset` neither allocate
@@ -95,6 +96,11 @@ class CellWorld {
  public:
   /// A closed kinematic loop opening by more than this is a fault [m or rad].
   static constexpr double kLoopOpenFault = sim::kLoopOpenFault;
+  /// A contact with a stiffness solref (N/m) adds this many times the body's own mass (MuJoCo's
+  /// mean inverse weight at qpos0) as inertia along the contact normal: MuJoCo's soft contacts
+  /// regularise the constraint with R, which acts like an added mass 1 / R. 1 keeps the contact
+  /// close to a plain spring-damper on the body and the semi-implicit step stable.
+  static constexpr double kSpringContactAddedMass = 1.0;
 
   /// Composes the scene (compose_scene), loads it into MuJoCo, closes every robot's kinematic
   /// loops at its power-on pose and resets to that state.

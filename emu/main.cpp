@@ -2,13 +2,16 @@
 // robots, the conveyor, objects); every axis appears on its CAN bus as an emulated CiA 402 drive
 // (include/mrroc/can/cia402_drive.hpp), so that an EDP with the `can` plugin cannot tell it from
 // real drives. Runs in real time, or lock-step (physics advances with the masters' SYNCs, as
-// fast as they come). Faults can be injected (emu/faults.hpp). docs/hil.md.
+// fast as they come). Faults can be injected (emu/faults.hpp). The scene's raw sensors (strain
+// gauges, range finders, encoders, an emulated camera: emu/sensors.hpp) are sampled from the
+// physics and published on LCM for the VSPs. docs/hil.md.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <pthread.h>
 #include <sched.h>
 #include <linux/can/error.h>
 #include <sys/prctl.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -26,6 +29,7 @@
 #include "cell_world.hpp"
 #include "drives.hpp"
 #include "faults.hpp"
+#include "sensors.hpp"
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_drive.hpp"
@@ -34,6 +38,7 @@
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "mrroc/core/time.hpp"
 
 namespace {
 
@@ -88,8 +93,8 @@ struct Scheduled {
 
 class Emulator {
  public:
-  Emulator(const Options& options, Reporter* reporter)
-      : options_(options), reporter_(reporter), world_(options.scene) {}
+  Emulator(const Options& options, Reporter* reporter, comm::Bus* lcm)
+      : options_(options), reporter_(reporter), lcm_(lcm), world_(options.scene) {}
 
   void setup() {
     const std::vector<emu::RobotDrives> wiring =
@@ -158,6 +163,7 @@ class Emulator {
       }
       schedule_.push_back(s);
     }
+    setup_sensors();
     // Power on every drive where its axis is.
     for (std::size_t k = 0; k < robots_.size(); ++k) {
       sample(k);
@@ -173,8 +179,42 @@ class Emulator {
   }
 
   [[nodiscard]] std::uint64_t steps() const { return steps_; }
+  [[nodiscard]] std::uint64_t samples_published() const {
+    return publisher_ ? publisher_->published() : 0;
+  }
 
  private:
+  /// The scene's raw sensor devices, published on LCM (without LCM they are only sampled).
+  void setup_sensors() {
+    sensors_ = std::make_unique<emu::SensorDevices>(options_.scene, world_);
+    for (std::size_t i = 0; i < sensors_->size(); ++i)
+      std::cout << "mrroc-axis-emu: " << sensors_->describe(i) << "\n";
+    if (sensors_->size() == 0) return;
+    if (lcm_ == nullptr) {
+      report_warning(fmt::format("{} raw sensor device(s) without LCM: their samples are not "
+                                 "published",
+                                 sensors_->size()));
+      return;
+    }
+    publisher_ = std::make_unique<emu::RawSamplePublisher>(
+        lcm_->lcm(), *sensors_, "emu#" + std::to_string(::getpid()));
+  }
+
+  /// After a physics step: the samples that are due, published.
+  void sample_sensors() {
+    if (sensors_->size() == 0) return;
+    const std::int64_t now = now_utime();
+    for (const std::size_t i : sensors_->update(world_, now)) {
+      if (publisher_ && !publisher_->publish(i, sensors_->sample(i), now) &&
+          !publish_failure_reported_) {
+        publish_failure_reported_ = true;
+        report_warning(fmt::format("sensor '{}': LCM refused a raw sample (further failures are "
+                                   "only counted)",
+                                   sensors_->config(i).name));
+      }
+    }
+  }
+
   can::AxisSample axis_sample(std::size_t k, std::size_t i) const {
     const RobotRun& r = robots_[k];
     return {r.position[i], r.velocity[i], r.force[i], world_.synchro_switch(k, i)};
@@ -242,6 +282,7 @@ class Emulator {
       }
     }
     inject_due_faults(now);
+    sample_sensors();
   }
 
   void watch(Drive& d) {
@@ -355,7 +396,11 @@ class Emulator {
 
   Options options_;
   Reporter* reporter_;
+  comm::Bus* lcm_;
   emu::CellWorld world_;
+  std::unique_ptr<emu::SensorDevices> sensors_;
+  std::unique_ptr<emu::RawSamplePublisher> publisher_;
+  bool publish_failure_reported_ = false;
   std::vector<std::unique_ptr<Port>> ports_;
   std::vector<std::unique_ptr<Drive>> drives_;
   std::vector<RobotRun> robots_;
@@ -458,7 +503,7 @@ int main(int argc, char** argv) {
                  e.what());
   }
   try {
-    Emulator emulator(options, reporter.get());
+    Emulator emulator(options, reporter.get(), lcm.get());
     emulator.setup();
     std::cout << "mrroc-axis-emu: " << lock_memory() << "; "
               << (options.lock_step ? "lock-step" : "real time") << "\n"
@@ -470,7 +515,9 @@ int main(int argc, char** argv) {
     }
     real_time_priority();
     emulator.run();
-    std::cout << fmt::format("mrroc-axis-emu: stopped after {} physics steps\n", emulator.steps());
+    std::cout << fmt::format("mrroc-axis-emu: stopped after {} physics steps, {} raw sensor "
+                             "samples published\n",
+                             emulator.steps(), emulator.samples_published());
     if (reporter) reporter->set_state(ProcessState::finished);
     return 0;
   } catch (const ConfigError& e) {

@@ -829,14 +829,9 @@ class SceneComposer {
     }
     if (object.solref || !object.friction.empty()) geom->SetAttribute("priority", 1);
     if (object.solref) {
+      // A stiffness solref is converted to MuJoCo's form by CellWorld (it needs the model).
       geom->SetAttribute("solref",
                          fmt::format("{} {}", (*object.solref)[0], (*object.solref)[1]).c_str());
-      if (object.spring_contact()) {
-        // Converted to MuJoCo's form by CellWorld, which needs the compiled model.
-        geom->SetAttribute("solimp", fmt::format("{} {} 0.001 0.5 2", kSpringContactImpedance,
-                                                 kSpringContactImpedance)
-                                         .c_str());
-      }
     }
     if (!object.friction.empty()) {
       std::string friction;

@@ -111,10 +111,6 @@ struct SceneObject {
   [[nodiscard]] bool spring_contact() const noexcept { return solref && (*solref)[0] < 0.0; }
 };
 
-/// Constant impedance (MuJoCo solimp d) of contacts of objects with a stiffness solref:
-/// solimp = (d, d, 0.001, 0.5, 2). With a constant d the static contact force does not depend on
-/// the penetration depth other than linearly.
-inline constexpr double kSpringContactImpedance = 0.9;
 
 struct Scene {
   std::filesystem::path file;
@@ -177,8 +173,8 @@ struct ComposedScene {
 /// MuJoCo's defaults, so they collide with the floor and with each other, unless `contact` is
 /// false); a free object has a free joint of the same name. An object's `solref`, `friction`
 /// become its geom's, with priority="1"; a stiffness solref is written as given (negative N/m,
-/// N s/m) with solimp (kSpringContactImpedance ...): CellWorld converts it to MuJoCo's form after
-/// compiling, in the model and in its composed_xml().
+/// N s/m): CellWorld converts it to MuJoCo's form and sets its solimp after compiling, in the
+/// model and in its composed_xml().
 /// @throws ConfigError "scene:line: error: robot 'x': ..." naming the robot's file and the problem
 ///   (a file that MuJoCo cannot load alone, disagreeing <compiler>/<option>, an unsupported
 ///   element such as <include> or <composite>, a missing parameters.toml, an `attach` naming no

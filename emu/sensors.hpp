@@ -65,7 +65,7 @@
 #include "cell_world.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/vsp/reading.hpp"
-#include "raw_sensor_t.hpp"
+#include "mrroc_lcm/raw_sensor_t.hpp"
 
 namespace mrroc::emu {
 

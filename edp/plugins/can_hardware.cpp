@@ -9,7 +9,7 @@
 ///     axis coordinates (the motors' side of the transmission, a = M q).
 ///   - `bitrate` (number, bit/s, default 1000000): the bus' bit rate, for the bus-load check.
 ///   - `following_error_window` (number, rad, default 0.05) and `following_error_timeout_ms`
-///     (integer, default 10): the drives' following-error monitor.
+///     (integer, default 50): the drives' following-error monitor.
 ///   - `silent_cycles` (integer, default 10): cycles without an answer before a drive is lost.
 ///   - `bring_up_timeout_s` (number, default 5).
 ///   - `heartbeat_ms` (integer, default 100).
@@ -74,7 +74,7 @@ class CanHardware final : public Hardware {
     const double counts = params.get_double("counts_per_unit", 100000.0);
     const double bitrate = params.get_double("bitrate", 1e6);
     const double window = params.get_double("following_error_window", 0.05);
-    const std::int64_t window_ms = params.get_int("following_error_timeout_ms", 10);
+    const std::int64_t window_ms = params.get_int("following_error_timeout_ms", 50);
     const std::int64_t silent = params.get_int("silent_cycles", 10);
     const double timeout_s = params.get_double("bring_up_timeout_s", 5.0);
     const std::int64_t heartbeat = params.get_int("heartbeat_ms", 100);

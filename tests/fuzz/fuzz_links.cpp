@@ -71,7 +71,7 @@ std::optional<Msg> lcm_decode(const std::string& bytes) {
   return m;
 }
 
-/// One server side of a link (EDP or ECP) plus what it has queued so far.
+/// One server side of a link (EDP, ECP or VSP) plus what it has queued so far.
 template <class PlainServer, class LcmReq, class PlainRep>
 struct ServerSide {
   PlainServer server;

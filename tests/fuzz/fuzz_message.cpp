@@ -173,13 +173,13 @@ std::string canonical(const mrroc::vsp::RawSample& v, bool wire) {
                      strs(v.names, wire), strs(v.units, wire));
 }
 
-// ---- Enumerators a decoded value may hold must have names. ----
+// ---- What a decoded value holds: named enumerators, consistent vectors. ----
 
 void expect_named(mrroc::edp::ArmRepresentation r, const char* field) {
   fuzz::expect(std::strcmp(mrroc::edp::to_string(r), "?") != 0,
                fmt::format("decoded {} holds the unnamed value {}", field, code(r)));
 }
-void check_enums(const mrroc::edp::Instruction& v) {
+void check_decoded(const mrroc::edp::Instruction& v) {
   fuzz::expect(std::strcmp(mrroc::edp::to_string(v.type), "?") != 0,
                fmt::format("decoded instruction type {} has no name", code(v.type)));
   expect_named(v.set_arm_type, "set_arm_type");
@@ -192,7 +192,7 @@ void check_enums(const mrroc::edp::Instruction& v) {
   fuzz::expect(v.servo_algorithm.size() == v.servo_parameters_no.size(),
                "decoded servo vectors differ in length");
 }
-void check_enums(const mrroc::edp::Reply& v) {
+void check_decoded(const mrroc::edp::Reply& v) {
   fuzz::expect(code(v.type) >= 1 && code(v.type) <= 3,
                fmt::format("decoded reply type {} is unknown", code(v.type)));
   expect_named(v.arm_type, "arm_type");
@@ -201,7 +201,7 @@ void check_enums(const mrroc::edp::Reply& v) {
       v.desired_joints.size() == v.joints.size() && v.joint_velocities.size() == v.joints.size(),
       "decoded joint vectors differ in length");
 }
-void check_enums(const mrroc::ecp::MpCommand& v) {
+void check_decoded(const mrroc::ecp::MpCommand& v) {
   fuzz::expect(std::strcmp(mrroc::ecp::to_string(v.type), "?") != 0,
                fmt::format("decoded MP command {} has no name", code(v.type)));
   expect_named(v.arm_type, "arm_type");
@@ -209,7 +209,7 @@ void check_enums(const mrroc::ecp::MpCommand& v) {
                    v.motion_type == mrroc::edp::MotionType::relative,
                "decoded motion_type is neither absolute nor relative");
 }
-void check_enums(const mrroc::ecp::EcpReply& v) {
+void check_decoded(const mrroc::ecp::EcpReply& v) {
   fuzz::expect(code(v.type) >= 1 && code(v.type) <= 3,
                fmt::format("decoded ECP reply type {} is unknown", code(v.type)));
   fuzz::expect(code(v.error_class) >= 0 && code(v.error_class) <= 3,
@@ -229,17 +229,17 @@ void check_sensor_values(const std::vector<double>& values, const std::vector<st
     for (const double v : values)
       fuzz::expect(std::isfinite(v), fmt::format("decoded valid {} holds {}", what, v));
 }
-void check_enums(const mrroc::vsp::Request& v) {
+void check_decoded(const mrroc::vsp::Request& v) {
   fuzz::expect(std::strcmp(mrroc::vsp::to_string(v.command), "?") != 0,
                fmt::format("decoded VSP command {} has no name", code(v.command)));
 }
-void check_enums(const mrroc::vsp::Reply& v) {
+void check_decoded(const mrroc::vsp::Reply& v) {
   fuzz::expect(code(v.kind) >= 0 && code(v.kind) <= 2,
                fmt::format("decoded VSP reply kind {} is unknown", code(v.kind)));
   check_sensor_values(v.reading.values, v.reading.names, v.reading.units, v.reading.valid,
                       "reading");
 }
-void check_enums(const mrroc::vsp::RawSample& v) {
+void check_decoded(const mrroc::vsp::RawSample& v) {
   fuzz::expect(!v.device.empty(), "decoded raw sample without a device name");
   check_sensor_values(v.values, v.names, v.units, v.valid, "raw sample");
 }
@@ -307,7 +307,7 @@ void check_lcm_round_trip(const Msg& msg, const std::uint8_t* data, std::size_t 
   fuzz::expect(twice == encoded, "a re-encoded message does not encode to itself");
 }
 
-// ---- Codec level (the four link messages). ----
+// ---- Codec level (the types comm::decode converts). ----
 
 template <class Msg>
 void check_codec(const Msg& msg) {
@@ -324,7 +324,7 @@ void check_codec(const Msg& msg) {
                      fmt::format("DecodeError does not name the field: {}", escaped(text)));
       });
   if (!plain) return;
-  check_enums(*plain);
+  check_decoded(*plain);
   const std::string expected = canonical(*plain, false);
 
   Msg encoded;

@@ -337,7 +337,7 @@ void CellWorld::solve_constraint_forces() noexcept {
   const mjModel* m = model_.get();
   mjData* d = data_.get();
   // The first half of mj_step2 without the integration: the next step() recomputes the same
-  // from the same inputs (the warm start is only saved by the integrator).
+  // from the same inputs (only the solver's warm start changes, to round-off).
   apply_feed_forward();
   mj_fwdActuation(m, d);
   mj_fwdAcceleration(m, d);

@@ -34,9 +34,10 @@
 /// the contact's inverse mass, body_invweight0, the friction cone, the contact dimension and
 /// impratio), with kSpringContactAddedMass.
 ///
-/// Real time: set_targets, set_velocity_feed_forward, step, solve_constraint_forces, every read (`time`, `actuator_*`,
-/// `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`) and `reset` neither allocate
-/// nor throw. A CellWorld is not thread-safe: call it from one thread (or guard it).
+/// Real time: set_targets, set_velocity_feed_forward, step, solve_constraint_forces, every read
+/// (`time`, `actuator_*`, `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`) and
+/// `reset` neither allocate nor throw. A CellWorld is not thread-safe: call it from one thread (or
+/// guard it).
 
 #include <array>
 #include <cstddef>
@@ -153,8 +154,9 @@ class CellWorld {
   /// Solves the constraint forces (contacts, joint limits, loops) of the current state, so that
   /// data()'s efc_force and mj_contactForce() belong to its current contacts (d->contact). step()
   /// ends with the new state's positions and contacts but leaves the forces solved for the
-  /// previous state, in the previous constraint layout. Changes no state: the next step()
-  /// solves the same again. Does nothing while faulted.
+  /// previous state, in the previous constraint layout. Changes no state (the next step()
+  /// solves the same again; its result changes by round-off through the solver's warm start).
+  /// Does nothing while faulted.
   void solve_constraint_forces() noexcept;
   /// Back to the power-on state: time 0, every robot at its power-on pose with closed loops and
   /// targets there, velocity feed-forward 0, objects at their initial poses, fault cleared.

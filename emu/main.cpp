@@ -29,7 +29,6 @@
 #include "cell_world.hpp"
 #include "drives.hpp"
 #include "faults.hpp"
-#include "sensors.hpp"
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_drive.hpp"
@@ -39,6 +38,7 @@
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
 #include "mrroc/core/time.hpp"
+#include "sensors.hpp"
 
 namespace {
 
@@ -191,13 +191,12 @@ class Emulator {
       std::cout << "mrroc-axis-emu: " << sensors_->describe(i) << "\n";
     if (sensors_->size() == 0) return;
     if (lcm_ == nullptr) {
-      report_warning(fmt::format("{} raw sensor device(s) without LCM: their samples are not "
-                                 "published",
-                                 sensors_->size()));
+      const std::size_t n = sensors_->size();
+      report_warning(fmt::format("no LCM: {} raw sensor device(s) sampled, not published", n));
       return;
     }
-    publisher_ = std::make_unique<emu::RawSamplePublisher>(
-        lcm_->lcm(), *sensors_, "emu#" + std::to_string(::getpid()));
+    publisher_ = std::make_unique<emu::RawSamplePublisher>(lcm_->lcm(), *sensors_,
+                                                           "emu#" + std::to_string(::getpid()));
   }
 
   /// After a physics step: the samples that are due, published.
@@ -208,9 +207,8 @@ class Emulator {
       if (publisher_ && !publisher_->publish(i, sensors_->sample(i), now) &&
           !publish_failure_reported_) {
         publish_failure_reported_ = true;
-        report_warning(fmt::format("sensor '{}': LCM refused a raw sample (further failures are "
-                                   "only counted)",
-                                   sensors_->config(i).name));
+        const std::string& name = sensors_->config(i).name;
+        report_warning(fmt::format("sensor '{}': LCM refused a raw sample (and maybe more)", name));
       }
     }
   }
@@ -515,8 +513,7 @@ int main(int argc, char** argv) {
     }
     real_time_priority();
     emulator.run();
-    std::cout << fmt::format("mrroc-axis-emu: stopped after {} physics steps, {} raw sensor "
-                             "samples published\n",
+    std::cout << fmt::format("mrroc-axis-emu: stopped after {} physics steps, {} raw samples\n",
                              emulator.steps(), emulator.samples_published());
     if (reporter) reporter->set_state(ProcessState::finished);
     return 0;

@@ -184,8 +184,9 @@ SceneRobot read_robot(const fs::path& file, const toml::table& table) {
 /// `contact`, `solref` and `friction` of an object (see scene.hpp).
 void read_contact(const TableReader& r, SceneObject& object) {
   object.contact = r.flag("contact").value_or(true);
-  if (const auto solref = r.fixed<2>("solref", "[timeconst, dampratio] (s, 1; both positive) or "
-                                               "[-stiffness, -damping] (N/m, N s/m; negative)")) {
+  if (const auto solref = r.fixed<2>("solref",
+                                     "[timeconst, dampratio] (s, 1; both positive) or "
+                                     "[-stiffness, -damping] (N/m, N s/m; negative)")) {
     const toml::node& node = *r.find("solref");
     const auto [a, b] = *solref;
     if (a > 0.0 && b > 0.0) {
@@ -197,10 +198,11 @@ void read_contact(const TableReader& r, SceneObject& object) {
                                  a, b, -a, -b));
       }
     } else {
-      r.fail(node, fmt::format("'solref' = [{}, {}] mixes MuJoCo's two forms: give [timeconst, "
-                               "dampratio] (both > 0, s and 1) or [-stiffness, -damping] (stiffness "
-                               "> 0 N/m, damping >= 0 N s/m, both negated)",
-                               a, b));
+      r.fail(node,
+             fmt::format("'solref' = [{}, {}] mixes MuJoCo's two forms: give [timeconst, "
+                         "dampratio] (both > 0, s and 1) or [-stiffness, -damping] (stiffness "
+                         "> 0 N/m, damping >= 0 N s/m, both negated)",
+                         a, b));
     }
     object.solref = solref;
     object.solref_where = r.at(node);
@@ -218,8 +220,9 @@ void read_contact(const TableReader& r, SceneObject& object) {
         r.fail(node, fmt::format("'friction' value {} is outside 0 .. 10", f));
     }
     if (!((*friction)[0] > 0.0)) {
-      r.fail(node, "'friction' sliding coefficient must be > 0 (MuJoCo's pyramidal friction cone "
-                   "needs it; frictionless contacts are not supported)");
+      r.fail(node,
+             "'friction' sliding coefficient must be > 0 (MuJoCo's pyramidal friction cone "
+             "needs it; frictionless contacts are not supported)");
     }
     object.friction = *friction;
   }

@@ -56,6 +56,9 @@
 /// solimp: the mean), so do not let objects with the two solref forms touch.
 /// `solref` and `friction` are refused with `contact = false`; the sliding friction must be > 0.
 ///
+///     [[scene.sensor]]                # optional: raw sensor devices, read by the emulator
+///                                     #   (emu/sensors.hpp), not by load_scene()
+///
 /// The base pose uses the same convention as `[[robot]] base` of process-set configs (position
 /// and rotation vector of the robot's base frame in the cell). Robot and object names must be
 /// unique, non-empty, without '/' or spaces, and other than "world", "floor" and "light" (the
@@ -98,8 +101,8 @@ struct SceneObject {
   std::array<double, 3> rotation{};  ///< rotation vector [rad]
   double mass = 0.0;                 ///< [kg]
   std::array<double, 4> rgba = {0.8, 0.3, 0.2, 1.0};
-  std::string attach;    ///< body it is fixed to; empty: a free body
-  bool contact = true;   ///< false: contype = conaffinity = 0 (visual only)
+  std::string attach;   ///< body it is fixed to; empty: a free body
+  bool contact = true;  ///< false: contype = conaffinity = 0 (visual only)
   /// Contact softness as given: [timeconst s, dampratio] (positive) or [-stiffness N/m,
   /// -damping N s/m] (negative; see the file comment); none: MuJoCo's default.
   std::optional<std::array<double, 2>> solref;
@@ -110,7 +113,6 @@ struct SceneObject {
   /// True when `solref` is the stiffness form (negative numbers).
   [[nodiscard]] bool spring_contact() const noexcept { return solref && (*solref)[0] < 0.0; }
 };
-
 
 struct Scene {
   std::filesystem::path file;

@@ -4,10 +4,10 @@
 
 #include <fmt/format.h>
 
-#include <algorithm>
-#include <cmath>
 #include <toml++/toml.h>
 #include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
 
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -29,8 +29,7 @@ std::size_t at(int i) { return static_cast<std::size_t>(i); }
 Matrix3 rotation_matrix(const std::array<double, 3>& rotation_vector) {
   const Vector3 v(rotation_vector[0], rotation_vector[1], rotation_vector[2]);
   const double angle = v.norm();
-  return angle > 0.0 ? Eigen::AngleAxisd(angle, v / angle).toRotationMatrix()
-                     : Matrix3::Identity();
+  return angle > 0.0 ? Eigen::AngleAxisd(angle, v / angle).toRotationMatrix() : Matrix3::Identity();
 }
 
 /// FNV-1a: a stable default noise seed from the device name.
@@ -91,8 +90,8 @@ class SensorReader {
     if (node == nullptr) return std::nullopt;
     const double value = number_of(*node, fmt::format("'{}' [{}]", key, unit));
     if (!(value >= min && value <= max)) {
-      fail(*node, fmt::format("'{}' = {} {} is outside {} .. {} {}", key, value, unit, min, max,
-                              unit));
+      fail(*node,
+           fmt::format("'{}' = {} {} is outside {} .. {} {}", key, value, unit, min, max, unit));
     }
     return value;
   }
@@ -129,14 +128,13 @@ class SensorReader {
 };
 
 const std::vector<std::string>& known_keys(SensorType type) {
-  static const std::vector<std::string> gauges = {"name",   "type",     "rate_hz",
-                                                  "noise",  "seed",     "body",
-                                                  "pos",    "rotation", "gauge_matrix",
-                                                  "offset"};
+  static const std::vector<std::string> gauges = {"name",         "type",  "rate_hz", "noise",
+                                                  "seed",         "body",  "pos",     "rotation",
+                                                  "gauge_matrix", "offset"};
   static const std::vector<std::string> range = {"name", "type", "rate_hz",  "noise",    "seed",
                                                  "body", "pos",  "rotation", "max_range"};
-  static const std::vector<std::string> encoder = {"name",  "type", "rate_hz",
-                                                   "noise", "seed", "robot", "axis"};
+  static const std::vector<std::string> encoder = {"name", "type",  "rate_hz", "noise",
+                                                   "seed", "robot", "axis"};
   static const std::vector<std::string> camera = {"name", "type",    "rate_hz", "noise",
                                                   "seed", "objects", "region",  "latency_ms"};
   switch (type) {
@@ -172,9 +170,9 @@ void read_gauges(const SensorReader& r, SensorConfig& c) {
     const char* shape = "6 rows of 6 numbers (V per N or per N m)";
     const toml::array* rows = node->as_array();
     if (rows == nullptr || rows->size() != 6) {
-      r.fail(*node, fmt::format("'gauge_matrix' must be {} ({})", shape,
-                                rows == nullptr ? "not a list"
-                                                : fmt::format("{} rows", rows->size())));
+      r.fail(*node,
+             fmt::format("'gauge_matrix' must be {} ({})", shape,
+                         rows == nullptr ? "not a list" : fmt::format("{} rows", rows->size())));
     }
     for (std::size_t i = 0; i < 6; ++i) {
       const std::vector<double> row =
@@ -219,10 +217,11 @@ void read_encoder(const SensorReader& r, const CellWorld& world, SensorConfig& c
     }
   }
   if (!found) {
-    r.fail(*axis, fmt::format("robot '{}' has no axis {} (axes: {})", info.name,
-                              axis->is_string() ? fmt::format("'{}'", **axis->as_string())
-                                                : fmt::format("{}", axis->value<double>().value_or(-1)),
-                              fmt::join(info.axis_names, ", ")));
+    r.fail(*axis,
+           fmt::format("robot '{}' has no axis {} (axes: {})", info.name,
+                       axis->is_string() ? fmt::format("'{}'", **axis->as_string())
+                                         : fmt::format("{}", axis->value<double>().value_or(-1)),
+                       fmt::join(info.axis_names, ", ")));
   }
 }
 
@@ -338,8 +337,8 @@ std::vector<SensorConfig> read_sensor_configs(const fs::path& file, const CellWo
   try {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line,
-                                  e.description()));
+    throw ConfigError(
+        fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
   }
   std::vector<SensorConfig> out;
   const toml::node* node = root["scene"]["sensor"].node();
@@ -531,11 +530,11 @@ std::string SensorDevices::describe(std::size_t i) const {
                          c.name, c.robot, c.axis, devices_[i]->axis_name,
                          devices_[i]->sample.units[0], c.rate_hz, noise, channel);
     case SensorType::camera:
-      return fmt::format("sensor '{}': emulated pose camera for {}, region x {}..{} y {}..{} z "
-                         "{}..{} m, {} Hz, latency {} ms{} -> {}",
-                         c.name, fmt::join(c.objects, ", "), c.region[0], c.region[1], c.region[2],
-                         c.region[3], c.region[4], c.region[5], c.rate_hz, c.latency_s * 1e3,
-                         noise, channel);
+      return fmt::format(
+          "sensor '{}': emulated pose camera for {}, region x {}..{} y {}..{} z "
+          "{}..{} m, {} Hz, latency {} ms{} -> {}",
+          c.name, fmt::join(c.objects, ", "), c.region[0], c.region[1], c.region[2], c.region[3],
+          c.region[4], c.region[5], c.rate_hz, c.latency_s * 1e3, noise, channel);
   }
   return c.name;
 }
@@ -564,8 +563,8 @@ namespace {
 
 /// The load on the outboard side of a strain-gauge sensor, in its frame (sensors.hpp).
 void measure_wrench(const mjModel* m, const mjData* d, const std::vector<char>& outboard,
-                    const std::vector<int>& weighed, const Matrix3& rotation,
-                    const Vector3& origin, std::array<double, 6>& out) noexcept {
+                    const std::vector<int>& weighed, const Matrix3& rotation, const Vector3& origin,
+                    std::array<double, 6>& out) noexcept {
   Vector3 force = Vector3::Zero();
   Vector3 torque = Vector3::Zero();
   for (int c = 0; c < d->ncon; ++c) {
@@ -604,7 +603,7 @@ void measure_wrench(const mjModel* m, const mjData* d, const std::vector<char>& 
 }  // namespace
 
 std::span<const std::size_t> SensorDevices::update(CellWorld& world,
-                                                  std::int64_t wall_utime) noexcept {
+                                                   std::int64_t wall_utime) noexcept {
   ready_.clear();
   const mjModel* m = world.model();
   const double now = world.time();

@@ -85,20 +85,20 @@ struct SensorConfig {
   std::string name;
   SensorType type = SensorType::strain_gauges;
   double rate_hz = 0.0;
-  double noise = 0.0;       ///< std [V, m or rad]
+  double noise = 0.0;  ///< std [V, m or rad]
   std::uint64_t seed = 0;
-  std::string body;                   ///< strain_gauges, range: mounting body ("world" allowed)
-  std::array<double, 3> position{};   ///< [m] in `body`
-  std::array<double, 3> rotation{};   ///< rotation vector [rad] in `body`
+  std::string body;                  ///< strain_gauges, range: mounting body ("world" allowed)
+  std::array<double, 3> position{};  ///< [m] in `body`
+  std::array<double, 3> rotation{};  ///< rotation vector [rad] in `body`
   GaugeMatrix gauge_matrix = default_gauge_matrix();
-  std::array<double, 6> offset{};     ///< [V]
-  double max_range = 4.0;             ///< [m]
-  std::string robot;                  ///< encoder
-  std::size_t axis = 0;               ///< encoder
-  std::vector<std::string> objects;   ///< camera
-  std::array<double, 6> region{};     ///< camera: xmin xmax ymin ymax zmin zmax [m]
-  double latency_s = 0.05;            ///< camera
-  SourceLocation where;               ///< of the [[scene.sensor]] table
+  std::array<double, 6> offset{};    ///< [V]
+  double max_range = 4.0;            ///< [m]
+  std::string robot;                 ///< encoder
+  std::size_t axis = 0;              ///< encoder
+  std::vector<std::string> objects;  ///< camera
+  std::array<double, 6> region{};    ///< camera: xmin xmax ymin ymax zmin zmax [m]
+  double latency_s = 0.05;           ///< camera
+  SourceLocation where;              ///< of the [[scene.sensor]] table
 };
 
 /// Reads the `[[scene.sensor]]` tables of `scene_file` and checks them against `world` (bodies,

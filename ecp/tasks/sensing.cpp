@@ -38,6 +38,7 @@
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generators/cartesian_path.hpp"
 #include "mrroc/ecp/generators/guarded_move.hpp"
+#include "mrroc/ecp/generators/joint_poses.hpp"
 #include "mrroc/ecp/task.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/kinematics/pose.hpp"
@@ -110,7 +111,8 @@ class Touching : public EcpTask {
     tool_ = Eigen::Isometry3d::Identity();
     tool_.translation() = Eigen::Vector3d(0, 0, tool_length_);
     tip_->set_tool(tool_);
-    down_ = flange_->forward(robot.image().desired_joints).linear();
+    // The probe pointing straight down (tool z = -z of the base), tool x along -x of the base.
+    down_ << -1, 0, 0, 0, 1, 0, 0, 0, -1;
     vsp_ = context_.sensor(sensor_name_);
     wrist_ = std::make_unique<WristSensor>(*vsp_, robot, *flange_);
 
@@ -122,7 +124,11 @@ class Touching : public EcpTask {
     above.linear() = down_;
     above.translation() = start_;
     {
-      CartesianPathGenerator to_start(robot.model(), {CartesianSegment::line_to(above)}, options);
+      // In joint space: a straight line from the synchronisation pose may cross a motor limit.
+      const std::vector<double> q = tip_->inverse(above, robot.image().desired_joints);
+      JointPosesOptions joint_options;
+      joint_options.servo_period_s = context_.servo_period_s;
+      JointPosesGenerator to_start(robot.model(), {q}, joint_options);
       Move(robot, {}, to_start);
     }
     // In free space now: what the sensor feels is the tool's weight and its own offsets.
@@ -349,16 +355,16 @@ class PickWhenSeen : public EcpTask {
     auto kinematics = edp::make_arm_kinematics(robot.model());
     Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
     tool.translation() = Eigen::Vector3d(0, 0, tool_length_);
-    CartesianOptions options;
-    options.tool = tool;
-    options.max_linear_velocity = 0.3;
-    options.servo_period_s = context_.servo_period_s;
     Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
-    target.linear() = kinematics->forward(robot.image().desired_joints).linear();
+    target.linear() << -1, 0, 0, 0, 1, 0, 0, 0, -1;  // the probe pointing straight down
     target.translation() = part - base_ + Eigen::Vector3d(0, 0, above_);
-    CartesianPathGenerator approach(robot.model(), {CartesianSegment::line_to(target)}, options);
-    Move(robot, {}, approach);
     kinematics->set_tool(tool);
+    const std::vector<double> q = kinematics->inverse(target, robot.image().desired_joints);
+    JointPosesOptions joint_options;
+    joint_options.servo_period_s = context_.servo_period_s;
+    joint_options.velocity_scale = 0.8;
+    JointPosesGenerator approach(robot.model(), {q}, joint_options);
+    Move(robot, {}, approach);
     robot.read_state();
     const Eigen::Vector3d tip = kinematics->forward(robot.image().joints).translation() + base_;
     context_.reporter.info(fmt::format("above the part: tip at [{:.4f}, {:.4f}, {:.4f}] m", tip.x(),

@@ -1,6 +1,7 @@
 #include "mrroc/config/process_set.hpp"
 
 #include <fmt/format.h>
+#include <sched.h>
 
 #include <regex>
 #include <set>
@@ -22,6 +23,22 @@ class Reader {
 
   [[noreturn]] void fail(const toml::node& node, const std::string& text) const {
     throw ConfigError(fmt::format("{}: error: {}", where(node).str(), text));
+  }
+
+  enum class Kind { any, folder, file };
+
+  /// Fails at `node` unless `path` exists (as a folder or a regular file, if asked); a path the
+  /// system cannot even look up (name too long, no permission) fails with the system's reason.
+  void require_path(const toml::node& node, const fs::path& path, Kind kind,
+                    const std::string& what) const {
+    std::error_code ec;
+    const fs::file_status status = fs::status(path, ec);
+    if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory)
+      fail(node, fmt::format("{} '{}' cannot be looked up: {}", what, path.string(), ec.message()));
+    const bool found = kind == Kind::folder ? fs::is_directory(status)
+                       : kind == Kind::file ? fs::is_regular_file(status)
+                                            : fs::exists(status);
+    if (!found) fail(node, fmt::format("{} '{}' not found", what, path.string()));
   }
 
   /// Rejects keys of `table` not in `allowed`.
@@ -84,8 +101,9 @@ class Reader {
       const toml::array* arr = cpus->as_array();
       if (arr == nullptr) fail(*cpus, "'cpus' must be a list of CPU numbers");
       for (const auto& c : *arr) {
-        if (!c.is_integer() || c.as_integer()->get() < 0)
-          fail(c, "'cpus' must be a list of CPU numbers (integers >= 0)");
+        if (!c.is_integer() || c.as_integer()->get() < 0 || c.as_integer()->get() >= CPU_SETSIZE)
+          fail(c, fmt::format("'cpus' must be a list of CPU numbers (integers 0..{})",
+                              CPU_SETSIZE - 1));
         o.cpus.push_back(static_cast<int>(c.as_integer()->get()));
       }
     }
@@ -154,8 +172,7 @@ class Reader {
     const std::string lib = string(t, "library", table_name, std::string{});
     if (!lib.empty()) {
       c.library = resolve(lib);
-      if (!fs::exists(c.library))
-        fail(*t.get("library"), fmt::format("task library '{}' not found", c.library.string()));
+      require_path(*t.get("library"), c.library, Kind::any, "task library");
     }
     if (const toml::node* args = t.get("args")) {
       if (!args->is_table()) fail(*args, "'args' must be a table");
@@ -241,8 +258,7 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     EmulatorConfig e;
     e.where = r.where(t);
     e.scene = r.resolve(r.string(t, "scene", "emulator"));
-    if (!fs::is_regular_file(e.scene))
-      r.fail(*t.get("scene"), fmt::format("scene file '{}' not found", e.scene.string()));
+    r.require_path(*t.get("scene"), e.scene, Reader::Kind::file, "scene file");
     if (const toml::node* ls = t.get("lock_step")) {
       if (!ls->is_boolean()) r.fail(*ls, "'lock_step' must be true or false");
       e.lock_step = **ls->as_boolean();
@@ -279,9 +295,7 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
       v.plugin = r.string(t, "plugin", "vsp");
       if (const std::string lib = r.string(t, "library", "vsp", std::string{}); !lib.empty()) {
         v.library = r.resolve(lib);
-        if (!fs::exists(v.library))
-          r.fail(*t.get("library"),
-                 fmt::format("sensor plugin library '{}' not found", v.library.string()));
+        r.require_path(*t.get("library"), v.library, Reader::Kind::any, "sensor plugin library");
       }
       const toml::node* sources = t.get("sources");
       if (sources == nullptr)
@@ -332,9 +346,7 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     if (!names.insert(robot.name).second)
       r.fail(*t.get("name"), fmt::format("robot name '{}' is used twice", robot.name));
     robot.model_dir = r.resolve(r.string(t, "model", "robot"));
-    if (!fs::is_directory(robot.model_dir))
-      r.fail(*t.get("model"),
-             fmt::format("robot model folder '{}' not found", robot.model_dir.string()));
+    r.require_path(*t.get("model"), robot.model_dir, Reader::Kind::folder, "robot model folder");
 
     if (const toml::node* base = t.get("base")) {
       const toml::array* values = base->as_array();
@@ -350,9 +362,8 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
     if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{}); !lib.empty()) {
       robot.edp.library = r.resolve(lib);
-      if (!fs::exists(robot.edp.library))
-        r.fail(*edp.get("library"),
-               fmt::format("hardware plugin library '{}' not found", robot.edp.library.string()));
+      r.require_path(*edp.get("library"), robot.edp.library, Reader::Kind::any,
+                     "hardware plugin library");
     }
     robot.edp.servo_period_s = r.number(edp, "servo_period_ms", 2.0, 0.1, 100.0, "ms") / 1000.0;
     if (const toml::node* p = edp.get("params")) {
@@ -376,8 +387,9 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
 }  // namespace
 
 ProcessSetConfig load_process_set(const fs::path& path) {
-  if (!fs::exists(path))
-    throw ConfigError(fmt::format("{}: error: config file not found", path.string()));
+  if (std::error_code ec; !fs::exists(path, ec))
+    throw ConfigError(fmt::format("{}: error: config file not found{}", path.string(),
+                                  ec ? " (" + ec.message() + ")" : std::string{}));
   const fs::path file = fs::absolute(path).lexically_normal();
   toml::table root;
   try {

@@ -36,6 +36,15 @@ void RobotModel::check_joint_limits(const std::vector<double>& q, const char* wh
 
 namespace {
 
+/// fs::exists without exceptions: a path the system cannot even look up (name too long, no
+/// permission) counts as missing; `why` receives the system's reason.
+bool exists(const fs::path& path, std::string& why) {
+  std::error_code ec;
+  const bool found = fs::exists(path, ec);
+  why = ec ? fmt::format(" ({})", ec.message()) : std::string{};
+  return found;
+}
+
 std::vector<double> numbers(const toml::table& t, const char* key, const fs::path& file,
                             std::size_t n) {
   const toml::node* node = t.get(key);
@@ -61,8 +70,9 @@ std::vector<double> numbers(const toml::table& t, const char* key, const fs::pat
 
 RobotModel load_robot_model(const fs::path& folder) {
   const fs::path file = folder / "parameters.toml";
-  if (!fs::exists(file))
-    throw ConfigError(fmt::format("{}: error: robot parameters file not found", file.string()));
+  if (std::string why; !exists(file, why))
+    throw ConfigError(
+        fmt::format("{}: error: robot parameters file not found{}", file.string(), why));
   toml::table root;
   try {
     root = toml::parse_file(file.string());
@@ -102,9 +112,10 @@ RobotModel load_robot_model(const fs::path& folder) {
           throw ConfigError(fmt::format("{}:{}: error: 'models' must be a list of URDF file names",
                                         file.string(), entry.source().begin.line));
         const fs::path path = folder / *name;
-        if (!fs::exists(path))
-          throw ConfigError(fmt::format("{}:{}: error: kinematic model file '{}' not found",
-                                        file.string(), entry.source().begin.line, path.string()));
+        if (std::string why; !exists(path, why))
+          throw ConfigError(fmt::format("{}:{}: error: kinematic model file '{}' not found{}",
+                                        file.string(), entry.source().begin.line, path.string(),
+                                        why));
         m.kinematic_models.push_back(path);
       }
     }
@@ -149,8 +160,8 @@ RobotModel load_robot_model(const fs::path& folder) {
       }
     }
   }
-  if (!fs::exists(m.urdf))
-    throw ConfigError(fmt::format("{}: error: URDF file not found", m.urdf.string()));
+  if (std::string why; !exists(m.urdf, why))
+    throw ConfigError(fmt::format("{}: error: URDF file not found{}", m.urdf.string(), why));
   urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDFFile(m.urdf.string());
   if (!urdf)
     throw ConfigError(fmt::format("{}: error: the URDF does not parse", m.urdf.string()));

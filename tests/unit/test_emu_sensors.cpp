@@ -19,8 +19,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <lcm/lcm-cpp.hpp>
 #include <mujoco/mujoco.h>
+#include <lcm/lcm-cpp.hpp>
 
 #include "cell_world.hpp"
 #include "mrroc/comm/codec.hpp"
@@ -64,12 +64,12 @@ using mrroc::emu::SensorDevices;
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kGravity = 9.81;
-constexpr double kProbeMass = 0.5;        // kg (sensing.toml)
-constexpr double kProbeRadius = 0.02;     // m
-constexpr double kProbeReach = 0.15;      // m, sphere centre from the flange along its z axis
-constexpr double kTableTop = 0.40;        // m
-constexpr double kTouchX = 0.75;          // m
-constexpr double kStiffness = 20000.0;    // N/m
+constexpr double kProbeMass = 0.5;      // kg (sensing.toml)
+constexpr double kProbeRadius = 0.02;   // m
+constexpr double kProbeReach = 0.15;    // m, sphere centre from the flange along its z axis
+constexpr double kTableTop = 0.40;      // m
+constexpr double kTouchX = 0.75;        // m
+constexpr double kStiffness = 20000.0;  // N/m
 constexpr std::int64_t kEpochUtime = 1'700'000'000'000'000;  // the tests' wall clock at t = 0
 
 fs::path scene_file(const char* name) {
@@ -172,13 +172,14 @@ std::string config_error(F&& f) {
 
 TEST(EmuSensors, ProbeHangingAboveTheTableWeighsItsMassInTheSensorFrame) {
   const irb6::JointPosition q = probe_pose(0.01);
-  std::printf("  probe 1 cm above the table: q = (%.4f, %.4f, %.4f, %.4f, %.4f) rad\n", q[0],
-              q[1], q[2], q[3], q[4]);
+  std::printf("  probe 1 cm above the table: q = (%.4f, %.4f, %.4f, %.4f, %.4f) rad\n", q[0], q[1],
+              q[2], q[3], q[4]);
   CellWorld world(sensing_scene(q));
   ASSERT_FALSE(world.robot(0).coupled);
   SensorDevices sensors(scene_file("sensing.toml"), world);
   ASSERT_EQ(sensors.size(), 3U);
-  for (std::size_t i = 0; i < sensors.size(); ++i) std::printf("  %s\n", sensors.describe(i).c_str());
+  for (std::size_t i = 0; i < sensors.size(); ++i)
+    std::printf("  %s\n", sensors.describe(i).c_str());
   run(world, &sensors, 0.5);
 
   const mrroc::emu::FramePose probe = world.body_pose("probe");
@@ -236,10 +237,11 @@ TEST(EmuSensors, PressingTheProbeIntoTheTableGrowsTheForceAtTheSpringsStiffness)
     const std::array<double, 6> w = sensors.wrench(wrist);
     const double normal = weight - w[2];  // the table pushes the probe back along the tool: -z
     const double penetration = probe_penetration(world);
-    std::printf("  commanded %.1f mm: penetration %.4f mm, normal force %.3f N: %.3f N/mm of "
-                "penetration, %.3f N/mm of command; fx %.4f fy %.4f tx %.5f ty %.5f tz %.5f\n",
-                commanded * 1e3, penetration * 1e3, normal, normal / penetration * 1e-3,
-                normal / commanded * 1e-3, w[0], w[1], w[3], w[4], w[5]);
+    std::printf(
+        "  commanded %.1f mm: penetration %.4f mm, normal force %.3f N: %.3f N/mm of "
+        "penetration, %.3f N/mm of command; fx %.4f fy %.4f tx %.5f ty %.5f tz %.5f\n",
+        commanded * 1e3, penetration * 1e3, normal, normal / penetration * 1e-3,
+        normal / commanded * 1e-3, w[0], w[1], w[3], w[4], w[5]);
     // The contact spring exactly; against the command, in series with the arm's servo
     // stiffness (about 270 N/mm along the tool here): 18.6 N/mm.
     EXPECT_NEAR(normal / penetration, kStiffness, 0.001 * kStiffness);
@@ -254,6 +256,25 @@ TEST(EmuSensors, PressingTheProbeIntoTheTableGrowsTheForceAtTheSpringsStiffness)
     EXPECT_NEAR(w[4], -w[0] * (kProbeReach + kProbeRadius), 1e-3 * normal);
     EXPECT_NEAR(w[5], 0.0, 1e-6);
   }
+}
+
+TEST(EmuSensors, SamplingTheGaugesLeavesThePhysicsAsItIs) {
+  // Two worlds pressing the probe into the table, one sampled at 500 Hz (which solves the
+  // constraint forces between steps), one not: the same states (to round-off: the extra solve
+  // changes the solver's warm start).
+  CellWorld sampled(sensing_scene(probe_pose(0.01)));
+  CellWorld plain(sensing_scene(probe_pose(0.01)));
+  SensorDevices sensors(scene_file("sensing.toml"), sampled);
+  ASSERT_TRUE(sampled.set_targets(0, probe_pose(-0.002)));
+  ASSERT_TRUE(plain.set_targets(0, probe_pose(-0.002)));
+  run(sampled, &sensors, 0.5);
+  run(plain, nullptr, 0.5);
+  const mjModel* m = sampled.model();
+  for (int i = 0; i < m->nq; ++i)
+    EXPECT_NEAR(sampled.data()->qpos[i], plain.data()->qpos[i], 1e-12);
+  for (int i = 0; i < m->nv; ++i)
+    EXPECT_NEAR(sampled.data()->qvel[i], plain.data()->qvel[i], 1e-12);
+  EXPECT_GT(probe_penetration(plain), 0.001);
 }
 
 // ---- Conveyor: encoder and camera ----
@@ -399,8 +420,8 @@ TEST(EmuSensors, ConveyorPickIrb6ReachesOverThePartWhereTheCameraSeesIt) {
   EXPECT_LT(part_z, camera.region[5]);
   // A 0.25 m gripper pointing down, its tip 5 cm above the part's top and at its centre, over
   // the whole region along the belt.
-  for (const double x : {camera.region[0], 0.5 * (camera.region[0] + camera.region[1]),
-                         camera.region[1]}) {
+  for (const double x :
+       {camera.region[0], 0.5 * (camera.region[0] + camera.region[1]), camera.region[1]}) {
     for (const double tip : {part_z + 0.03 + 0.05, part_z}) {
       Eigen::Isometry3d flange = Eigen::Isometry3d::Identity();
       flange.linear() = (Eigen::AngleAxisd(std::atan2(part_y, x), Eigen::Vector3d::UnitZ()) *
@@ -496,8 +517,8 @@ TEST(EmuSensors, ObjectContactKeysReachTheModel) {
   EXPECT_NE(world.composed_xml().find("solref: 20000 N/m, 400 N s/m"), std::string::npos);
 
   ScratchDir dir;
-  const std::string head = "[scene]\n[[scene.robot]]\nname = \"irb6\"\nmodel = \"" MRROC_SOURCE_DIR
-                           "/robots/irb6\"\n";
+  const std::string head =
+      "[scene]\n[[scene.robot]]\nname = \"irb6\"\nmodel = \"" MRROC_SOURCE_DIR "/robots/irb6\"\n";
   const fs::path ghost = dir.write("ghost.toml", head +
                                                      "[[scene.object]]\nname = \"ghost\"\ntype = "
                                                      "\"sphere\"\nsize = [0.1]\npos = [1, 0, "
@@ -514,11 +535,13 @@ TEST(EmuSensors, ObjectContactKeysReachTheModel) {
                                         keys);
   };
   // Line 11 is the first key after `mass`.
-  EXPECT_NE(config_error([&] { (void)mrroc::emu::load_scene(object("solref = [0.02, -1]\n")); })
-                .find("object.toml:11: error: 'solref' = [0.02, -1] mixes MuJoCo's two forms"),
+  EXPECT_NE(config_error([&] {
+              (void)mrroc::emu::load_scene(object("solref = [0.02, -1]\n"));
+            }).find("object.toml:11: error: 'solref' = [0.02, -1] mixes MuJoCo's two forms"),
             std::string::npos);
-  EXPECT_NE(config_error([&] { (void)mrroc::emu::load_scene(object("friction = [0.0]\n")); })
-                .find("object.toml:11: error: 'friction' sliding coefficient must be > 0"),
+  EXPECT_NE(config_error([&] {
+              (void)mrroc::emu::load_scene(object("friction = [0.0]\n"));
+            }).find("object.toml:11: error: 'friction' sliding coefficient must be > 0"),
             std::string::npos);
   EXPECT_NE(config_error([&] {
               (void)mrroc::emu::load_scene(object("friction = [1, 0.1, 0.1, 0.1]\n"));
@@ -526,8 +549,9 @@ TEST(EmuSensors, ObjectContactKeysReachTheModel) {
             std::string::npos);
   EXPECT_NE(config_error([&] {
               (void)mrroc::emu::load_scene(object("contact = false\nsolref = [-1000, -10]\n"));
-            }).find("object.toml:12: error: 'solref' has no effect on object 'thing' with "
-                    "contact = false"),
+            })
+                .find("object.toml:12: error: 'solref' has no effect on object 'thing' with "
+                      "contact = false"),
             std::string::npos);
   EXPECT_NE(config_error([&] {
               (void)CellWorld(object("attach = \"world\"\nsolref = [-1000, -10]\n"));
@@ -547,15 +571,16 @@ TEST(EmuSensors, ObjectContactKeysReachTheModel) {
 TEST(EmuSensors, ConfigErrorsNameTheFileLineAndDevice) {
   ScratchDir dir;
   const std::string head =
-      "[scene]\n"                                         // 1
-      "[[scene.robot]]\n"                                 // 2
-      "name = \"irb6\"\n"                                 // 3
-      "model = \"" MRROC_SOURCE_DIR "/robots/irb6\"\n"    // 4
-      "[[scene.sensor]]\n"                                // 5
-      "name = \"s\"\n";                                   // 6
-  CellWorld world(
-      dir.write("world.toml", "[scene]\n[[scene.robot]]\nname = \"irb6\"\nmodel = \"" MRROC_SOURCE_DIR
-                              "/robots/irb6\"\n"));
+      "[scene]\n"          // 1
+      "[[scene.robot]]\n"  // 2
+      "name = \"irb6\"\n"  // 3
+      "model = \"" MRROC_SOURCE_DIR
+      "/robots/irb6\"\n"    // 4
+      "[[scene.sensor]]\n"  // 5
+      "name = \"s\"\n";     // 6
+  CellWorld world(dir.write("world.toml",
+                            "[scene]\n[[scene.robot]]\nname = \"irb6\"\nmodel = \"" MRROC_SOURCE_DIR
+                            "/robots/irb6\"\n"));
   const auto error = [&](const std::string& keys) {
     const fs::path file = dir.write("s.toml", head + keys);
     return config_error([&] { (void)SensorDevices(file, world); });
@@ -599,8 +624,9 @@ TEST(EmuSensors, ConfigErrorsNameTheFileLineAndDevice) {
             "type = \"encoder\"\nrobot = \"irb6\"\naxis = 1\n"),
       "s.toml:10: error: duplicate sensor name 's' (first used at ");
   // A device on the world is fine (it sees every geom, the floor included).
-  const fs::path ok = dir.write("ok.toml", head + "type = \"range\"\nbody = \"world\"\npos = [2, "
-                                                  "0, 1]\nrotation = [3.141592653589793, 0, 0]\n");
+  const fs::path ok = dir.write("ok.toml", head +
+                                               "type = \"range\"\nbody = \"world\"\npos = [2, "
+                                               "0, 1]\nrotation = [3.141592653589793, 0, 0]\n");
   SensorDevices on_world(ok, world);
   for (int i = 0; i < 30; ++i) {
     ASSERT_TRUE(world.step());

@@ -31,11 +31,16 @@ inline void dispatched() {
 }
 
 /// Decodes an LCM message from a received buffer after marking the hand-off.
-/// Returns false (and leaves `out` unspecified) when the bytes do not decode.
+/// Returns false (and leaves `out` unspecified) when the bytes do not decode. Never throws: an
+/// exception would leave the LCM handler and end the process (the generated decoders allocate).
 template <class Msg, class Buffer>
-bool decode_received(const Buffer* buffer, Msg& out) {
+bool decode_received(const Buffer* buffer, Msg& out) noexcept {
   dispatched();
-  return out.decode(buffer->data, 0, static_cast<int>(buffer->data_size)) >= 0;
+  try {
+    return out.decode(buffer->data, 0, static_cast<int>(buffer->data_size)) >= 0;
+  } catch (...) {
+    return false;
+  }
 }
 
 }  // namespace mrroc::comm::detail

@@ -23,7 +23,7 @@
 //   stop_within = 0.002 [m] largest travel from first contact to the stop
 // follow_surface also: force = 10 [N] set force, force_tolerance = 3 [N], direction = [1, 0, 0],
 //   length = 0.1 [m], follow_speed = 0.02 [m/s], gain = 2e-5 [m/N per macro-step],
-//   settle = 0.3 [s] (force errors before this are not counted)
+//   settle = 0.6 [s] (force errors before this are not counted), motion_steps = 20 (per macro-step)
 // pick_when_seen: camera = "camera" VSP, region = [xmin, xmax, ymin, ymax] (world, m) where a part
 //   may be picked, above = 0.1 [m] above the part, tool = 0.15, timeout = 30 [s],
 //   base = [x, y, z] the robot's base position in the world (rotation: none) [m].
@@ -219,7 +219,9 @@ class ForceFollowing : public Generator {
 
  private:
   void command(RobotImage& robot, double down) {
-    pose_.translation() += step_ - Eigen::Vector3d(0, 0, down);
+    // The speed along the surface ramps up over the first 25 macro-steps (no jerk at the start).
+    const double ramp = std::min(1.0, static_cast<double>(++done_) / 25.0);
+    pose_.translation() += ramp * step_ - Eigen::Vector3d(0, 0, down);
     edp::Instruction& c = robot.command;
     c = edp::Instruction{};
     c.type = edp::InstructionType::set;
@@ -227,7 +229,9 @@ class ForceFollowing : public Generator {
     c.set_arm_type = edp::ArmRepresentation::frame;
     c.motion_type = edp::MotionType::absolute;
     c.motion_steps = motion_steps_;
-    c.value_in_step_no = motion_steps_ - 1;  // read one step early: seamless macro-steps
+    // Read a quarter of the macro-step early: the next macro-step needs two VSP exchanges and
+    // the EDP's, which one servo period (the paper's minimum) does not always leave time for.
+    c.value_in_step_no = motion_steps_ - motion_steps_ / 4;
     const auto v = kinematics::frame_to_values(pose_);
     c.arm.assign(v.begin(), v.end());
   }
@@ -240,6 +244,7 @@ class ForceFollowing : public Generator {
   int motion_steps_;
   Eigen::Isometry3d tool_;
   std::vector<double> forces_;
+  int done_ = 0;
 };
 
 class FollowSurface : public Touching {
@@ -252,7 +257,11 @@ class FollowSurface : public Touching {
     length_ = positive(a, "length", 0.1, "m");
     follow_speed_ = positive(a, "follow_speed", 0.02, "m/s");
     gain_ = positive(a, "gain", 2e-5, "m/N");
-    settle_ = a.get_double("settle", 0.3);
+    settle_ = a.get_double("settle", 0.6);
+    motion_steps_ = static_cast<int>(a.get_int("motion_steps", 20));
+    if (motion_steps_ < 4 || motion_steps_ > 1000)
+      throw ConfigError(fmt::format("{}: error: 'motion_steps' = {} must be in 4..1000 servo steps",
+                                    a.location_of("motion_steps").str(), motion_steps_));
     a.reject_unread("robot.ecp.args");
     direction_.z() = 0.0;
     if (direction_.norm() < 1e-9)
@@ -264,9 +273,10 @@ class FollowSurface : public Touching {
   void main_task() override {
     const Eigen::Vector3d stop = touch();
     Robot& robot = context_.robot;
-    const int motion_steps = 10;
+    const int motion_steps = motion_steps_;
     const double dt = motion_steps * context_.servo_period_s;
-    const int macro_steps = static_cast<int>(std::ceil(length_ / (follow_speed_ * dt)));
+    // Ramping up costs 12 macro-steps of travel (see ForceFollowing::command).
+    const int macro_steps = static_cast<int>(std::ceil(length_ / (follow_speed_ * dt))) + 12;
     Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
     start.linear() = down_;
     start.translation() = stop;
@@ -299,6 +309,7 @@ class FollowSurface : public Touching {
 
  private:
   double force_, tolerance_, length_, follow_speed_, gain_, settle_;
+  int motion_steps_ = 20;
   Eigen::Vector3d direction_;
 };
 

@@ -13,7 +13,7 @@ namespace {
 [[noreturn]] void bad(std::string_view spec, const std::string& why) {
   throw ConfigError("fault '" + std::string(spec) + "': " + why +
                     " (forms: drive:<robot>/<axis>@<s>[=<hex code>], silent:<robot>/<axis>@<s>, "
-                    "drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>])");
+                    "drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>], sensor:<device>@<s>)");
 }
 
 double number(std::string_view spec, std::string_view text, const char* what) {
@@ -40,6 +40,8 @@ FaultSpec parse_fault(std::string_view spec) {
     f.kind = FaultKind::drop;
   else if (kind == "busoff")
     f.kind = FaultKind::bus_off;
+  else if (kind == "sensor")
+    f.kind = FaultKind::sensor;
   else
     bad(spec, "unknown kind '" + std::string(kind) + "'");
   std::string_view rest = spec.substr(colon + 1);
@@ -54,6 +56,9 @@ FaultSpec parse_fault(std::string_view spec) {
       bad(spec, "needs <robot>/<axis>");
     f.robot = std::string(target.substr(0, slash));
     f.axis = std::string(target.substr(slash + 1));
+  } else if (f.kind == FaultKind::sensor) {
+    if (slash != std::string_view::npos || target.empty()) bad(spec, "needs <device>");
+    f.device = std::string(target);
   } else {
     if (slash != std::string_view::npos || target.empty()) bad(spec, "needs <robot> (no axis)");
     f.robot = std::string(target);

@@ -10,20 +10,22 @@
 ///                                      frames they send
 ///   busoff:<robot>@<t>[+<seconds>]     the robot's drives go bus-off (an error frame
 ///                                      CAN_ERR_BUSOFF is sent), for ever or for that long
+///   sensor:<device>@<t>                the raw sensor device stops publishing (a dead receptor)
 ///
 /// <axis> is an axis name or index (0-based); <t> is in seconds after all the robot's drives
-/// first reached operation enabled.
+/// first reached operation enabled (for `sensor`: the scene's first robot).
 #include <cstdint>
 #include <string>
 #include <string_view>
 
 namespace mrroc::emu {
 
-enum class FaultKind { drive, silent, drop, bus_off };
+enum class FaultKind { drive, silent, drop, bus_off, sensor };
 
 struct FaultSpec {
   FaultKind kind = FaultKind::drive;
-  std::string robot;
+  std::string robot;             ///< empty for sensor
+  std::string device;            ///< sensor
   std::string axis;              ///< name or index; empty for drop and busoff
   double at_s = 0.0;             ///< [s] after the robot's drives were first enabled
   std::uint16_t code = 0x5000;   ///< EMCY code (drive)

@@ -13,6 +13,7 @@
 #include <sys/prctl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -145,9 +146,20 @@ class Emulator {
                                "per unit\n",
                                robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit);
     }
+    setup_sensors();
     for (const std::string& text : options_.faults) {
       Scheduled s;
       s.spec = emu::parse_fault(text);
+      if (s.spec.kind == emu::FaultKind::sensor) {
+        s.robot = 0;  // times count from the first robot's drives
+        bool found = false;
+        for (std::size_t i = 0; i < sensors_->size(); ++i) found = found || sensors_->config(i).name == s.spec.device;
+        if (!found)
+          throw ConfigError(fmt::format("fault '{}': the scene has no raw sensor device '{}'", text,
+                                        s.spec.device));
+        schedule_.push_back(s);
+        continue;
+      }
       s.robot = world_.robot_index(s.spec.robot);
       if (!s.spec.axis.empty()) {
         const emu::CellRobot& robot = world_.robot(s.robot);
@@ -163,7 +175,6 @@ class Emulator {
       }
       schedule_.push_back(s);
     }
-    setup_sensors();
     // Power on every drive where its axis is.
     for (std::size_t k = 0; k < robots_.size(); ++k) {
       sample(k);
@@ -204,6 +215,9 @@ class Emulator {
     if (sensors_->size() == 0) return;
     const std::int64_t now = now_utime();
     for (const std::size_t i : sensors_->update(world_, now)) {
+      if (!silenced_.empty() &&
+          std::find(silenced_.begin(), silenced_.end(), sensors_->config(i).name) != silenced_.end())
+        continue;
       if (publisher_ && !publisher_->publish(i, sensors_->sample(i), now) &&
           !publish_failure_reported_) {
         publish_failure_reported_ = true;
@@ -310,6 +324,9 @@ class Emulator {
         case emu::FaultKind::silent:
           r.drives[s.axis]->drive->set_silent(true);
           break;
+        case emu::FaultKind::sensor:
+          silenced_.push_back(s.spec.device);
+          break;
         case emu::FaultKind::drop:
           r.drop = s.spec.fraction;
           break;
@@ -403,6 +420,7 @@ class Emulator {
   std::vector<std::unique_ptr<Drive>> drives_;
   std::vector<RobotRun> robots_;
   std::vector<Scheduled> schedule_;
+  std::vector<std::string> silenced_;  ///< raw sensor devices that stopped publishing
   std::mt19937 random_{12345};
   std::uniform_real_distribution<double> uniform_{0.0, 1.0};
   bool world_fault_reported_ = false;
@@ -437,7 +455,7 @@ int main(int argc, char** argv) {
   app.add_option("--fault", options.faults,
                  "inject a fault (repeatable): drive:<robot>/<axis>@<s>[=<hex code>], "
                  "silent:<robot>/<axis>@<s>, drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>]; "
-                 "<s> counts from the robot's drives being enabled");
+                 "sensor:<device>@<s>; <s> counts from the robot's drives being enabled");
   app.add_option("--bus", bus_overrides,
                  "put a robot's drives on another bus: <robot>=<url>, e.g. irb6=socketcan:vcan0 "
                  "(repeatable)");

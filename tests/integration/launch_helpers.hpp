@@ -1,0 +1,94 @@
+#pragma once
+// Helpers of the integration tests: run mrroc-launch on a config, optionally killing one of its
+// processes once a line appears in the output.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <mutex>
+#include <regex>
+#include <string>
+#include <thread>
+
+namespace mrroc::test {
+
+using Clock = std::chrono::steady_clock;
+
+struct LaunchRun {
+  int exit_code = -1;
+  std::string output;
+};
+
+/// Launches `config`; when `victim` is not empty, waits until `trigger` appears in the output,
+/// waits `delay` and kills the process named `victim` (pid from the launcher's "started <victim>
+/// (pid N)" line) with `signal`.
+inline LaunchRun launch_and_kill(const std::string& config, const std::string& victim = {},
+                                 const std::string& trigger = {},
+                                 std::chrono::milliseconds delay = std::chrono::milliseconds(0),
+                                 int signal = SIGKILL) {
+  int out[2];
+  if (pipe(out) != 0) return {};
+  const pid_t pid = fork();
+  if (pid == 0) {
+    dup2(out[1], STDOUT_FILENO);
+    dup2(out[1], STDERR_FILENO);
+    close(out[0]);
+    close(out[1]);
+    const std::string exe = std::string(MRROC_BIN_DIR) + "/mrroc-launch";
+    execl(exe.c_str(), exe.c_str(), config.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  close(out[1]);
+  LaunchRun run;
+  std::mutex m;
+  FILE* in = fdopen(out[0], "r");
+  std::thread reader([&] {
+    char line[4096];
+    while (std::fgets(line, sizeof line, in) != nullptr) {
+      std::lock_guard lock(m);
+      run.output += line;
+    }
+  });
+  const std::regex started("started " + victim + " \\(pid ([0-9]+)\\)");
+  pid_t victim_pid = 0;
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  bool triggered = false;
+  while (!victim.empty() && Clock::now() < deadline && !triggered) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::lock_guard lock(m);
+    std::smatch match;
+    if (victim_pid == 0 && std::regex_search(run.output, match, started))
+      victim_pid = std::stoi(match[1]);
+    triggered = victim_pid != 0 && run.output.find(trigger) != std::string::npos;
+  }
+  if (triggered) {
+    std::this_thread::sleep_for(delay);
+    kill(victim_pid, signal);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  reader.join();
+  std::fclose(in);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (!victim.empty() && !triggered) run.output += "\n[test] trigger '" + trigger + "' never came\n";
+  return run;
+}
+
+inline bool has(const std::string& s, const std::string& what) {
+  return s.find(what) != std::string::npos;
+}
+
+/// Nothing of the set is left running (the test runs in its own PID namespace).
+inline void expect_nothing_left() {
+  FILE* ps = popen("ps -eo comm= | grep '^mrroc-' || true", "r");
+  char buf[256];
+  std::string left;
+  while (std::fgets(buf, sizeof buf, ps) != nullptr) left += buf;
+  pclose(ps);
+  EXPECT_EQ(left, "");
+}
+
+}  // namespace mrroc::test

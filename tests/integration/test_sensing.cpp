@@ -1,0 +1,140 @@
+// The sensor-driven examples (docs/sensors.md) as whole process sets on the cell emulator, with
+// checked outcomes, and what a dead or stale virtual sensor does to a task:
+//   touch           the guarded move stops within 2 mm of the first contact, at the table;
+//   follow_surface  the contact force stays within 4 N of 10 N along 10 cm of table;
+//   pick_when_seen  the pick starts only with the part in the pick region, and ends above it;
+//   a VSP killed, or its raw sensor falling silent, mid-approach: the task stops with an error
+//   naming the VSP (and the source), the SRP shows it, nothing is left behind.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+
+#include "launch_helpers.hpp"
+
+namespace fs = std::filesystem;
+using namespace mrroc::test;
+
+namespace {
+
+std::string config(const char* name) { return std::string(MRROC_SOURCE_DIR) + "/configs/" + name; }
+
+double number(const std::string& text, const std::string& pattern, std::size_t group = 1) {
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex(pattern))) {
+    ADD_FAILURE() << "no match for " << pattern << "\n" << text;
+    return std::nan("");
+  }
+  return std::stod(m[group]);
+}
+
+/// configs/sensing-touch.toml with absolute paths and `faults` for the emulator.
+std::string touch_with_faults(const std::string& faults) {
+  std::ifstream in(config("sensing-touch.toml"));
+  std::stringstream s;
+  s << in.rdbuf();
+  std::string text = s.str();
+  const std::string dir = std::string(MRROC_SOURCE_DIR);
+  text = std::regex_replace(text, std::regex("scene = \"scenes/sensing.toml\""),
+                            "scene = \"" + dir + "/configs/scenes/sensing.toml\"\nfaults = [" + faults + "]");
+  text = std::regex_replace(text, std::regex("model = \"\\.\\./robots/irb6\""),
+                            "model = \"" + dir + "/robots/irb6\"");
+  const fs::path file = fs::temp_directory_path() / ("mrroc-sensing-" + std::to_string(getpid()) + ".toml");
+  std::ofstream(file) << text;
+  return file.string();
+}
+
+}  // namespace
+
+TEST(Sensing, GuardedMoveStopsWithinTwoMillimetresOfFirstContact) {
+  const LaunchRun r = launch_and_kill(config("sensing-touch.toml"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string touched =
+      "touched: first contact at z = ([0-9.]+) m, stopped at z = ([0-9.]+) m, ([0-9.]+) mm after "
+      "first contact";
+  // The probe's sphere (radius 2 cm) touches the table top (z = 0.40 m) with its centre at 0.42 m.
+  EXPECT_NEAR(number(r.output, touched, 1), 0.42, 0.001);
+  EXPECT_LE(number(r.output, touched, 3), 2.0);
+  // Three VSPs ran, two of them fed by the same strain gauges.
+  for (const char* vsp : {"vsp/wrist_force", "vsp/contact", "vsp/range"})
+    EXPECT_TRUE(has(r.output, std::string(vsp) + " exited with code 0")) << vsp << r.output;
+  expect_nothing_left();
+}
+
+TEST(Sensing, ForceCompliantMotionKeepsTheContactForce) {
+  const LaunchRun r = launch_and_kill(config("sensing-follow.toml"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string followed =
+      "followed the surface for ([0-9.]+) m: contact force mean ([0-9.]+) N, rms error ([0-9.]+) "
+      "N, largest error ([0-9.]+) N";
+  EXPECT_NEAR(number(r.output, followed, 1), 0.1, 0.005);
+  EXPECT_NEAR(number(r.output, followed, 2), 10.0, 1.0);
+  EXPECT_LE(number(r.output, followed, 4), 4.0);
+}
+
+TEST(Sensing, PickStartsWhenTheCameraSeesThePartInTheRegion) {
+  const LaunchRun r = launch_and_kill(config("conveyor-pick.toml"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string seen = "part seen at \\[([-0-9.]+), ([-0-9.]+), ([-0-9.]+)\\] m";
+  const double x = number(r.output, seen, 1), y = number(r.output, seen, 2),
+               z = number(r.output, seen, 3);
+  EXPECT_GE(x, 0.35);  // the pick region of the config
+  EXPECT_LE(x, 0.45);
+  EXPECT_GE(y, -0.75);
+  EXPECT_LE(y, -0.55);
+  // The conveyor had not finished: the Wait ended on the camera, not on the belt's stop.
+  const auto seen_at = r.output.find("part seen at");
+  const auto belt_done = r.output.find("pose 1/1 reached");
+  EXPECT_LT(seen_at, belt_done) << r.output;
+  const std::string above = "above the part: tip at \\[([-0-9.]+), ([-0-9.]+), ([-0-9.]+)\\] m";
+  EXPECT_NEAR(number(r.output, above, 1), x, 0.005);
+  EXPECT_NEAR(number(r.output, above, 2), y, 0.005);
+  EXPECT_NEAR(number(r.output, above, 3), z + 0.1, 0.005);
+  expect_nothing_left();
+}
+
+TEST(Sensing, DeadVspStopsTheSet) {
+  const LaunchRun r = launch_and_kill(config("sensing-touch.toml"), "vsp/wrist_force", "zeroed",
+                                      std::chrono::milliseconds(500));
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_TRUE(has(r.output, "vsp/wrist_force ended while the task was running (code 137)"))
+      << r.output;
+  EXPECT_FALSE(has(r.output, "touched:")) << r.output;
+  expect_nothing_left();
+}
+
+TEST(Sensing, HungVspMakesTheTaskFailNamingIt) {
+  // A VSP that stops answering (SIGSTOP): the ECP's image turns invalid within 3 attempts of
+  // 40 ms, the guarded move ends with SensorError, the robot holds.
+  const LaunchRun r = launch_and_kill(config("sensing-touch.toml"), "vsp/wrist_force", "zeroed",
+                                      std::chrono::milliseconds(500), SIGSTOP);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("ecp/irb6: error: task 'touch': VSP 'wrist_force' did not answer")))
+      << r.output;
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("\\[srp\\].*ecp/irb6 +error .*VSP 'wrist_force' did not answer")))
+      << r.output;
+  EXPECT_FALSE(has(r.output, "touched:")) << r.output;
+  expect_nothing_left();
+}
+
+TEST(Sensing, StaleRawSensorMakesReadingsInvalidAndStopsTheMotion) {
+  // Synchronisation and the approach take 3-4 s; the guarded descent follows.
+  const LaunchRun r = launch_and_kill(touch_with_faults("\"sensor:irb6_wrist@4.5\""));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(has(r.output, "injecting fault sensor:irb6_wrist@4.5")) << r.output;
+  // The VSP tells the SRP which source went stale; the task fails naming VSP and source.
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("\\[srp\\].*vsp/wrist_force .*VSP 'wrist_force': reading invalid: "
+                           "source 'irb6_wrist' stale")))
+      << r.output;
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("mp: fatal: ecp/irb6: VSP 'wrist_force': source 'irb6_wrist' stale")))
+      << r.output;
+  expect_nothing_left();
+}

@@ -161,11 +161,11 @@ void Cia402Master::send(std::span<const double> targets, bool quick_stop) noexce
              held_);
 }
 
-std::uint32_t Cia402Master::sdo_read(std::uint8_t node, std::uint16_t index,
-                                     std::uint8_t subindex) {
-  canopen::SdoRequest q;
-  q.index = index;
-  q.subindex = subindex;
+canopen::SdoResponse Cia402Master::sdo_transfer(std::uint8_t node, const canopen::SdoRequest& q) {
+  const auto what = [&] {
+    return std::string(q.write ? "an SDO write of " + std::to_string(q.value) + " to " : "an SDO read of ") +
+           hex(q.index, 4) + ":" + std::to_string(q.subindex);
+  };
   for (int attempt = 0; attempt < options_.sdo_attempts; ++attempt) {
     (void)bus_.send(canopen::encode_request(node, q));
     const auto deadline = std::chrono::steady_clock::now() + options_.sdo_timeout;
@@ -177,20 +177,26 @@ std::uint32_t Cia402Master::sdo_read(std::uint8_t node, std::uint16_t index,
         continue;
       }
       const auto response = canopen::decode_response(r.frame);
-      if (!response || response->index != index || response->subindex != subindex) continue;
+      if (!response || response->index != q.index || response->subindex != q.subindex) continue;
       if (response->abort)
-        throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": SDO read of " +
-                            hex(index, 4) + ":" + std::to_string(subindex) + " aborted: " +
-                            hex(response->abort_code, 8) + " " +
+        throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": " + what() +
+                            " aborted: " + hex(response->abort_code, 8) + " " +
                             std::string(canopen::describe_sdo_abort(response->abort_code)));
-      return response->value;
+      if (!q.write || response->write_confirmed) return *response;
     }
   }
-  throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": no answer to an SDO read of " +
-                      hex(index, 4) + ":" + std::to_string(subindex) + " (" +
-                      std::to_string(options_.sdo_attempts) + " attempts of " +
+  throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": no answer to " + what() +
+                      " (" + std::to_string(options_.sdo_attempts) + " attempts of " +
                       std::to_string(options_.sdo_timeout.count()) +
                       " ms; is the drive powered and on this bus?)");
+}
+
+std::uint32_t Cia402Master::sdo_read(std::uint8_t node, std::uint16_t index,
+                                     std::uint8_t subindex) {
+  canopen::SdoRequest q;
+  q.index = index;
+  q.subindex = subindex;
+  return sdo_transfer(node, q).value;
 }
 
 void Cia402Master::sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_t subindex,
@@ -201,31 +207,7 @@ void Cia402Master::sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_
   q.subindex = subindex;
   q.value = value;
   q.size = size;
-  for (int attempt = 0; attempt < options_.sdo_attempts; ++attempt) {
-    (void)bus_.send(canopen::encode_request(node, q));
-    const auto deadline = std::chrono::steady_clock::now() + options_.sdo_timeout;
-    Received r;
-    while (std::chrono::steady_clock::now() < deadline) {
-      if (!bus_.receive(r, deadline - std::chrono::steady_clock::now())) break;
-      if (r.frame.can_id != canopen::sdo_response_id(node)) {
-        handle(r);
-        continue;
-      }
-      const auto response = canopen::decode_response(r.frame);
-      if (!response || response->index != index || response->subindex != subindex) continue;
-      if (response->abort)
-        throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": SDO write of " +
-                            std::to_string(value) + " to " + hex(index, 4) + ":" +
-                            std::to_string(subindex) + " aborted: " +
-                            hex(response->abort_code, 8) + " " +
-                            std::string(canopen::describe_sdo_abort(response->abort_code)));
-      if (response->write_confirmed) return;
-    }
-  }
-  throw HardwareError(bus_.url() + " node " + std::to_string(node) + ": no answer to an SDO write of " +
-                      hex(index, 4) + ":" + std::to_string(subindex) + " (" +
-                      std::to_string(options_.sdo_attempts) + " attempts of " +
-                      std::to_string(options_.sdo_timeout.count()) + " ms)");
+  (void)sdo_transfer(node, q);
 }
 
 void Cia402Master::bring_up(std::chrono::milliseconds timeout) {

@@ -1,6 +1,8 @@
 // The three kinds of multi-robot tasks of the paper, each a real process set started by
 // mrroc-launch, with checked outcomes read from the robots' own EDP replies and the MP's report.
 #include <gtest/gtest.h>
+
+#include "launch_helpers.hpp"
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -26,21 +28,9 @@ namespace {
 const fs::path kBin = MRROC_BIN_DIR;
 const fs::path kSource = MRROC_SOURCE_DIR;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string output;
-};
+using RunResult = mrroc::test::LaunchRun;
 
-RunResult launch(const std::string& config) {
-  const std::string command = (kBin / "mrroc-launch").string() + " " + config + " 2>&1";
-  RunResult r;
-  FILE* pipe = popen(command.c_str(), "r");
-  char buf[4096];
-  while (std::fgets(buf, sizeof buf, pipe) != nullptr) r.output += buf;
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+RunResult launch(const std::string& config) { return mrroc::test::launch_and_kill(config); }
 
 /// Last DATA reply (measured joints) of every robot's EDP, as the EDPs sent them.
 class FinalJoints {

@@ -7,6 +7,8 @@
 //   bus-off       -> the same, "bus-off";
 //   dropped frames-> tolerated while no drive misses `silent_cycles` answers in a row.
 #include <gtest/gtest.h>
+
+#include "launch_helpers.hpp"
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -21,22 +23,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct RunResult {
-  int exit_code = -1;
-  std::string output;
-};
+using RunResult = mrroc::test::LaunchRun;
 
-RunResult launch(const fs::path& file) {
-  const std::string command =
-      std::string(MRROC_BIN_DIR) + "/mrroc-launch " + file.string() + " 2>&1";
-  RunResult r;
-  FILE* pipe = popen(command.c_str(), "r");
-  char buf[4096];
-  while (std::fgets(buf, sizeof buf, pipe) != nullptr) r.output += buf;
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+RunResult launch(const fs::path& file) { return mrroc::test::launch_and_kill(file.string()); }
 
 std::string read(const fs::path& file) {
   std::ifstream in(file);
@@ -51,9 +40,7 @@ void replace(std::string& text, const std::string& from, const std::string& to) 
   text.replace(at, from.size(), to);
 }
 
-bool has(const std::string& text, const std::string& what) {
-  return text.find(what) != std::string::npos;
-}
+using mrroc::test::has;
 
 /// Every process ended by itself with exit code 0 when the launcher stopped it (none crashed,
 /// none needed SIGKILL).

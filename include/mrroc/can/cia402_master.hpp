@@ -91,6 +91,8 @@ class Cia402Master {
 
  private:
   void handle(const Received& frame) noexcept;
+  /// One expedited SDO transfer with retries; frames of other kinds are handled meanwhile.
+  canopen::SdoResponse sdo_transfer(std::uint8_t node, const canopen::SdoRequest& request);
   void set_fault(std::size_t axis, const char* what) noexcept;
   [[nodiscard]] std::string who(std::size_t axis) const;
   [[nodiscard]] std::int32_t counts(std::size_t axis, double position) const noexcept;

@@ -479,7 +479,7 @@ TEST(EmuSensors, PublishedSamplesCountAtTheirRatesWithoutAllocating) {
       const mrroc::vsp::RawSample s = mrroc::comm::decode(messages[k]);
       EXPECT_EQ(s.sample_no, static_cast<std::int64_t>(k)) << channel;
       EXPECT_EQ(messages[k].header.sender, "test#1");
-      EXPECT_EQ(messages[k].header.kind, mrroc_lcm::header_t::BROADCAST);
+      EXPECT_EQ(int{messages[k].header.kind}, int{mrroc_lcm::header_t::BROADCAST});
       EXPECT_EQ(messages[k].header.utime, s.sample_utime);
       // Sample k was taken at (k + 1) periods.
       EXPECT_EQ(s.sample_utime, kEpochUtime + (static_cast<std::int64_t>(k) + 1) * 1000000 / rate)

@@ -26,6 +26,18 @@ void check_finite(const std::vector<double>& values, const std::vector<std::stri
       throw DecodeError(fmt::format("{}: value {} ({}) is not a finite number", type, i, names[i]));
 }
 
+/// The n values with their names and units (names and units padded or cut to the values).
+template <class Msg>
+void put_values(Msg& m, const std::vector<double>& values, const std::vector<std::string>& names,
+                const std::vector<std::string>& units) {
+  m.n = static_cast<int32_t>(values.size());
+  m.values = values;
+  m.names = names;
+  m.units = units;
+  m.names.resize(values.size());
+  m.units.resize(values.size());
+}
+
 }  // namespace
 
 mrroc_lcm::vsp_command_t encode(const vsp::Request& in) {
@@ -52,12 +64,7 @@ mrroc_lcm::vsp_reply_t encode(const vsp::Reply& in) {
   m.reading_utime = r.reading_utime;
   m.age_us = r.age_us;
   m.reading_no = r.reading_no;
-  m.n = static_cast<int32_t>(r.values.size());
-  m.values = r.values;
-  m.names = r.names;
-  m.units = r.units;
-  m.names.resize(r.values.size());
-  m.units.resize(r.values.size());
+  put_values(m, r.values, r.names, r.units);
   return m;
 }
 
@@ -87,12 +94,7 @@ mrroc_lcm::raw_sensor_t encode(const vsp::RawSample& in) {
   m.sample_utime = in.sample_utime;
   m.sample_no = in.sample_no;
   m.valid = in.valid ? 1 : 0;
-  m.n = static_cast<int32_t>(in.values.size());
-  m.values = in.values;
-  m.names = in.names;
-  m.units = in.units;
-  m.names.resize(in.values.size());
-  m.units.resize(in.values.size());
+  put_values(m, in.values, in.names, in.units);
   return m;
 }
 

@@ -345,6 +345,9 @@ TEST_F(EdpTest, EveryArmRepresentationReachesTheSamePose) {
   const std::vector<double> q = {0.3, -1.3, 0.2, -0.4, 0.7};
   ASSERT_EQ(exec(set_joints(q, 200, 201)).type, ReplyType::acknowledge);
   ASSERT_EQ(query().type, ReplyType::data);
+  // Let the servos settle on the target first: the readings below are taken one after the other,
+  // and must all see the same measured pose (a slow instrumented build still lags at step 201).
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   // Read the pose back in every representation.
   std::map<ArmRepresentation, std::vector<double>> pose;
   for (ArmRepresentation rep :

@@ -6,7 +6,7 @@
 # a large one allocates gigabytes, and for arrays of doubles the byte count 8 * n then wraps in an
 # int, so the decoder reads past the buffer. A string of length < 1 throws std::length_error. Here
 # each is rejected as a decode failure (-1) before anything is allocated: an array needs at least
-# one byte per element (5 per string: length and NUL) in what is left of the buffer, a string at
+# one byte per element (5 per string: length and NUL; 1 per nested struct) in what is left of the buffer, a string at
 # least its NUL. The script fails the build when lcm-gen's output does not have the expected form.
 file(GLOB headers "${DIR}/*.hpp")
 foreach(header ${headers})
@@ -27,6 +27,12 @@ foreach(header ${headers})
   string(REGEX REPLACE
     "    this->([A-Za-z0-9_]+)\\.resize\\(this->([A-Za-z0-9_]+)\\);\n    for \\(int a0 = 0; a0 < this->[A-Za-z0-9_]+; a0\\+\\+\\) {\n        int32_t __elem_len;"
     "    if(this->\\2 < 0 || this->\\2 > (maxlen - pos) / 5) return -1; // mrroc: checked\n    this->\\1.resize(this->\\2);\n    for (int a0 = 0; a0 < this->\\2; a0++) {\n        int32_t __elem_len;"
+    text "${text}")
+  # Arrays of structs: "this->v.resize(this->n); for (...) { tlen = this->v[a0]._decodeNoHash(...".
+  # Every element takes at least one byte.
+  string(REGEX REPLACE
+    "    this->([A-Za-z0-9_]+)\\.resize\\(this->([A-Za-z0-9_]+)\\);\n    for \\(int a0 = 0; a0 < this->[A-Za-z0-9_]+; a0\\+\\+\\) {\n        tlen = this->[A-Za-z0-9_]+\\[a0\\]\\._decodeNoHash"
+    "    if(this->\\2 < 0 || this->\\2 > maxlen - pos) return -1; // mrroc: checked\n    this->\\1.resize(this->\\2);\n    for (int a0 = 0; a0 < this->\\2; a0++) {\n        tlen = this->\\1[a0]._decodeNoHash"
     text "${text}")
   string(REGEX REPLACE "if\\(__([A-Za-z0-9_]+)_len__ > maxlen - pos\\) return -1;"
     "if(__\\1_len__ < 1 || __\\1_len__ > maxlen - pos) return -1;" text "${text}")

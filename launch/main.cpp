@@ -61,7 +61,7 @@ std::vector<Stage> plan(const ProcessSetConfig& config, const fs::path& bin_dir,
     srp_argv.push_back("--log");
     srp_argv.push_back(srp_log);
   }
-  stages.push_back({"srp", child("srp", srp_argv, config.srp.stop_grace_s)});
+  stages.push_back({"srp", child("srp", srp_argv, config.srp.options.stop_grace_s)});
   if (config.emulator)
     stages.push_back({"emu", child("emu", {exe("mrroc-axis-emu"), "--config", cfg},
                                    config.emulator->options.stop_grace_s)});

@@ -21,7 +21,7 @@ using namespace mrroc;
 
 int run(const std::string& config_path, const std::string& log_path) {
   const ProcessSetConfig config = load_process_set(config_path);
-  apply_cpu_affinity(config.srp.cpus);
+  apply_cpu_affinity(config.srp.options.cpus);
   comm::Bus bus(config.lcm_url);
   std::mutex mutex;
   std::map<std::string, std::uint64_t> counts;

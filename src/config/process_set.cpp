@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <sched.h>
 
+#include <csignal>
+
 #include <regex>
 #include <set>
 #include <toml++/toml.h>
@@ -43,7 +45,7 @@ class Reader {
 
   /// Rejects keys of `table` not in `allowed`.
   void only_keys(const toml::table& table, const std::string& table_name,
-                 std::initializer_list<const char*> allowed) const {
+                 const std::vector<const char*>& allowed) const {
     for (const auto& [key, node] : table) {
       bool known = false;
       for (const char* a : allowed) known = known || key.str() == a;
@@ -94,9 +96,58 @@ class Reader {
     return v;
   }
 
-  ProcessOptions options(const toml::table& t) const {
+  /// `keys` plus the keys of ProcessOptions (every process' table accepts them).
+  static std::vector<const char*> with_options(std::vector<const char*> keys) {
+    for (const char* k : {"cpus", "stop_grace_s", "stop_signal", "host", "group", "restart",
+                          "max_restarts", "restart_backoff_s", "required"})
+      keys.push_back(k);
+    return keys;
+  }
+
+  bool boolean(const toml::table& t, const char* key, bool fallback) const {
+    const toml::node* node = t.get(key);
+    if (node == nullptr) return fallback;
+    if (!node->is_boolean()) fail(*node, fmt::format("'{}' must be true or false", key));
+    return **node->as_boolean();
+  }
+
+  ProcessOptions options(const toml::table& t, const std::string& default_group) const {
     ProcessOptions o;
+    o.group = default_group;
     o.stop_grace_s = number(t, "stop_grace_s", 3.0, 0.0, 60.0, "s");
+    if (const toml::node* sig = t.get("stop_signal")) {
+      static const std::pair<const char*, int> names[] = {
+          {"SIGTERM", SIGTERM}, {"SIGINT", SIGINT}, {"SIGHUP", SIGHUP},
+          {"SIGQUIT", SIGQUIT}, {"SIGUSR1", SIGUSR1}, {"SIGUSR2", SIGUSR2}, {"SIGKILL", SIGKILL}};
+      const std::string text = string(t, "stop_signal", "", std::string{});
+      bool found = false;
+      for (const auto& [name, number] : names)
+        if (text == name) {
+          o.stop_signal = number;
+          found = true;
+        }
+      if (!found)
+        fail(*sig, fmt::format("stop_signal '{}' is not one of SIGTERM, SIGINT, SIGHUP, SIGQUIT, "
+                               "SIGUSR1, SIGUSR2, SIGKILL",
+                               text));
+    }
+    o.host = string(t, "host", "", std::string("local"));
+    if (o.host.empty()) fail(*t.get("host"), "'host' must not be empty (\"local\" or a [[launch.host]] name)");
+    o.group = string(t, "group", "", default_group);
+    const std::string restart = string(t, "restart", "", std::string("never"));
+    if (restart == "never")
+      o.restart = RestartPolicy::never;
+    else if (restart == "on-failure")
+      o.restart = RestartPolicy::on_failure;
+    else if (restart == "always")
+      o.restart = RestartPolicy::always;
+    else
+      fail(*t.get("restart"), fmt::format("restart '{}' must be \"never\", \"on-failure\" or "
+                                          "\"always\"",
+                                          restart));
+    o.max_restarts = static_cast<int>(number(t, "max_restarts", 3, 0, 1000, "restarts"));
+    o.restart_backoff_s = number(t, "restart_backoff_s", 0.5, 0.0, 30.0, "s");
+    o.required = boolean(t, "required", true);
     if (const toml::node* cpus = t.get("cpus")) {
       const toml::array* arr = cpus->as_array();
       if (arr == nullptr) fail(*cpus, "'cpus' must be a list of CPU numbers");
@@ -164,8 +215,10 @@ class Reader {
     return out;
   }
 
-  TaskConfig task(const toml::table& t, const std::string& table_name) const {
-    only_keys(t, table_name, {"task", "library", "args", "cpus", "stop_grace_s"});
+  TaskConfig task(const toml::table& t, const std::string& table_name,
+                  const std::string& group, std::vector<const char*> extra_keys = {}) const {
+    extra_keys.insert(extra_keys.end(), {"task", "library", "args"});
+    only_keys(t, table_name, with_options(extra_keys));
     TaskConfig c;
     c.where = where(t);
     c.name = string(t, "task", table_name);
@@ -180,7 +233,7 @@ class Reader {
     } else {
       c.args = Params(where(t));
     }
-    c.options = options(t);
+    c.options = options(t, group);
     return c;
   }
 
@@ -195,6 +248,15 @@ class Reader {
 };
 
 }  // namespace
+
+const char* to_string(RestartPolicy policy) {
+  switch (policy) {
+    case RestartPolicy::never: return "never";
+    case RestartPolicy::on_failure: return "on-failure";
+    case RestartPolicy::always: return "always";
+  }
+  return "?";
+}
 
 Params params_from_toml(const std::string& text, const std::string& origin) {
   Reader r(origin);
@@ -229,14 +291,39 @@ const RobotConfig& ProcessSetConfig::robot(const std::string& robot_name) const 
 namespace {
 
 /// Validates a parsed process-set file; `file` is its absolute path.
+void check_hosts(const ProcessSetConfig& config) {
+  auto check = [&](const ProcessOptions& o, const std::string& process) {
+    if (o.host == "local") return;
+    for (const auto& h : config.launch.hosts)
+      if (h.name == o.host) return;
+    throw ConfigError(fmt::format("{}: error: {} runs on host '{}', which is not a [[launch.host]] "
+                                  "(hosts: local{})",
+                                  config.file.string(), process, o.host,
+                                  [&] {
+                                    std::string s;
+                                    for (const auto& h : config.launch.hosts) s += ", " + h.name;
+                                    return s;
+                                  }()));
+  };
+  check(config.srp.options, "srp");
+  check(config.ui.options, "ui");
+  check(config.mp.options, "mp");
+  if (config.emulator) check(config.emulator->options, "emu");
+  for (const auto& v : config.vsps) check(v.options, "vsp/" + v.name);
+  for (const auto& r : config.robots) {
+    check(r.edp.options, "edp/" + r.name);
+    check(r.ecp.options, "ecp/" + r.name);
+  }
+}
+
 ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path& file) {
   ProcessSetConfig config;
   config.file = file;
   Reader r(config.file);
-  r.only_keys(root, "top level", {"system", "srp", "emulator", "vsp", "mp", "robot"});
+  r.only_keys(root, "top level", {"system", "srp", "emulator", "vsp", "mp", "robot", "ui", "launch"});
 
   const toml::table& system = r.table(root, "system", "");
-  r.only_keys(system, "system", {"name", "lcm_url", "ready_timeout_s"});
+  r.only_keys(system, "system", {"name", "lcm_url", "ready_timeout_s", "auth_key_file"});
   config.name = r.string(system, "name", "system");
   config.lcm_url = r.string(system, "lcm_url", "system", std::string{});
   if (!config.lcm_url.empty() && config.lcm_url.find("://") == std::string::npos)
@@ -244,17 +331,98 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
            fmt::format("lcm_url '{}' is not a URL (expected e.g. udpm://239.255.76.67:7667?ttl=0)",
                        config.lcm_url));
   config.ready_timeout_s = r.number(system, "ready_timeout_s", 10.0, 0.1, 600.0, "s");
+  if (const std::string key = r.string(system, "auth_key_file", "system", std::string{});
+      !key.empty()) {
+    config.auth_key_file = r.resolve(key);
+    r.require_path(*system.get("auth_key_file"), config.auth_key_file, Reader::Kind::file,
+                   "authentication key file");
+  }
 
   if (const toml::node* srp = root.get("srp")) {
     if (!srp->is_table()) r.fail(*srp, "'srp' must be a table");
-    r.only_keys(*srp->as_table(), "srp", {"cpus", "stop_grace_s"});
-    config.srp = r.options(*srp->as_table());
+    const toml::table& t = *srp->as_table();
+    r.only_keys(t, "srp", Reader::with_options({"log", "log_max_kb", "log_keep", "history"}));
+    config.srp.options = r.options(t, "srp");
+    if (const std::string log = r.string(t, "log", "srp", std::string{}); !log.empty())
+      config.srp.log = r.resolve(log);
+    config.srp.log_max_kb = r.number(t, "log_max_kb", 4096.0, 1.0, 1e7, "KiB");
+    config.srp.log_keep = static_cast<int>(r.number(t, "log_keep", 5, 0, 100, "files"));
+    config.srp.history = static_cast<int>(r.number(t, "history", 10000, 10, 1e6, "messages"));
+  } else {
+    config.srp.options = r.options(toml::table{}, "srp");
+  }
+
+  config.ui.options = r.options(toml::table{}, "ui");
+  if (const toml::node* ui = root.get("ui")) {
+    if (!ui->is_table()) r.fail(*ui, "'ui' must be a table");
+    const toml::table& t = *ui->as_table();
+    r.only_keys(t, "ui", Reader::with_options({"web", "bind", "port", "token_file", "teach_dir"}));
+    config.ui.where = r.where(t);
+    config.ui.options = r.options(t, "ui");
+    config.ui.web = r.boolean(t, "web", false);
+    config.ui.bind = r.string(t, "bind", "ui", std::string("127.0.0.1"));
+    config.ui.port = static_cast<int>(r.number(t, "port", 8080, 1, 65535, "(TCP port)"));
+    if (const std::string token = r.string(t, "token_file", "ui", std::string{}); !token.empty()) {
+      config.ui.token_file = r.resolve(token);
+      r.require_path(*t.get("token_file"), config.ui.token_file, Reader::Kind::file,
+                     "console token file");
+    }
+    const bool loopback = config.ui.bind == "127.0.0.1" || config.ui.bind == "localhost" ||
+                          config.ui.bind == "::1" || config.ui.bind.rfind("127.", 0) == 0;
+    if (!loopback && config.ui.token_file.empty())
+      r.fail(*t.get("bind"), fmt::format("bind '{}' is not a loopback address: the console then "
+                                         "needs 'token_file' (a file holding the access token)",
+                                         config.ui.bind));
+    if (const std::string dir = r.string(t, "teach_dir", "ui", std::string{}); !dir.empty())
+      config.ui.teach_dir = r.resolve(dir);
+  }
+
+  if (const toml::node* launch = root.get("launch")) {
+    if (!launch->is_table()) r.fail(*launch, "'launch' must be a table");
+    const toml::table& t = *launch->as_table();
+    r.only_keys(t, "launch", {"log_dir", "log_max_kb", "log_keep", "record", "host"});
+    if (const std::string dir = r.string(t, "log_dir", "launch", std::string{}); !dir.empty())
+      config.launch.log_dir = r.resolve(dir);
+    config.launch.log_max_kb = r.number(t, "log_max_kb", 1024.0, 1.0, 1e7, "KiB");
+    config.launch.log_keep = static_cast<int>(r.number(t, "log_keep", 3, 0, 100, "files"));
+    if (const std::string rec = r.string(t, "record", "launch", std::string{}); !rec.empty())
+      config.launch.record = r.resolve(rec);
+    if (const toml::node* hosts = t.get("host")) {
+      const toml::array* list = hosts->as_array();
+      if (list == nullptr || !list->is_array_of_tables())
+        r.fail(*hosts, "'launch.host' must be an array of tables ([[launch.host]])");
+      std::set<std::string> host_names{"local"};
+      for (const auto& node : *list) {
+        const toml::table& h = *node.as_table();
+        r.only_keys(h, "launch.host", {"name", "command", "address", "quote"});
+        HostConfig host;
+        host.where = r.where(h);
+        host.name = r.string(h, "name", "launch.host");
+        if (!host_names.insert(host.name).second)
+          r.fail(*h.get("name"), fmt::format("host name '{}' is used twice (\"local\" is "
+                                             "reserved)",
+                                             host.name));
+        host.address = r.string(h, "address", "launch.host", host.name);
+        host.command = {"ssh", "-o", "BatchMode=yes", "{host}"};
+        if (const toml::node* cmd = h.get("command")) {
+          const toml::array* words = cmd->as_array();
+          if (words == nullptr || words->empty() ||
+              !words->is_homogeneous(toml::node_type::string))
+            r.fail(*cmd, "'command' must be a non-empty list of strings, e.g. [\"ip\", \"netns\", "
+                         "\"exec\", \"{host}\"]");
+          host.command.clear();
+          for (const auto& w : *words) host.command.emplace_back(**w.as_string());
+        }
+        host.quote = r.boolean(h, "quote", h.get("command") == nullptr);
+        config.launch.hosts.push_back(std::move(host));
+      }
+    }
   }
 
   if (const toml::node* emu = root.get("emulator")) {
     if (!emu->is_table()) r.fail(*emu, "'emulator' must be a table");
     const toml::table& t = *emu->as_table();
-    r.only_keys(t, "emulator", {"scene", "lock_step", "faults", "cpus", "stop_grace_s"});
+    r.only_keys(t, "emulator", Reader::with_options({"scene", "lock_step", "faults"}));
     EmulatorConfig e;
     e.where = r.where(t);
     e.scene = r.resolve(r.string(t, "scene", "emulator"));
@@ -269,7 +437,7 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
         r.fail(*faults, "'faults' must be a list of strings (see mrroc-axis-emu --help)");
       for (const auto& f : *arr) e.faults.emplace_back(**f.as_string());
     }
-    e.options = r.options(t);
+    e.options = r.options(t, "emu");
     config.emulator = std::move(e);
   }
 
@@ -281,8 +449,8 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     std::set<std::string> vsp_names;
     for (const auto& node : *list) {
       const toml::table& t = *node.as_table();
-      r.only_keys(t, "vsp", {"name", "plugin", "library", "sources", "mode", "period_ms",
-                             "stale_after_ms", "params", "cpus", "stop_grace_s"});
+      r.only_keys(t, "vsp", Reader::with_options({"name", "plugin", "library", "sources", "mode",
+                                                  "period_ms", "stale_after_ms", "params"}));
       VspConfig v;
       v.where = r.where(t);
       v.name = r.string(t, "name", "vsp");
@@ -318,12 +486,21 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
       } else {
         v.params = Params(r.where(t));
       }
-      v.options = r.options(t);
+      v.options = r.options(t, "vsp");
       config.vsps.push_back(std::move(v));
     }
   }
 
-  config.mp = r.task(r.table(root, "mp", ""), "mp");
+  {
+    const toml::table& mp = r.table(root, "mp", "");
+    config.mp = r.task(mp, "mp", "mp", {"start"});
+    const std::string start = r.string(mp, "start", "mp", std::string("auto"));
+    if (start != "auto" && start != "operator")
+      r.fail(*mp.get("start"),
+             fmt::format("start '{}' must be \"auto\" or \"operator\" (wait for START from mrroc-ui)",
+                         start));
+    config.mp_waits_for_operator = start == "operator";
+  }
 
   const toml::node* robots = root.get("robot");
   if (robots == nullptr)
@@ -356,8 +533,8 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
       std::copy(v.begin(), v.end(), robot.base.begin());
     }
     const toml::table& edp = r.table(t, "edp", "robot");
-    r.only_keys(edp, "robot.edp", {"plugin", "library", "servo_period_ms", "params", "cpus",
-                                   "stop_grace_s"});
+    r.only_keys(edp, "robot.edp",
+                Reader::with_options({"plugin", "library", "servo_period_ms", "params"}));
     robot.edp.where = r.where(edp);
     robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
     if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{}); !lib.empty()) {
@@ -372,10 +549,11 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     } else {
       robot.edp.params = Params(r.where(edp));
     }
-    robot.edp.options = r.options(edp);
-    robot.ecp = r.task(r.table(t, "ecp", "robot"), "robot.ecp");
+    robot.edp.options = r.options(edp, "edp");
+    robot.ecp = r.task(r.table(t, "ecp", "robot"), "robot.ecp", "ecp");
     config.robots.push_back(std::move(robot));
   }
+  check_hosts(config);
   return config;
 }
 

@@ -18,10 +18,66 @@
 
 namespace mrroc {
 
-/// Options every process of the set accepts.
+/// What the launcher does when a process ends while the set runs.
+enum class RestartPolicy {
+  never,       ///< leave it ended
+  on_failure,  ///< start it again when it ended with a non-zero code or a signal
+  always,      ///< start it again whenever it ended
+};
+[[nodiscard]] const char* to_string(RestartPolicy policy);
+
+/// Options every process of the set accepts (the launcher's keys; docs/configs.md).
 struct ProcessOptions {
   std::vector<int> cpus;      ///< CPU affinity (empty: any CPU)
-  double stop_grace_s = 3.0;  ///< SIGTERM to SIGKILL grace period when stopping [s]
+  double stop_grace_s = 3.0;  ///< stop signal to SIGKILL grace period when stopping [s]
+  int stop_signal = 15;       ///< signal that asks the process to stop (`stop_signal = "SIGINT"`)
+  std::string host = "local"; ///< where it runs: "local" or the name of a [[launch.host]]
+  std::string group;          ///< group name (default: srp, emu, vsp, edp, ecp, mp, ui)
+  RestartPolicy restart = RestartPolicy::never;
+  int max_restarts = 3;           ///< restarts allowed before the process counts as ended
+  double restart_backoff_s = 0.5; ///< wait before the first restart; doubles each time, ≤ 30 s
+  bool required = true;  ///< its end (after its restarts) stops the whole set
+};
+
+/// A computer the launcher starts processes on ([[launch.host]]).
+struct HostConfig {
+  std::string name;
+  /// Start-command template: argv words in front of the process' own command line. "{host}" is
+  /// replaced by `address`. Default: ssh -o BatchMode=yes {host}.
+  std::vector<std::string> command;
+  std::string address;  ///< what "{host}" stands for (default: the name)
+  /// Pass the command line as one shell-quoted word (needed by ssh, which runs a shell).
+  bool quote = true;
+  SourceLocation where;
+};
+
+/// The launcher's own settings ([launch]).
+struct LaunchConfig {
+  std::filesystem::path log_dir;  ///< one log file per process here (empty: no log files)
+  double log_max_kb = 1024.0;     ///< a log file is rotated when it grows beyond this [KiB]
+  int log_keep = 3;               ///< rotated files kept (name.log.1 .. name.log.N)
+  std::filesystem::path record;   ///< record every LCM message with lcm-logger here (optional)
+  std::vector<HostConfig> hosts;
+};
+
+/// The operator console ([ui]): `mrroc-ui serve`, started by the launcher when `web = true`.
+struct UiConfig {
+  bool web = false;              ///< the launcher starts the web console
+  std::string bind = "127.0.0.1";
+  int port = 8080;
+  std::filesystem::path token_file;  ///< required unless bound to a loopback address
+  std::filesystem::path teach_dir;   ///< where teach-in trajectory files go (default: ./)
+  ProcessOptions options;
+  SourceLocation where;
+};
+
+/// The System Response Process ([srp]).
+struct SrpConfig {
+  std::filesystem::path log;  ///< persistent log (JSON lines), rotated (empty: none)
+  double log_max_kb = 4096.0;
+  int log_keep = 5;
+  int history = 10000;        ///< messages kept in memory for the console's history
+  ProcessOptions options;
 };
 
 struct EdpConfig {
@@ -81,8 +137,14 @@ struct ProcessSetConfig {
   std::string name;            ///< name of the set (for messages)
   std::string lcm_url;         ///< empty: $LCM_DEFAULT_URL or the ttl=0 default
   double ready_timeout_s = 10.0;  ///< how long the launcher waits for each process to be ready [s]
+  /// Shared key (file with at least 32 hex digits) for message authentication; empty: none.
+  std::filesystem::path auth_key_file;
   TaskConfig mp;
-  ProcessOptions srp;
+  /// [mp] start: "auto" runs the task at once; "operator" waits for START from mrroc-ui.
+  bool mp_waits_for_operator = false;
+  SrpConfig srp;
+  UiConfig ui;
+  LaunchConfig launch;
   std::optional<EmulatorConfig> emulator;  ///< started after the SRP, before the EDPs
   std::vector<RobotConfig> robots;
   std::vector<VspConfig> vsps;  ///< started after the emulator, before the EDPs
@@ -118,6 +180,16 @@ inline std::string raw_sensor(const std::string& device) { return "mrroc/raw/" +
 inline constexpr const char* srp = "mrroc/srp";
 inline constexpr const char* status = "mrroc/status";
 inline constexpr const char* emergency_stop = "mrroc/estop";
+/// Robot state broadcast by the EDP (robot_state_t).
+inline std::string robot_state(const std::string& robot) { return robot + "/edp/state"; }
+/// Operator commands to the MP (operator_command_t / operator_reply_t).
+inline constexpr const char* mp_command = "mrroc/mp/cmd";
+inline constexpr const char* mp_reply = "mrroc/mp/reply";
+/// The launcher's process table (launch_status_t).
+inline constexpr const char* launch_status = "mrroc/launch/status";
+/// The SRP's history (srp_history_request_t / srp_history_reply_t).
+inline constexpr const char* srp_history_command = "mrroc/srp/history/cmd";
+inline constexpr const char* srp_history_reply = "mrroc/srp/history/reply";
 }  // namespace channels
 
 }  // namespace mrroc

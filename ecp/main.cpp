@@ -7,6 +7,7 @@
 #include <optional>
 #include <thread>
 
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
@@ -22,6 +23,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
   const RobotConfig& robot_config = config.robot(robot_name);
   apply_cpu_affinity(robot_config.ecp.options.cpus);
   comm::Bus bus(config.lcm_url);
+  comm::enable_auth_from_file(bus, config.auth_key_file);
   bus.start();
   Reporter reporter(bus, "ecp/" + robot_config.name, robot_config.name);
   try {

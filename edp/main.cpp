@@ -8,9 +8,12 @@
 #include <thread>
 
 #include "command_interpreter.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/robot_state_t.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
@@ -24,6 +27,10 @@ namespace {
 
 /// How often the EDP sends its servo timing statistics to the SRP.
 constexpr std::chrono::seconds kTimingReportPeriod{10};
+/// How often the EDP broadcasts its robot_state_t.
+constexpr std::chrono::milliseconds kStatePeriod{20};
+/// Overruns are reported at once, then at most this often.
+constexpr std::chrono::seconds kOverrunReportPeriod{1};
 
 int run(const std::string& config_path, const std::string& robot_name) {
   using namespace mrroc;
@@ -33,6 +40,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
   const std::string process = "edp/" + robot.name;
 
   comm::Bus bus(config.lcm_url);
+  comm::enable_auth_from_file(bus, config.auth_key_file);
   bus.start();
   Reporter reporter(bus, process, robot.name);
   try {
@@ -69,21 +77,30 @@ int run(const std::string& config_path, const std::string& robot_name) {
     reporter.set_state(ProcessState::ready);
 
     // Emergency stop: acted on in the bus thread at once, reported from the command thread.
+    // ENGAGE is obeyed from anybody (stopping is always safe); with a key, RELEASE must be
+    // authentic. Malformed and refused messages are reported to the SRP (rate-limited).
     struct EstopContext {
       edp::ServoLoop* servo;
+      comm::Bus* bus;
       std::string robot;
       std::mutex mutex;
       std::string reason;
-    } estop{&servo, robot.name, {}, {}};
-    auto on_estop = +[](const lcm::ReceiveBuffer* buffer, const std::string&, EstopContext* c) {
+      std::uint64_t dropped = 0;
+    } estop{&servo, &bus, robot.name, {}, {}, 0};
+    auto on_estop = +[](const lcm::ReceiveBuffer* buffer, const std::string& channel,
+                        EstopContext* c) {
       mrroc_lcm::emergency_stop_t m;
-      if (!comm::detail::decode_received(buffer, m)) return;
+      if (!comm::detail::decode_received(buffer, m)) {
+        comm::detail::report_malformed(*c->bus, channel, static_cast<int>(buffer->data_size));
+        return;
+      }
       if (!m.robot.empty() && m.robot != c->robot) return;
       if (m.action == mrroc_lcm::emergency_stop_t::ENGAGE) {
         c->servo->emergency_stop();
         std::lock_guard lock(c->mutex);
         c->reason = m.reason + " (from " + m.header.sender + ")";
       } else if (m.action == mrroc_lcm::emergency_stop_t::RELEASE) {
+        if (!comm::detail::authentic(*c->bus, m, channel, c->dropped)) return;
         c->servo->release_emergency_stop();
       }
     };
@@ -151,11 +168,64 @@ int run(const std::string& config_path, const std::string& robot_name) {
                                   t.cycles, t.period_us, t.lateness_p50_us, t.lateness_p99_us,
                                   t.lateness_max_us, t.overruns));
     };
-    // Timing statistics go to the SRP every kTimingReportPeriod and when the EDP stops.
+    // The robot's state goes out every kStatePeriod (console, recordings, plots); timing
+    // statistics go to the SRP every kTimingReportPeriod and when the EDP stops; an overrun (a
+    // cycle that woke more than one period late: a stalled loop) is reported at once.
+    mrroc_lcm::robot_state_t state{};
+    state.header.sender = comm::unique_endpoint_name(process);
+    state.header.kind = mrroc_lcm::header_t::BROADCAST;
+    state.robot = robot.name;
+    state.servo_period_s = robot.edp.servo_period_s;
+    const std::size_t axes = model.axes();
+    state.n_joints = static_cast<std::int32_t>(axes);
+    state.q.resize(axes);
+    state.dq.resize(axes);
+    state.q_desired.resize(axes);
+    const std::string state_channel = channels::robot_state(robot.name);
     auto next_report = std::chrono::steady_clock::now() + kTimingReportPeriod;
+    auto next_state = std::chrono::steady_clock::now();
+    auto overrun_quiet_until = std::chrono::steady_clock::now();
+    std::int64_t overruns_unreported = 0;
+    double worst_unreported_us = 0;
     while (!stop_requested()) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      if (std::chrono::steady_clock::now() >= next_report) {
+      next_state += kStatePeriod;
+      std::this_thread::sleep_until(next_state);
+      const auto now = std::chrono::steady_clock::now();
+      if (now > next_state + kStatePeriod) next_state = now;  // fell behind: do not burst
+      const edp::Reading reading = servo.latest();
+      const edp::TimingWindow window = servo.take_timing_window();
+      for (std::size_t i = 0; i < axes; ++i) {
+        state.q[i] = reading.joints[i];
+        state.dq[i] = reading.velocities[i];
+        state.q_desired[i] = reading.desired[i];
+      }
+      state.synchronised = reading.synchronised;
+      state.moving = servo.moving() || !servo.stopped();
+      state.estop = servo.emergency_stopped();
+      state.fault = servo.faulted();
+      state.error = state.fault ? servo.fault_text() : std::string{};
+      state.servo_step = reading.cycle;
+      state.lateness_mean_us = window.lateness_mean_us;
+      state.lateness_max_us = window.lateness_max_us;
+      state.overruns = window.overruns_total;
+      ++state.header.seq;
+      state.header.utime = now_utime();
+      comm::publish(bus, state_channel, state);
+
+      overruns_unreported += window.overruns;
+      worst_unreported_us = std::max(worst_unreported_us, window.worst_overrun_us);
+      if (overruns_unreported > 0 && now >= overrun_quiet_until) {
+        reporter.report(Severity::warning, edp::error_code::servo_overrun,
+                        fmt::format("servo loop overrun: {} cycle(s) woke more than one period "
+                                    "({:.0f} us) late, the worst {:.0f} us; missed periods were "
+                                    "skipped",
+                                    overruns_unreported, robot.edp.servo_period_s * 1e6,
+                                    worst_unreported_us));
+        overruns_unreported = 0;
+        worst_unreported_us = 0;
+        overrun_quiet_until = now + kOverrunReportPeriod;
+      }
+      if (now >= next_report) {
         report_timing();
         next_report += kTimingReportPeriod;
       }

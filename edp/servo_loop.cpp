@@ -89,7 +89,14 @@ void ServoLoop::run() {
       lateness_next_ = (lateness_next_ + 1) % kLatenessSamples;
       lateness_max_us_ = std::max(lateness_max_us_, late_us);
       ++cycles_;
-      if (late_ns > period_ns) ++overruns_;
+      ++window_.cycles;
+      window_sum_us_ += late_us;
+      window_.lateness_max_us = std::max(window_.lateness_max_us, late_us);
+      if (late_ns > period_ns) {
+        ++overruns_;
+        ++window_.overruns;
+        window_.worst_overrun_us = std::max(window_.worst_overrun_us, late_us);
+      }
     }
     deadline += period_ns;
     // After an overrun, skip the periods already missed instead of running a burst of cycles.
@@ -482,6 +489,16 @@ std::vector<TraceSample> ServoLoop::trace() const {
 std::string ServoLoop::fault_text() const {
   std::lock_guard lock(mutex_);
   return fault_;
+}
+
+TimingWindow ServoLoop::take_timing_window() {
+  std::lock_guard lock(mutex_);
+  TimingWindow w = window_;
+  w.lateness_mean_us = w.cycles > 0 ? window_sum_us_ / static_cast<double>(w.cycles) : 0.0;
+  w.overruns_total = overruns_;
+  window_ = TimingWindow{};
+  window_sum_us_ = 0;
+  return w;
 }
 
 TimingStats ServoLoop::timing() const {

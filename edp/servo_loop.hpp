@@ -65,6 +65,17 @@ struct TimingStats {
   std::string scheduling;  ///< "SCHED_FIFO 80" or "SCHED_OTHER, timer slack 1 ns"
 };
 
+/// Wake-up lateness since the previous `take_timing_window()` (for the robot-state broadcast).
+struct TimingWindow {
+  std::int64_t cycles = 0;
+  double lateness_mean_us = 0;
+  double lateness_max_us = 0;
+  std::int64_t overruns_total = 0;
+  /// The worst overrun in the window: how late that cycle woke [us] (0 if none in the window).
+  double worst_overrun_us = 0;
+  std::int64_t overruns = 0;  ///< overruns in the window
+};
+
 class ServoLoop {
  public:
   ServoLoop(Hardware& hardware, const RobotModel& model, double period_s);
@@ -127,6 +138,8 @@ class ServoLoop {
   [[nodiscard]] std::string fault_text() const;
 
   [[nodiscard]] TimingStats timing() const;
+  /// Lateness since the previous call (the first call: since start()).
+  TimingWindow take_timing_window();
   [[nodiscard]] std::size_t axes() const { return axes_; }
 
   /// Records the next `capacity` cycles into preallocated memory (diagnostics and tests).
@@ -211,6 +224,8 @@ class ServoLoop {
   std::size_t lateness_next_ = 0;
   double lateness_max_us_ = 0;
   std::string scheduling_;
+  TimingWindow window_{};
+  double window_sum_us_ = 0;
 };
 
 }  // namespace mrroc::edp

@@ -1,82 +1,340 @@
-// mrroc-mp: the Master Process. Runs the MP part of the task, coordinating the robots' ECPs.
+// mrroc-mp: the Master Process. Runs the MP part of the task, coordinating the robots' ECPs, and
+// serves the operator's commands (START, PAUSE, RESUME, STOP, TERMINATE, STATUS from mrroc-ui).
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
-#include <cstdio>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
+#include <functional>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <thread>
 
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "mrroc/core/time.hpp"
 #include "mrroc/mp/task.hpp"
+#include "mrroc_lcm/operator_command_t.hpp"
+#include "mrroc_lcm/operator_reply_t.hpp"
 
 namespace {
 
 using namespace mrroc;
+using Command = mrroc_lcm::operator_command_t;
+using Reply = mrroc_lcm::operator_reply_t;
+using OperatorServer = comm::Server<Command, Reply>;
+
+const char* state_name(std::int8_t state) {
+  switch (state) {
+    case Reply::IDLE: return "IDLE";
+    case Reply::RUNNING: return "RUNNING";
+    case Reply::PAUSED: return "PAUSED";
+    case Reply::STOPPING: return "STOPPING";
+    case Reply::FINISHED: return "FINISHED";
+    case Reply::FAILED: return "FAILED";
+    case Reply::TERMINATING: return "TERMINATING";
+    default: return "?";
+  }
+}
+
+const char* command_name(std::int8_t command) {
+  switch (command) {
+    case Command::START: return "START";
+    case Command::PAUSE: return "PAUSE";
+    case Command::RESUME: return "RESUME";
+    case Command::STOP: return "STOP";
+    case Command::TERMINATE: return "TERMINATE";
+    case Command::STATUS: return "STATUS";
+    default: return nullptr;
+  }
+}
+
+/// The MP shell: one run of the MP task at a time on a worker thread; the main thread answers the
+/// operator's commands and sends PAUSE, RESUME and STOP to every ECP.
+class MpShell {
+ public:
+  MpShell(const ProcessSetConfig& config, comm::Bus& bus, Reporter& reporter)
+      : config_(config),
+        bus_(bus),
+        reporter_(reporter),
+        context_{{}, reporter, config.mp.args, config, &bus},
+        server_(bus, "mp", channels::mp_command, channels::mp_reply) {
+    for (const auto& robot : config.robots) {
+      robots_.push_back(std::make_unique<mp::Robot>(bus, robot.name));
+      context_.robots.push_back(robots_.back().get());
+    }
+    (void)make_task();  // an unknown task name or bad arguments fail before "ready"
+  }
+
+  MpShell(const MpShell&) = delete;
+  MpShell& operator=(const MpShell&) = delete;
+  ~MpShell() {
+    if (worker_.joinable()) worker_.join();
+  }
+
+  /// Runs until the task ended ("auto") or the operator terminated the MP ("operator").
+  /// Returns the exit code: 0 when the last run finished (or none ran), 1 otherwise.
+  int run() {
+    const bool operator_mode = config_.mp_waits_for_operator;
+    reporter_.set_state(ProcessState::ready);
+    if (operator_mode)
+      reporter_.info(fmt::format("task '{}' waits for START (mrroc-ui start or the console)",
+                                 config_.mp.name));
+    else
+      start_run();
+    bool stop_sent = false;
+    for (;;) {
+      if (auto in = server_.wait_request(std::chrono::milliseconds(20))) handle(*in);
+      collect_run();
+      if (stop_requested() && !stop_sent) {
+        stop_sent = true;
+        if (running()) {
+          reporter_.warning("stop requested: sending STOP to every ECP");
+          stop_run("stop requested");
+        }
+      }
+      std::lock_guard lock(mutex_);
+      const bool idle = state_ != Reply::RUNNING && state_ != Reply::PAUSED &&
+                        state_ != Reply::STOPPING;
+      if (idle && (!operator_mode || terminate_ || stop_requested())) break;
+    }
+    std::lock_guard lock(mutex_);
+    return state_ == Reply::FAILED ? 1 : 0;
+  }
+
+ private:
+  std::unique_ptr<mp::MpTask> make_task() {
+    try {
+      return mp::make_mp_task(config_.mp.name, context_);
+    } catch (const ConfigError& e) {
+      const std::string text = e.what();
+      if (text.find(": error: ") != std::string::npos) throw;
+      throw ConfigError(fmt::format("{}: error: {}", config_.mp.where.str(), text));
+    }
+  }
+
+  bool running() const {
+    std::lock_guard lock(mutex_);
+    return state_ == Reply::RUNNING || state_ == Reply::PAUSED || state_ == Reply::STOPPING;
+  }
+
+  void start_run() {
+    if (worker_.joinable()) worker_.join();
+    mp::clear_task_stop();
+    std::unique_ptr<mp::MpTask> task = make_task();
+    {
+      std::lock_guard lock(mutex_);
+      state_ = Reply::RUNNING;
+      ++runs_;
+      started_utime_ = now_utime();
+      last_error_.clear();
+      done_ = false;
+      stopped_by_operator_ = false;
+    }
+    reporter_.set_state(ProcessState::running);
+    reporter_.info(fmt::format("task '{}' started with {} robot(s){}", config_.mp.name,
+                               config_.robots.size(),
+                               runs_ > 1 ? fmt::format(" (run {})", runs_) : std::string{}));
+    worker_ = std::thread([this, t = std::move(task)] {
+      std::string failure;
+      try {
+        t->main_task();
+      } catch (const std::exception& e) {
+        failure = e.what();
+        if (failure.empty()) failure = "task failed";
+      }
+      std::lock_guard lock(mutex_);
+      last_error_ = failure;
+      done_ = true;
+    });
+  }
+
+  /// Notices the end of a run: reports it and resets the ECPs' pause.
+  void collect_run() {
+    bool ended = false;
+    bool paused = false;
+    std::string error;
+    bool by_operator = false;
+    {
+      std::lock_guard lock(mutex_);
+      if (!done_ || !worker_.joinable()) return;
+      ended = true;
+      paused = paused_ecps_;
+      paused_ecps_ = false;
+      error = last_error_;
+      by_operator = stopped_by_operator_;
+      if (!error.empty() && by_operator) error = "task stopped by the operator (" + error + ")";
+      last_error_ = error;
+      state_ = error.empty() ? Reply::FINISHED : Reply::FAILED;
+      done_ = false;
+    }
+    worker_.join();
+    if (!ended) return;
+    if (paused) for_each_robot("RESUME", [](mp::Robot& r) { r.resume(); });
+    if (error.empty()) {
+      reporter_.info(fmt::format("task '{}' finished", config_.mp.name));
+      reporter_.set_state(config_.mp_waits_for_operator ? ProcessState::ready
+                                                        : ProcessState::finished);
+    } else {
+      reporter_.report(by_operator ? Severity::warning : Severity::fatal, 0, error);
+      reporter_.set_state(config_.mp_waits_for_operator ? ProcessState::ready
+                                                        : ProcessState::failed,
+                          error);
+    }
+  }
+
+  void for_each_robot(const char* what, const std::function<void(mp::Robot&)>& action) {
+    for (mp::Robot* robot : context_.robots) {
+      try {
+        action(*robot);
+      } catch (const std::exception& e) {
+        reporter_.warning(fmt::format("{} to ecp/{}: {}", what, robot->name(), e.what()));
+      }
+    }
+  }
+
+  void stop_run(const std::string& why) {
+    {
+      std::lock_guard lock(mutex_);
+      state_ = Reply::STOPPING;
+      stopped_by_operator_ = true;
+    }
+    reporter_.warning(fmt::format("{}: stopping task '{}'", why, config_.mp.name));
+    mp::request_task_stop();
+    for_each_robot("STOP", [](mp::Robot& r) { r.stop(); });
+  }
+
+  Reply snapshot(bool accepted, const std::string& text) const {
+    std::lock_guard lock(mutex_);
+    Reply r{};
+    r.accepted = accepted;
+    r.state = state_;
+    r.task = config_.mp.name;
+    r.runs = runs_;
+    r.started_utime = started_utime_;
+    r.text = text.empty() ? last_error_ : text;
+    return r;
+  }
+
+  void handle(OperatorServer::Incoming& in) {
+    const std::int8_t command = in.request.command;
+    const char* name = command_name(command);
+    if (name == nullptr) {
+      in.responder.reply(snapshot(false, fmt::format("unknown operator command {} (expected 1..6: "
+                                                     "START, PAUSE, RESUME, STOP, TERMINATE, "
+                                                     "STATUS)",
+                                                     static_cast<int>(command))));
+      return;
+    }
+    std::int8_t state = 0;
+    {
+      std::lock_guard lock(mutex_);
+      state = state_;
+    }
+    auto refuse = [&](const std::string& why) {
+      in.responder.reply(snapshot(false, fmt::format("{} refused: {} (state {})", name, why,
+                                                     state_name(state))));
+    };
+    const bool active =
+        state == Reply::RUNNING || state == Reply::PAUSED || state == Reply::STOPPING;
+    switch (command) {
+      case Command::STATUS:
+        in.responder.reply(snapshot(true, {}));
+        return;
+      case Command::START:
+        if (!config_.mp_waits_for_operator)
+          return refuse("the task starts by itself ([mp] start = \"auto\")");
+        if (active) return refuse("the task is already running");
+        if (terminate_) return refuse("the MP is terminating");
+        reporter_.info("START from the operator");
+        start_run();
+        in.responder.reply(snapshot(true, "task started"));
+        return;
+      case Command::PAUSE:
+        if (state != Reply::RUNNING) return refuse("no task is running");
+        reporter_.info("PAUSE from the operator: every robot holds before its next macro-step");
+        {
+          std::lock_guard lock(mutex_);
+          state_ = Reply::PAUSED;
+          paused_ecps_ = true;
+        }
+        for_each_robot("PAUSE", [](mp::Robot& r) { r.pause(); });
+        in.responder.reply(snapshot(true, "task paused"));
+        return;
+      case Command::RESUME:
+        if (state != Reply::PAUSED) return refuse("the task is not paused");
+        reporter_.info("RESUME from the operator");
+        for_each_robot("RESUME", [](mp::Robot& r) { r.resume(); });
+        {
+          std::lock_guard lock(mutex_);
+          if (state_ == Reply::PAUSED) state_ = Reply::RUNNING;
+          paused_ecps_ = false;
+        }
+        in.responder.reply(snapshot(true, "task resumed"));
+        return;
+      case Command::STOP:
+        if (state != Reply::RUNNING && state != Reply::PAUSED)
+          return refuse("no task is running");
+        stop_run("STOP from the operator");
+        in.responder.reply(snapshot(true, "task stopping"));
+        return;
+      case Command::TERMINATE: {
+        reporter_.warning("TERMINATE from the operator: the MP ends");
+        {
+          std::lock_guard lock(mutex_);
+          terminate_ = true;
+        }
+        if (state == Reply::RUNNING || state == Reply::PAUSED) stop_run("TERMINATE");
+        Reply r = snapshot(true, "MP terminating");
+        r.state = Reply::TERMINATING;
+        in.responder.reply(r);
+        return;
+      }
+      default:
+        return;
+    }
+  }
+
+  const ProcessSetConfig& config_;
+  comm::Bus& bus_;
+  Reporter& reporter_;
+  std::vector<std::unique_ptr<mp::Robot>> robots_;
+  mp::TaskContext context_;
+  OperatorServer server_;
+  std::thread worker_;
+
+  mutable std::mutex mutex_;
+  std::int8_t state_ = Reply::IDLE;
+  std::int32_t runs_ = 0;
+  std::int64_t started_utime_ = 0;
+  std::string last_error_;
+  bool done_ = false;
+  bool paused_ecps_ = false;
+  bool stopped_by_operator_ = false;
+  bool terminate_ = false;
+};
 
 int run(const std::string& config_path) {
   const ProcessSetConfig config = load_process_set(config_path);
   apply_cpu_affinity(config.mp.options.cpus);
   comm::Bus bus(config.lcm_url);
+  comm::enable_auth_from_file(bus, config.auth_key_file);
   bus.start();
   Reporter reporter(bus, "mp");
   try {
-    std::vector<std::unique_ptr<mp::Robot>> robots;
-    mp::TaskContext context{{}, reporter, config.mp.args, config, &bus};
-    for (const auto& robot : config.robots) {
-      robots.push_back(std::make_unique<mp::Robot>(bus, robot.name));
-      context.robots.push_back(robots.back().get());
-    }
     if (!config.mp.library.empty()) load_plugin_library(config.mp.library, config.mp.where);
-    std::unique_ptr<mp::MpTask> task;
-    try {
-      task = mp::make_mp_task(config.mp.name, context);
-    } catch (const ConfigError& e) {
-      const std::string text = e.what();
-      if (text.find(": error: ") != std::string::npos) throw;
-      throw ConfigError(fmt::format("{}: error: {}", config.mp.where.str(), text));
-    }
-    reporter.set_state(ProcessState::ready);
-    reporter.info(fmt::format("task '{}' started with {} robot(s)", config.mp.name,
-                              config.robots.size()));
-    reporter.set_state(ProcessState::running);
-    std::atomic<bool> done{false};
-    std::string failure;
-    std::thread task_thread([&] {
-      try {
-        task->main_task();
-      } catch (const std::exception& e) {
-        failure = e.what();
-      }
-      done = true;
-    });
-    bool stop_sent = false;
-    while (!done) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-      if (stop_requested() && !stop_sent) {
-        // Operator stop: ask every ECP to stop its task; their START_TASK replies then end the task.
-        stop_sent = true;
-        reporter.warning("stop requested: sending STOP to every ECP");
-        for (mp::Robot* robot : context.robots) {
-          try {
-            robot->stop();
-          } catch (const std::exception& e) {
-            reporter.warning(fmt::format("STOP to ecp/{}: {}", robot->name(), e.what()));
-          }
-        }
-      }
-    }
-    task_thread.join();
-    if (!failure.empty()) throw Error(failure);
-    if (stop_sent) throw Error("task stopped on request");
-    reporter.info(fmt::format("task '{}' finished", config.mp.name));
-    reporter.set_state(ProcessState::finished);
-    return 0;
+    MpShell shell(config, bus, reporter);
+    const int code = shell.run();
+    if (config.mp_waits_for_operator)
+      reporter.set_state(code == 0 ? ProcessState::finished : ProcessState::failed);
+    return code;
   } catch (const std::exception& e) {
     reporter.report(Severity::fatal, 0, e.what());
     reporter.set_state(ProcessState::failed, e.what());
@@ -88,9 +346,12 @@ int run(const std::string& config_path) {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "mrroc-mp: Master Process. Runs the MP task named in the config and coordinates the ECPs; "
-      "exits 0 when the task finished, 1 when it failed, 2 on a config error. Normally started "
-      "by mrroc-launch."};
+      "mrroc-mp: Master Process. Runs the MP task named in the config and coordinates the ECPs. "
+      "With [mp] start = \"auto\" (the default) the task starts at once and the MP exits when "
+      "it ends; with start = \"operator\" the MP waits for START and serves START, PAUSE, RESUME, "
+      "STOP, TERMINATE and STATUS from mrroc-ui (channel mrroc/mp/cmd) until TERMINATE. Exit "
+      "code: 0 when the (last) run finished or none ran, 1 when it failed or was stopped, 2 on "
+      "a config error. Normally started by mrroc-launch."};
   std::string config;
   app.add_option("-c,--config", config, "process-set config file (TOML)")->required();
   CLI11_PARSE(app, argc, argv);

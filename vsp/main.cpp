@@ -6,6 +6,7 @@
 
 #include <cstdio>
 
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
@@ -40,6 +41,7 @@ int main(int argc, char** argv) {
   try {
     apply_cpu_affinity(vsp->options.cpus);
     comm::Bus bus(config.lcm_url);
+    comm::enable_auth_from_file(bus, config.auth_key_file);
     Reporter reporter(bus, process);
     try {
       if (!vsp->library.empty()) load_plugin_library(vsp->library, vsp->where);

@@ -5,8 +5,12 @@
 // Parameters ([robot.edp.params]):
 //   mock:   power_on_offset (rad, default 0.05): power-on position relative to the synchronisation
 //           position on every axis.
-//   faulty: the same, plus fault_after_cycles (default 100) and fault = "status" | "throw".
+//   faulty: the same, plus fault_after_cycles (default 100) and fault = "status" | "throw" |
+//   "stall" (the read of that cycle blocks for stall_ms, default 50: a stalled servo loop).
 #include <fmt/format.h>
+
+#include <chrono>
+#include <thread>
 
 #include <cstdio>
 #include <stdexcept>
@@ -86,6 +90,12 @@ class FaultyHardware : public MockHardware {
     // Each activation injects one fault, after fault_after_cycles reads; after a reset the
     // plugin keeps working (the fault was transient).
     if (activations_ == 1 && ++cycles_ > fault_after_ && !faulted_) {
+      if (stall_ms_ > 0) {
+        // A stall is no fault of the drive: the loop just does not run for a while, once.
+        if (!stalled_) std::this_thread::sleep_for(std::chrono::milliseconds(stall_ms_));
+        stalled_ = true;
+        return MockHardware::read(out);
+      }
       faulted_ = true;
       if (throw_) throw std::runtime_error("injected exception in read()");
     }
@@ -101,10 +111,16 @@ class FaultyHardware : public MockHardware {
     MockHardware::configure_params(params);
     fault_after_ = params.get_int("fault_after_cycles", 100);
     const std::string kind = params.get_string("fault", "status");
-    if (kind != "status" && kind != "throw")
-      throw ConfigError(fmt::format("{}: error: fault '{}' must be \"status\" or \"throw\"",
-                                    params.location_of("fault").str(), kind));
+    if (kind != "status" && kind != "throw" && kind != "stall")
+      throw ConfigError(fmt::format(
+          "{}: error: fault '{}' must be \"status\", \"throw\" or \"stall\"",
+          params.location_of("fault").str(), kind));
     throw_ = kind == "throw";
+    const std::int64_t stall = params.get_int("stall_ms", 50);
+    if (stall < 1 || stall > 10000)
+      throw ConfigError(fmt::format("{}: error: stall_ms = {} ms is outside 1..10000 ms",
+                                    params.location_of("stall_ms").str(), stall));
+    if (kind == "stall") stall_ms_ = stall;
   }
 
  private:
@@ -113,6 +129,8 @@ class FaultyHardware : public MockHardware {
   int activations_ = 0;
   bool throw_ = false;
   bool faulted_ = false;
+  std::int64_t stall_ms_ = 0;
+  bool stalled_ = false;
 };
 
 MRROC_REGISTER_HARDWARE("mock", MockHardware);

@@ -2,7 +2,11 @@
 
 #include <unistd.h>
 
+#include <fmt/format.h>
+
 #include <cstdlib>
+
+#include "mrroc/comm/auth.hpp"
 
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/core/error.hpp"
@@ -26,7 +30,71 @@ Bus::Bus(const std::string& url) : url_(resolve_lcm_url(url)) {
                 "' (is there a multicast route, e.g. 'ip route add 224.0.0.0/4 dev lo'?)");
 }
 
-Bus::~Bus() { stop(); }
+Bus::~Bus() {
+  stop();
+  {
+    std::lock_guard lock(delay_mutex_);
+    delayer_stop_ = true;
+  }
+  delay_cv_.notify_all();
+  if (delayer_.joinable()) delayer_.join();
+}
+
+void Bus::enable_auth(std::vector<std::uint8_t> key) {
+  auth_ = std::make_unique<Authenticator>(std::move(key));
+}
+
+void Bus::set_drop_sink(DropSink sink) {
+  std::lock_guard lock(drop_mutex_);
+  drop_sink_ = std::move(sink);
+}
+
+void Bus::report_drop(int code, const std::string& kind, const std::string& text) {
+  // The sink is called under the lock, so that set_drop_sink({}) (e.g. a Reporter's destructor)
+  // waits for a report in progress. The sink must not call report_drop.
+  std::lock_guard lock(drop_mutex_);
+  DropCount& d = drops_[kind];
+  ++d.unreported;
+  const auto now = std::chrono::steady_clock::now();
+  if (now < d.quiet_until || !drop_sink_) return;
+  const std::string message =
+      d.unreported == 1 ? text
+                        : fmt::format("{} ({} such messages dropped since the last report)", text,
+                                      d.unreported);
+  d.unreported = 0;
+  d.quiet_until = now + kDropReportPeriod;
+  drop_sink_(code, message);
+}
+
+void Bus::publish_later(const std::string& channel, std::vector<std::uint8_t> bytes,
+                        std::chrono::microseconds delay) {
+  std::lock_guard lock(delay_mutex_);
+  if (delayer_stop_) return;
+  if (!delayer_.joinable()) delayer_ = std::thread([this] { run_delayer(); });
+  delayed_.emplace(std::chrono::steady_clock::now() + delay, Delayed{channel, std::move(bytes)});
+  delay_cv_.notify_all();
+}
+
+void Bus::run_delayer() {
+  std::unique_lock lock(delay_mutex_);
+  while (!delayer_stop_) {
+    if (delayed_.empty()) {
+      delay_cv_.wait(lock);
+      continue;
+    }
+    const auto due = delayed_.begin()->first;
+    if (std::chrono::steady_clock::now() < due) {
+      delay_cv_.wait_until(lock, due);
+      continue;
+    }
+    Delayed d = std::move(delayed_.begin()->second);
+    delayed_.erase(delayed_.begin());
+    lock.unlock();
+    lcm_->publish(d.channel, d.bytes.data(), static_cast<unsigned int>(d.bytes.size()));
+    detail::published();
+    lock.lock();
+  }
+}
 
 void Bus::start() {
   if (running_.exchange(true)) return;

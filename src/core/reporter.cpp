@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
@@ -43,6 +44,9 @@ Reporter::Reporter(comm::Bus& bus, std::string process, std::string robot)
       robot_(std::move(robot)),
       sender_(process_ + "#" + std::to_string(::getpid())),
       started_ns_(monotonic_ns()) {
+  // Messages the comm layer drops (malformed, unauthenticated) are reported to the SRP.
+  bus_.set_drop_sink(
+      [this](int code, const std::string& text) { report(Severity::warning, code, text); });
   heartbeat_ = std::thread([this] {
     std::unique_lock lock(mutex_);
     while (!stopping_) {
@@ -56,6 +60,7 @@ Reporter::Reporter(comm::Bus& bus, std::string process, std::string robot)
 }
 
 Reporter::~Reporter() {
+  bus_.set_drop_sink({});
   {
     std::lock_guard lock(mutex_);
     stopping_ = true;
@@ -82,8 +87,7 @@ void Reporter::report(Severity severity, int code, const std::string& text) {
   m.severity = static_cast<std::int8_t>(severity);
   m.code = code;
   m.text = text;
-  comm::detail::published();
-  bus_.lcm().publish(channels::srp, &m);
+  comm::publish(bus_, channels::srp, m);
 }
 
 void Reporter::set_state(ProcessState state, const std::string& detail) {
@@ -115,8 +119,7 @@ void Reporter::publish_status() {
   m.robot = robot_;
   m.pid = static_cast<std::int32_t>(::getpid());
   m.uptime_us = (monotonic_ns() - started_ns_) / 1000;
-  comm::detail::published();
-  bus_.lcm().publish(channels::status, &m);
+  comm::publish(bus_, channels::status, m);
 }
 
 struct SystemListener::Impl {
@@ -127,19 +130,21 @@ struct SystemListener::Impl {
   lcm::Subscription* srp_sub = nullptr;
   lcm::Subscription* status_sub = nullptr;
 
-  static void on_srp(const lcm::ReceiveBuffer* buffer, const std::string&, Impl* self) {
+  static void on_srp(const lcm::ReceiveBuffer* buffer, const std::string& channel, Impl* self) {
     mrroc_lcm::srp_message_t m;
     if (!comm::detail::decode_received(buffer, m)) {
       ++*self->malformed;
+      comm::detail::report_malformed(self->bus, channel, static_cast<int>(buffer->data_size));
       return;
     }
     self->message(&m);
   }
-  static void on_status_message(const lcm::ReceiveBuffer* buffer, const std::string&,
+  static void on_status_message(const lcm::ReceiveBuffer* buffer, const std::string& channel,
                                 Impl* self) {
     mrroc_lcm::process_status_t m;
     if (!comm::detail::decode_received(buffer, m)) {
       ++*self->malformed;
+      comm::detail::report_malformed(self->bus, channel, static_cast<int>(buffer->data_size));
       return;
     }
     self->status(&m);

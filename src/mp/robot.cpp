@@ -1,5 +1,7 @@
 #include "mrroc/mp/robot.hpp"
 
+#include <atomic>
+
 #include <fmt/format.h>
 
 #include <exception>
@@ -7,6 +9,7 @@
 
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/process.hpp"
+#include "mrroc/mp/task.hpp"
 
 namespace mrroc::mp {
 
@@ -90,11 +93,19 @@ void parallel(const RobotList& robots, const std::function<void(Robot&)>& action
 }
 
 namespace {
+std::atomic<bool> g_task_stop{false};
+
+bool stopping() { return mrroc::stop_requested() || g_task_stop.load(); }
+
 void refresh(const ecp::SensorList& sensors) {
   for (ecp::Sensor* s : sensors) s->initiate_reading();
   for (ecp::Sensor* s : sensors) s->get_reading();
 }
 }  // namespace
+
+void request_task_stop() { g_task_stop.store(true); }
+void clear_task_stop() { g_task_stop.store(false); }
+bool task_stop_requested() { return g_task_stop.load(); }
 
 void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator) {
   ImageList images;
@@ -104,7 +115,7 @@ void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& ge
   if (!generator.first_step(images, sensors)) return;
   try {
     do {
-      if (mrroc::stop_requested()) throw ecp::TaskStopped("MP stopped on request");
+      if (stopping()) throw ecp::TaskStopped("MP stopped on request");
       RobotList step;
       for (Robot* r : robots)
         if (r->image().commanded) step.push_back(r);
@@ -127,7 +138,7 @@ void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& ge
 
 void Wait(const ecp::SensorList& sensors, ecp::Condition& condition, double period_s) {
   for (;;) {
-    if (mrroc::stop_requested()) throw ecp::TaskStopped("MP stopped on request");
+    if (stopping()) throw ecp::TaskStopped("MP stopped on request");
     refresh(sensors);
     if (condition.check(sensors)) return;
     std::this_thread::sleep_for(std::chrono::duration<double>(period_s));

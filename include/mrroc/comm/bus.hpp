@@ -6,13 +6,28 @@
 /// run on the bus thread and must return quickly (they hand work to other threads).
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <lcm/lcm-cpp.hpp>
 
 namespace mrroc::comm {
+
+class Authenticator;
+
+/// SRP codes of messages a process dropped (reported through the bus' drop sink).
+namespace drop_code {
+inline constexpr int malformed = 1;         ///< could not be decoded
+inline constexpr int unauthenticated = 12;  ///< no or wrong HMAC, or a replayed counter
+}  // namespace drop_code
 
 /// The default LCM URL: multicast with ttl=0, so nothing leaves the host.
 inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0";
@@ -37,11 +52,53 @@ class Bus {
   /// True when called from the dispatch thread (request/reply calls must not be made from there).
   [[nodiscard]] bool on_bus_thread() const;
 
+  /// Signs every message sent through the comm layer with `key` and makes every request/reply
+  /// endpoint drop (and report) messages without a valid tag (see auth.hpp). Call before any
+  /// link is created on this bus.
+  void enable_auth(std::vector<std::uint8_t> key);
+  /// The authenticator, or null when the set runs without a key.
+  [[nodiscard]] Authenticator* auth() const { return auth_.get(); }
+
+  /// Where reports of dropped messages go (normally the process' Reporter, which installs
+  /// itself): `code` is a drop_code, `text` names the channel, sender and reason.
+  using DropSink = std::function<void(int code, const std::string& text)>;
+  void set_drop_sink(DropSink sink);
+  /// Reports a dropped message, rate-limited per `kind` (e.g. "malformed on irb6/edp/cmd"): the
+  /// first at once, later ones at most every kDropReportPeriod, with the number dropped since.
+  void report_drop(int code, const std::string& kind, const std::string& text);
+  static constexpr std::chrono::seconds kDropReportPeriod{10};
+
+  /// Publishes already encoded bytes after `delay` (link fault injection); messages still
+  /// waiting when the bus stops are not sent.
+  void publish_later(const std::string& channel, std::vector<std::uint8_t> bytes,
+                     std::chrono::microseconds delay);
+
  private:
+  struct Delayed {
+    std::string channel;
+    std::vector<std::uint8_t> bytes;
+  };
+  struct DropCount {
+    std::chrono::steady_clock::time_point quiet_until{};
+    std::uint64_t unreported = 0;
+  };
+  void run_delayer();
+
   std::string url_;
   std::unique_ptr<lcm::LCM> lcm_;
   std::thread thread_;
   std::atomic<bool> running_{false};
+  std::unique_ptr<Authenticator> auth_;
+
+  std::mutex drop_mutex_;
+  DropSink drop_sink_;
+  std::map<std::string, DropCount> drops_;
+
+  std::mutex delay_mutex_;
+  std::condition_variable delay_cv_;
+  std::multimap<std::chrono::steady_clock::time_point, Delayed> delayed_;
+  std::thread delayer_;
+  bool delayer_stop_ = false;
 };
 
 /// Resolves the URL the way Bus does (empty -> $LCM_DEFAULT_URL -> kDefaultLcmUrl).

@@ -30,6 +30,7 @@
 
 #include <fmt/format.h>
 
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/faults.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
@@ -57,15 +58,55 @@ struct LinkStats {
   std::uint64_t in_progress = 0;        ///< server: IN_PROGRESS replies sent
   std::uint64_t stale = 0;              ///< dropped: old sequences / replies nobody waits for
   std::uint64_t malformed = 0;          ///< dropped: could not be decoded
+  std::uint64_t unauthenticated = 0;    ///< dropped: no or wrong tag, or replayed (auth.hpp)
 };
 
-namespace detail {
+/// Publishes `msg` on `channel`, signed when the bus has a key (for broadcasts: status, SRP
+/// messages, robot state, emergency stop).
 template <class Msg>
-void publish_with_faults(lcm::LCM& lcm, FaultDice& dice, const std::string& channel,
-                         const Msg& msg) {
-  const int copies = dice.copies();
+void publish(Bus& bus, const std::string& channel, Msg msg) {
+  if (Authenticator* auth = bus.auth()) sign(*auth, msg);
+  detail::published();
+  bus.lcm().publish(channel, &msg);
+}
+
+namespace detail {
+/// Signs (when the bus has a key) and publishes `msg`, with the link faults of `dice`.
+template <class Msg>
+void publish_with_faults(Bus& bus, FaultDice& dice, const std::string& channel, Msg msg) {
+  if (Authenticator* auth = bus.auth()) sign(*auth, msg);
+  const FaultPlan plan = dice.plan();
+  if (plan.copies == 0) return;
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
   published();
-  for (int i = 0; i < copies; ++i) lcm.publish(channel, &msg);
+  for (int i = 0; i < plan.copies; ++i) {
+    if (plan.delay_us[i] > 0)
+      bus.publish_later(channel, bytes, std::chrono::microseconds(plan.delay_us[i]));
+    else
+      bus.lcm().publish(channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
+  }
+}
+
+/// Checks a received message on a bus with a key; reports and counts what it drops.
+template <class Msg>
+bool authentic(Bus& bus, const Msg& msg, const std::string& channel, std::uint64_t& dropped) {
+  Authenticator* auth = bus.auth();
+  if (auth == nullptr) return true;
+  const Authenticator::Verdict verdict = verify(*auth, msg);
+  if (verdict == Authenticator::Verdict::ok) return true;
+  ++dropped;
+  bus.report_drop(drop_code::unauthenticated, "unauthenticated on " + channel,
+                  fmt::format("dropped a message on '{}' from '{}': {}", channel,
+                              msg.header.sender, to_string(verdict)));
+  return false;
+}
+
+/// Counts and reports a message that did not decode.
+inline void report_malformed(Bus& bus, const std::string& channel, int size) {
+  bus.report_drop(drop_code::malformed, "malformed on " + channel,
+                  fmt::format("dropped a malformed message on '{}' ({} bytes that do not decode)",
+                              channel, size));
 }
 }  // namespace detail
 
@@ -150,24 +191,34 @@ class Client {
  private:
   void send(std::unique_lock<std::mutex>& lock, const Req& request) {
     lock.unlock();
-    detail::publish_with_faults(bus_.lcm(), dice_, request_channel_, request);
+    detail::publish_with_faults(bus_, dice_, request_channel_, request);
     lock.lock();
   }
 
   // LCM calls a plain function with the object as context (no pointer-to-member dispatch).
-  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string&, Client* self) {
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel,
+                       Client* self) {
     Rep reply;
     if (!detail::decode_received(buffer, reply)) {
-      std::lock_guard lock(self->mutex_);
-      ++self->stats_.malformed;
+      {
+        std::lock_guard lock(self->mutex_);
+        ++self->stats_.malformed;
+      }
+      detail::report_malformed(self->bus_, channel, static_cast<int>(buffer->data_size));
       return;
     }
-    self->on_reply(&reply);
+    self->on_reply(&reply, channel);
   }
 
-  void on_reply(const Rep* reply) {
+  void on_reply(const Rep* reply, const std::string& channel) {
     if (reply->header.recipient != name_) return;  // another client's reply on a shared channel
+    std::uint64_t rejected = 0;
+    const bool ok = detail::authentic(bus_, *reply, channel, rejected);
     std::lock_guard lock(mutex_);
+    if (!ok) {
+      stats_.unauthenticated += rejected;
+      return;
+    }
     if (reply->header.seq != waiting_seq_ || reply_) {
       ++stats_.stale;
       return;
@@ -242,7 +293,7 @@ class Server {
         peer.done = true;
         peer.cached = rep;
       }
-      detail::publish_with_faults(state_->bus->lcm(), state_->dice, state_->reply_channel, rep);
+      detail::publish_with_faults(*state_->bus, state_->dice, state_->reply_channel, rep);
     }
     [[nodiscard]] const std::string& client() const { return client_; }
     [[nodiscard]] std::int64_t seq() const { return seq_; }
@@ -297,11 +348,21 @@ class Server {
   }
 
  private:
-  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string&, Server* self) {
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel,
+                       Server* self) {
     Req request;
     if (!detail::decode_received(buffer, request)) {
+      {
+        std::lock_guard lock(self->state_->mutex);
+        ++self->state_->stats.malformed;
+      }
+      detail::report_malformed(self->bus_, channel, static_cast<int>(buffer->data_size));
+      return;
+    }
+    std::uint64_t rejected = 0;
+    if (!detail::authentic(self->bus_, request, channel, rejected)) {
       std::lock_guard lock(self->state_->mutex);
-      ++self->state_->stats.malformed;
+      self->state_->stats.unauthenticated += rejected;
       return;
     }
     self->on_request(&request);
@@ -339,7 +400,7 @@ class Server {
       }
     }
     if (resend) {
-      detail::publish_with_faults(bus_.lcm(), state_->dice, state_->reply_channel, *resend);
+      detail::publish_with_faults(bus_, state_->dice, state_->reply_channel, *resend);
       return;
     }
     Responder responder(state_, client, seq);

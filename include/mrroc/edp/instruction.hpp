@@ -81,6 +81,8 @@ inline constexpr int bad_argument = 7;       ///< wrong size, steps, representat
 inline constexpr int hardware_fault = 8;     ///< the hardware plugin reported a fault
 inline constexpr int not_supported = 9;      ///< valid instruction that this EDP does not support
 inline constexpr int emergency_stop = 10;    ///< motion refused: emergency stop engaged
+inline constexpr int servo_overrun = 11;     ///< a servo cycle woke more than one period late
+inline constexpr int unauthenticated = 12;   ///< a message without a valid HMAC or replayed (SRP report)
 }  // namespace error_code
 
 struct Reply {

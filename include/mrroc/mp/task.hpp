@@ -32,6 +32,13 @@ struct TaskContext {
   [[nodiscard]] Robot& robot(const std::string& name) const;
 };
 
+/// The operator's STOP of the current run (mrroc-ui stop): MP-level Move and Wait throw
+/// ecp::TaskStopped at their next step, like on SIGTERM, but the MP process goes on and may start
+/// the task again. The MP shell clears it before each run.
+void request_task_stop();
+void clear_task_stop();
+[[nodiscard]] bool task_stop_requested();
+
 class MpTask {
  public:
   virtual ~MpTask() = default;

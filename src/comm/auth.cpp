@@ -1,0 +1,104 @@
+#include "mrroc/comm/auth.hpp"
+
+#include "mrroc/comm/bus.hpp"
+
+#include <fmt/format.h>
+#include <openssl/crypto.h>
+#include <openssl/evp.h>
+#include <openssl/hmac.h>
+
+#include <cctype>
+#include <fstream>
+#include <sstream>
+
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/time.hpp"
+
+namespace mrroc::comm {
+
+std::vector<std::uint8_t> load_auth_key(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw Error(fmt::format("authentication key file '{}' cannot be read", file.string()));
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string hex;
+  for (const char c : text.str()) {
+    if (std::isspace(static_cast<unsigned char>(c)) != 0) continue;
+    if (std::isxdigit(static_cast<unsigned char>(c)) == 0)
+      throw Error(fmt::format("authentication key file '{}': '{}' is not a hexadecimal digit",
+                              file.string(), c));
+    hex += c;
+  }
+  if (hex.size() % 2 != 0 || hex.size() < 64)
+    throw Error(fmt::format("authentication key file '{}' holds {} hexadecimal digits; it needs an "
+                            "even number, at least 64 (32 bytes; e.g. openssl rand -hex 32)",
+                            file.string(), hex.size()));
+  std::vector<std::uint8_t> key;
+  for (std::size_t i = 0; i < hex.size(); i += 2)
+    key.push_back(static_cast<std::uint8_t>(std::stoi(hex.substr(i, 2), nullptr, 16)));
+  return key;
+}
+
+void enable_auth_from_file(Bus& bus, const std::filesystem::path& key_file) {
+  if (key_file.empty()) return;
+  bus.enable_auth(load_auth_key(key_file));
+}
+
+Authenticator::Authenticator(std::vector<std::uint8_t> key) : key_(std::move(key)) {
+  if (key_.size() < 32)
+    throw Error(fmt::format("authentication key of {} bytes is too short (at least 32)",
+                            key_.size()));
+}
+
+std::int64_t Authenticator::next_counter() {
+  std::lock_guard lock(mutex_);
+  last_counter_ = std::max(last_counter_ + 1, now_utime());
+  return last_counter_;
+}
+
+Authenticator::Tag Authenticator::mac(const std::uint8_t* data, std::size_t size) const {
+  Tag tag{};
+  unsigned int length = 0;
+  HMAC(EVP_sha256(), key_.data(), static_cast<int>(key_.size()), data, size, tag.data(), &length);
+  return tag;
+}
+
+bool Authenticator::same(const std::uint8_t* a, const std::uint8_t* b, std::size_t n) {
+  return CRYPTO_memcmp(a, b, n) == 0;
+}
+
+Authenticator::Verdict Authenticator::accept_counter(const std::string& sender,
+                                                     std::int64_t counter) {
+  std::lock_guard lock(mutex_);
+  auto it = seen_.find(sender);
+  if (it == seen_.end()) {
+    const std::int64_t oldest = now_utime() -
+        std::chrono::duration_cast<std::chrono::microseconds>(kFreshness).count();
+    if (counter < oldest) return Verdict::stale;
+    it = seen_.emplace(sender, Seen{}).first;
+  }
+  Seen& s = it->second;
+  if (counter > s.highest) {
+    s.highest = counter;
+  } else if (counter <= s.highest - kReorderWindowUs || s.recent.count(counter) != 0 ||
+             counter == s.highest) {
+    return Verdict::replayed;
+  }
+  s.recent.insert(counter);
+  while (!s.recent.empty() && *s.recent.begin() <= s.highest - kReorderWindowUs)
+    s.recent.erase(s.recent.begin());
+  return Verdict::ok;
+}
+
+const char* to_string(Authenticator::Verdict verdict) {
+  switch (verdict) {
+    case Authenticator::Verdict::ok: return "ok";
+    case Authenticator::Verdict::missing: return "no authentication tag";
+    case Authenticator::Verdict::bad_tag: return "wrong authentication tag";
+    case Authenticator::Verdict::replayed: return "replayed (counter already seen)";
+    case Authenticator::Verdict::stale: return "stale (counter older than 30 s)";
+  }
+  return "?";
+}
+
+}  // namespace mrroc::comm

@@ -18,6 +18,8 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/comm/auth.hpp"
+#include "mrroc_lcm/edp_instruction_t.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
 #include "mrroc_lcm/operator_reply_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
@@ -34,11 +36,12 @@ constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
 
 /// A process-set file in a temporary folder.
 std::string write_config(const std::string& name, const std::string& mp, const std::string& edp,
-                         const std::string& poses) {
+                         const std::string& poses, const std::string& system = {}) {
   const fs::path dir = fs::temp_directory_path() / ("mrroc-operator-" + std::to_string(getpid()));
   fs::create_directories(dir);
   const fs::path file = dir / (name + ".toml");
   std::ofstream(file) << "[system]\nname = \"" << name << "\"\nlcm_url = \"" << kUrl << "\"\n"
+                      << system << "\n"
                       << "[mp]\ntask = \"start_and_wait\"\n" << mp << "\n"
                       << "[[robot]]\nname = \"irb6\"\nmodel = \"" << MRROC_SOURCE_DIR
                       << "/robots/irb6\"\n[robot.edp]\n" << edp << "\n"
@@ -350,4 +353,96 @@ TEST_F(Operator, StalledServoLoopIsDetectedAndReported) {
       << run.output;
   EXPECT_TRUE(std::regex_search(run.output, std::regex("servo loop: [0-9]+ cycles .* 1 overruns")))
       << run.output;
+}
+
+// With [system] auth_key_file, a publisher without the key on the same bus can neither start the
+// task nor move a robot (a foreign SYNCHRO straight to the EDP), and each attempt is reported to
+// the SRP; an operator tool with the key works as before.
+TEST(Authentication, AForeignPublisherCannotMoveARobot) {
+  const fs::path key = fs::temp_directory_path() / ("mrroc-operator-key-" + std::to_string(getpid()));
+  std::ofstream(key) << "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n";
+  const std::string config =
+      write_config("auth", "start = \"operator\"", "plugin = \"mujoco\"",
+                   "[[0.3, -1.4, 0.1, 0.2, 0.3], [0.0, -1.5708, 0.0, 0.0, 0.0]]",
+                   "auth_key_file = \"" + key.string() + "\"");
+  comm::Bus stranger(kUrl);  // no key
+  comm::Bus operator_bus(kUrl);
+  comm::enable_auth_from_file(operator_bus, key);
+  StateWatch states(stranger);
+  stranger.start();
+  operator_bus.start();
+  comm::Client<Command, Reply> foreign(stranger, comm::unique_endpoint_name("intruder"), "MP",
+                                       channels::mp_command, channels::mp_reply,
+                                       comm::ClientOptions{std::chrono::milliseconds(100), 3, {}});
+  comm::Client<Command, Reply> ui(operator_bus, comm::unique_endpoint_name("ui"), "MP",
+                                  channels::mp_command, channels::mp_reply,
+                                  comm::ClientOptions{std::chrono::milliseconds(200), 5, {}});
+  BackgroundLaunch launch(config);
+  Command status{};
+  status.command = Command::STATUS;
+  Reply r{};
+  const auto until = Clock::now() + std::chrono::seconds(60);
+  for (;;) {
+    try {
+      r = ui.call(status);
+      break;
+    } catch (const TimeoutError&) {
+      ASSERT_LT(Clock::now(), until) << "the MP never answered the operator with the key";
+    }
+  }
+  EXPECT_EQ(r.state, +Reply::IDLE);
+  const auto before = states.wait_for([](const auto&) { return true; }, std::chrono::seconds(5));
+  ASSERT_TRUE(before);
+  EXPECT_FALSE(before->synchronised);
+
+  // The stranger's START gets no answer and starts nothing.
+  Command start{};
+  start.command = Command::START;
+  EXPECT_THROW((void)foreign.call(start), TimeoutError);
+  // The stranger's SYNCHRO straight to the EDP (it would move every axis) is dropped.
+  mrroc_lcm::edp_instruction_t synchro{};
+  synchro.header.sender = "intruder#1";
+  synchro.header.seq = 1;
+  synchro.header.utime = now_utime();
+  synchro.instruction = mrroc_lcm::edp_instruction_t::SYNCHRO;
+  for (int i = 0; i < 3; ++i) {
+    stranger.lcm().publish(channels::edp_command("irb6"), &synchro);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  const auto after = states.last();
+  EXPECT_FALSE(after.synchronised) << "the foreign SYNCHRO was executed";
+  for (std::size_t i = 0; i < after.q.size(); ++i)
+    EXPECT_NEAR(after.q[i], before->q[i], 1e-6) << "axis " << i << " moved";
+  r = ui.call(status);
+  EXPECT_EQ(r.state, +Reply::IDLE) << "the foreign START started the task";
+  EXPECT_EQ(r.runs, 0);
+
+  // The operator with the key starts the task; it runs to the end.
+  r = ui.call(start);
+  EXPECT_TRUE(r.accepted) << r.text;
+  const auto until_done = Clock::now() + std::chrono::seconds(60);
+  while (r.state != Reply::FINISHED && r.state != Reply::FAILED && Clock::now() < until_done) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    r = ui.call(status);
+  }
+  EXPECT_EQ(r.state, +Reply::FINISHED) << r.text;
+  Command terminate{};
+  terminate.command = Command::TERMINATE;
+  (void)ui.call(terminate);
+  const LaunchRun run = launch.wait();
+  stranger.stop();
+  operator_bus.stop();
+  fs::remove(key);
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(std::regex_search(
+      run.output, std::regex("mp .*\\[12\\] dropped a message on 'mrroc/mp/cmd' from "
+                             "'intruder#[0-9]+': no authentication tag")))
+      << run.output;
+  EXPECT_TRUE(std::regex_search(
+      run.output, std::regex("edp/irb6 .*\\[12\\] dropped a message on 'irb6/edp/cmd' from "
+                             "'intruder#1': no authentication tag")))
+      << run.output;
+  EXPECT_TRUE(has(run.output, "task 'start_and_wait' finished")) << run.output;
+  expect_nothing_left();
 }

@@ -12,9 +12,9 @@ namespace mrroc::comm {
 struct LinkFaults {
   double drop = 0.0;       ///< probability [0..1] that a published message is not sent
   double duplicate = 0.0;  ///< probability [0..1] that a published message is sent twice
+  std::uint64_t seed = 1;  ///< random seed (runs are repeatable)
   double delay = 0.0;      ///< probability [0..1] that a copy is held back (and so reordered)
   double delay_ms = 20.0;  ///< a held-back copy waits a random time up to this [ms]
-  std::uint64_t seed = 1;  ///< random seed (runs are repeatable)
 
   [[nodiscard]] bool active() const { return drop > 0.0 || duplicate > 0.0 || delay > 0.0; }
 };

@@ -1,0 +1,248 @@
+// Message authentication (include/mrroc/comm/auth.hpp): key files, tags, counters and replays,
+// and request/reply endpoints that drop and report what is not authentic; link delays; reports
+// of malformed messages. Two buses in one process need UDP multicast (the test runs in its own
+// network namespace).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mrroc/comm/auth.hpp"
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/time.hpp"
+#include "mrroc_lcm/ecp_mp_reply_t.hpp"
+#include "mrroc_lcm/mp_ecp_command_t.hpp"
+
+using namespace mrroc;
+using namespace std::chrono_literals;
+using Req = mrroc_lcm::mp_ecp_command_t;
+using Rep = mrroc_lcm::ecp_mp_reply_t;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+std::vector<std::uint8_t> key(std::uint8_t fill) { return std::vector<std::uint8_t>(32, fill); }
+
+fs::path write_file(const std::string& name, const std::string& text) {
+  const fs::path p = fs::temp_directory_path() / ("mrroc-auth-" + std::to_string(getpid()) + name);
+  std::ofstream(p) << text;
+  return p;
+}
+
+Req request(int value) {
+  Req r{};
+  r.command = Req::START_TASK;
+  r.motion_steps = value;
+  r.arguments = "go";
+  return r;
+}
+
+/// Collects the texts a bus reports about dropped messages.
+struct Drops {
+  std::mutex mutex;
+  std::vector<std::pair<int, std::string>> seen;
+  void attach(comm::Bus& bus) {
+    bus.set_drop_sink([this](int code, const std::string& text) {
+      std::lock_guard lock(mutex);
+      seen.emplace_back(code, text);
+    });
+  }
+  std::vector<std::pair<int, std::string>> get() {
+    std::lock_guard lock(mutex);
+    return seen;
+  }
+};
+
+struct Echo {
+  std::atomic<int> executions{0};
+  std::unique_ptr<comm::Server<Req, Rep>> server;
+  explicit Echo(comm::Bus& bus, comm::ServerOptions options = {}) {
+    server = std::make_unique<comm::Server<Req, Rep>>(
+        bus, "server", "a/cmd", "a/reply",
+        [this](const Req& r, comm::Server<Req, Rep>::Responder responder) {
+          ++executions;
+          Rep rep{};
+          rep.reply = Rep::ACKNOWLEDGE;
+          rep.error_code = r.motion_steps;
+          responder.reply(rep);
+        },
+        options);
+  }
+};
+
+}  // namespace
+
+TEST(AuthKey, FileErrorsNameTheFileAndTheProblem) {
+  const fs::path good = write_file("good", std::string(64, 'a') + "\n");
+  EXPECT_EQ(comm::load_auth_key(good).size(), 32U);
+  EXPECT_EQ(comm::load_auth_key(good)[0], 0xaa);
+  const fs::path short_key = write_file("short", "abcd");
+  try {
+    (void)comm::load_auth_key(short_key);
+    FAIL() << "a 2-byte key was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(short_key.string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("holds 4 hexadecimal digits"), std::string::npos)
+        << e.what();
+  }
+  const fs::path bad = write_file("bad", std::string(63, 'a') + "x");
+  EXPECT_THROW((void)comm::load_auth_key(bad), Error);
+  EXPECT_THROW((void)comm::load_auth_key("/nonexistent/key"), Error);
+  fs::remove(good);
+  fs::remove(short_key);
+  fs::remove(bad);
+}
+
+TEST(Auth, SignedMessagesVerifyAndTamperingOrReplayIsCaught) {
+  comm::Authenticator sender(key(7));
+  comm::Authenticator receiver(key(7));
+  comm::Authenticator stranger(key(8));
+  Req r = request(5);
+  r.header.sender = "ecp#1";
+  comm::sign(sender, r);
+  EXPECT_EQ(r.header.auth_len, 32);
+  EXPECT_EQ(comm::verify(receiver, r), comm::Authenticator::Verdict::ok);
+  // The same message again: a replay.
+  EXPECT_EQ(comm::verify(receiver, r), comm::Authenticator::Verdict::replayed);
+  // Changed content, changed sender, or another key: a wrong tag.
+  Req changed = r;
+  changed.motion_steps = 6;
+  EXPECT_EQ(comm::verify(receiver, changed), comm::Authenticator::Verdict::bad_tag);
+  Req renamed = r;
+  renamed.header.sender = "ecp#2";
+  EXPECT_EQ(comm::verify(receiver, renamed), comm::Authenticator::Verdict::bad_tag);
+  Req foreign = request(5);
+  foreign.header.sender = "ecp#1";
+  comm::sign(stranger, foreign);
+  EXPECT_EQ(comm::verify(receiver, foreign), comm::Authenticator::Verdict::bad_tag);
+  // No tag at all.
+  Req plain = request(5);
+  EXPECT_EQ(comm::verify(receiver, plain), comm::Authenticator::Verdict::missing);
+}
+
+TEST(Auth, CountersIncreaseAndReorderingWithinASecondIsAccepted) {
+  comm::Authenticator a(key(1));
+  std::int64_t last = 0;
+  for (int i = 0; i < 1000; ++i) {
+    const std::int64_t c = a.next_counter();
+    ASSERT_GT(c, last);
+    last = c;
+  }
+  comm::Authenticator r(key(1));
+  const std::int64_t now = now_utime();
+  using V = comm::Authenticator::Verdict;
+  EXPECT_EQ(r.accept_counter("x", now), V::ok);
+  EXPECT_EQ(r.accept_counter("x", now + 10), V::ok);
+  EXPECT_EQ(r.accept_counter("x", now + 5), V::ok) << "overtaken message within the window";
+  EXPECT_EQ(r.accept_counter("x", now + 5), V::replayed);
+  EXPECT_EQ(r.accept_counter("x", now + 10), V::replayed);
+  EXPECT_EQ(r.accept_counter("x", now - 2'000'000), V::replayed) << "older than the window";
+  // A new sender whose first message is older than 30 s: recorded earlier, replayed now.
+  EXPECT_EQ(r.accept_counter("y", now - 31'000'000), V::stale);
+  EXPECT_EQ(r.accept_counter("y", now - 1'000'000), V::ok);
+}
+
+TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
+  comm::Bus server_bus(kUrl);
+  comm::Bus client_bus(kUrl);
+  comm::Bus stranger_bus(kUrl);
+  server_bus.enable_auth(key(3));
+  client_bus.enable_auth(key(3));
+  stranger_bus.enable_auth(key(4));  // another key; a bus without any key behaves alike
+  Drops drops;
+  drops.attach(server_bus);
+  Echo echo(server_bus);
+  comm::Client<Req, Rep> client(client_bus, "client", "echo", "a/cmd", "a/reply");
+  comm::Client<Req, Rep> stranger(stranger_bus, "stranger", "echo", "a/cmd", "a/reply",
+                                  comm::ClientOptions{20ms, 3, {}});
+  server_bus.start();
+  client_bus.start();
+  stranger_bus.start();
+  for (int i = 1; i <= 20; ++i) ASSERT_EQ(client.call(request(i)).error_code, i);
+  EXPECT_EQ(echo.executions, 20);
+  EXPECT_THROW((void)stranger.call(request(99)), TimeoutError);
+  EXPECT_EQ(echo.executions, 20) << "the stranger's request was executed";
+  EXPECT_EQ(echo.server->stats().unauthenticated, 3U) << "3 attempts, 3 drops";
+  const auto seen = drops.get();
+  ASSERT_EQ(seen.size(), 1U) << "reports are rate-limited: the first at once, then quiet";
+  EXPECT_EQ(seen[0].first, comm::drop_code::unauthenticated);
+  EXPECT_EQ(seen[0].second, "dropped a message on 'a/cmd' from 'stranger': wrong authentication tag");
+  // A message of the authentic client, recorded and sent again by somebody else: a replay.
+  Req recorded = request(42);
+  recorded.header.sender = "client";
+  recorded.header.seq = 1000;
+  comm::sign(*client_bus.auth(), recorded);
+  client_bus.lcm().publish("a/cmd", &recorded);
+  std::this_thread::sleep_for(100ms);
+  EXPECT_EQ(echo.executions, 21);
+  stranger_bus.lcm().publish("a/cmd", &recorded);  // the replay
+  std::this_thread::sleep_for(100ms);
+  EXPECT_EQ(echo.executions, 21) << "the replayed request was executed";
+  EXPECT_EQ(echo.server->stats().unauthenticated, 4U);
+  server_bus.stop();
+  client_bus.stop();
+  stranger_bus.stop();
+}
+
+TEST(Auth, DropReportsAreRateLimitedPerKind) {
+  comm::Bus bus(kUrl);
+  Drops drops;
+  drops.attach(bus);
+  for (int i = 0; i < 5; ++i) bus.report_drop(1, "kind", "text");
+  ASSERT_EQ(drops.get().size(), 1U);
+  EXPECT_EQ(drops.get()[0].second, "text");
+  bus.report_drop(1, "other kind", "other");
+  EXPECT_EQ(drops.get().size(), 2U) << "each kind has its own limit";
+}
+
+TEST(Links, MalformedMessagesAreCountedDroppedAndReported) {
+  comm::Bus bus(kUrl);
+  Drops drops;
+  drops.attach(bus);
+  Echo echo(bus);
+  bus.start();
+  const std::vector<std::uint8_t> garbage{1, 2, 3, 4, 5, 6, 7, 8, 9};
+  for (int i = 0; i < 3; ++i) bus.lcm().publish("a/cmd", garbage.data(), 9);
+  std::this_thread::sleep_for(200ms);
+  bus.stop();
+  EXPECT_EQ(echo.server->stats().malformed, 3U);
+  EXPECT_EQ(echo.executions, 0);
+  const auto seen = drops.get();
+  ASSERT_EQ(seen.size(), 1U);
+  EXPECT_EQ(seen[0].first, comm::drop_code::malformed);
+  EXPECT_EQ(seen[0].second,
+            "dropped a malformed message on 'a/cmd' (9 bytes that do not decode)");
+}
+
+TEST(Links, DelayedAndReorderedMessagesStillGiveEveryReplyOnce) {
+  comm::Bus bus(kUrl);
+  comm::ServerOptions so;
+  so.faults = comm::LinkFaults{0.05, 0.1, 5, 0.5, 15.0};
+  Echo echo(bus, so);
+  comm::ClientOptions co;
+  co.attempt_timeout = 10ms;
+  co.max_attempts = 100;
+  co.faults = comm::LinkFaults{0.05, 0.1, 9, 0.5, 15.0};
+  comm::Client<Req, Rep> client(bus, "client", "echo", "a/cmd", "a/reply", co);
+  bus.start();
+  constexpr int kCalls = 200;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 1; i <= kCalls; ++i) ASSERT_EQ(client.call(request(i)).error_code, i);
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::this_thread::sleep_for(50ms);
+  bus.stop();
+  EXPECT_EQ(echo.executions, kCalls) << "a request executed twice or not at all";
+  EXPECT_GT(client.stats().stale + echo.server->stats().stale, 0U)
+      << "late copies must have arrived after their successors";
+  std::printf("%d calls over delayed links in %.2f s, %llu resends\n", kCalls, s,
+              static_cast<unsigned long long>(client.stats().resends));
+}

@@ -340,18 +340,19 @@ TEST_F(Operator, StalledServoLoopIsDetectedAndReported) {
       kPoses);
   StateWatch states(bus_);
   BackgroundLaunch launch(config);
-  const auto overrun = states.wait_for([](const auto& s) { return s.overruns > 0; },
-                                       std::chrono::seconds(60));
-  ASSERT_TRUE(overrun) << "no overrun seen in the robot state";
-  EXPECT_EQ(overrun->overruns, 1);
+  const auto overrun = states.wait_for(
+      [](const auto& s) { return s.overruns > 0 && s.lateness_max_us >= 75000.0; },
+      std::chrono::seconds(60));
+  ASSERT_TRUE(overrun) << "no 80 ms overrun seen in the robot state";
+  EXPECT_GE(overrun->overruns, 1);  // the stall; a slow (instrumented) build may add its own
   EXPECT_GE(overrun->lateness_max_us, 75000.0);
   const LaunchRun run = launch.wait();
   EXPECT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(std::regex_search(
-      run.output, std::regex("edp/irb6.*warning.*\\[11\\] servo loop overrun: 1 cycle\\(s\\) "
-                             "woke more than one period \\(2000 us\\) late, the worst [0-9]+ us")))
+      run.output, std::regex("edp/irb6.*warning.*\\[11\\] servo loop overrun: [0-9]+ cycle\\(s\\) "
+                             "woke more than one period \\(2000 us\\) late, the worst [0-9]{5,} us")))
       << run.output;
-  EXPECT_TRUE(std::regex_search(run.output, std::regex("servo loop: [0-9]+ cycles .* 1 overruns")))
+  EXPECT_TRUE(std::regex_search(run.output, std::regex("servo loop: [0-9]+ cycles .* [1-9][0-9]* overruns")))
       << run.output;
 }
 

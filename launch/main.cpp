@@ -1,41 +1,50 @@
-// mrroc-launch: starts a process set from one config file (SRP, EDPs, ECPs, then MP), waits for
-// each process to report ready, prefixes their output with their names, and exits with the task's
-// outcome. SIGINT/SIGTERM stop everything in reverse order.
-#include <CLI/CLI.hpp>
+// mrroc-launch: starts a process set from one config file (recorder, SRP, emulator, VSPs, EDPs,
+// ECPs, web console, then MP), on this computer or others ([[launch.host]]), waits for each
+// process to report ready, prefixes their output with their names (and writes per-process log
+// files), restarts processes by their restart policy, broadcasts the process table, and exits
+// with the task's outcome. SIGINT/SIGTERM stop everything in reverse order.
+// `mrroc-launch status CONFIG` prints the process table of a running set.
 #include <fmt/format.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <map>
 #include <mutex>
 
+#include "launch_plan.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "status_board.hpp"
 #include "supervisor.hpp"
 
 namespace {
 
 using namespace mrroc;
+using launch::PlannedProcess;
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
 
 /// Exit codes of mrroc-launch (also in docs/getting-started.md).
-constexpr int kExitConfig = 2;        // the config is wrong: nothing was started
-constexpr int kExitStartFailed = 3;   // a process failed to start or to become ready
-constexpr int kExitProcessDied = 4;   // a process other than the MP ended while the task ran
-constexpr int kExitTaskFailed = 1;    // the MP reported that the task failed
-constexpr int kExitInternal = 5;      // the launcher itself failed (e.g. LCM would not open)
-
-struct Stage {
-  std::string name;  // process name, as in its status messages
-  launch::ChildSpec spec;
-};
+constexpr int kExitConfig = 2;       // the config is wrong: nothing was started
+constexpr int kExitStartFailed = 3;  // a process failed to start or to become ready
+constexpr int kExitProcessDied = 4;  // a required process ended for good while the task ran
+constexpr int kExitTaskFailed = 1;   // the MP reported that the task failed
+constexpr int kExitInternal = 5;     // the launcher itself failed (e.g. LCM would not open)
+/// The longest wait before a restart [s].
+constexpr double kMaxBackoffS = 30.0;
+/// A process that reports no status counts as ready when it still runs after this.
+constexpr milliseconds kSilentReady{300};
 
 fs::path own_directory() {
   std::error_code ec;
@@ -43,102 +52,135 @@ fs::path own_directory() {
   return ec ? fs::current_path() : exe.parent_path();
 }
 
-launch::ChildSpec child(const std::string& name, std::vector<std::string> argv, double grace_s) {
-  launch::ChildSpec spec;
-  spec.name = name;
-  spec.argv = std::move(argv);
-  spec.stop_grace = std::chrono::milliseconds(static_cast<long>(grace_s * 1000.0));
-  return spec;
-}
-
-std::vector<Stage> plan(const ProcessSetConfig& config, const fs::path& bin_dir,
-                        const std::string& srp_log) {
-  const std::string cfg = config.file.string();
-  auto exe = [&](const char* name) { return (bin_dir / name).string(); };
-  std::vector<Stage> stages;
-  std::vector<std::string> srp_argv{exe("mrroc-srp"), "--config", cfg};
-  if (!srp_log.empty()) {
-    srp_argv.push_back("--log");
-    srp_argv.push_back(srp_log);
+/// True if `program` is a path to an executable or found in PATH.
+bool program_exists(const std::string& program) {
+  auto executable = [](const fs::path& p) {
+    std::error_code ec;
+    return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
+  };
+  if (program.find('/') != std::string::npos) return executable(program);
+  const char* path = std::getenv("PATH");
+  std::string_view rest = path != nullptr ? path : "/usr/local/bin:/usr/bin:/bin";
+  for (;;) {
+    const std::size_t colon = rest.find(':');
+    const std::string_view dir = rest.substr(0, colon);
+    if (executable(fs::path(dir.empty() ? "." : std::string(dir)) / program)) return true;
+    if (colon == std::string_view::npos) return false;
+    rest.remove_prefix(colon + 1);
   }
-  stages.push_back({"srp", child("srp", srp_argv, config.srp.options.stop_grace_s)});
-  if (config.emulator)
-    stages.push_back({"emu", child("emu", {exe("mrroc-axis-emu"), "--config", cfg},
-                                   config.emulator->options.stop_grace_s)});
-  for (const auto& v : config.vsps)
-    stages.push_back({"vsp/" + v.name, child("vsp/" + v.name,
-                                             {exe("mrroc-vsp"), "--config", cfg, "--vsp", v.name},
-                                             v.options.stop_grace_s)});
-  for (const auto& r : config.robots)
-    stages.push_back({"edp/" + r.name, child("edp/" + r.name,
-                                             {exe("mrroc-edp"), "--config", cfg, "--robot", r.name},
-                                             r.edp.options.stop_grace_s)});
-  for (const auto& r : config.robots)
-    stages.push_back({"ecp/" + r.name, child("ecp/" + r.name,
-                                             {exe("mrroc-ecp"), "--config", cfg, "--robot", r.name},
-                                             r.ecp.options.stop_grace_s)});
-  stages.push_back({"mp", child("mp", {exe("mrroc-mp"), "--config", cfg},
-                                config.mp.options.stop_grace_s)});
-  if (!config.lcm_url.empty())
-    for (auto& s : stages) s.spec.env.push_back("LCM_DEFAULT_URL=" + config.lcm_url);
-  return stages;
 }
 
+std::string quoted_command(const std::vector<std::string>& argv) {
+  std::string line;
+  for (const auto& w : argv) line += (line.empty() ? "" : " ") + launch::shell_quote(w);
+  return line;
+}
+
+/// The latest status of each process, with the time it arrived.
 class ReadyWatch {
  public:
   void on_status(const ProcessStatus& s) {
     std::lock_guard lock(mutex_);
-    states_[s.process] = s.state;
+    seen_[s.process] = {s.state, Clock::now()};
     cv_.notify_all();
   }
-  /// Waits until `process` reported ready (or any later state). Returns its state or nothing.
-  std::optional<ProcessState> wait(const std::string& process, Clock::time_point until,
-                                   const std::function<bool()>& abort) {
+  /// The state `process` reported (other than "starting") after `since`; nothing if there is
+  /// none yet. (A restarted process is started after its predecessor was reaped, so what
+  /// arrives after `since` comes from the new one.)
+  std::optional<ProcessState> ready_since(const std::string& process, Clock::time_point since) {
+    std::lock_guard lock(mutex_);
+    return ready_locked(process, since);
+  }
+  /// Waits until `process` reported ready (or any later state) after `since`.
+  std::optional<ProcessState> wait(const std::string& process, Clock::time_point since,
+                                   Clock::time_point until, const std::function<bool()>& abort) {
     std::unique_lock lock(mutex_);
     while (Clock::now() < until) {
-      auto it = states_.find(process);
-      if (it != states_.end() && it->second != ProcessState::starting) return it->second;
+      if (auto state = ready_locked(process, since)) return state;
       if (abort()) return std::nullopt;
-      cv_.wait_for(lock, std::chrono::milliseconds(20));
+      cv_.wait_for(lock, milliseconds(20));
     }
     return std::nullopt;
   }
 
  private:
+  struct Seen {
+    ProcessState state;
+    Clock::time_point at;
+  };
+  std::optional<ProcessState> ready_locked(const std::string& process,
+                                           Clock::time_point since) const {
+    auto it = seen_.find(process);
+    if (it == seen_.end() || it->second.at < since || it->second.state == ProcessState::starting)
+      return std::nullopt;
+    return it->second.state;
+  }
   std::mutex mutex_;
   std::condition_variable cv_;
-  std::map<std::string, ProcessState> states_;
+  std::map<std::string, Seen> seen_;
 };
 
 int describe_exit(const launch::ChildExit& e) {
   return e.signal != 0 ? 128 + e.signal : e.exit_code;
 }
 
-int run(const std::string& config_path, bool check_only, const std::string& bin_dir_option,
-        const std::string& srp_log) {
-  ProcessSetConfig config;
-  try {
-    config = load_process_set(config_path);
-  } catch (const ConfigError& e) {
-    std::fprintf(stderr, "%s\nmrroc-launch: nothing started\n", e.what());
-    return kExitConfig;
-  }
-  const fs::path bin_dir = bin_dir_option.empty() ? own_directory() : fs::path(bin_dir_option);
-  const std::vector<Stage> stages = plan(config, bin_dir, srp_log);
-  for (const auto& s : stages)
-    if (!fs::exists(s.spec.argv[0])) {
-      std::fprintf(stderr, "mrroc-launch: executable '%s' not found (use --bin-dir)\n",
-                   s.spec.argv[0].c_str());
-      return kExitConfig;
-    }
+/// Where a process of the plan is while the set runs (main thread only).
+struct Runtime {
+  int restarts = 0;
+  int pid = 0;
+  Clock::time_point started{};
+  std::optional<Clock::time_point> restart_at;      // in back-off until then
+  std::optional<Clock::time_point> ready_deadline;  // restarted, waiting for ready
+  bool ended = false;                               // ended and will not be restarted
+};
 
+/// The plan; `detailed` adds a line per process with its group, host, restart policy, stop
+/// signal, grace period and log file (--check).
+void print_plan(const ProcessSetConfig& config, const std::vector<PlannedProcess>& plan,
+                bool detailed) {
   std::cout << fmt::format("mrroc-launch: process set '{}' from {} ({} robot(s), LCM {})\n",
                            config.name, config.file.string(), config.robots.size(),
                            comm::resolve_lcm_url(config.lcm_url));
-  for (std::size_t i = 0; i < stages.size(); ++i)
-    std::cout << fmt::format("  {}. {:<12} {}\n", i + 1, stages[i].name,
-                             fmt::join(stages[i].spec.argv, " "));
+  for (std::size_t i = 0; i < plan.size(); ++i) {
+    const PlannedProcess& p = plan[i];
+    std::cout << fmt::format("  {}. {:<12} {}\n", i + 1, p.name, quoted_command(p.spec.argv));
+    if (!detailed) continue;
+    std::string restart = to_string(p.options.restart);
+    if (p.options.restart != RestartPolicy::never)
+      restart += fmt::format(" (at most {}, back-off from {:.1f} s)", p.options.max_restarts,
+                             p.options.restart_backoff_s);
+    std::cout << fmt::format(
+        "     group {}, host {}, restart {}, {}, stop {} then SIGKILL after {:.1f} s, log {}\n",
+        p.group, p.host, p.name == "mp" ? "never (its end is the end of the task)" : restart,
+        p.name == "mp" ? "required" : (p.options.required ? "required" : "not required"),
+        launch::signal_text(p.options.stop_signal), p.options.stop_grace_s,
+        p.spec.log_file.empty() ? "-" : p.spec.log_file.string());
+  }
   std::cout.flush();
+}
+
+int run(const std::string& config_path, bool check_only, const launch::PlanOptions& options) {
+  ProcessSetConfig config;
+  std::vector<PlannedProcess> plan;
+  try {
+    config = load_process_set(config_path);
+    plan = launch::make_plan(config, options);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\nmrroc-launch: nothing started\n", e.what());
+    return kExitConfig;
+  }
+  for (const auto& p : plan) {
+    for (const std::string* program : {&p.spec.argv[0], &p.command[0]}) {
+      if (!program_exists(*program)) {
+        std::fprintf(stderr, "mrroc-launch: executable '%s' of %s not found%s\n", program->c_str(),
+                     p.name.c_str(),
+                     program->find('/') != std::string::npos ? " (use --bin-dir)" : " in PATH");
+        return kExitConfig;
+      }
+    }
+  }
+
+  print_plan(config, plan, check_only);
   if (check_only) {
     std::cout << "mrroc-launch: config is valid (--check: nothing started)\n";
     return 0;
@@ -151,70 +193,213 @@ int run(const std::string& config_path, bool check_only, const std::string& bin_
   SystemListener listener(bus, {}, [&](const ProcessStatus& s) { ready.on_status(s); });
   bus.start();
 
+  launch::LaunchStatus initial;
+  initial.set_name = config.name;
+  initial.config_file = config.file.string();
+  initial.state = "starting";
+  initial.launcher_pid = static_cast<int>(::getpid());
+  for (const auto& p : plan) {
+    launch::ProcessRow row;
+    row.name = p.name;
+    row.group = p.group;
+    row.host = p.host;
+    row.required = p.name == "mp" || p.options.required;
+    row.restart = p.name == "mp" ? "never" : to_string(p.options.restart);
+    // Through ssh the local pid is the ssh client's; a wrapper such as `ip netns exec` runs
+    // the program itself under that pid.
+    row.local_metrics = p.host == "local";
+    for (const auto& h : config.launch.hosts)
+      if (h.name == p.host && !h.quote) row.local_metrics = true;
+    initial.processes.push_back(std::move(row));
+  }
+
   launch::Supervisor supervisor(std::cout);
+  launch::StatusBoard board(bus, std::move(initial));
   std::size_t width = 0;
-  for (const auto& s : stages) width = std::max(width, s.name.size());
+  for (const auto& p : plan) width = std::max(width, p.name.size());
   supervisor.reserve_name_width(width);
   const auto t0 = Clock::now();
-  auto since = [&] {
-    return std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - t0).count();
+  auto since = [&] { return std::chrono::duration_cast<milliseconds>(Clock::now() - t0).count(); };
+  const auto ready_timeout = milliseconds(std::lround(config.ready_timeout_s * 1e3));
+  std::vector<Runtime> rt(plan.size());
+
+  /// Starts process i; returns false (and logs why) if it could not be started.
+  auto start = [&](std::size_t i) {
+    const PlannedProcess& p = plan[i];
+    board.update(p.name, [](launch::ProcessRow& r) { r.state = "starting"; });
+    try {
+      rt[i].started = Clock::now();
+      rt[i].pid = supervisor.start(p.spec);
+    } catch (const std::exception& e) {
+      supervisor.log(fmt::format("mrroc-launch: cannot start {}: {}", p.name, e.what()));
+      board.update(p.name, [](launch::ProcessRow& r) { r.state = "failed"; });
+      return false;
+    }
+    board.update(p.name, [&](launch::ProcessRow& r) { r.pid = rt[i].pid; });
+    supervisor.log(fmt::format("mrroc-launch: started {} (pid {}){}", p.name, rt[i].pid,
+                               p.host == "local" ? "" : " on host " + p.host));
+    return true;
   };
 
   int outcome = 0;
   bool started_all = true;
-  for (const auto& stage : stages) {
-    pid_t pid = 0;
-    try {
-      pid = supervisor.start(stage.spec);
-    } catch (const std::exception& e) {
-      supervisor.log(fmt::format("mrroc-launch: cannot start {}: {}", stage.name, e.what()));
+  for (std::size_t i = 0; i < plan.size(); ++i) {
+    const PlannedProcess& p = plan[i];
+    if (!start(i)) {
+      if (!p.options.required) continue;  // e.g. no lcm-logger: the set goes on
       outcome = kExitStartFailed;
       started_all = false;
       break;
     }
-    supervisor.log(fmt::format("mrroc-launch: started {} (pid {})", stage.name, pid));
-    const auto deadline =
-        Clock::now() + std::chrono::milliseconds(static_cast<long>(config.ready_timeout_s * 1e3));
-    const auto state = ready.wait(stage.name, deadline, [&] {
-      return supervisor.stop_requested() || !supervisor.is_running(stage.spec.name);
-    });
+    std::optional<ProcessState> state;
+    if (p.reports_ready) {
+      state = ready.wait(p.name, rt[i].started, Clock::now() + ready_timeout, [&] {
+        return supervisor.stop_requested() || !supervisor.is_running(p.name);
+      });
+    } else {
+      const auto until = Clock::now() + kSilentReady;
+      while (Clock::now() < until && supervisor.is_running(p.name) && !supervisor.stop_requested())
+        std::this_thread::sleep_for(milliseconds(10));
+      if (supervisor.is_running(p.name)) state = ProcessState::running;
+    }
     if (supervisor.stop_requested()) {
       outcome = 128 + launch::stop_signal();
       started_all = false;
       break;
     }
     if (!state || *state == ProcessState::failed) {
-      supervisor.log(fmt::format(
-          "mrroc-launch: {} {}", stage.name,
-          !supervisor.is_running(stage.spec.name) ? "ended before it was ready"
-          : state                                 ? "failed while starting"
-                                                  : fmt::format("was not ready within {:.1f} s",
-                                                                config.ready_timeout_s)));
+      const std::string why =
+          !supervisor.is_running(p.name) ? "ended before it was ready"
+          : state                        ? "failed while starting"
+                  : fmt::format("was not ready within {:.1f} s", config.ready_timeout_s);
+      if (!p.options.required) {
+        supervisor.log(
+            fmt::format("mrroc-launch: {} {}; not required: the set goes on", p.name, why));
+        continue;
+      }
+      supervisor.log(fmt::format("mrroc-launch: {} {}", p.name, why));
       outcome = kExitStartFailed;
       started_all = false;
       break;
     }
-    supervisor.log(fmt::format("mrroc-launch: {} ready at {} ms", stage.name, since()));
+    board.update(p.name, [](launch::ProcessRow& r) { r.state = "running"; });
+    supervisor.log(fmt::format("mrroc-launch: {} ready at {} ms", p.name, since()));
   }
 
+  auto index_of = [&](const std::string& name) -> std::optional<std::size_t> {
+    for (std::size_t i = 0; i < plan.size(); ++i)
+      if (plan[i].name == name) return i;
+    return std::nullopt;
+  };
+
   if (started_all) {
+    board.set_state("running");
     supervisor.log(fmt::format("mrroc-launch: all {} processes ready in {} ms; task running",
-                               stages.size(), since()));
+                               plan.size(), since()));
     bool done = false;
+    // A required process ended for good: the set stops.
+    auto give_up = [&](const std::string& text) {
+      supervisor.log(fmt::format("mrroc-launch: {}: stopping the set", text));
+      outcome = kExitProcessDied;
+      done = true;
+    };
     while (!done) {
-      for (const auto& e : supervisor.wait_events(std::chrono::milliseconds(200))) {
-        if (e.name == "mp") {
-          const int mp_code = describe_exit(e);
-          outcome = mp_code == 0 ? 0 : kExitTaskFailed;
+      for (const auto& e : supervisor.wait_events(milliseconds(50))) {
+        if (done) break;
+        const auto found = index_of(e.name);
+        if (!found) continue;
+        const std::size_t i = *found;
+        const PlannedProcess& p = plan[i];
+        const int code = describe_exit(e);
+        rt[i].pid = 0;
+        rt[i].ready_deadline.reset();
+        board.update(p.name, [&](launch::ProcessRow& r) {
+          r.state = code == 0 ? "exited" : "failed";
+          r.pid = 0;
+          r.last_exit_code = code;
+        });
+        if (p.name == "mp") {
+          outcome = code == 0 ? 0 : kExitTaskFailed;
           supervisor.log(fmt::format("mrroc-launch: task {} (mp exit code {}) after {} ms",
-                                     outcome == 0 ? "finished" : "FAILED", mp_code, since()));
+                                     outcome == 0 ? "finished" : "FAILED", code, since()));
           done = true;
-        } else if (!done) {
-          supervisor.log(fmt::format("mrroc-launch: {} ended while the task was running "
-                                     "(code {}): stopping the set",
-                                     e.name, describe_exit(e)));
-          outcome = kExitProcessDied;
-          done = true;
+          break;
+        }
+        const RestartPolicy policy = p.options.restart;
+        const bool wants_restart =
+            policy == RestartPolicy::always || (policy == RestartPolicy::on_failure && code != 0);
+        if (wants_restart && rt[i].restarts < p.options.max_restarts) {
+          const double backoff =
+              std::min(kMaxBackoffS, p.options.restart_backoff_s * std::pow(2.0, rt[i].restarts));
+          rt[i].restart_at = Clock::now() + milliseconds(std::lround(backoff * 1e3));
+          board.update(p.name, [](launch::ProcessRow& r) { r.state = "backoff"; });
+          supervisor.log(
+              fmt::format("mrroc-launch: {} ended while the task was running (code {}); restart {} "
+                          "of {} in {} ms "
+                          "(restart = \"{}\")",
+                          p.name, code, rt[i].restarts + 1, p.options.max_restarts,
+                          std::lround(backoff * 1e3), to_string(policy)));
+          continue;
+        }
+        rt[i].ended = true;
+        const std::string why = !wants_restart ? fmt::format("restart = \"{}\"", to_string(policy))
+                                               : fmt::format("all {} restarts (max_restarts) used",
+                                                             p.options.max_restarts);
+        if (p.options.required) {
+          give_up(
+              fmt::format("{} ended while the task was running (code {}) and is not restarted "
+                          "({}); it is required",
+                          p.name, code, why));
+        } else {
+          supervisor.log(
+              fmt::format("mrroc-launch: {} ended while the task was running (code {}) "
+                          "and is not restarted ({}); "
+                          "not required: the set goes on",
+                          p.name, code, why));
+        }
+      }
+      if (done) break;
+      const auto now = Clock::now();
+      for (std::size_t i = 0; i < plan.size() && !done; ++i) {
+        const PlannedProcess& p = plan[i];
+        if (rt[i].restart_at && now >= *rt[i].restart_at) {
+          rt[i].restart_at.reset();
+          ++rt[i].restarts;
+          board.update(p.name, [&](launch::ProcessRow& r) { r.restarts = rt[i].restarts; });
+          supervisor.log(fmt::format("mrroc-launch: restarting {} (restart {} of {})", p.name,
+                                     rt[i].restarts, p.options.max_restarts));
+          if (!start(i)) {
+            rt[i].ended = true;
+            if (p.options.required) give_up(fmt::format("{} could not be restarted", p.name));
+            continue;
+          }
+          rt[i].ready_deadline = Clock::now() + (p.reports_ready ? ready_timeout : kSilentReady);
+        }
+        if (rt[i].ready_deadline && rt[i].pid != 0) {
+          std::optional<ProcessState> state;
+          if (p.reports_ready) {
+            state = ready.ready_since(p.name, rt[i].started);
+          } else if (now >= *rt[i].ready_deadline) {
+            state = ProcessState::running;
+          }
+          if (state && *state != ProcessState::failed) {
+            rt[i].ready_deadline.reset();
+            board.update(p.name, [](launch::ProcessRow& r) { r.state = "running"; });
+            supervisor.log(fmt::format("mrroc-launch: {} ready again at {} ms (restart {})", p.name,
+                                       since(), rt[i].restarts));
+          } else if (state || now >= *rt[i].ready_deadline) {
+            rt[i].ready_deadline.reset();
+            const std::string why = state ? "failed while starting again"
+                                          : fmt::format(
+                                                "was not ready within {:.1f} s after "
+                                                "its restart",
+                                                config.ready_timeout_s);
+            if (p.options.required) {
+              give_up(fmt::format("{} {}; it is required", p.name, why));
+            } else {
+              supervisor.log(fmt::format("mrroc-launch: warning: {} {}", p.name, why));
+            }
+          }
         }
       }
       if (!done && supervisor.stop_requested()) {
@@ -224,35 +409,101 @@ int run(const std::string& config_path, bool check_only, const std::string& bin_
       }
     }
   }
+  board.set_state("stopping");
   supervisor.stop_all();
-  bus.stop();
+  for (const auto& p : plan)
+    board.update(p.name, [](launch::ProcessRow& r) {
+      if (r.pid != 0 || r.state == "running" || r.state == "backoff" || r.state == "starting")
+        r.state = "stopped";
+      r.pid = 0;
+    });
+  for (const auto& e : supervisor.exits()) {
+    if (auto i = index_of(e.name))
+      board.update(e.name, [&](launch::ProcessRow& r) { r.last_exit_code = describe_exit(e); });
+  }
   supervisor.log(fmt::format("mrroc-launch: all processes stopped; exit code {}", outcome));
   return outcome;
+}
+
+int run_status(int argc, char** argv) {
+  CLI::App app{
+      "mrroc-launch status: prints the process table of the running set of CONFIG (name, group, "
+      "host, state, pid, CPU %, resident memory, restarts, uptime, last exit code, required, "
+      "restart policy), as its launcher broadcasts it every second on mrroc/launch/status. Exits "
+      "0 when a launcher of that set answered, 1 when none did within the timeout, 2 on a "
+      "config error."};
+  app.name("mrroc-launch status");
+  std::string config_path;
+  double timeout_s = 3.0;
+  app.add_option("config", config_path, "process-set config file (TOML) of the running set")
+      ->required();
+  app.add_option("--timeout", timeout_s, "how long to listen [s]")->check(CLI::Range(0.1, 60.0));
+  CLI11_PARSE(app, argc, argv);
+  ProcessSetConfig config;
+  try {
+    config = load_process_set(config_path);
+  } catch (const ConfigError& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return kExitConfig;
+  }
+  comm::Bus bus(config.lcm_url);
+  const auto status =
+      launch::receive_status(bus, config.name, milliseconds(std::lround(timeout_s * 1000.0)));
+  if (!status) {
+    std::printf("mrroc-launch status: no launcher of set '%s' answered within %.1f s on %s\n",
+                config.name.c_str(), timeout_s, bus.url().c_str());
+    return 1;
+  }
+  std::fputs(launch::format_status_table(*status).c_str(), stdout);
+  return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::signal(SIGPIPE, SIG_IGN);  // a closed stdout must not kill the launcher before its children
+  if (argc >= 2 && std::strcmp(argv[1], "status") == 0) {
+    try {
+      return run_status(argc - 1, argv + 1);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "mrroc-launch status: %s\n", e.what());
+      return kExitInternal;
+    }
+  }
   CLI::App app{
-      "mrroc-launch: starts a process set (SRP, EDPs, ECPs, then MP) from one config file, waits "
-      "for each process to be ready, prefixes each process' output with its name, and exits "
-      "with the task's outcome: 0 task finished, 1 task failed, 2 config error (nothing "
-      "started), 3 a process failed to start, 4 a process died during the task, 5 the launcher "
-      "itself failed, 128+N stopped by signal N. SIGINT/SIGTERM stop every process in reverse order (SIGTERM, then SIGKILL "
-      "after its grace period)."};
+      "mrroc-launch: starts a process set from one config file (lcm-logger when recording, SRP, "
+      "emulator, VSPs, EDPs, ECPs, the web console when [ui] web = true, then MP), on this "
+      "computer or on the [[launch.host]]s named by each process' 'host', waits for each process "
+      "to be ready, prefixes each process' output with its name (and writes one log file per "
+      "process when [launch] log_dir is set), restarts processes by their 'restart' policy, "
+      "broadcasts the process table every second on mrroc/launch/status, and exits with the "
+      "task's outcome: 0 task finished, 1 task failed, 2 config error (nothing started), 3 a "
+      "process failed to start, 4 a required process ended for good during the task, 5 the "
+      "launcher itself failed, 128+N stopped by signal N. SIGINT/SIGTERM stop every process in "
+      "reverse start order (its stop_signal, then SIGKILL after its stop_grace_s).\n"
+      "'mrroc-launch status CONFIG' prints the process table of a running set (see "
+      "'mrroc-launch status --help')."};
   std::string config;
   std::string bin_dir;
-  std::string srp_log;
+  launch::PlanOptions options;
+  std::string record;
   bool check = false;
   app.add_option("config", config, "process-set config file (TOML)")->required();
-  app.add_flag("--check", check, "validate the config and print the plan; start nothing");
+  app.add_flag("--check", check,
+               "validate the config and print the plan (order, command line after host "
+               "templating, group, host, restart policy, stop signal, grace period, log file); "
+               "start nothing");
   app.add_option("--bin-dir", bin_dir,
                  "where the mrroc-* executables are (default: beside mrroc-launch)");
-  app.add_option("--srp-log", srp_log, "file the SRP appends every message to");
+  app.add_option("--srp-log", options.srp_log, "file the SRP appends every message to");
+  app.add_option("--record", record,
+                 "record every LCM message of the run to this file with lcm-logger (overrides "
+                 "[launch] record)");
   CLI11_PARSE(app, argc, argv);
-  std::signal(SIGPIPE, SIG_IGN);  // a closed stdout must not kill the launcher before its children
+  options.bin_dir = bin_dir.empty() ? own_directory() : fs::path(bin_dir);
+  if (!record.empty()) options.record = fs::absolute(record);
   try {
-    return run(config, check, bin_dir, srp_log);
+    return run(config, check, options);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mrroc-launch: %s\n", e.what());
     return kExitInternal;

@@ -22,6 +22,7 @@
 
 #include <fmt/format.h>
 
+#include "log_file.hpp"
 #include "mrroc/core/error.hpp"
 
 namespace mrroc::launch {
@@ -243,6 +244,9 @@ struct Child {
   std::string name;
   pid_t pid = -1;
   std::chrono::milliseconds grace{};
+  int stop_signal = SIGTERM;
+  std::size_t order = 0;         // place in the stop order (that of the name's first start)
+  std::unique_ptr<LogFile> log;  // null: no log file
   Stream out;
   Stream err;
   bool reaped = false;
@@ -268,6 +272,7 @@ struct Supervisor::Impl {
   std::vector<ChildExit> pending;
   std::vector<ChildExit> all;
   std::size_t name_width = 0;
+  std::size_t next_order = 0;
   bool stop = false;
   bool shutdown = false;
   int seen_signals = 0;
@@ -294,6 +299,7 @@ struct Supervisor::Impl {
 
   void format_line(const Child& c, std::string_view line, std::string& batch) const {
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (c.log) c.log->write_line(line);
     fmt::format_to(std::back_inserter(batch), "{:<{}} {}\n", fmt::format("[{}]", c.name),
                    name_width + 2, line);
   }
@@ -379,6 +385,12 @@ struct Supervisor::Impl {
         fmt::format_to(std::back_inserter(batch), "{} killed by signal {} ({}){}\n", c.name,
                        e.signal, signal_name(e.signal), WCOREDUMP(*status) ? ", core dumped" : "");
       }
+    }
+    if (c.log) {
+      c.log->write_line(e.signal != 0 ? fmt::format("--- {} (pid {}) killed by signal {} ({})",
+                                                    c.name, c.pid, e.signal, signal_name(e.signal))
+                                      : fmt::format("--- {} (pid {}) exited with code {}", c.name,
+                                                    c.pid, e.exit_code));
     }
     emit(batch);
     c.reaped = true;
@@ -502,7 +514,9 @@ struct Supervisor::Impl {
     const auto t0 = Clock::now();
     const bool leader_running = !c.reaped;
     if (leader_running) {
-      emit(fmt::format("stopping {} (pid {})\n", c.name, c.pid));
+      emit(fmt::format(
+          "stopping {} (pid {}){}\n", c.name, c.pid,
+          c.stop_signal == SIGTERM ? std::string() : " with " + signal_name(c.stop_signal)));
     } else {
       emit(fmt::format("stopping the remaining processes of {} (process group {})\n", c.name,
                        c.pid));
@@ -515,7 +529,7 @@ struct Supervisor::Impl {
       return hurrying;
     };
     if (!hurry()) {
-      signal_child(c, SIGTERM);
+      signal_child(c, c.stop_signal);
       if (wait_gone(lock, c, t0 + c.grace, hurry)) return;
     }
 
@@ -579,6 +593,19 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   }
   if (is_running(spec.name)) {
     throw Error(fmt::format("cannot start {}: a child of that name is running", spec.name));
+  }
+  if (spec.stop_signal <= 0 || spec.stop_signal >= NSIG) {
+    throw Error(fmt::format("cannot start {}: stop signal {} is not a signal number (1..{})",
+                            spec.name, spec.stop_signal, NSIG - 1));
+  }
+  // Opened before fork, so that an unusable log file leaves nothing running.
+  std::unique_ptr<LogFile> log;
+  if (!spec.log_file.empty()) {
+    try {
+      log = std::make_unique<LogFile>(spec.log_file, spec.log_max_bytes, spec.log_keep);
+    } catch (const Error& e) {
+      throw Error(fmt::format("cannot start {}: {}", spec.name, e.what()));
+    }
   }
   const std::string& program = spec.argv.front();
   const std::optional<std::string> path = resolve_program(program);
@@ -646,10 +673,23 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   child->name = spec.name;
   child->pid = pid;
   child->grace = std::clamp(spec.stop_grace, milliseconds(0), kMaxWait);
+  child->stop_signal = spec.stop_signal;
   child->out.fd = out_r.release();
   child->err.fd = err_r.release();
+  if (log)
+    log->write_line(
+        fmt::format("--- {} started (pid {}): {}", spec.name, pid, fmt::join(spec.argv, " ")));
+  child->log = std::move(log);
   {
     std::lock_guard lock(impl_->mu);
+    child->order = impl_->next_order;
+    for (const auto& c : impl_->children) {
+      if (c->name == spec.name) {
+        child->order = c->order;
+        break;
+      }
+    }
+    if (child->order == impl_->next_order) ++impl_->next_order;
     impl_->name_width = std::max(impl_->name_width, spec.name.size());
     impl_->children.push_back(std::move(child));
   }
@@ -714,7 +754,16 @@ void Supervisor::stop_all() {
   const int signals_at_start = g_stop_signal_count.load();
   bool hurrying = false;
   impl_->reap();
-  for (std::size_t i = impl_->children.size(); i-- > 0;) {
+  // Reverse start order; a restarted child stands where its name was first started (the
+  // later start of a name first).
+  std::vector<std::size_t> order(impl_->children.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const std::size_t oa = impl_->children[a]->order;
+    const std::size_t ob = impl_->children[b]->order;
+    return oa != ob ? oa > ob : a > b;
+  });
+  for (const std::size_t i : order) {
     Child& c = *impl_->children[i];
     if (c.group_done) continue;
     impl_->stop_child(lock, c, hurrying, signals_at_start);

@@ -34,10 +34,13 @@
 ///   "killed NAME after G ms" (SIGKILL after the grace period), ...
 /// Use `log()` to write further lines without mixing them with child output.
 
+#include <signal.h>
 #include <sys/types.h>
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -57,8 +60,16 @@ struct ChildSpec {
   /// Extra environment entries "NAME=value", added to (or replacing in) the inherited
   /// environment of the child.
   std::vector<std::string> env{};
-  /// Time between SIGTERM and SIGKILL in `stop_all()` (negative counts as 0).
+  /// Time between the stop signal and SIGKILL in `stop_all()` (negative counts as 0).
   std::chrono::milliseconds stop_grace{3000};
+  /// The signal `stop_all()` sends first (to the child's process group).
+  int stop_signal = SIGTERM;
+  /// When not empty, every output line of the child is also appended to this file with a UTC
+  /// time stamp (see LogFile), as are the start and the end of the child. The file is rotated
+  /// when it holds `log_max_bytes` or more, keeping `log_keep` old files (path.1 .. path.N).
+  std::filesystem::path log_file{};
+  std::uintmax_t log_max_bytes = 1024 * 1024;
+  int log_keep = 3;
 };
 
 /// Where a child is in its life.
@@ -105,10 +116,12 @@ class Supervisor {
   Supervisor& operator=(Supervisor&&) = delete;
 
   /// Starts a child and returns its pid (also its process group id) once it has called exec.
+  /// A name may be started again once its previous child was reaped (a restart); the new child
+  /// then takes the place of the first one of that name in the stop order.
   /// Throws mrroc::Error if the name is empty or already used by a running child, argv is
   /// empty, the executable is not found in PATH, or exec fails (the message names the
   /// child, the path and strerror, e.g. "cannot start edp/irb6: /x/edp: No such file or
-  /// directory"); in that case nothing is left running.
+  /// directory"), or the log file cannot be opened; in that case nothing is left running.
   pid_t start(const ChildSpec& spec);
 
   /// Waits until a child exits, a stop is requested (`stop_requested()`), or `timeout`
@@ -132,13 +145,15 @@ class Supervisor {
   /// The state of the most recently started child of this name; nullopt if there is none.
   [[nodiscard]] std::optional<ChildState> state_of(const std::string& name) const;
 
-  /// Stops all children in reverse start order, one after the other: SIGTERM to the child's
+  /// Stops all children in reverse start order (a restarted child counts at the place of its
+  /// first start), one after the other: its `stop_signal` (SIGTERM by default) to the child's
   /// process group, then wait until the child is reaped and its group is empty, at most its
   /// `stop_grace`, then SIGKILL to the group and wait until it is gone (at most 5 s more;
   /// a warning line is written if not). Children that already exited but left processes in
   /// their group are handled the same way. A further stop signal (e.g. a second Ctrl-C)
   /// during `stop_all()` skips the remaining grace periods (SIGKILL at once).
-  /// Prints "stopping NAME (pid N)", the exit line, or "killed NAME after G ms".
+  /// Prints "stopping NAME (pid N)" (plus " with SIGX" for another stop signal than SIGTERM),
+  /// the exit line, or "killed NAME after G ms".
   void stop_all();
 
   /// All exits so far, in the order they were reaped.

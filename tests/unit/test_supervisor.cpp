@@ -1,5 +1,9 @@
 #include "supervisor.hpp"
 
+#include "launch_plan.hpp"
+#include "log_file.hpp"
+#include "status_board.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -9,6 +13,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <mutex>
 #include <ostream>
@@ -520,6 +525,317 @@ TEST(Supervisor, StopSignalsWakeWaitEventsAndASecondOneSkipsTheGrace) {
     return "";
   });
   EXPECT_EQ(failure, "");
+}
+
+// ---- stop signal, log files, restarts ------------------------------------------------------
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::filesystem::path temp_dir(const std::string& what) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("mrroc-supervisor-" + what + "-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+TEST(Supervisor, StopsWithTheChildsStopSignal) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  ChildSpec spec = sh("int",
+                      "trap 'echo got INT; exit 7' INT; trap 'echo got TERM; exit 8' TERM; "
+                      "echo ready; sleep 100 & wait");
+  spec.stop_signal = SIGINT;
+  s.start(spec);
+  ASSERT_TRUE(cap.wait_for_line("int", "ready")) << cap.text();
+  s.stop_all();
+  const std::string text = cap.text();
+  EXPECT_THAT(text, HasSubstr("stopping int (pid"));
+  EXPECT_THAT(text, HasSubstr(") with SIGINT\n"));
+  EXPECT_THAT(text, HasSubstr("[int] got INT\n"));
+  EXPECT_THAT(text, testing::Not(HasSubstr("got TERM")));
+  ASSERT_EQ(s.exits().size(), 1u);
+  EXPECT_EQ(s.exits()[0].exit_code, 7);
+}
+
+TEST(Supervisor, RejectsAnInvalidStopSignal) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  ChildSpec spec = sh("bad", "true");
+  spec.stop_signal = 0;
+  EXPECT_THAT([&] { s.start(spec); },
+              testing::ThrowsMessage<Error>(HasSubstr("stop signal 0 is not a signal number")));
+  EXPECT_FALSE(s.any_running());
+}
+
+TEST(Supervisor, WritesEachChildsLinesWithTimeStampsToItsLogFile) {
+  const auto dir = temp_dir("log");
+  Capture cap;
+  {
+    Supervisor s(cap.stream());
+    ChildSpec spec = sh("edp/x", "echo first; echo second >&2; exit 3");
+    spec.log_file = dir / "edp_x.log";
+    const pid_t pid = s.start(spec);
+    ASSERT_EQ(collect(s, 1).size(), 1u);
+    const std::string log = slurp(dir / "edp_x.log");
+    const std::regex stamped(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z first\n)");
+    EXPECT_TRUE(std::regex_search(log, stamped)) << log;
+    EXPECT_THAT(log, HasSubstr("Z second\n"));
+    EXPECT_THAT(log, HasSubstr("--- edp/x started (pid " + std::to_string(pid) + ")"));
+    EXPECT_THAT(log, HasSubstr("--- edp/x (pid " + std::to_string(pid) + ") exited with code 3"));
+  }
+  // The console output is unchanged.
+  EXPECT_THAT(cap.text(), HasSubstr("[edp/x] first\n"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Supervisor, AnUnusableLogFileStartsNothing) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  ChildSpec spec = sh("x", "sleep 10");
+  spec.log_file = "/proc/self/nonexistent/x.log";
+  EXPECT_THAT([&] { s.start(spec); },
+              testing::ThrowsMessage<Error>(HasSubstr("/proc/self/nonexistent")));
+  EXPECT_FALSE(s.any_running());
+}
+
+TEST(LogFile, RotatesWhenLargerThanTheLimitKeepingNFiles) {
+  const auto dir = temp_dir("rotate");
+  const auto path = dir / "srp.log";
+  {
+    LogFile log(path, 1000, 2);
+    // Each line is 25 (time stamp + space) + 76 + 1 = 102 bytes: 10 lines fill a file.
+    const std::string text(76, 'x');
+    for (int i = 0; i < 35; ++i) log.write_line(text);
+    EXPECT_EQ(log.rotations(), 3);
+    EXPECT_EQ(log.errors(), 0);
+  }
+  EXPECT_TRUE(std::filesystem::exists(path));
+  EXPECT_TRUE(std::filesystem::exists(LogFile::rotated(path, 1)));
+  EXPECT_TRUE(std::filesystem::exists(LogFile::rotated(path, 2)));
+  EXPECT_FALSE(std::filesystem::exists(LogFile::rotated(path, 3)));  // only 2 kept
+  EXPECT_EQ(std::filesystem::file_size(LogFile::rotated(path, 1)), 1020u);
+  EXPECT_EQ(std::filesystem::file_size(path), 510u);  // 35 = 3 * 10 + 5 lines
+  {
+    LogFile again(path, 1000, 0);  // appends; keep = 0 empties instead of rotating
+    EXPECT_EQ(again.size(), 510u);
+    for (int i = 0; i < 6; ++i) again.write_line(std::string(76, 'y'));
+    EXPECT_EQ(again.rotations(), 1);
+  }
+  EXPECT_EQ(std::filesystem::file_size(path), 102u);
+  EXPECT_EQ(slurp(path).find('x'), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Supervisor, ARestartedChildKeepsItsPlaceInTheStopOrder) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  const std::string body = "trap 'echo bye; exit 0' TERM; echo ready; sleep 100 & wait";
+  s.start(sh("first", body));
+  const pid_t old_pid = s.start(sh("second", "echo ready; exit 5"));
+  s.start(sh("third", body));
+  ASSERT_TRUE(cap.wait_for("second exited with code 5")) << cap.text();
+  ASSERT_TRUE(cap.wait_for_line("third", "ready")) << cap.text();
+  const pid_t new_pid = s.start(sh("second", body));  // the restart
+  EXPECT_NE(new_pid, old_pid);
+  EXPECT_EQ(s.pid_of("second"), new_pid);
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (std::chrono::steady_clock::now() < deadline &&
+         cap.text().find("[second] ready") == cap.text().rfind("[second] ready"))
+    std::this_thread::sleep_for(5ms);
+  ASSERT_NE(cap.text().find("[second] ready"), cap.text().rfind("[second] ready")) << cap.text();
+  s.stop_all();
+  const std::string text = cap.text();
+  EXPECT_LT(position(text, "stopping third"), position(text, "stopping second"));
+  EXPECT_LT(position(text, "stopping second"), position(text, "stopping first"));
+}
+
+// ---- the plan ------------------------------------------------------------------------------
+
+TEST(LaunchPlan, QuotesForTheShell) {
+  EXPECT_EQ(shell_quote("/usr/bin/mrroc-edp"), "/usr/bin/mrroc-edp");
+  EXPECT_EQ(shell_quote("LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=1"),
+            "'LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=1'");
+  EXPECT_EQ(shell_quote("it's"), "'it'\\''s'");
+  EXPECT_EQ(shell_quote(""), "''");
+}
+
+TEST(LaunchPlan, HostTemplatingQuotedAndAsSeparateWords) {
+  HostConfig ssh;
+  ssh.name = "cell";
+  ssh.address = "robot@10.0.0.7";
+  ssh.command = {"ssh", "-o", "BatchMode=yes", "{host}"};
+  ssh.quote = true;
+  EXPECT_EQ(host_command(ssh, {"LCM_DEFAULT_URL=udpm://x?ttl=1"},
+                         {"/opt/mrroc-edp", "--config", "/a b.toml"}),
+            (std::vector<std::string>{
+                "ssh", "-o", "BatchMode=yes", "robot@10.0.0.7",
+                "env 'LCM_DEFAULT_URL=udpm://x?ttl=1' /opt/mrroc-edp --config '/a b.toml'"}));
+  HostConfig netns;
+  netns.name = "b";
+  netns.address = "ns-b";
+  netns.command = {"ip", "netns", "exec", "{host}"};
+  netns.quote = false;
+  EXPECT_EQ(
+      host_command(netns, {"K=V"}, {"/bin/prog", "a b"}),
+      (std::vector<std::string>{"ip", "netns", "exec", "ns-b", "env", "K=V", "/bin/prog", "a b"}));
+}
+
+TEST(LaunchPlan, OrderGroupsHostsLogFilesAndRecording) {
+  const std::string text = R"(
+[system]
+name = "plan"
+lcm_url = "udpm://239.255.76.67:7667?ttl=1"
+[launch]
+log_dir = "logs"
+log_max_kb = 2
+log_keep = 4
+record = "run.lcmlog"
+[[launch.host]]
+name = "b"
+command = ["ip", "netns", "exec", "{host}"]
+quote = false
+[srp]
+restart = "on-failure"
+required = false
+[mp]
+task = "start_and_wait"
+stop_signal = "SIGINT"
+[[robot]]
+name = "irb6"
+model = ")" + std::string(MRROC_SOURCE_DIR) +
+                           R"(/robots/irb6"
+[robot.edp]
+plugin = "mujoco"
+host = "b"
+stop_grace_s = 1.5
+[robot.ecp]
+task = "visit_joint_poses"
+host = "b"
+group = "arm"
+)";
+  const auto config = parse_process_set(text, "/tmp/plan/set.toml");
+  PlanOptions options;
+  options.bin_dir = "/opt/bin";
+  const auto plan = make_plan(config, options);
+  ASSERT_EQ(plan.size(), 5u);
+  EXPECT_EQ(plan[0].name, "record");
+  EXPECT_EQ(plan[0].group, "record");
+  EXPECT_FALSE(plan[0].options.required);
+  EXPECT_EQ(plan[0].spec.stop_signal, SIGINT);
+  EXPECT_FALSE(plan[0].reports_ready);
+  EXPECT_EQ(plan[0].spec.argv,
+            (std::vector<std::string>{"lcm-logger", "--lcm-url=udpm://239.255.76.67:7667?ttl=1",
+                                      "--force", "--quiet", "/tmp/plan/run.lcmlog"}));
+  EXPECT_EQ(plan[1].name, "srp");
+  EXPECT_EQ(plan[1].options.restart, RestartPolicy::on_failure);
+  EXPECT_EQ(plan[2].name, "edp/irb6");
+  EXPECT_EQ(plan[2].group, "edp");
+  EXPECT_EQ(plan[2].host, "b");
+  EXPECT_EQ(plan[2].spec.stop_grace, 1500ms);
+  EXPECT_EQ(
+      plan[2].spec.argv,
+      (std::vector<std::string>{
+          "ip", "netns", "exec", "b", "env", "LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=1",
+          "/opt/bin/mrroc-edp", "--config", "/tmp/plan/set.toml", "--robot", "irb6"}));
+  EXPECT_TRUE(plan[2].spec.env.empty());  // the environment travels in the command
+  EXPECT_EQ(plan[2].spec.log_file, std::filesystem::path("/tmp/plan/logs/edp_irb6.log"));
+  EXPECT_EQ(plan[2].spec.log_max_bytes, 2048u);
+  EXPECT_EQ(plan[2].spec.log_keep, 4);
+  EXPECT_EQ(plan[3].name, "ecp/irb6");
+  EXPECT_EQ(plan[3].group, "arm");
+  EXPECT_EQ(plan[4].name, "mp");
+  EXPECT_EQ(plan[4].spec.stop_signal, SIGINT);
+  EXPECT_EQ(plan[4].spec.argv,
+            (std::vector<std::string>{"/opt/bin/mrroc-mp", "--config", "/tmp/plan/set.toml"}));
+  EXPECT_EQ(plan[4].spec.env,
+            (std::vector<std::string>{"LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=1"}));
+
+  PlanOptions no_record = options;
+  no_record.record = "/tmp/other.lcmlog";  // --record overrides [launch] record
+  EXPECT_EQ(make_plan(config, no_record)[0].spec.argv.back(), "/tmp/other.lcmlog");
+}
+
+TEST(LaunchPlan, TheWebConsoleStartsAfterTheEcpsAndBeforeTheMp) {
+  const std::string text = R"(
+[system]
+name = "ui"
+[ui]
+web = true
+port = 8123
+[mp]
+task = "start_and_wait"
+[[robot]]
+name = "irb6"
+model = ")" + std::string(MRROC_SOURCE_DIR) +
+                           R"(/robots/irb6"
+[robot.edp]
+plugin = "mujoco"
+[robot.ecp]
+task = "visit_joint_poses"
+)";
+  PlanOptions options;
+  options.bin_dir = "/opt/bin";
+  const auto plan = make_plan(parse_process_set(text, "/tmp/ui/set.toml"), options);
+  ASSERT_EQ(plan.size(), 5u);
+  EXPECT_EQ(plan[2].name, "ecp/irb6");
+  EXPECT_EQ(plan[3].name, "ui");
+  EXPECT_EQ(plan[3].group, "ui");
+  EXPECT_TRUE(plan[3].reports_ready);
+  EXPECT_EQ(plan[3].spec.argv, (std::vector<std::string>{"/opt/bin/mrroc-ui", "serve", "--config",
+                                                         "/tmp/ui/set.toml"}));
+  EXPECT_EQ(plan[4].name, "mp");
+}
+
+// ---- the status table ----------------------------------------------------------------------
+
+TEST(LaunchStatus, ReadsCpuTimeAndMemoryOfAProcess) {
+  const auto before = process_cpu_ticks(::getpid());
+  ASSERT_TRUE(before.has_value());
+  const auto t0 = std::chrono::steady_clock::now();
+  volatile double x = 0;
+  while (std::chrono::steady_clock::now() - t0 < 300ms) x = x + 1.0;
+  const auto after = process_cpu_ticks(::getpid());
+  ASSERT_TRUE(after.has_value());
+  // 0.3 s of busy loop: at least 0.15 s of CPU time (100 ticks per second on Linux).
+  EXPECT_GE(*after - *before, static_cast<std::uint64_t>(::sysconf(_SC_CLK_TCK) * 15 / 100));
+  const auto rss = process_rss_kb(::getpid());
+  ASSERT_TRUE(rss.has_value());
+  EXPECT_GT(*rss, 100);
+  EXPECT_FALSE(process_cpu_ticks(999999999).has_value());
+  EXPECT_FALSE(process_rss_kb(999999999).has_value());
+}
+
+TEST(LaunchStatus, FormatsTheTable) {
+  LaunchStatus s;
+  s.set_name = "demo";
+  s.config_file = "/c/demo.toml";
+  s.state = "running";
+  s.launcher_pid = 42;
+  s.uptime_s = 3.25;
+  ProcessRow r;
+  r.name = "edp/irb6";
+  r.group = "edp";
+  r.host = "b";
+  r.state = "running";
+  r.pid = 1234;
+  r.cpu_percent = 12.5;
+  r.rss_kb = 65536;
+  r.restarts = 1;
+  r.uptime_s = 2.0;
+  r.restart = "on-failure";
+  s.processes.push_back(r);
+  const std::string table = format_status_table(s);
+  EXPECT_THAT(table, HasSubstr("set 'demo' (/c/demo.toml): running, launcher pid 42"));
+  EXPECT_THAT(table, HasSubstr("RESTARTS"));
+  EXPECT_TRUE(std::regex_search(
+      table,
+      std::regex(R"(edp/irb6 +edp +b +running +1234 +12\.5 +65536 +1 +2\.0 +- +yes +on-failure)")))
+      << table;
 }
 
 }  // namespace

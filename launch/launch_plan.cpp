@@ -1,0 +1,143 @@
+#include "launch_plan.hpp"
+
+#include <signal.h>
+#include <string.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::launch {
+
+namespace fs = std::filesystem;
+
+std::string shell_quote(std::string_view word) {
+  const bool safe = !word.empty() && std::all_of(word.begin(), word.end(), [](char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
+           std::string_view("_-./:=@%+,").find(ch) != std::string_view::npos;
+  });
+  if (safe) return std::string(word);
+  std::string out = "'";
+  for (const char ch : word) {
+    if (ch == '\'') {
+      out += "'\\''";
+    } else {
+      out += ch;
+    }
+  }
+  out += '\'';
+  return out;
+}
+
+std::vector<std::string> host_command(const HostConfig& host, const std::vector<std::string>& env,
+                                      const std::vector<std::string>& command) {
+  std::vector<std::string> argv;
+  for (std::string word : host.command) {
+    for (std::size_t at = word.find("{host}"); at != std::string::npos;
+         at = word.find("{host}", at + host.address.size()))
+      word.replace(at, 6, host.address);
+    argv.push_back(std::move(word));
+  }
+  std::vector<std::string> inner;
+  if (!env.empty()) {
+    inner.emplace_back("env");
+    inner.insert(inner.end(), env.begin(), env.end());
+  }
+  inner.insert(inner.end(), command.begin(), command.end());
+  if (host.quote) {
+    std::string line;
+    for (const auto& w : inner) line += (line.empty() ? "" : " ") + shell_quote(w);
+    argv.push_back(std::move(line));
+  } else {
+    argv.insert(argv.end(), inner.begin(), inner.end());
+  }
+  return argv;
+}
+
+fs::path log_file_of(const fs::path& log_dir, const std::string& name) {
+  std::string file = name;
+  std::replace(file.begin(), file.end(), '/', '_');
+  return log_dir / (file + ".log");
+}
+
+std::string signal_text(int signal) {
+  if (const char* abbrev = ::sigabbrev_np(signal)) return fmt::format("SIG{}", abbrev);
+  return fmt::format("signal {}", signal);
+}
+
+std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const PlanOptions& options) {
+  const std::string cfg = config.file.string();
+  auto exe = [&](const char* name) { return (options.bin_dir / name).string(); };
+  std::vector<PlannedProcess> plan;
+  auto add = [&](std::string name, const ProcessOptions& o, std::vector<std::string> command) {
+    PlannedProcess p;
+    p.name = std::move(name);
+    p.group = o.group;
+    p.host = o.host;
+    p.options = o;
+    p.command = std::move(command);
+    plan.push_back(std::move(p));
+  };
+
+  const fs::path record = !options.record.empty() ? options.record : config.launch.record;
+  if (!record.empty()) {
+    ProcessOptions o;
+    o.group = "record";
+    o.required = false;
+    o.stop_signal = SIGINT;
+    o.stop_grace_s = 5.0;
+    add("record", o,
+        {"lcm-logger", "--lcm-url=" + comm::resolve_lcm_url(config.lcm_url), "--force", "--quiet",
+         record.string()});
+    plan.back().reports_ready = false;
+  }
+  std::vector<std::string> srp{exe("mrroc-srp"), "--config", cfg};
+  if (!options.srp_log.empty()) {
+    srp.emplace_back("--log");
+    srp.push_back(options.srp_log);
+  }
+  add("srp", config.srp.options, srp);
+  if (config.emulator)
+    add("emu", config.emulator->options, {exe("mrroc-axis-emu"), "--config", cfg});
+  for (const auto& v : config.vsps)
+    add("vsp/" + v.name, v.options, {exe("mrroc-vsp"), "--config", cfg, "--vsp", v.name});
+  for (const auto& r : config.robots)
+    add("edp/" + r.name, r.edp.options, {exe("mrroc-edp"), "--config", cfg, "--robot", r.name});
+  for (const auto& r : config.robots)
+    add("ecp/" + r.name, r.ecp.options, {exe("mrroc-ecp"), "--config", cfg, "--robot", r.name});
+  if (config.ui.web) add("ui", config.ui.options, {exe("mrroc-ui"), "serve", "--config", cfg});
+  add("mp", config.mp.options, {exe("mrroc-mp"), "--config", cfg});
+
+  for (auto& p : plan) {
+    ChildSpec& s = p.spec;
+    s.name = p.name;
+    s.stop_grace = std::chrono::milliseconds(std::lround(p.options.stop_grace_s * 1000.0));
+    s.stop_signal = p.options.stop_signal;
+    if (!config.launch.log_dir.empty()) {
+      s.log_file = log_file_of(config.launch.log_dir, p.name);
+      s.log_max_bytes =
+          static_cast<std::uintmax_t>(std::llround(config.launch.log_max_kb * 1024.0));
+      s.log_keep = config.launch.log_keep;
+    }
+    if (p.host == "local") {
+      s.argv = p.command;
+      if (!config.lcm_url.empty()) s.env.push_back("LCM_DEFAULT_URL=" + config.lcm_url);
+      continue;
+    }
+    const auto host = std::find_if(config.launch.hosts.begin(), config.launch.hosts.end(),
+                                   [&](const HostConfig& h) { return h.name == p.host; });
+    if (host == config.launch.hosts.end())
+      throw Error(fmt::format("{}: error: {} runs on host '{}', which is not a [[launch.host]]",
+                              cfg, p.name, p.host));
+    // ssh passes no environment: it travels in the command line.
+    s.argv = host_command(*host, {"LCM_DEFAULT_URL=" + comm::resolve_lcm_url(config.lcm_url)},
+                          p.command);
+  }
+  return plan;
+}
+
+}  // namespace mrroc::launch

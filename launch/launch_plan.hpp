@@ -1,0 +1,60 @@
+#pragma once
+/// @file
+/// What `mrroc-launch` starts, in which order and how: the plan built from a process-set
+/// config (docs/configs.md). Pure functions, no side effects (used by `--check` and the tests).
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "mrroc/config/process_set.hpp"
+#include "supervisor.hpp"
+
+namespace mrroc::launch {
+
+/// One process of the plan.
+struct PlannedProcess {
+  std::string name;   ///< as in its status messages and the output prefix: "edp/irb6"
+  std::string group;  ///< ProcessOptions::group ("edp", "record", ...)
+  std::string host;   ///< "local" or a [[launch.host]] name
+  ProcessOptions options;
+  /// False for processes that publish no process_status_t (lcm-logger): they count as ready
+  /// once they run for a moment.
+  bool reports_ready = true;
+  /// The process' own command line (before host templating).
+  std::vector<std::string> command;
+  /// What the supervisor runs: the command, for another host wrapped in its start command with
+  /// the environment in front (`env NAME=value ... program args`); log file, stop signal and
+  /// grace period filled in.
+  ChildSpec spec;
+};
+
+/// Launcher options given on the command line.
+struct PlanOptions {
+  std::filesystem::path bin_dir;  ///< where the mrroc-* executables are
+  std::string srp_log;            ///< --srp-log (empty: none)
+  std::filesystem::path record;   ///< --record, else [launch] record (empty: none)
+};
+
+/// The processes in start order: record (lcm-logger), srp, emu, vsp/*, edp/*, ecp/*, ui (when
+/// [ui] web = true), mp. Stopping goes in reverse order.
+/// @throws mrroc::Error when a process names an unknown host (load_process_set checks that).
+std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const PlanOptions& options);
+
+/// `word` quoted for a POSIX shell (unchanged when it has only safe characters).
+std::string shell_quote(std::string_view word);
+
+/// The argv that runs `command` (with `env`, "NAME=value") on `host`: the host's start command
+/// with "{host}" replaced by its address, then `env NAME=value ... command...`, either as
+/// separate words or (quote = true) as one shell-quoted word.
+std::vector<std::string> host_command(const HostConfig& host, const std::vector<std::string>& env,
+                                      const std::vector<std::string>& command);
+
+/// The log file of a process: log_dir/<name with '/' as '_'>.log ("edp/irb6" -> edp_irb6.log).
+std::filesystem::path log_file_of(const std::filesystem::path& log_dir, const std::string& name);
+
+/// "SIGTERM", "SIGINT", ... (or "signal N").
+std::string signal_text(int signal);
+
+}  // namespace mrroc::launch

@@ -1,0 +1,163 @@
+// A process set on two "computers": two network namespaces joined by a veth pair, created here
+// (inside scripts/netns-run, so nothing reaches the real network). MP and SRP run on host "a",
+// ECP and EDP on host "b", each started through `ip netns exec`; the launcher runs in "a".
+#include <signal.h>
+
+#include <cstdlib>
+
+#include "operator_helpers.hpp"
+
+namespace mrroc::test {
+namespace {
+
+int sh(const std::string& command) {
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string capture(const std::string& command) {
+  FILE* p = ::popen(command.c_str(), "r");
+  if (p == nullptr) return {};
+  std::string out;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, p) != nullptr) out += buf;
+  ::pclose(p);
+  return out;
+}
+
+/// Packets counted by `ip -s link` on an interface of a namespace: {rx, tx}.
+std::pair<long, long> packets(const std::string& ns, const std::string& dev) {
+  // The line after "RX: bytes packets ..." holds the numbers, likewise for TX.
+  const std::string out = capture("ip -n " + ns + " -s link show " + dev);
+  std::istringstream lines(out);
+  std::string line;
+  long rx = -1;
+  long tx = -1;
+  long* next = nullptr;
+  while (std::getline(lines, line)) {
+    if (next != nullptr) {
+      std::istringstream words(line);
+      long bytes = 0;
+      words >> bytes >> *next;
+      next = nullptr;
+    }
+    if (has(line, "RX:")) next = &rx;
+    if (has(line, "TX:")) next = &tx;
+  }
+  return {rx, tx};
+}
+
+class TwoHosts : public testing::Test {
+ protected:
+  void SetUp() override {
+    created_ = true;
+    ASSERT_EQ(sh("ip netns add " + a_ + " && ip netns add " + b_), 0)
+        << "cannot create network namespaces (needs root and iproute2)";
+    const std::string script =
+        "set -e\n"
+        "ip link add mrroc-va type veth peer name mrroc-vb\n"
+        "ip link set mrroc-va netns " +
+        a_ +
+        "\n"
+        "ip link set mrroc-vb netns " +
+        b_ +
+        "\n"
+        "ip -n " +
+        a_ +
+        " addr add 10.77.0.1/24 dev mrroc-va\n"
+        "ip -n " +
+        b_ +
+        " addr add 10.77.0.2/24 dev mrroc-vb\n"
+        "for ns in " +
+        a_ + " " + b_ +
+        "; do ip -n $ns link set lo up; done\n"
+        "ip -n " +
+        a_ +
+        " link set mrroc-va up\n"
+        "ip -n " +
+        b_ +
+        " link set mrroc-vb up\n"
+        "ip -n " +
+        a_ +
+        " route add 224.0.0.0/4 dev mrroc-va\n"
+        "ip -n " +
+        b_ + " route add 224.0.0.0/4 dev mrroc-vb\n";
+    ASSERT_EQ(sh(script), 0);
+    // Both ends up: the link is up (a veth is "state UP" only when its peer is up too).
+    const std::string link = capture("ip -n " + a_ + " link show mrroc-va");
+    ASSERT_TRUE(has(link, "state UP")) << link;
+  }
+  void TearDown() override {
+    if (!created_) return;
+    EXPECT_EQ(sh("ip netns del " + a_ + " 2>/dev/null; ip netns del " + b_), 0);
+    EXPECT_FALSE(has(capture("ip netns list"), "mrroc-" + std::to_string(::getpid())));
+  }
+
+  const std::string a_ = "mrroc-" + std::to_string(::getpid()) + "-a";
+  const std::string b_ = "mrroc-" + std::to_string(::getpid()) + "-b";
+  bool created_ = false;
+};
+
+TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
+  const fs::path dir = temp_dir("multihost");
+  fs::path config = write_config(dir, "multihost.toml", "");
+  std::string text = slurp(config);
+  for (const auto& [from, to] : {std::pair{std::string("\"mrroc-a\""), "\"" + a_ + "\""},
+                                 std::pair{std::string("\"mrroc-b\""), "\"" + b_ + "\""}})
+    text.replace(text.find(from), from.size(), to);
+  std::ofstream(config) << text;
+
+  // The plan shows the templated command lines.
+  const auto [check_code, plan] = run({launcher(), "--check", config.string()});
+  EXPECT_EQ(check_code, 0) << plan;
+  EXPECT_TRUE(has(plan, "ip netns exec " + b_ +
+                            " env 'LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=1' " +
+                            (kBin / "mrroc-edp").string()))
+      << plan;
+
+  const auto before = packets(b_, "mrroc-vb");
+  Background launch({"ip", "netns", "exec", a_, launcher(), config.string()});
+  ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
+  // Each process runs in the namespace of its host.
+  auto netns_of = [](pid_t pid) {
+    std::error_code ec;
+    return fs::read_symlink("/proc/" + std::to_string(pid) + "/ns/net", ec).string();
+  };
+  const std::string ns_launcher = netns_of(launch.pid());
+  // The launcher itself is `ip netns exec` until it execs mrroc-launch: its pid is the same.
+  EXPECT_EQ(netns_of(launch.pid_of("srp")), ns_launcher);
+  EXPECT_EQ(netns_of(launch.pid_of("mp")), ns_launcher);
+  EXPECT_EQ(netns_of(launch.pid_of("edp/irb6")), netns_of(launch.pid_of("ecp/irb6")));
+  EXPECT_NE(netns_of(launch.pid_of("edp/irb6")), ns_launcher);
+  EXPECT_NE(netns_of(launch.pid_of("edp/irb6")), netns_of(::getpid()));
+  // The status table, asked from host "a".
+  const auto [scode, table] =
+      run({"ip", "netns", "exec", a_, launcher(), "status", config.string()}, 20s);
+  EXPECT_EQ(scode, 0) << table;
+  std::printf("%s", table.c_str());
+  // Through `ip netns exec` the pid is the EDP's own: its memory is shown.
+  EXPECT_TRUE(std::regex_search(
+      table, std::regex(R"(edp/irb6 +edp +b +running +[0-9]+ +[0-9.]+ +[1-9][0-9]{3,} )")))
+      << table;
+  EXPECT_TRUE(std::regex_search(table, std::regex(R"(mp +mp +a +running)"))) << table;
+
+  EXPECT_EQ(launch.wait(120s), 0) << launch.output();
+  const std::string out = launch.output();
+  EXPECT_TRUE(has(out, "started edp/irb6 (pid")) << out;
+  EXPECT_TRUE(has(out, "on host b")) << out;
+  EXPECT_TRUE(has(out, "task finished")) << out;
+  EXPECT_TRUE(has(out, "[ecp/irb6]")) << out;
+
+  const auto after = packets(b_, "mrroc-vb");
+  std::printf("veth of host b: %ld packets received, %ld sent during the run\n",
+              after.first - before.first, after.second - before.second);
+  // The EDP in "b" broadcasts its state every 20 ms and answers every macro-step of the ECP
+  // (which is in "b" too); the MP's commands and everyone's status come across from "a".
+  EXPECT_GT(after.second - before.second, 300);  // b -> a
+  EXPECT_GT(after.first - before.first, 20);     // a -> b
+  EXPECT_EQ(leftovers(), "");
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mrroc::test

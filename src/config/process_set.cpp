@@ -132,6 +132,7 @@ class Reader {
                                text));
     }
     o.host = string(t, "host", "", std::string("local"));
+    if (const toml::node* h = t.get("host")) o.host_where = where(*h);
     if (o.host.empty()) fail(*t.get("host"), "'host' must not be empty (\"local\" or a [[launch.host]] name)");
     o.group = string(t, "group", "", default_group);
     const std::string restart = string(t, "restart", "", std::string("never"));
@@ -298,7 +299,9 @@ void check_hosts(const ProcessSetConfig& config) {
       if (h.name == o.host) return;
     throw ConfigError(fmt::format("{}: error: {} runs on host '{}', which is not a [[launch.host]] "
                                   "(hosts: local{})",
-                                  config.file.string(), process, o.host,
+                                  o.host_where.file.empty() ? config.file.string()
+                                                            : o.host_where.str(),
+                                  process, o.host,
                                   [&] {
                                     std::string s;
                                     for (const auto& h : config.launch.hosts) s += ", " + h.name;

@@ -32,6 +32,7 @@ struct ProcessOptions {
   double stop_grace_s = 3.0;  ///< stop signal to SIGKILL grace period when stopping [s]
   int stop_signal = 15;       ///< signal that asks the process to stop (`stop_signal = "SIGINT"`)
   std::string host = "local"; ///< where it runs: "local" or the name of a [[launch.host]]
+  SourceLocation host_where;  ///< where `host` was given (for errors)
   std::string group;          ///< group name (default: srp, emu, vsp, edp, ecp, mp, ui)
   RestartPolicy restart = RestartPolicy::never;
   int max_restarts = 3;           ///< restarts allowed before the process counts as ended

@@ -97,7 +97,7 @@ TEST(LaunchCheck, BadLauncherKeysAreConfigErrorsNamingFileLineAndValue) {
   struct Case {
     std::string srp_keys;
     std::string message;
-    std::string line_of;  // the line named (empty: the file only)
+    std::string line_of;  // text of the line named
   };
   const std::vector<Case> cases = {
       {"restart = \"sometimes\"\n",
@@ -107,7 +107,8 @@ TEST(LaunchCheck, BadLauncherKeysAreConfigErrorsNamingFileLineAndValue) {
       {"max_restarts = -1\n", "error: 'max_restarts' = -1", "max_restarts"},
       {"restart_backoff_s = 31\n", "error: 'restart_backoff_s' = 31 s is outside 0..30 s",
        "restart_backoff_s"},
-      {"host = \"nowhere\"\n", "srp runs on host 'nowhere', which is not a [[launch.host]]", ""},
+      {"host = \"nowhere\"\n", "srp runs on host 'nowhere', which is not a [[launch.host]]",
+       "nowhere"},
   };
   for (const auto& c : cases) {
     const fs::path config = write_config(dir, "long-irb6.toml", c.srp_keys);
@@ -115,9 +116,7 @@ TEST(LaunchCheck, BadLauncherKeysAreConfigErrorsNamingFileLineAndValue) {
     EXPECT_EQ(code, 2) << c.srp_keys << out;
     EXPECT_TRUE(has(out, c.message)) << out;
     const std::string where =
-        c.line_of.empty()
-            ? config.string() + ": "
-            : config.string() + ":" + std::to_string(line_of(config, c.line_of)) + ": ";
+        config.string() + ":" + std::to_string(line_of(config, c.line_of)) + ": ";
     EXPECT_TRUE(has(out, where)) << where << "\n" << out;
     EXPECT_TRUE(has(out, "nothing started")) << out;
   }

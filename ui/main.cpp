@@ -1,47 +1,39 @@
-// mrroc-ui: operator commands. Today: the emergency stop (engage, release) for every robot or
-// one robot of a process set; the web console and task commands are not implemented yet.
-#include <CLI/CLI.hpp>
+// mrroc-ui: operator commands for a running process set: the emergency stop (engage, release)
+// for every robot or one, task commands to the MP (start, pause, resume, stop, terminate,
+// status), and the web operator console (serve). docs/operating.md.
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
-#include <chrono>
 #include <cstdio>
-#include <thread>
 
+#include "console.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/request_reply.hpp"
-#include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
-#include "mrroc/core/time.hpp"
-#include "mrroc_lcm/emergency_stop_t.hpp"
+#include "operator.hpp"
 
 namespace {
 
 using namespace mrroc;
+
+// Exit codes of the task commands.
+constexpr int kExitRefused = 1;  // the MP answered and refused the command
+constexpr int kExitConfig = 2;   // bad command line or config
+constexpr int kExitNoMp = 3;     // no MP answered
 
 int send_emergency_stop(const std::string& config_path, bool engage, const std::string& robot,
                         const std::string& reason) {
   const ProcessSetConfig config = load_process_set(config_path);
   if (!robot.empty()) (void)config.robot(robot);  // a typo in the robot name is an error
   comm::Bus bus(config.lcm_url);
+  comm::enable_auth_from_file(bus, config.auth_key_file);
   Reporter reporter(bus, "ui");
-  mrroc_lcm::emergency_stop_t m{};
-  m.header.sender = comm::unique_endpoint_name("ui");
-  m.header.kind = mrroc_lcm::header_t::BROADCAST;
-  m.action = engage ? mrroc_lcm::emergency_stop_t::ENGAGE : mrroc_lcm::emergency_stop_t::RELEASE;
-  m.robot = robot;
-  m.reason = reason;
-  // UDP may drop a datagram: send it a few times (EDPs act on the first, ignore the others).
-  for (int i = 0; i < 5; ++i) {
-    m.header.seq = i + 1;
-    m.header.utime = now_utime();
-    comm::detail::published();
-    bus.lcm().publish(channels::emergency_stop, &m);
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  const std::string what = fmt::format("{} {} for {}", engage ? "EMERGENCY STOP" : "emergency stop released",
-                                       reason.empty() ? "" : "(" + reason + ")",
-                                       robot.empty() ? "every robot" : "robot " + robot);
+  ui::publish_emergency_stop(bus, engage, robot, reason);
+  const std::string what = ui::describe_emergency_stop(engage, robot, reason);
   if (engage)
     reporter.report(Severity::error, 10, what);
   else
@@ -50,31 +42,117 @@ int send_emergency_stop(const std::string& config_path, bool engage, const std::
   return 0;
 }
 
+int send_task_command(const std::string& config_path, ui::OperatorCommand command,
+                      double timeout_s) {
+  const ProcessSetConfig config = load_process_set(config_path);
+  comm::Bus bus(config.lcm_url);
+  comm::enable_auth_from_file(bus, config.auth_key_file);
+  bus.start();
+  comm::ClientOptions options;
+  options.attempt_timeout = std::chrono::milliseconds(250);
+  options.max_attempts = std::max(1, static_cast<int>(timeout_s / 0.25));
+  ui::MpClient client(bus, comm::unique_endpoint_name("ui"), "MP", channels::mp_command,
+                      channels::mp_reply, options);
+  ui::MpStatus s;
+  try {
+    s = ui::send_operator_command(client, command);
+  } catch (const TimeoutError&) {
+    std::fprintf(stderr,
+                 "mrroc-ui: no MP answers on '%s' (set '%s', %s, LCM %s) within %.1f s: is the "
+                 "set running?\n",
+                 channels::mp_command, config.name.c_str(), config.file.string().c_str(),
+                 comm::resolve_lcm_url(config.lcm_url).c_str(), timeout_s);
+    return kExitNoMp;
+  }
+  std::string upper = ui::to_string(command);
+  for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  std::printf("mrroc-ui: %s %s: MP task '%s' %s, runs %d%s%s\n", upper.c_str(),
+              s.accepted ? "accepted" : "REFUSED", s.task.c_str(), s.state.c_str(), s.runs,
+              s.text.empty() ? "" : ": ", s.text.c_str());
+  return s.accepted ? 0 : kExitRefused;
+}
+
+int serve(const std::string& config_path, const std::string& bind, int port) {
+  const ProcessSetConfig config = load_process_set(config_path);
+  apply_cpu_affinity(config.ui.options.cpus);
+  ui::ConsoleOptions options;
+  options.bind = bind.empty() ? config.ui.bind : bind;
+  options.port = port > 0 ? port : config.ui.port;
+  options.teach_dir = config.ui.teach_dir;
+  const bool loopback = options.bind == "127.0.0.1" || options.bind == "::1" ||
+                        options.bind == "localhost" || options.bind.rfind("127.", 0) == 0;
+  if (!config.ui.token_file.empty()) {
+    options.token = ui::read_token_file(config.ui.token_file);
+  } else if (!loopback) {
+    throw ConfigError(fmt::format(
+        "{}: error: --bind {} is not a loopback address: set [ui] token_file so that every "
+        "API request must carry a token",
+        config.file.string(), options.bind));
+  }
+  ui::Console console(config, options);
+  return console.run();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "mrroc-ui: operator commands for a running process set. 'estop' brings every robot (or "
-      "one) to a standstill within its acceleration limits and holds it; 'release' allows "
-      "motion again. (Task commands and the web console are not implemented yet.)"};
+      "mrroc-ui: operator commands for a running process set.\n"
+      "  estop / release      engage / release the emergency stop of every robot (or one)\n"
+      "  start / pause / resume / stop / terminate / status\n"
+      "                       task commands to the MP (exit 1: refused, 3: no MP answers)\n"
+      "  serve                the web operator console (docs/operating.md)"};
   app.require_subcommand(1);
   std::string config;
   std::string robot;
   std::string reason = "operator";
+  double timeout_s = 3.0;
+  std::string bind;
+  int port = 0;
   for (const char* name : {"estop", "release"}) {
-    CLI::App* sub = app.add_subcommand(name, std::string(name) == "estop"
-                                                 ? "engage the emergency stop"
-                                                 : "release the emergency stop");
+    CLI::App* sub =
+        app.add_subcommand(name, std::string(name) == "estop" ? "engage the emergency stop"
+                                                              : "release the emergency stop");
     sub->add_option("-c,--config", config, "process-set config file (TOML)")->required();
     sub->add_option("-r,--robot", robot, "only this robot (default: every robot)");
     sub->add_option("--reason", reason, "text sent to the SRP");
   }
+  const std::pair<const char*, const char*> commands[] = {
+      {"start", "start the MP task (the set runs with [mp] start = \"operator\")"},
+      {"pause", "every ECP holds before its next macro-step"},
+      {"resume", "continue after pause"},
+      {"stop", "end the running task (the robots hold); start may follow"},
+      {"terminate", "end the MP and so the whole set"},
+      {"status", "print the MP task's state"},
+  };
+  for (const auto& [name, help] : commands) {
+    CLI::App* sub = app.add_subcommand(name, help);
+    sub->add_option("-c,--config", config, "process-set config file (TOML)")->required();
+    sub->add_option("--timeout", timeout_s, "wait at most this long for the MP's answer [s]")
+        ->check(CLI::Range(0.25, 60.0));
+  }
+  CLI::App* serve_cmd = app.add_subcommand(
+      "serve",
+      "web operator console on [ui] bind:port (default 127.0.0.1:8080); SIGINT or "
+      "SIGTERM stops it");
+  serve_cmd->add_option("-c,--config", config, "process-set config file (TOML)")->required();
+  serve_cmd->add_option("--bind", bind, "listen on this address (default: [ui] bind)");
+  serve_cmd->add_option("--port", port, "listen on this TCP port (default: [ui] port)")
+      ->check(CLI::Range(1, 65535));
   CLI11_PARSE(app, argc, argv);
   try {
-    const bool engage = app.got_subcommand("estop");
-    return send_emergency_stop(config, engage, robot, reason);
+    if (app.got_subcommand("estop") || app.got_subcommand("release"))
+      return send_emergency_stop(config, app.got_subcommand("estop"), robot, reason);
+    if (app.got_subcommand("serve")) {
+      install_stop_handlers();
+      return serve(config, bind, port);
+    }
+    for (const auto& [name, help] : commands)
+      if (app.got_subcommand(name))
+        return send_task_command(config, *ui::operator_command_from_string(name), timeout_s);
+    return kExitConfig;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mrroc-ui: %s\n", e.what());
-    return 2;
+    return kExitConfig;
   }
 }

@@ -1,0 +1,470 @@
+#!/usr/bin/python3
+"""The web operator console in headless Chromium (Selenium), on the real process set.
+
+Runs configs/console-demo.toml (SRP, EDP with MuJoCo, ECP, MP waiting for the operator, and the
+console `mrroc-ui serve`, started by mrroc-launch because [ui] web = true) inside
+scripts/netns-run, opens the console and, through the page's buttons:
+  Start -> MP RUNNING, the joints change -> FINISHED;
+  Start, Pause -> PAUSED and the robot stands still (|dq| of the EDP's robot_state_t);
+  Resume, Emergency stop during a motion -> standstill within the bound computed from the
+  IRb-6's velocity and deceleration limits and the servo period; Release;
+  jog one axis, Record pose twice (the file parses with the library's trajectory parser);
+  Terminate -> the set ends (launcher exit code 0) and no mrroc process is left.
+Screenshots of every stage: <artifacts>/NN-stage.png.
+"""
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import tomllib
+import urllib.request
+
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select
+
+URL = "http://127.0.0.1:8080"
+STANDSTILL_DQ = 0.01   # rad/s: every |dq| below this is a standstill
+PAUSE_STILL_DQ = 0.01  # rad/s while paused
+
+failures = []
+
+
+def check(condition, what):
+    print(("ok:   " if condition else "FAIL: ") + what, flush=True)
+    if not condition:
+        failures.append(what)
+    return condition
+
+
+def api(path, body=None):
+    request = urllib.request.Request(URL + path)
+    if body is not None:
+        request.data = json.dumps(body).encode()
+        request.add_header("X-Mrroc-Request", "1")
+        request.add_header("Content-Type", "application/json")
+    try:
+        with urllib.request.urlopen(request, timeout=5) as response:
+            return json.load(response)
+    except urllib.error.HTTPError as e:
+        return json.load(e)
+
+
+def wait_for(what, predicate, timeout_s, period_s=0.05):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            value = predicate()
+            if value:
+                return value
+        except Exception:  # the server may not answer yet
+            pass
+        time.sleep(period_s)
+    check(False, f"{what} within {timeout_s} s")
+    return None
+
+
+class LaunchedSet:
+    """mrroc-launch on a config, its output collected (and echoed with a prefix)."""
+
+    def __init__(self, bin_dir, config):
+        self.lines = []
+        self.process = subprocess.Popen([os.path.join(bin_dir, "mrroc-launch"), config],
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        text=True)
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip("\n"))
+            print("  | " + line.rstrip("\n"), flush=True)
+
+    def output(self):
+        return "\n".join(self.lines)
+
+
+def make_config(source_dir, artifacts):
+    """configs/console-demo.toml with absolute paths and teach_dir in the artifacts folder."""
+    text = open(os.path.join(source_dir, "configs", "console-demo.toml")).read()
+    text = text.replace('model = "../robots/irb6"',
+                        f'model = "{os.path.join(source_dir, "robots", "irb6")}"')
+    text = re.sub(r'^# teach_dir = .*$', f'teach_dir = "{os.path.join(artifacts, "taught")}"',
+                  text, flags=re.M)
+    path = os.path.join(artifacts, "console-demo.toml")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+def estop_bound_steps(source_dir, servo_period_s):
+    """Servo steps from the emergency stop to a standstill, at most: the slowest axis' ramp from
+    its maximum velocity at its maximum deceleration, plus one robot_state_t period (10 steps:
+    the state that shows the standstill comes up to 20 ms later) plus 25 steps (50 ms) for the
+    message's way to the EDP and the measured velocity settling behind the commanded one."""
+    with open(os.path.join(source_dir, "robots", "irb6", "parameters.toml"), "rb") as f:
+        robot = tomllib.load(f)["robot"]
+    ramps = [v / a / servo_period_s for v, a in zip(robot["max_joint_velocity"],
+                                                      robot["max_joint_acceleration"])]
+    ramp = math.ceil(max(ramps))
+    return ramp + 10 + 25, ramp, robot
+
+
+def click(driver, element_id):
+    """Clicks a button once the page has enabled it."""
+    button = driver.find_element(By.ID, element_id)
+    wait_for(f"button {element_id} enabled", button.is_enabled, 5, 0.02)
+    button.click()
+
+
+def process_names(driver):
+    """The process table's names, read in one go (the table is rebuilt every 200 ms)."""
+    return driver.execute_script(
+        "return Array.from(document.querySelectorAll('#processes tbody tr'))"
+        ".map(r => r.dataset.process)")
+
+
+def mp_state(driver):
+    return driver.find_element(By.ID, "mp-state").text
+
+
+def joint_cells(driver, cls):
+    cells = driver.find_elements(By.CSS_SELECTOR, f'.robot[data-robot="irb6"] .joints td.{cls}')
+    return [float(c.text) if c.text not in ("", "–") else None for c in cells]
+
+
+def samples_after(step):
+    return api(f"/api/robots/irb6/samples?after={step}")["samples"]
+
+
+def check_token(args, config):
+    """A second console on port 8081 with [ui] token_file: the API wants the token; SIGTERM ends
+    the console cleanly."""
+    token = "0123456789abcdef-console-test"
+    token_file = os.path.join(args.artifacts, "ui.token")
+    with open(token_file, "w") as f:
+        f.write(token + "\n")
+    text = open(config).read().replace("[ui]\n", f'[ui]\ntoken_file = "{token_file}"\n', 1)
+    token_config = os.path.join(args.artifacts, "console-demo-token.toml")
+    with open(token_config, "w") as f:
+        f.write(text)
+    ui = subprocess.Popen([os.path.join(args.bin_dir, "mrroc-ui"), "serve", "--config",
+                           token_config, "--port", "8081"])
+
+    def status(headers):
+        request = urllib.request.Request("http://127.0.0.1:8081/api/state", headers=headers)
+        try:
+            with urllib.request.urlopen(request, timeout=5) as response:
+                return response.status
+        except urllib.error.HTTPError as e:
+            return e.code
+    try:
+        wait_for("the console with a token answers", lambda: status({}) == 401, 10)
+        check(status({}) == 401, "no token: 401")
+        check(status({"Authorization": "Bearer wrong-token-0123456789"}) == 401, "wrong token: 401")
+        check(status({"Authorization": "Bearer " + token}) == 200, "right token: 200")
+    finally:
+        ui.send_signal(15)
+        try:
+            code = ui.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            ui.kill()
+            code = None
+    check(code == 0, f"SIGTERM ends the console with exit code 0 (got {code})")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--source-dir", required=True)
+    parser.add_argument("--bin-dir", required=True)
+    parser.add_argument("--check-trajectory", required=True)
+    parser.add_argument("--artifacts", required=True)
+    parser.add_argument("--chromium", default="/usr/bin/chromium")
+    parser.add_argument("--chromedriver", default="/usr/bin/chromedriver")
+    args = parser.parse_args()
+
+    if os.environ.get("MRROC_IN_NETNS") != "1":
+        print("run me inside scripts/netns-run (LCM and the console's port stay private)")
+        return 2
+    shutil.rmtree(args.artifacts, ignore_errors=True)
+    os.makedirs(args.artifacts)
+    config = make_config(args.source_dir, args.artifacts)
+    servo_period_s = 0.002
+    bound, ramp, robot = estop_bound_steps(args.source_dir, servo_period_s)
+    shots = []
+
+    def screenshot(driver, name):
+        path = os.path.join(args.artifacts, f"{len(shots) + 1:02d}-{name}.png")
+        driver.save_screenshot(path)
+        shots.append(path)
+        print(f"screenshot: {path}", flush=True)
+
+    launched = LaunchedSet(args.bin_dir, config)
+    own_ui = None
+    # The launcher starts the console ([ui] web = true); a launcher that does not is helped out.
+    if not wait_for("the console answers", lambda: api("/api/state"), 20):
+        if "started ui" not in launched.output():
+            own_ui = subprocess.Popen([os.path.join(args.bin_dir, "mrroc-ui"), "serve",
+                                       "--config", config])
+            wait_for("the console started by the test answers", lambda: api("/api/state"), 10)
+    state = wait_for("MP IDLE and robot_state_t from the EDP",
+                     lambda: (lambda s: s if s["mp"]["state"] == "IDLE" and s["robots"][0]["state"]
+                              else None)(api("/api/state")), 30)
+    if state is None:
+        launched.process.terminate()
+        return 1
+
+    check_token(args, config)
+
+    profile = tempfile.mkdtemp(prefix="mrroc-chromium-")
+    options = webdriver.ChromeOptions()
+    options.binary_location = args.chromium
+    for flag in ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                 "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", f"--user-data-dir={profile}",
+                 "--window-size=1500,1300"]:
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(args.chromedriver), options=options)
+    try:
+        driver.get(URL + "/")
+        wait_for("the page shows the MP IDLE", lambda: mp_state(driver) == "IDLE", 10)
+        wait_for("the page shows the process table", lambda: len(process_names(driver)) >= 5, 10)
+        names = process_names(driver)
+        check(all(n in names for n in ["srp", "edp/irb6", "ecp/irb6", "mp", "ui"]),
+              f"process table lists srp, edp/irb6, ecp/irb6, mp, ui: {names}")
+        check(driver.find_element(By.ID, "estop").is_displayed(), "Emergency stop is visible")
+        wait_for("the message log shows the console's start from the history",
+                 lambda: "web console at" in driver.find_element(By.ID, "log").text, 10)
+        # The EDP's start message came before the console subscribed: only the SRP's history has it.
+        check("ready: plugin" in driver.find_element(By.ID, "log").text,
+              "the log shows the EDP's start message from the SRP's history")
+        screenshot(driver, "idle")
+        # The command line: STATUS answers, RESUME while IDLE is refused (exit 1).
+        cli = [os.path.join(args.bin_dir, "mrroc-ui")]
+        out = subprocess.run(cli + ["status", "--config", config], capture_output=True, text=True)
+        check(out.returncode == 0 and "IDLE" in out.stdout, f"mrroc-ui status: {out.stdout.strip()}")
+        out = subprocess.run(cli + ["resume", "--config", config], capture_output=True, text=True)
+        check(out.returncode == 1 and "REFUSED" in out.stdout,
+              f"mrroc-ui resume while IDLE: exit {out.returncode}: {out.stdout.strip()}")
+
+        # --- Start: progress and finish ---------------------------------------------------------
+        q0 = joint_cells(driver, "q")
+        click(driver, "cmd-start")
+        started = time.monotonic()
+        wait_for("MP RUNNING shown", lambda: mp_state(driver) == "RUNNING", 5)
+        wait_for("the joints change on the page",
+                 lambda: any(a is not None and b is not None and abs(a - b) > 0.05
+                             for a, b in zip(joint_cells(driver, "q"), q0)), 15)
+        time.sleep(1.0)
+        # Jogging is refused while the task runs.
+        driver.find_element(By.CSS_SELECTOR, '.robot[data-robot="irb6"] .jog-plus').click()
+        refusal = wait_for("jog refusal shown", lambda: (lambda t: t if "refused" in t else None)(
+            driver.find_element(By.CSS_SELECTOR, '.robot[data-robot="irb6"] .jog-result').text), 5)
+        check(refusal is not None and "RUNNING" in refusal, f"jog while running refused: {refusal}")
+        screenshot(driver, "running")
+        wait_for("MP FINISHED shown", lambda: mp_state(driver) == "FINISHED", 40, 0.1)
+        run_s = time.monotonic() - started
+        check(run_s > 5.0, f"the run took {run_s:.1f} s (six poses)")
+        time.sleep(1.0)  # a few plot samples at rest
+        screenshot(driver, "finished")
+
+        # --- Pause and resume ----------------------------------------------------------------------
+        click(driver, "cmd-start")
+        wait_for("MP RUNNING again", lambda: mp_state(driver) == "RUNNING", 5)
+        wait_for("the robot moves", lambda: max(abs(v) for v in
+                                                api("/api/state")["robots"][0]["state"]["dq"]) > 0.1, 10)
+        click(driver, "cmd-pause")
+        wait_for("PAUSED shown", lambda: mp_state(driver) == "PAUSED", 5)
+        time.sleep(1.0)  # the macro-step under way completes, the EDP holds
+        first = api("/api/state")["robots"][0]["state"]["servo_step"]
+        time.sleep(1.0)
+        still = samples_after(first)
+        max_dq = max(max(abs(v) for v in s["dq"]) for s in still)
+        spread = max(max(s["q"][i] for s in still) - min(s["q"][i] for s in still)
+                     for i in range(5))
+        check(len(still) >= 30 and max_dq < PAUSE_STILL_DQ,
+              f"paused: {len(still)} robot states over 1 s, max |dq| {max_dq:.2e} rad/s "
+              f"< {PAUSE_STILL_DQ} rad/s; joints moved at most {spread:.2e} rad")
+        check(mp_state(driver) == "PAUSED", "still PAUSED")
+        screenshot(driver, "paused")
+        click(driver, "cmd-resume")
+        wait_for("RUNNING after Resume", lambda: mp_state(driver) == "RUNNING", 5)
+
+        # --- Emergency stop during a motion ---------------------------------------------------------
+        moving = wait_for("the robot moves fast (max |dq| > 0.3 rad/s)",
+                          lambda: (lambda s: s if max(abs(v) for v in s["dq"]) > 0.3 else None)(
+                              api("/api/state")["robots"][0]["state"]), 15, 0.02)
+        click(driver, "estop")
+        text = wait_for("the estop's answer shown",
+                        lambda: (lambda t: t if "servo step" in t else None)(
+                            driver.find_element(By.ID, "command-result").text), 5)
+        press_step = int(re.search(r"servo step (\d+)", text or "servo step 0").group(1))
+        wait_for("the estop flag shown", lambda: "on" in driver.find_element(
+            By.CSS_SELECTOR, '.robot[data-robot="irb6"] .flag[data-flag="estop"]').get_attribute("class"), 5)
+        time.sleep(1.5)
+        after = samples_after(press_step - 20)
+        at_press = [s for s in after if s["step"] <= press_step]
+        speed_at_press = max(abs(v) for v in (at_press[-1] if at_press else after[0])["dq"])
+        standstill = None
+        for i, s in enumerate(after):
+            if s["step"] > press_step and all(
+                    max(abs(v) for v in t["dq"]) < STANDSTILL_DQ for t in after[i:]):
+                standstill = s
+                break
+        check(speed_at_press > STANDSTILL_DQ,
+              f"the robot was moving when the stop was sent (max |dq| {speed_at_press:.3f} rad/s)")
+        if check(standstill is not None, "standstill after the emergency stop"):
+            steps = standstill["step"] - press_step
+            print(f"emergency stop: pressed at servo step {press_step} with max |dq| "
+                  f"{speed_at_press:.3f} rad/s (at {moving and max(abs(v) for v in moving['dq']):.3f} "
+                  f"rad/s just before); every |dq| < {STANDSTILL_DQ} rad/s from step "
+                  f"{standstill['step']}: {steps} servo steps ({steps * servo_period_s * 1e3:.0f} ms)",
+                  flush=True)
+            print(f"bound: slowest ramp max_i(v_max/a_max)/T = {ramp} steps "
+                  f"(v_max {robot['max_joint_velocity']} rad/s, a_max "
+                  f"{robot['max_joint_acceleration']} rad/s^2, T {servo_period_s * 1e3:.0f} ms) "
+                  f"+ 10 (state period) + 25 (delivery, settling) = {bound} steps", flush=True)
+            at = at_press[-1]["dq"] if at_press else after[0]["dq"]
+            actual = math.ceil(max(abs(v) / a for v, a in zip(at, robot["max_joint_acceleration"]))
+                               / servo_period_s)
+            print(f"(from the velocities at the press the ramp alone takes {actual} steps)",
+                  flush=True)
+            check(0 < steps <= bound, f"standstill within {steps} servo steps <= bound {bound}")
+        screenshot(driver, "emergency-stop")
+
+        click(driver, "release")
+        wait_for("the estop flag cleared", lambda: "on" not in driver.find_element(
+            By.CSS_SELECTOR, '.robot[data-robot="irb6"] .flag[data-flag="estop"]').get_attribute("class"), 5)
+        wait_for("the task is not running (the emergency stop ended the run)",
+                 lambda: mp_state(driver) in ("FAILED", "FINISHED", "IDLE"), 15)
+        screenshot(driver, "released")
+
+        # --- Jog and teach-in -------------------------------------------------------------------------
+        robot_element = driver.find_element(By.CSS_SELECTOR, '.robot[data-robot="irb6"]')
+        step_input = robot_element.find_element(By.CSS_SELECTOR, ".jog-step")
+        step_input.clear()
+        step_input.send_keys("0")
+        robot_element.find_elements(By.CSS_SELECTOR, ".jog-plus")[0].click()
+        bad = wait_for("bad jog step refused", lambda: (lambda t: t if "outside" in t else None)(
+            robot_element.find_element(By.CSS_SELECTOR, ".jog-result").text), 5)
+        check(bad is not None and "0 rad" in bad, f"jog step 0 refused: {bad}")
+        step_input.clear()
+        step_input.send_keys("0.1")
+        before = api("/api/state")["robots"][0]["state"]["q"]
+        robot_element.find_elements(By.CSS_SELECTOR, ".jog-plus")[0].click()
+        result = wait_for("jog result shown", lambda: (lambda t: t if "moved" in t or "refused" in t else None)(
+            robot_element.find_element(By.CSS_SELECTOR, ".jog-result").text), 10)
+        check(result is not None and "moved" in result, f"jog axis 0 by +0.1 rad: {result}")
+        time.sleep(0.5)
+        q_after = api("/api/state")["robots"][0]["state"]["q"]
+        check(abs(q_after[0] - before[0] - 0.1) < 0.01 and
+              all(abs(q_after[i] - before[i]) < 0.01 for i in range(1, 5)),
+              f"axis 0 moved {q_after[0] - before[0]:+.4f} rad, the others stayed")
+        teach = robot_element.find_element(By.CSS_SELECTOR, ".teach")
+        teach.click()
+        wait_for("pose 1 recorded", lambda: "pose 1" in robot_element.find_element(
+            By.CSS_SELECTOR, ".jog-result").text, 5)
+        robot_element.find_elements(By.CSS_SELECTOR, ".jog-minus")[2].click()
+        second = wait_for("second jog", lambda: (lambda t: t if "axis 2" in t and "moved" in t else None)(
+            robot_element.find_element(By.CSS_SELECTOR, ".jog-result").text), 10)
+        check(second is not None, f"jog axis 2 by -0.1 rad: {second}")
+        teach.click()
+        wait_for("pose 2 recorded", lambda: "pose 2" in robot_element.find_element(
+            By.CSS_SELECTOR, ".jog-result").text, 5)
+        trajectory = os.path.join(args.artifacts, "taught", "irb6.traj")
+        parsed = subprocess.run([args.check_trajectory, trajectory], capture_output=True, text=True)
+        print(f"{trajectory}:\n{open(trajectory).read() if os.path.exists(trajectory) else '(none)'}"
+              f"parser: {parsed.stdout}{parsed.stderr}", flush=True)
+        check(parsed.returncode == 0 and "representation=JOINT axes=5 robot=irb6 poses=2" in parsed.stdout,
+              "the taught file parses with the library's trajectory parser: 2 JOINT poses of irb6")
+        # The severity filter.
+        Select(driver.find_element(By.ID, "log-severity")).select_by_visible_text("WARNING")
+        time.sleep(0.3)
+        # Read in one go: the log is rendered again whenever a message arrives.
+        shown = driver.execute_script(
+            "return Array.from(document.querySelectorAll('#log .msg .sev')).map(e => e.textContent)")
+        check(len(shown) > 0 and all(sev in ("warning", "error", "fatal") for sev in shown),
+              f"severity filter WARNING shows {len(shown)} messages, all warnings or errors: "
+              f"{sorted(set(shown))}")
+        screenshot(driver, "jog-teach")
+        Select(driver.find_element(By.ID, "log-severity")).select_by_visible_text("INFO")
+
+        # --- After the emergency stop the task runs again; then Terminate --------------------------
+        click(driver, "cmd-start")
+        wait_for("MP RUNNING after the emergency stop", lambda: mp_state(driver) == "RUNNING", 5)
+        wait_for("MP FINISHED again", lambda: mp_state(driver) == "FINISHED", 40, 0.1)
+        runs = api("/api/state")["mp"]["runs"]
+        check(runs == 3, f"the MP counted {runs} runs (3 starts)")
+        # --- Terminate -------------------------------------------------------------------------------
+        click(driver, "cmd-terminate")
+        try:
+            code = launched.process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            code = None
+        check(code == 0, f"the set ended after Terminate (launcher exit code {code})")
+        time.sleep(1.0)
+        screenshot(driver, "terminated")
+        check("no connection" in driver.find_element(By.ID, "connection").text,
+              "the page shows the console gone")
+
+        # --- Without a launcher: the table comes from the processes' status messages --------------
+        by_hand = [subprocess.Popen([os.path.join(args.bin_dir, exe)] + extra + ["--config", config])
+                   for exe, extra in [("mrroc-srp", []), ("mrroc-edp", ["--robot", "irb6"]),
+                                      ("mrroc-ui", ["serve"])]]
+        try:
+            wait_for("the console started by hand answers", lambda: api("/api/state"), 15)
+            driver.get(URL + "/")
+            rows = wait_for("srp, edp/irb6 and ui in the table without a launcher", lambda: (
+                lambda names: names if all(n in names for n in ["srp", "edp/irb6", "ui"]) else None)(
+                process_names(driver)), 10)
+            source = driver.find_element(By.ID, "processes-source").text
+            check(rows is not None and "status messages" in source,
+                  f"without a launcher the table lists {rows} ({source})")
+            check(api("/api/state")["launch"] is None, "no launcher table in /api/state")
+            wait_for("NO MP shown", lambda: mp_state(driver) == "NO MP", 5)
+            check("no MP answers" in driver.find_element(By.ID, "mp-text").text,
+                  "the page says that no MP answers")
+            screenshot(driver, "no-launcher")
+        finally:
+            for p in reversed(by_hand):
+                p.send_signal(15)
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+            codes = [p.returncode for p in by_hand]
+            check(codes == [0, 0, 0], f"SIGTERM ended srp, edp, ui started by hand: {codes}")
+    finally:
+        driver.quit()
+        shutil.rmtree(profile, ignore_errors=True)
+        if own_ui is not None:
+            own_ui.terminate()
+            own_ui.wait(timeout=10)
+        if launched.process.poll() is None:
+            launched.process.terminate()
+            launched.process.wait(timeout=20)
+    out = subprocess.run([os.path.join(args.bin_dir, "mrroc-ui"), "status", "--config", config,
+                          "--timeout", "1"], capture_output=True, text=True)
+    check(out.returncode == 3 and "no MP answers" in out.stderr,
+          f"mrroc-ui status after the end: exit {out.returncode}: {out.stderr.strip()}")
+    left = subprocess.run(["pgrep", "-a", "-f", "mrroc-"], capture_output=True, text=True).stdout
+    check(left.strip() == "", f"no mrroc process left behind{': ' + left if left.strip() else ''}")
+    print("screenshots:\n" + "\n".join(shots))
+    if failures:
+        print(f"{len(failures)} check(s) failed:\n  " + "\n  ".join(failures))
+        return 1
+    print("all checks passed")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,60 @@
+#pragma once
+// Operator commands to the MP (operator_command_t / operator_reply_t over request/reply), shared
+// by the command line and the web console.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc_lcm/operator_command_t.hpp"
+#include "mrroc_lcm/operator_reply_t.hpp"
+
+namespace mrroc::ui {
+
+/// The operator commands, as the command line and the API name them.
+enum class OperatorCommand : std::int8_t {
+  start = mrroc_lcm::operator_command_t::START,
+  pause = mrroc_lcm::operator_command_t::PAUSE,
+  resume = mrroc_lcm::operator_command_t::RESUME,
+  stop = mrroc_lcm::operator_command_t::STOP,
+  terminate = mrroc_lcm::operator_command_t::TERMINATE,
+  status = mrroc_lcm::operator_command_t::STATUS,
+};
+
+/// "start", "pause", ... ; nothing for another word.
+std::optional<OperatorCommand> operator_command_from_string(const std::string& word);
+const char* to_string(OperatorCommand command);
+/// "IDLE", "RUNNING", ... for operator_reply_t::state; "UNKNOWN(n)" otherwise.
+std::string mp_state_name(std::int8_t state);
+
+/// The MP's answer in plain values.
+struct MpStatus {
+  bool accepted = false;
+  std::string state;  ///< mp_state_name
+  std::string task;
+  int runs = 0;
+  std::int64_t started_utime = 0;  ///< [us since the Unix epoch], 0 if never started
+  std::string text;
+};
+
+using MpClient = comm::Client<mrroc_lcm::operator_command_t, mrroc_lcm::operator_reply_t>;
+
+/// Sends one command. @throws TimeoutError when no MP answers.
+MpStatus send_operator_command(MpClient& client, OperatorCommand command);
+
+}  // namespace mrroc::ui
+
+namespace mrroc::comm {
+class Bus;
+}
+
+namespace mrroc::ui {
+/// Publishes emergency_stop_t on mrroc/estop 5 times, 5 ms apart (UDP may drop one; an EDP acts
+/// on the first copy and ignores the others). `robot` empty: every robot.
+void publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robot,
+                            const std::string& reason);
+/// "EMERGENCY STOP (operator) for every robot", as printed and reported to the SRP.
+std::string describe_emergency_stop(bool engage, const std::string& robot,
+                                    const std::string& reason);
+}  // namespace mrroc::ui

@@ -89,8 +89,8 @@ void JointPosesGenerator::command(RobotImage& robot) {
   c.motion_type = edp::MotionType::absolute;
   c.motion_steps = options_.motion_steps;
   const bool last = pose_ + 1 == poses_.size() && macro_step_ == segment_steps_;
-  // One step early keeps consecutive macro-steps seamless; the very last one reads after the stop.
-  c.value_in_step_no = last ? options_.motion_steps + 1 : options_.motion_steps - 1;
+  // Reading early keeps consecutive macro-steps seamless; the very last one reads after the stop.
+  c.value_in_step_no = last ? options_.motion_steps + 1 : early_reading_step(options_.motion_steps);
   c.arm.resize(to.size());
   for (std::size_t j = 0; j < to.size(); ++j) c.arm[j] = from_[j] + (to[j] - from_[j]) * s;
   if (macro_step_ == segment_steps_) c.arm = to;  // exactly the pose, free of rounding

@@ -45,7 +45,7 @@ void PlannedMotionGenerator::command(RobotImage& robot) {
   c.motion_type = edp::MotionType::absolute;
   c.motion_steps = plan_.motion_steps;
   const bool last = sent_ + 1 == plan_.targets.size();
-  c.value_in_step_no = last ? plan_.motion_steps + 1 : plan_.motion_steps - 1;
+  c.value_in_step_no = last ? plan_.motion_steps + 1 : early_reading_step(plan_.motion_steps);
   c.arm = plan_.targets[sent_];
   if (sent_ == 0 && plan_.first_command_sets != 0) {
     c.set = static_cast<std::uint8_t>(c.set | plan_.first_command_sets);

@@ -129,6 +129,23 @@ TEST(Auth, SignedMessagesVerifyAndTamperingOrReplayIsCaught) {
   EXPECT_EQ(comm::verify(receiver, plain), comm::Authenticator::Verdict::missing);
 }
 
+TEST(Auth, AStringHoldingANulStillVerifiesAfterTheWire) {
+  // LCM's encoder cuts a string at a NUL: the tag must cover the bytes that go out.
+  comm::Authenticator sender(key(9));
+  comm::Authenticator receiver(key(9));
+  Req r = request(1);
+  r.header.sender = "ecp#1";
+  r.arguments = std::string("ab\0cd", 5);
+  comm::sign(sender, r);
+  std::vector<std::uint8_t> wire(static_cast<std::size_t>(r.getEncodedSize()));
+  const int n = r.encode(wire.data(), 0, static_cast<int>(wire.size()));
+  ASSERT_GT(n, 0);
+  Req received;
+  ASSERT_GE(received.decode(wire.data(), 0, n), 0);
+  EXPECT_EQ(received.arguments, "ab");
+  EXPECT_EQ(comm::verify(receiver, received), comm::Authenticator::Verdict::ok);
+}
+
 TEST(Auth, CountersIncreaseAndReorderingWithinASecondIsAccepted) {
   comm::Authenticator a(key(1));
   std::int64_t last = 0;

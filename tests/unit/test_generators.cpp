@@ -266,7 +266,7 @@ TEST_P(InterpolationProfiles, RespectLimitsFinishTogetherAndEndExactly) {
   }
   // Seamless macro-steps, the last one read after the stop.
   for (std::size_t k = 0; k + 1 < r.commands.size(); ++k)
-    EXPECT_EQ(r.commands[k].value_in_step_no, options.motion_steps - 1);
+    EXPECT_EQ(r.commands[k].value_in_step_no, ecp::early_reading_step(options.motion_steps));
   EXPECT_EQ(r.commands.back().value_in_step_no, options.motion_steps + 1);
 }
 

@@ -79,9 +79,9 @@ TEST(JointPosesGenerator, ReachesPosesWithinLimitsSmoothly) {
     previous = plan.targets[k];
   }
 
-  // value_in_step_no: one step early for seamless macro-steps, after the stop for the last one.
+  // value_in_step_no: early for seamless macro-steps, after the stop for the last one.
   for (std::size_t k = 0; k + 1 < plan.value_in_step_no.size(); ++k)
-    EXPECT_EQ(plan.value_in_step_no[k], options.motion_steps - 1);
+    EXPECT_EQ(plan.value_in_step_no[k], ecp::early_reading_step(options.motion_steps));
   EXPECT_EQ(plan.value_in_step_no.back(), options.motion_steps + 1);
 }
 

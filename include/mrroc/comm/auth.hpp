@@ -77,9 +77,12 @@ void sign(Authenticator& auth, Msg& msg) {
   msg.header.auth_counter = auth.next_counter();
   msg.header.auth_tag.clear();
   msg.header.auth_len = 0;
+  // encode() may write fewer bytes than getEncodedSize() (LCM cuts a string at a NUL): the tag
+  // covers exactly the bytes that go out.
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
-  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-  const Authenticator::Tag tag = auth.mac(bytes.data(), bytes.size());
+  const int written = msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  const Authenticator::Tag tag =
+      auth.mac(bytes.data(), written > 0 ? static_cast<std::size_t>(written) : 0);
   msg.header.auth_tag.assign(tag.begin(), tag.end());
   msg.header.auth_len = static_cast<std::int16_t>(tag.size());
 }
@@ -93,8 +96,9 @@ Authenticator::Verdict verify(Authenticator& auth, const Msg& received) {
   copy.header.auth_tag.clear();
   copy.header.auth_len = 0;
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(copy.getEncodedSize()));
-  copy.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-  const Authenticator::Tag tag = auth.mac(bytes.data(), bytes.size());
+  const int written = copy.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  const Authenticator::Tag tag =
+      auth.mac(bytes.data(), written > 0 ? static_cast<std::size_t>(written) : 0);
   if (!Authenticator::same(tag.data(), received.header.auth_tag.data(), tag.size()))
     return Authenticator::Verdict::bad_tag;
   return auth.accept_counter(received.header.sender, received.header.auth_counter);

@@ -15,6 +15,15 @@
 
 namespace mrroc::ecp {
 
+/// The step in which a macro-step that has a successor reads the arm (its `value_in_step_no`): a
+/// third of the macro-step before its end (at least one step), so that the ECP's next SET ARM is
+/// queued in the EDP before the running macro-step ends even when the machine is busy (the
+/// paper's "one step early" leaves a single servo period). The stock generators use it.
+constexpr int early_reading_step(int motion_steps) {
+  const int lead = motion_steps / 3 > 1 ? motion_steps / 3 : 1;
+  return motion_steps - lead > 1 ? motion_steps - lead : 1;
+}
+
 /// Image of a virtual sensor, kept current by the shell around each step.
 class Sensor {
  public:

@@ -8,6 +8,11 @@
 // replies, 4 SRP messages, 5 process statuses, 6 VSP requests, 7 VSP replies. Flag bit 0: answer
 // the requests the server queued. Each input gets fresh endpoints, so that it replays alike.
 //
+// Built twice: `links` on a bus without a key, `links_auth` (MRROC_FUZZ_LINKS_AUTH) on a bus with
+// a key (Bus::enable_auth), where every request/reply endpoint checks the messages' tags. There,
+// flag bit 1 signs the payload with the key before sending it (when it decodes as the channel's
+// type), and flag bit 2 sends the last payload signed on that channel again instead (a replay).
+//
 // Properties (docs/fuzzing.md), checked after every record:
 // - nothing throws out of the handlers, whatever the bytes;
 // - a server counts each request exactly once, as new, duplicate, in progress, stale or malformed,
@@ -17,7 +22,13 @@
 //   never executed twice);
 // - a client counts undecodable replies as malformed;
 // - the SystemListener either counts a message as malformed or hands over one with a known
-//   severity or state.
+//   severity or state;
+// - with a key: a request or reply (for this client) that decodes and was not freshly signed is
+//   dropped as unauthenticated and reaches no queue; a freshly signed one is never dropped as
+//   unauthenticated; a replayed one always is;
+// - every drop report (Bus::report_drop, to the SRP) names the channel of the message dropped,
+//   with drop code malformed or unauthenticated, and reports of one kind are at least
+//   Bus::kDropReportPeriod apart.
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -25,6 +36,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "fuzz_common.hpp"
 #include "mrroc/comm/bus.hpp"
@@ -42,9 +54,86 @@ using mrroc::comm::LinkStats;
 
 constexpr const char* kRobot = "fuzz";
 
+#ifdef MRROC_FUZZ_LINKS_AUTH
+constexpr bool kAuth = true;
+#else
+constexpr bool kAuth = false;
+#endif
+
+/// The channel of the record being delivered (drop reports must name it).
+std::string g_channel;
+
+/// Drop reports: the last time each kind (code, channel) was reported.
+void on_drop_report(int code, const std::string& text) {
+  static std::map<std::string, std::chrono::steady_clock::time_point> last;
+  fuzz::expect(code == mrroc::comm::drop_code::malformed ||
+                   (kAuth && code == mrroc::comm::drop_code::unauthenticated),
+               fmt::format("drop report with code {}: {}", code, text));
+  fuzz::expect(
+      text.find("'" + g_channel + "'") != std::string::npos,
+      fmt::format("drop report for a message on '{}' does not name it: {}", g_channel, text));
+  const auto now = std::chrono::steady_clock::now();
+  const std::string kind = fmt::format("{} {}", code, g_channel);
+  auto it = last.find(kind);
+  if (it != last.end())
+    fuzz::expect(
+        now - it->second >= mrroc::comm::Bus::kDropReportPeriod - 1ms,
+        fmt::format("two drop reports of one kind within {} ms: {}",
+                    std::chrono::duration_cast<std::chrono::milliseconds>(now - it->second).count(),
+                    text));
+  last[kind] = now;
+}
+
 mrroc::comm::Bus& bus() {
-  static mrroc::comm::Bus b("memq://");
+  static mrroc::comm::Bus& b = []() -> mrroc::comm::Bus& {
+    static mrroc::comm::Bus made("memq://");
+    made.set_drop_sink(on_drop_report);
+    return made;
+  }();
   return b;
+}
+
+/// With a key: a fresh authenticator per input (before its endpoints are made), so that what it
+/// remembers of senders does not grow over the run and each input replays alike.
+void fresh_key() {
+  if (!kAuth) return;
+  std::vector<std::uint8_t> key;
+  for (unsigned i = 0; i < 32; ++i) key.push_back(static_cast<std::uint8_t>(i * 11U + 5U));
+  bus().enable_auth(key);
+}
+
+/// Signs `payload` as the channel's type `Msg` with the bus' key (when it decodes); `last` keeps
+/// the signed bytes for a replay. Returns whether it was signed.
+template <class Msg>
+bool sign_payload(std::string& payload, std::string& last) {
+  Msg m;
+  if (m.decode(payload.data(), 0, static_cast<int>(payload.size())) < 0) return false;
+  const auto encode = [&] {
+    std::string out(static_cast<std::size_t>(m.getEncodedSize()), '\0');
+    const int n = m.encode(out.data(), 0, static_cast<int>(out.size()));
+    fuzz::expect(n >= 0 && n <= static_cast<int>(out.size()), "a message does not encode");
+    out.resize(static_cast<std::size_t>(n));
+    return out;
+  };
+  fuzz::no_throw("comm::sign", [&] { mrroc::comm::sign(*bus().auth(), m); });
+  payload = encode();
+  last = payload;
+  return true;
+}
+
+/// How a record was sent: as it was, freshly signed, or a replay of an earlier signed one.
+enum class Sent { raw, signed_now, replayed };
+
+/// Applies flag bits 1 and 2 (only with a key).
+template <class Msg>
+Sent prepare(std::string& payload, std::uint8_t flags, std::string& last_signed) {
+  if (!kAuth) return Sent::raw;
+  if ((flags & 4U) != 0 && !last_signed.empty()) {
+    payload = last_signed;
+    return Sent::replayed;
+  }
+  if ((flags & 2U) != 0 && sign_payload<Msg>(payload, last_signed)) return Sent::signed_now;
+  return Sent::raw;
 }
 
 /// Dispatches everything queued on the in-process transport.
@@ -58,7 +147,7 @@ void deliver() {
 }
 
 std::uint64_t total(const LinkStats& s) {
-  return s.requests + s.duplicates + s.in_progress + s.stale + s.malformed;
+  return s.requests + s.duplicates + s.in_progress + s.stale + s.malformed + s.unauthenticated;
 }
 
 template <class Msg>
@@ -82,12 +171,18 @@ struct ServerSide {
              const std::string& reply_channel)
       : server(bus(), name, request_channel, reply_channel), channel(request_channel) {}
 
-  void receive(const std::string& payload, std::uint8_t flags) {
+  std::string last_signed;
+
+  void receive(std::string payload, std::uint8_t flags) {
+    const Sent sent = prepare<LcmReq>(payload, flags, last_signed);
     const LinkStats before = server.stats();
+    g_channel = channel;
     bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
     deliver();
     const LinkStats after = server.stats();
     const std::optional<LcmReq> raw = lcm_decode<LcmReq>(payload);
+    check_authentication(sent, raw.has_value(), before.unauthenticated, after.unauthenticated,
+                         channel);
     fuzz::expect(total(after) == total(before) + 1,
                  fmt::format("server on '{}' counted a request {} times", channel,
                              total(after) - total(before)));
@@ -137,6 +232,24 @@ struct ServerSide {
   }
 };
 
+/// With a key: whether the endpoint dropped a message that decodes as unauthenticated exactly
+/// when it was not freshly signed. Without one: never.
+void check_authentication(Sent sent, bool decodes, std::uint64_t before, std::uint64_t after,
+                          const std::string& channel) {
+  const bool dropped = after != before;
+  fuzz::expect(after - before <= 1,
+               fmt::format("endpoint on '{}' counted one message {} times as unauthenticated",
+                           channel, after - before));
+  const bool expected = kAuth && decodes && sent != Sent::signed_now;
+  fuzz::expect(dropped == expected,
+               fmt::format("endpoint on '{}' {} a message that {} and was {}", channel,
+                           dropped ? "dropped as unauthenticated" : "accepted",
+                           decodes ? "decodes" : "does not decode",
+                           sent == Sent::raw          ? "not signed"
+                           : sent == Sent::signed_now ? "signed with the key"
+                                                      : "a replay"));
+}
+
 template <class LcmReq, class LcmRep>
 struct ClientSide {
   mrroc::comm::Client<LcmReq, LcmRep> client;
@@ -145,12 +258,20 @@ struct ClientSide {
       : client(bus(), "client", "fuzz server", request_channel, reply_channel),
         channel(reply_channel) {}
 
-  void receive(const std::string& payload) {
+  std::string last_signed;
+
+  void receive(std::string payload, std::uint8_t flags) {
+    const Sent sent = prepare<LcmRep>(payload, flags, last_signed);
     const LinkStats before = client.stats();
+    g_channel = channel;
     bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
     deliver();
     const LinkStats after = client.stats();
-    const bool decodes = lcm_decode<LcmRep>(payload).has_value();
+    const std::optional<LcmRep> rep = lcm_decode<LcmRep>(payload);
+    const bool decodes = rep.has_value();
+    // The client looks only at replies addressed to it.
+    check_authentication(sent, decodes && rep->header.recipient == "client", before.unauthenticated,
+                         after.unauthenticated, channel);
     fuzz::expect(
         (after.malformed == before.malformed + 1) == !decodes,
         fmt::format("client on '{}': malformed count {} -> {} for bytes that {}", channel,
@@ -178,6 +299,7 @@ struct ListenerSide {
             }) {}
 
   void receive(const char* channel, const std::string& payload) {
+    g_channel = channel;
     const std::uint64_t malformed = listener.malformed();
     const std::uint64_t handled = messages + statuses;
     bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
@@ -200,6 +322,7 @@ using VspSide = ServerSide<mrroc::comm::VspServer, mrroc_lcm::vsp_command_t, mrr
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   namespace channels = mrroc::channels;
   deliver();  // nothing may be left from the previous input
+  fresh_key();
   EdpSide edp("edp/fuzz", channels::edp_command(kRobot), channels::edp_reply(kRobot));
   EcpSide ecp("ecp/fuzz", channels::ecp_command(kRobot), channels::ecp_reply(kRobot));
   ClientSide<mrroc_lcm::edp_instruction_t, mrroc_lcm::edp_reply_t> edp_client(
@@ -227,13 +350,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         edp.receive(payload, flags);
         break;
       case 1:
-        edp_client.receive(payload);
+        edp_client.receive(payload, flags);
         break;
       case 2:
         ecp.receive(payload, flags);
         break;
       case 3:
-        ecp_client.receive(payload);
+        ecp_client.receive(payload, flags);
         break;
       case 4:
         srp.receive(channels::srp, payload);
@@ -245,7 +368,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         vsp.receive(payload, flags);
         break;
       default:
-        vsp_client.receive(payload);
+        vsp_client.receive(payload, flags);
         break;
     }
   }

@@ -29,9 +29,15 @@
 #include "mrroc_lcm/edp_instruction_t.hpp"
 #include "mrroc_lcm/edp_reply_t.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/launch_status_t.hpp"
 #include "mrroc_lcm/mp_ecp_command_t.hpp"
+#include "mrroc_lcm/operator_command_t.hpp"
+#include "mrroc_lcm/operator_reply_t.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/raw_sensor_t.hpp"
+#include "mrroc_lcm/robot_state_t.hpp"
+#include "mrroc_lcm/srp_history_reply_t.hpp"
+#include "mrroc_lcm/srp_history_request_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
 #include "mrroc_lcm/vsp_command_t.hpp"
 #include "mrroc_lcm/vsp_reply_t.hpp"
@@ -90,6 +96,32 @@ std::vector<const std::string*> strings_of(const mrroc_lcm::raw_sensor_t& m) {
   auto out = with_header(m, {&m.device});
   add(out, m.names);
   add(out, m.units);
+  return out;
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::operator_command_t& m) {
+  return with_header(m, {});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::operator_reply_t& m) {
+  return with_header(m, {&m.task, &m.text});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::robot_state_t& m) {
+  return with_header(m, {&m.robot, &m.error});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::launch_status_t& m) {
+  auto out = with_header(m, {&m.set_name, &m.config_file, &m.state});
+  for (const mrroc_lcm::launch_process_t& p : m.processes)
+    out.insert(out.end(), {&p.name, &p.group, &p.host, &p.state, &p.restart});
+  return out;
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::srp_history_request_t& m) {
+  return with_header(m, {});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::srp_history_reply_t& m) {
+  auto out = with_header(m, {});
+  for (const mrroc_lcm::srp_message_t& s : m.messages) {
+    const auto inner = strings_of(s);  // its header's strings too
+    out.insert(out.end(), inner.begin(), inner.end());
+  }
   return out;
 }
 

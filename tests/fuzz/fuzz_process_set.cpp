@@ -58,6 +58,13 @@ void check_options(const mrroc::ProcessOptions& o, const char* table) {
                fmt::format("[{}] stop_grace_s {} outside 0..60", table, o.stop_grace_s));
   for (const int cpu : o.cpus)
     fuzz::expect(cpu >= 0, fmt::format("[{}] negative CPU {} accepted", table, cpu));
+  fuzz::expect(o.stop_signal >= 1 && o.stop_signal <= 64,
+               fmt::format("[{}] stop_signal {} accepted", table, o.stop_signal));
+  fuzz::expect(o.max_restarts >= 0 && o.max_restarts <= 1000,
+               fmt::format("[{}] max_restarts {} outside 0..1000", table, o.max_restarts));
+  fuzz::expect(o.restart_backoff_s >= 0.0 && o.restart_backoff_s <= 30.0,
+               fmt::format("[{}] restart_backoff_s {} outside 0..30", table, o.restart_backoff_s));
+  fuzz::expect(!o.host.empty(), fmt::format("[{}] empty host accepted", table));
 }
 
 void check_task(const mrroc::TaskConfig& t, const std::string& file, const char* table) {
@@ -118,7 +125,12 @@ void check_config(const mrroc::ProcessSetConfig& c) {
   fuzz::expect(c.ready_timeout_s >= 0.1 && c.ready_timeout_s <= 600.0,
                fmt::format("ready_timeout_s {} accepted", c.ready_timeout_s));
   check_task(c.mp, file, "mp");
-  check_options(c.srp, "srp");
+  check_options(c.srp.options, "srp");
+  fuzz::expect(c.srp.log_keep >= 0 && c.srp.log_keep <= 100 && c.srp.history >= 10 &&
+                   c.srp.history <= 1000000,
+               fmt::format("[srp] log_keep {} history {} accepted", c.srp.log_keep, c.srp.history));
+  fuzz::expect(c.ui.port >= 1 && c.ui.port <= 65535,
+               fmt::format("[ui] port {} accepted", c.ui.port));
   if (c.emulator) {
     fuzz::expect(fs::is_regular_file(c.emulator->scene),
                  fmt::format("emulator scene {} accepted", c.emulator->scene.string()));

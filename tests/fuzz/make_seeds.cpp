@@ -1,7 +1,10 @@
 // Writes the seed corpora of the fuzz targets into tests/fuzz/corpus/<target>/ (docs/fuzzing.md):
 // messages encoded by the real encoders (comm::encode, then LCM), request/reply exchanges as the
 // endpoints see them, the process-set files of configs/, the robots' parameters.toml, NEXT_STATE
-// arguments as the MP tasks write them, and trajectory files written by TrajectoryFile::to_text.
+// arguments as the MP tasks write them, and trajectory files written by TrajectoryFile::to_text;
+// fuzz_auth's seeds are messages signed with its key. Also rewrites the message inputs of
+// tests/fuzz/regressions/ (real encodings with one length field changed), so that they still reach
+// the decoders after a message type changes.
 //
 //   fuzz_make_seeds <source dir>     (scripts/fuzz --seeds runs it)
 #include <cstdint>
@@ -14,12 +17,20 @@
 
 #include <fmt/format.h>
 
+#include "fuzz_auth_key.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
 #include "mrroc/vsp/reading.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/launch_status_t.hpp"
+#include "mrroc_lcm/operator_command_t.hpp"
+#include "mrroc_lcm/operator_reply_t.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
+#include "mrroc_lcm/robot_state_t.hpp"
+#include "mrroc_lcm/srp_history_reply_t.hpp"
+#include "mrroc_lcm/srp_history_request_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
 
 namespace {
@@ -52,6 +63,24 @@ void header(mrroc_lcm::header_t& h, const std::string& sender, std::int64_t seq,
   h.recipient = recipient;
   h.seq = seq;
   h.kind = kind;
+  h.auth_counter = 0;
+  h.auth_len = 0;
+  h.auth_tag.clear();
+}
+
+/// Signs `m` as comm::sign does, with the key of fuzz_auth and a fixed counter (so that the seeds
+/// do not change from one run to the next).
+template <class Msg>
+void sign_fixed(Msg& m, std::int64_t counter) {
+  static comm::Authenticator auth(fuzz_auth::key());
+  m.header.auth_counter = counter;
+  m.header.auth_tag.clear();
+  m.header.auth_len = 0;
+  const std::string unsigned_bytes = bytes_of(m);
+  const comm::Authenticator::Tag tag =
+      auth.mac(reinterpret_cast<const std::uint8_t*>(unsigned_bytes.data()), unsigned_bytes.size());
+  m.header.auth_tag.assign(tag.begin(), tag.end());
+  m.header.auth_len = static_cast<std::int16_t>(tag.size());
 }
 
 // ---- Values as the processes send them. ----
@@ -301,12 +330,263 @@ void other_message_seeds() {
   write("process_status", "01", bytes_of(status));
 }
 
+// ---- The console's, the EDP's, the launcher's and the SRP history's messages. ----
+
+mrroc_lcm::srp_message_t srp_entry(const std::string& process, std::int8_t severity,
+                                   const std::string& text, std::int64_t seq) {
+  mrroc_lcm::srp_message_t m{};
+  header(m.header, process + "#" + std::to_string(100 + seq), seq, mrroc_lcm::header_t::BROADCAST);
+  m.utime = 1700000000000000 + seq;
+  m.process = process;
+  m.robot = process.starts_with("edp/") ? process.substr(4) : "";
+  m.severity = severity;
+  m.code = 0;
+  m.text = text;
+  return m;
+}
+
+std::vector<mrroc_lcm::operator_command_t> operator_commands() {
+  std::vector<mrroc_lcm::operator_command_t> out;
+  std::int64_t seq = 0;
+  for (const std::int8_t c :
+       {mrroc_lcm::operator_command_t::START, mrroc_lcm::operator_command_t::PAUSE,
+        mrroc_lcm::operator_command_t::RESUME, mrroc_lcm::operator_command_t::STOP,
+        mrroc_lcm::operator_command_t::TERMINATE, mrroc_lcm::operator_command_t::STATUS}) {
+    mrroc_lcm::operator_command_t m{};
+    header(m.header, "ui#4711", ++seq, mrroc_lcm::header_t::REQUEST);
+    m.command = c;
+    out.push_back(m);
+  }
+  return out;
+}
+
+std::vector<mrroc_lcm::operator_reply_t> operator_replies() {
+  std::vector<mrroc_lcm::operator_reply_t> out;
+  mrroc_lcm::operator_reply_t running{};
+  header(running.header, "mp#42", 1, mrroc_lcm::header_t::REPLY, "ui#4711");
+  running.accepted = true;
+  running.state = mrroc_lcm::operator_reply_t::RUNNING;
+  running.task = "visit_joint_poses";
+  running.runs = 1;
+  running.started_utime = 1700000000000000;
+  running.text = "";
+  out.push_back(running);
+  mrroc_lcm::operator_reply_t refused = running;
+  refused.header.seq = 2;
+  refused.accepted = false;
+  refused.state = mrroc_lcm::operator_reply_t::IDLE;
+  refused.runs = 0;
+  refused.started_utime = 0;
+  refused.text = "RESUME does not apply: the task is not paused (IDLE)";
+  out.push_back(refused);
+  mrroc_lcm::operator_reply_t failed = running;
+  failed.header.seq = 3;
+  failed.state = mrroc_lcm::operator_reply_t::FAILED;
+  failed.runs = 2;
+  failed.text = "ECP irb6: joint 2 (upper_arm) target 0.81 rad exceeds upper limit 0.7 rad";
+  out.push_back(failed);
+  return out;
+}
+
+std::vector<mrroc_lcm::robot_state_t> robot_states() {
+  std::vector<mrroc_lcm::robot_state_t> out;
+  mrroc_lcm::robot_state_t m{};
+  header(m.header, "edp/irb6#99", 500, mrroc_lcm::header_t::BROADCAST);
+  m.robot = "irb6";
+  m.synchronised = true;
+  m.moving = true;
+  m.servo_step = 250000;
+  m.servo_period_s = 0.002;
+  m.n_joints = 5;
+  m.q = {0.6, -1.35, 0.15, 0.5, 1.0};
+  m.dq = {0.0, 0.01, 0.0, 0.0, -0.02};
+  m.q_desired = {0.6, -1.349, 0.15, 0.5, 0.999};
+  m.lateness_mean_us = 14.5;
+  m.lateness_max_us = 950;
+  m.overruns = 1;
+  m.error = "";
+  out.push_back(m);
+  mrroc_lcm::robot_state_t fault{};
+  header(fault.header, "edp/rnt#98", 7, mrroc_lcm::header_t::BROADCAST);
+  fault.robot = "rnt";
+  fault.estop = true;
+  fault.fault = true;
+  fault.error = "axis 3: following error 0.21 rad exceeds 0.2 rad";
+  fault.servo_period_s = 0.001;
+  fault.n_joints = 0;
+  out.push_back(fault);
+  return out;
+}
+
+mrroc_lcm::launch_process_t launched(const std::string& name, const std::string& group,
+                                     const std::string& state, std::int32_t pid) {
+  mrroc_lcm::launch_process_t p{};
+  p.name = name;
+  p.group = group;
+  p.host = "local";
+  p.state = state;
+  p.pid = pid;
+  p.cpu_percent = pid != 0 ? 3.5 : 0.0;
+  p.rss_kb = pid != 0 ? 20480 : 0;
+  p.restarts = 0;
+  p.uptime_s = pid != 0 ? 12.25 : 0.0;
+  p.last_exit_code = -1;
+  p.required = true;
+  p.restart = "never";
+  return p;
+}
+
+std::vector<mrroc_lcm::launch_status_t> launch_statuses() {
+  std::vector<mrroc_lcm::launch_status_t> out;
+  mrroc_lcm::launch_status_t m{};
+  header(m.header, "mrroc-launch#10", 12, mrroc_lcm::header_t::BROADCAST);
+  m.set_name = "demo-irb6";
+  m.config_file = "/opt/mrroc/configs/demo-irb6.toml";
+  m.state = "running";
+  m.launcher_pid = 10;
+  m.uptime_s = 12.5;
+  m.processes = {launched("srp", "srp", "running", 11), launched("edp/irb6", "edp", "running", 12),
+                 launched("ecp/irb6", "ecp", "running", 13), launched("mp", "mp", "running", 14)};
+  m.processes[1].host = "cabinet";
+  m.processes[1].restart = "on-failure";
+  m.processes[1].restarts = 1;
+  m.n = static_cast<std::int32_t>(m.processes.size());
+  out.push_back(m);
+  mrroc_lcm::launch_status_t stopping = m;
+  stopping.header.seq = 13;
+  stopping.state = "stopping";
+  stopping.processes = {launched("mp", "mp", "exited", 0), launched("ui", "ui", "backoff", 0)};
+  stopping.processes[0].last_exit_code = 0;
+  stopping.processes[1].required = false;
+  stopping.processes[1].restart = "always";
+  stopping.n = 2;
+  out.push_back(stopping);
+  return out;
+}
+
+std::vector<mrroc_lcm::srp_history_request_t> history_requests() {
+  std::vector<mrroc_lcm::srp_history_request_t> out;
+  mrroc_lcm::srp_history_request_t all{};
+  header(all.header, "ui#4711", 1, mrroc_lcm::header_t::REQUEST);
+  all.after = 0;
+  all.max_count = 500;
+  all.min_severity = mrroc_lcm::srp_message_t::DEBUG;
+  out.push_back(all);
+  mrroc_lcm::srp_history_request_t newer = all;
+  newer.header.seq = 2;
+  newer.after = 1234;
+  newer.max_count = 50;
+  newer.min_severity = mrroc_lcm::srp_message_t::WARNING;
+  out.push_back(newer);
+  return out;
+}
+
+std::vector<mrroc_lcm::srp_history_reply_t> history_replies() {
+  std::vector<mrroc_lcm::srp_history_reply_t> out;
+  mrroc_lcm::srp_history_reply_t m{};
+  header(m.header, "srp#11", 1, mrroc_lcm::header_t::REPLY, "ui#4711");
+  m.last = 3;
+  m.numbers = {1, 2, 3};
+  m.messages = {
+      srp_entry("edp/irb6", mrroc_lcm::srp_message_t::INFO, "ready: plugin 'mujoco', 5 axes", 1),
+      srp_entry("mp", mrroc_lcm::srp_message_t::INFO, "task visit_joint_poses started", 2),
+      srp_entry("edp/irb6", mrroc_lcm::srp_message_t::WARNING,
+                "malformed instruction dropped: field 'motion_type' has value 7, expected 1..2",
+                3)};
+  m.n = 3;
+  out.push_back(m);
+  mrroc_lcm::srp_history_reply_t empty{};
+  header(empty.header, "srp#11", 2, mrroc_lcm::header_t::REPLY, "ui#4711");
+  empty.last = 0;
+  empty.n = 0;
+  out.push_back(empty);
+  return out;
+}
+
+/// Writes the messages as they are, and the first of them signed too (the auth fields set).
+template <class Msg>
+void lcm_seeds(const std::string& target, std::vector<Msg> messages) {
+  int i = 0;
+  for (const Msg& m : messages) write(target, fmt::format("{:02}", i++), bytes_of(m));
+  sign_fixed(messages.front(), 1700000000000000);
+  write(target, fmt::format("{:02}-signed", i), bytes_of(messages.front()));
+}
+
+void new_message_seeds() {
+  lcm_seeds("operator_command", operator_commands());
+  lcm_seeds("operator_reply", operator_replies());
+  lcm_seeds("robot_state", robot_states());
+  lcm_seeds("launch_status", launch_statuses());
+  lcm_seeds("srp_history_request", history_requests());
+  lcm_seeds("srp_history_reply", history_replies());
+}
+
+// ---- fuzz_auth: [selector][message] with messages signed with its key, and counter sequences.
+
+template <class Msg>
+void auth_seed(std::size_t selector, Msg m, const std::string& name, std::int64_t counter) {
+  sign_fixed(m, counter);
+  write("auth", name, std::string(1, static_cast<char>(selector)) + bytes_of(m));
+}
+
+template <class Plain>
+auto lcm_of(const Plain& v, const std::string& sender, std::int64_t seq, std::int8_t kind) {
+  auto m = comm::encode(v);
+  header(m.header, sender, seq, kind,
+         kind == mrroc_lcm::header_t::REPLY ? std::string("client#1") : std::string());
+  return m;
+}
+
+void auth_seeds() {
+  // The selectors of fuzz_auth.cpp's kTypes.
+  constexpr std::int64_t c = 1700000000000000;
+  const std::int8_t req = mrroc_lcm::header_t::REQUEST;
+  const std::int8_t rep = mrroc_lcm::header_t::REPLY;
+  auth_seed(0, lcm_of(instructions()[1], "ecp/irb6#1", 1, req), "edp_instruction", c);
+  auth_seed(1, lcm_of(edp_replies()[1], "edp/irb6#2", 1, rep), "edp_reply", c + 1);
+  auth_seed(2, lcm_of(mp_commands()[1], "mp#3", 1, req), "mp_ecp_command", c + 2);
+  auth_seed(3, lcm_of(ecp_replies()[3], "ecp/irb6#1", 1, rep), "ecp_mp_reply", c + 3);
+  auth_seed(4, lcm_of(vsp_requests()[1], "ecp/irb6#1", 1, req), "vsp_command", c + 4);
+  auth_seed(5, lcm_of(vsp_replies()[1], "vsp/wrist#5", 1, rep), "vsp_reply", c + 5);
+  mrroc_lcm::emergency_stop_t release{};
+  header(release.header, "ui#17", 2, mrroc_lcm::header_t::BROADCAST);
+  release.action = mrroc_lcm::emergency_stop_t::RELEASE;
+  release.robot = "irb6";
+  release.reason = "";
+  auth_seed(6, release, "emergency_stop", c + 6);
+  auth_seed(7, operator_commands()[0], "operator_command", c + 7);
+  auth_seed(8, operator_replies()[2], "operator_reply", c + 8);
+  auth_seed(9, history_requests()[1], "srp_history_request", c + 9);
+  auth_seed(10, history_replies()[0], "srp_history_reply", c + 10);
+  auth_seed(11, launch_statuses()[0], "launch_status", c + 11);
+  auth_seed(12, robot_states()[0], "robot_state", c + 12);
+  // Counter mode (selector 13): counters around now from three senders, in order, reordered
+  // within the window, repeated, and far behind.
+  std::string counters(1, static_cast<char>(fuzz_auth::kMessageTypes));
+  const auto add = [&](int sender, std::uint64_t raw) {
+    counters += static_cast<char>(sender);
+    for (unsigned i = 0; i < 8; ++i) counters += static_cast<char>((raw >> (8U * i)) & 0xffU);
+  };
+  // raw % 8000001 - 4000000 is the offset from now [us].
+  for (const std::uint64_t offset :
+       {4000000ULL, 4000100ULL, 4000050ULL, 4000100ULL, 4000200ULL, 2000000ULL, 4500000ULL})
+    add(0, offset);
+  add(1, 4000000);
+  add(1, 0);
+  add(2, 0xC000000000000000ULL);
+  add(1, 3999999);
+  write("auth", "counters", counters);
+}
+
 // ---- Request/reply exchanges for fuzz_links: records [channel][flags][length LE16][payload]. ----
+
+/// Flags added to every record: for links_auth, bit 1 (sign the payload with the key).
+int g_link_flags = 0;
 
 std::string record(int channel, int flags, const std::string& payload) {
   std::string out;
   out += static_cast<char>(channel);
-  out += static_cast<char>(flags);
+  out += static_cast<char>(flags | g_link_flags);
   out += static_cast<char>(payload.size() & 0xffU);
   out += static_cast<char>((payload.size() >> 8U) & 0xffU);
   return out + payload;
@@ -326,7 +606,7 @@ std::string reply(const Plain& v, std::int64_t seq, std::int8_t kind = mrroc_lcm
   return bytes_of(m);
 }
 
-void link_seeds() {
+void link_seeds(const std::string& target) {
   const auto ins = instructions();
   const auto cmds = mp_commands();
   enum {
@@ -346,15 +626,15 @@ void link_seeds() {
                     record(edp_cmd, 0, request(ins[1], "ecp/irb6#1", 1)) +
                     record(edp_cmd, 1, request(ins[2], "ecp/irb6#1", 2)) +
                     record(edp_cmd, 0, request(ins[0], "ecp/irb6#1", 1));
-  write("links", "edp_exchange", edp);
+  write(target, "edp_exchange", edp);
   std::string ecp = record(ecp_cmd, 1, request(cmds[0], "mp#1", 1)) +
                     record(ecp_cmd, 1, request(cmds[1], "mp#1", 2)) +
                     record(ecp_cmd, 0, request(cmds[2], "mp#2", 1)) +
                     record(ecp_cmd, 1, request(cmds[2], "mp#2", 1));
-  write("links", "ecp_exchange", ecp);
+  write(target, "ecp_exchange", ecp);
   const auto vreq = vsp_requests();
   const auto vrep = vsp_replies();
-  write("links", "vsp_exchange",
+  write(target, "vsp_exchange",
         record(vsp_cmd, 1, request(vreq[0], "ecp/irb6#1", 1)) +
             record(vsp_cmd, 0, request(vreq[1], "ecp/irb6#1", 2)) +
             record(vsp_cmd, 1, request(vreq[1], "ecp/irb6#1", 2)) +
@@ -366,13 +646,13 @@ void link_seeds() {
   header(invalid.header, "ecp/irb6#1", 3, mrroc_lcm::header_t::REQUEST);
   invalid.motion_type = 7;
   const std::string valid = request(ins[1], "ecp/irb6#1", 4);
-  write("links", "malformed",
+  write(target, "malformed",
         record(edp_cmd, 1, bytes_of(invalid)) +
             record(edp_cmd, 1, valid.substr(0, valid.size() / 2)) +
             record(ecp_cmd, 1, std::string("\x01\x02\x03", 3)));
   const auto reps = edp_replies();
   const auto ecps = ecp_replies();
-  write("links", "replies",
+  write(target, "replies",
         record(edp_reply, 0, reply(reps[1], 1)) +
             record(edp_reply, 0, reply(edp::Reply{}, 2, mrroc_lcm::header_t::IN_PROGRESS)) +
             record(ecp_reply, 0, reply(ecps[0], -1)) + record(ecp_reply, 0, reply(ecps[3], 4)));
@@ -385,7 +665,101 @@ void link_seeds() {
   header(st.header, "mp#5", 1, mrroc_lcm::header_t::BROADCAST);
   st.process = "mp";
   st.state = 2;
-  write("links", "system", record(srp, 0, bytes_of(s)) + record(status, 0, bytes_of(st)));
+  write(target, "system", record(srp, 0, bytes_of(s)) + record(status, 0, bytes_of(st)));
+}
+
+// ---- Regression inputs (tests/fuzz/regressions/, docs/fuzzing.md "Findings"): real encodings
+// with one length field set to what the bug needed, so that they follow changes of the types. ----
+
+fs::path g_regressions;
+
+void write_regression(const std::string& target, const std::string& name,
+                      const std::string& bytes) {
+  const fs::path dir = g_regressions / target;
+  fs::create_directories(dir);
+  std::ofstream out(dir / name, std::ios::binary | std::ios::trunc);
+  out << bytes;
+  if (!out) throw std::runtime_error("cannot write " + (dir / name).string());
+}
+
+/// `bytes` with the big-endian integer of `width` bytes at `offset` set to `value`.
+std::string patched(std::string bytes, std::size_t offset, std::int64_t value, unsigned width) {
+  if (offset + width > bytes.size()) throw std::runtime_error("patch beyond the message");
+  const auto v = static_cast<std::uint64_t>(value);
+  for (unsigned i = 0; i < width; ++i)
+    bytes[offset + i] = static_cast<char>((v >> (8U * (width - 1 - i))) & 0xffU);
+  return bytes;
+}
+
+constexpr std::size_t kHash = 8;  // the fingerprint in front of every message
+
+/// Where the 4-byte length of an array is in `a`, given `b`, the same message with one more
+/// element (the first byte that differs is the length's last byte).
+std::size_t length_at(const std::string& a, const std::string& b) {
+  std::size_t i = 0;
+  while (i < a.size() && i < b.size() && a[i] == b[i]) ++i;
+  if (i < 3 + kHash || i >= a.size()) throw std::runtime_error("no array length found");
+  return i - 3;
+}
+
+/// Where, in an encoded message, its header's recipient length and auth_len are.
+std::size_t recipient_length_at(const mrroc_lcm::header_t& h) {
+  return kHash + 8 + 4 + h.sender.size() + 1;
+}
+std::size_t auth_len_at(const mrroc_lcm::header_t& h) {
+  return recipient_length_at(h) + 4 + h.recipient.size() + 1 + 8 + 1 + 8;
+}
+
+void regression_inputs() {
+  auto move = comm::encode(instructions()[1]);
+  header(move.header, "ecp/irb6#4242", 2, mrroc_lcm::header_t::REQUEST);
+  const std::string ins = bytes_of(move);
+  auto longer = move;
+  longer.arm.push_back(0.0);
+  ++longer.n_arm;
+  const std::size_t n_arm_at = length_at(ins, bytes_of(longer));
+  write_regression("edp_instruction", "lcm-array-length-2p29-plus-1",
+                   patched(ins, n_arm_at, (1 << 29) + 1, 4));
+  write_regression("edp_instruction", "lcm-array-length-negative", patched(ins, n_arm_at, -1, 4));
+  write_regression("edp_instruction", "lcm-string-length-0",
+                   patched(ins, recipient_length_at(move.header), 0, 4));
+  write_regression("edp_instruction", "lcm-auth-len-negative",
+                   patched(ins, auth_len_at(move.header), -1, 2));
+  write_regression("links", "edp-request-lcm-string-length-0",
+                   record(0, 1, patched(ins, recipient_length_at(move.header), 0, 4)));
+
+  auto gauges = comm::encode(raw_samples()[0]);
+  header(gauges.header, "mrroc-axis-emu#77", 1, mrroc_lcm::header_t::BROADCAST);
+  const std::string raw = bytes_of(gauges);
+  auto more = gauges;
+  more.values.push_back(0.0);
+  more.names.emplace_back("g6");
+  more.units.emplace_back("V");
+  ++more.n;
+  const std::size_t n_at = length_at(raw, bytes_of(more));
+  write_regression("raw_sensor", "lcm-array-length-2p28", patched(raw, n_at, 1 << 28, 4));
+  write_regression("raw_sensor", "lcm-array-length-negative", patched(raw, n_at, -1, 4));
+
+  // Arrays of nested structs.
+  const mrroc_lcm::launch_status_t status = launch_statuses()[0];
+  auto status_more = status;
+  status_more.processes.push_back(status.processes[0]);
+  ++status_more.n;
+  const std::size_t status_n_at = length_at(bytes_of(status), bytes_of(status_more));
+  write_regression("launch_status", "lcm-struct-array-length-negative",
+                   patched(bytes_of(status), status_n_at, -1, 4));
+  write_regression("launch_status", "lcm-struct-array-length-2p30",
+                   patched(bytes_of(status), status_n_at, 1 << 30, 4));
+  const mrroc_lcm::srp_history_reply_t history = history_replies()[0];
+  auto history_more = history;
+  history_more.numbers.push_back(4);
+  history_more.messages.push_back(history.messages[0]);
+  ++history_more.n;
+  const std::size_t history_n_at = length_at(bytes_of(history), bytes_of(history_more));
+  write_regression("srp_history_reply", "lcm-struct-array-length-negative",
+                   patched(bytes_of(history), history_n_at, -1, 4));
+  write_regression("srp_history_reply", "lcm-struct-array-length-2p30",
+                   patched(bytes_of(history), history_n_at, 1 << 30, 4));
 }
 
 // ---- Text inputs. ----
@@ -467,12 +841,21 @@ void text_seeds(const fs::path& source) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc == 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) {
+    std::printf(
+        "usage: %s <mrroc source dir>\n"
+        "Rewrites <dir>/tests/fuzz/corpus/ (the fuzz targets' seeds) and the message inputs "
+        "of <dir>/tests/fuzz/regressions/. See docs/fuzzing.md.\n",
+        argv[0]);
+    return 0;
+  }
   if (argc != 2) {
-    std::fprintf(stderr, "usage: %s <mrroc source dir>\n", argv[0]);
+    std::fprintf(stderr, "usage: %s <mrroc source dir> (--help for more)\n", argv[0]);
     return 2;
   }
   const fs::path source = argv[1];
   g_corpus = source / "tests" / "fuzz" / "corpus";
+  g_regressions = source / "tests" / "fuzz" / "regressions";
   message_seeds("edp_instruction", instructions(), mrroc_lcm::header_t::REQUEST);
   message_seeds("edp_reply", edp_replies(), mrroc_lcm::header_t::REPLY);
   message_seeds("mp_ecp_command", mp_commands(), mrroc_lcm::header_t::REQUEST);
@@ -481,8 +864,21 @@ int main(int argc, char** argv) {
   message_seeds("vsp_reply", vsp_replies(), mrroc_lcm::header_t::REPLY);
   message_seeds("raw_sensor", raw_samples(), mrroc_lcm::header_t::BROADCAST);
   other_message_seeds();
-  link_seeds();
+  new_message_seeds();
+  auth_seeds();
+  link_seeds("links");
+  // The same exchanges on a bus with a key: every payload signed, then replays of the last
+  // signed request and reply.
+  g_link_flags = 2;
+  link_seeds("links_auth");
+  write("links_auth", "replays",
+        record(0, 1, request(instructions()[1], "ecp/irb6#1", 1)) + record(0, 4, "") +
+            record(0, 0, request(instructions()[2], "ecp/irb6#1", 2)) + record(0, 4, "") +
+            record(3, 0, reply(ecp_replies()[0], 1)) + record(3, 4, ""));
+  g_link_flags = 0;
+  regression_inputs();
   text_seeds(source);
-  std::printf("seeds written to %s\n", g_corpus.string().c_str());
+  std::printf("seeds written to %s, message regressions to %s\n", g_corpus.string().c_str(),
+              g_regressions.string().c_str());
   return 0;
 }

@@ -140,10 +140,10 @@ struct Shared {
 };
 
 json robot_state_json(const mrroc_lcm::robot_state_t& s, double age_s) {
-  return json{{"synchronised", s.synchronised},
-              {"moving", s.moving},
-              {"estop", s.estop},
-              {"fault", s.fault},
+  return json{{"synchronised", s.synchronised != 0},
+              {"moving", s.moving != 0},
+              {"estop", s.estop != 0},
+              {"fault", s.fault != 0},
               {"error", s.error},
               {"servo_step", s.servo_step},
               {"servo_period_s", s.servo_period_s},
@@ -545,7 +545,7 @@ struct Console::Impl {
                              {"restarts", p.restarts},
                              {"uptime_s", p.uptime_s},
                              {"last_exit_code", p.last_exit_code},
-                             {"required", p.required},
+                             {"required", p.required != 0},
                              {"restart", p.restart}});
       out["launch"] = json{{"set_name", l.set_name},
                            {"state", l.state},

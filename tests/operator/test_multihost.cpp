@@ -1,9 +1,11 @@
 // A process set on two "computers": two network namespaces joined by a veth pair, created here
-// (inside scripts/netns-run, so nothing reaches the real network). MP and SRP run on host "a",
-// ECP and EDP on host "b", each started through `ip netns exec`; the launcher runs in "a".
+// (inside scripts/netns-run, so nothing reaches the real network). MP, SRP and the web console
+// run on host "a", ECP and EDP on host "b", each started through `ip netns exec`; the launcher
+// runs in "a".
 #include <signal.h>
 
 #include <cstdlib>
+#include <thread>
 
 #include "operator_helpers.hpp"
 
@@ -140,6 +142,19 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
       table, std::regex(R"(edp/irb6 +edp +b +running +[0-9]+ +[0-9.]+ +[1-9][0-9]{3,} )")))
       << table;
   EXPECT_TRUE(std::regex_search(table, std::regex(R"(mp +mp +a +running)"))) << table;
+  EXPECT_EQ(netns_of(launch.pid_of("ui")), ns_launcher);
+  // The web console in "a" shows the robot whose EDP runs in "b": its state crossed the veth.
+  std::string console;
+  for (int attempt = 0; attempt < 20; ++attempt) {
+    const auto [ccode, body] = run({"ip", "netns", "exec", a_, "curl", "-s", "-w", "\\n", "--max-time", "5",
+                                    "http://127.0.0.1:8093/api/state"},
+                                   20s);
+    console = "curl exit " + std::to_string(ccode) + ": " + body;  // for the failure message
+    if (ccode == 0 && has(console, "\"synchronised\":true")) break;
+    std::this_thread::sleep_for(250ms);
+  }
+  EXPECT_TRUE(has(console, "\"synchronised\":true")) << console;
+  EXPECT_TRUE(has(console, "\"name\":\"edp/irb6\"")) << console;
 
   EXPECT_EQ(launch.wait(120s), 0) << launch.output();
   const std::string out = launch.output();

@@ -279,6 +279,9 @@ Reply CommandInterpreter::query() {
         return error(error_code::emergency_stop,
                      "macro-step interrupted: emergency stop engaged; the robot is held");
       if (!reading)
+        if (const std::string why = servo_.refusal(due_macro_step_); !why.empty())
+          return error(error_code::too_fast, "SET refused: " + why);
+      if (!reading)
         return error(error_code::hardware_fault,
                      servo_.faulted()
                          ? "hardware fault: " + servo_.fault_text()

@@ -211,9 +211,31 @@ void ServoLoop::cycle() {
       after_stop_id_ = 0;
     }
     if (!current_ && next_) {
-      current_ = next_;
-      next_.reset();
-      current_->start = desired_;
+      // The macro-step starts where the robot stands. After a stopping ramp (a late successor)
+      // that is not where its task planned it to start: a straight line to its target faster
+      // than a joint's velocity limit is refused, and the robot holds.
+      bool too_fast = false;
+      for (std::size_t i = 0; i < axes_ && !too_fast; ++i) {
+        const double v = std::abs(next_->target[i] - desired_[i]) /
+                         (static_cast<double>(next_->steps) * period_s_);
+        if (v > model_.max_velocity[i] * (1.0 + 1e-9)) {
+          too_fast = true;
+          std::snprintf(refused_text_, sizeof refused_text_,
+                        "joint %zu would move at %.3f rad/s, above its limit of %.3f rad/s "
+                        "(from %.4f to %.4f rad in %d steps of %.1f ms, starting where a stopping "
+                        "ramp left the robot); the robot holds",
+                        i, v, model_.max_velocity[i], desired_[i], next_->target[i],
+                        next_->steps, period_s_ * 1e3);
+        }
+      }
+      if (too_fast) {
+        refused_id_ = next_->id;
+        next_.reset();
+      } else {
+        current_ = next_;
+        next_.reset();
+        current_->start = desired_;
+      }
       cv_.notify_all();  // the queue slot is free
     }
     if (current_) {
@@ -417,10 +439,16 @@ std::vector<double> ServoLoop::planned_end() const {
 std::optional<Reading> ServoLoop::wait_reading(std::uint64_t id, double timeout_s) {
   std::unique_lock lock(mutex_);
   const bool ok = cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [&] {
-    return delivered_.macro_step >= id || faulted_ || emergency_stop_ || !running_;
+    return delivered_.macro_step >= id || refused_id_ == id || faulted_ || emergency_stop_ ||
+           !running_;
   });
   if (!ok || delivered_.macro_step != id) return std::nullopt;
   return delivered_;
+}
+
+std::string ServoLoop::refusal(std::uint64_t id) const {
+  std::lock_guard lock(mutex_);
+  return refused_id_ == id ? std::string(refused_text_) : std::string{};
 }
 
 Reading ServoLoop::latest() const {

@@ -93,8 +93,13 @@ class ServoLoop {
   std::uint64_t submit(const std::vector<double>& target, int steps, int value_in_step_no);
   /// Desired joint position at the end of everything queued.
   [[nodiscard]] std::vector<double> planned_end() const;
-  /// Waits for the reading of macro-step `id`. Returns nothing on timeout or fault.
+  /// Waits for the reading of macro-step `id`. Returns nothing on timeout, fault, or when the
+  /// macro-step was refused when it was due to start (see `refusal`).
   std::optional<Reading> wait_reading(std::uint64_t id, double timeout_s);
+  /// Why macro-step `id` was refused when it was due to start, or "" if it was not: the straight
+  /// line from where the robot stands to its target would need more than a joint's velocity limit
+  /// (after a stopping ramp left the robot away from the path its task planned). The robot holds.
+  [[nodiscard]] std::string refusal(std::uint64_t id) const;
   /// The reading of the latest cycle.
   [[nodiscard]] Reading latest() const;
 
@@ -197,6 +202,8 @@ class ServoLoop {
   bool hold_at_measured_ = false;  ///< after an emergency stop: hold at the measured joints
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;
+  std::uint64_t refused_id_ = 0;  ///< the last macro-step refused at its start
+  char refused_text_[256] = {};
   AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
   std::array<AxisFeedback, kMaxAxes> sample_{};    ///< servo thread only
   std::array<AxisFeedback, kMaxAxes> feedback_{};  ///< under mutex_

@@ -107,6 +107,15 @@ bool JointPosesGenerator::first_step(RobotImage& robot, const SensorList&) {
   return true;
 }
 
+bool JointPosesGenerator::resume(RobotImage& robot, const SensorList&) {
+  if (pose_ >= poses_.size() || robot.desired_joints.size() != model_.axes()) return false;
+  check_segment(robot.desired_joints, poses_[pose_],
+                fmt::format("path from where the robot stopped to pose {}", pose_ + 1));
+  begin_segment(robot.desired_joints);
+  command(robot);
+  return true;
+}
+
 bool JointPosesGenerator::next_step(RobotImage& robot, const SensorList&) {
   if (macro_step_ >= segment_steps_) {
     if (++pose_ >= poses_.size()) return false;

@@ -11,22 +11,40 @@ void refresh(const SensorList& sensors) {
   for (Sensor* s : sensors) s->initiate_reading();
   for (Sensor* s : sensors) s->get_reading();
 }
-void check_stop(Robot& robot) {
+/// Throws on a stop request; returns true when a pause held the task.
+bool check_stop(Robot& robot) {
   if (robot.stop_requested() || mrroc::stop_requested())
     throw TaskStopped("task stopped on request");
-  robot.wait_while_paused();
+  return robot.wait_while_paused();
 }
 }  // namespace
 
 void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
+  constexpr int kMaxRefusals = 3;
   check_stop(robot);
   refresh(sensors);
-  if (!generator.first_step(robot.image(), sensors)) return;
-  do {
-    robot.execute();
+  bool more = generator.first_step(robot.image(), sensors);
+  int refusals = 0;
+  while (more) {
+    try {
+      robot.execute();
+      refusals = 0;
+    } catch (const EdpRefused& e) {
+      // A late macro-step made the EDP stop the robot off the planned path, and the planned
+      // continuation would be too fast from there: re-plan from where it stands.
+      if (e.code() != edp::error_code::too_fast || ++refusals > kMaxRefusals) throw;
+      robot.read_state();
+      if (!generator.resume(robot.image(), sensors)) throw;
+      continue;
+    }
     refresh(sensors);
-    check_stop(robot);
-  } while (generator.next_step(robot.image(), sensors));
+    if (check_stop(robot)) {
+      // After a pause the robot stands (its EDP ran out of macro-steps): continue from there.
+      robot.read_state();
+      if (generator.resume(robot.image(), sensors)) continue;
+    }
+    more = generator.next_step(robot.image(), sensors);
+  }
 }
 
 void Wait(Robot& robot, const SensorList& sensors, Condition& condition, double period_s) {

@@ -56,10 +56,12 @@ bool Robot::paused() const {
   return paused_;
 }
 
-void Robot::wait_while_paused() {
+bool Robot::wait_while_paused() {
   std::unique_lock lock(pause_mutex_);
+  const bool waited = paused_ && !stop_.load();
   pause_cv_.wait(lock, [&] { return !paused_ || stop_.load(); });
   if (stop_.load()) throw TaskStopped("task stopped on request");
+  return waited;
 }
 
 std::vector<double> Robot::pose(edp::ArmRepresentation representation, bool desired) const {

@@ -18,6 +18,7 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/robot/robot_model.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc_lcm/edp_instruction_t.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
@@ -69,6 +70,11 @@ class StateWatch {
     std::lock_guard lock(mutex_);
     return count_;
   }
+  /// Per joint, the fastest commanded motion between two consecutive states [rad/s].
+  std::vector<double> max_desired_rate() const {
+    std::lock_guard lock(mutex_);
+    return max_rate_;
+  }
   /// Waits until `pred(state)` holds for a state received after the call; returns it.
   template <class Pred>
   std::optional<mrroc_lcm::robot_state_t> wait_for(Pred pred, std::chrono::milliseconds timeout) {
@@ -89,6 +95,15 @@ class StateWatch {
     mrroc_lcm::robot_state_t s;
     if (!comm::detail::decode_received(buffer, s)) return;
     std::lock_guard lock(self->mutex_);
+    if (self->count_ > 0 && s.servo_step > self->last_.servo_step && s.synchronised &&
+        self->last_.synchronised && s.q_desired.size() == self->last_.q_desired.size()) {
+      const double dt =
+          static_cast<double>(s.servo_step - self->last_.servo_step) * s.servo_period_s;
+      self->max_rate_.resize(s.q_desired.size(), 0.0);
+      for (std::size_t i = 0; i < s.q_desired.size(); ++i)
+        self->max_rate_[i] = std::max(self->max_rate_[i],
+                                      std::abs(s.q_desired[i] - self->last_.q_desired[i]) / dt);
+    }
     self->last_ = s;
     ++self->count_;
   }
@@ -97,6 +112,7 @@ class StateWatch {
   mutable std::mutex mutex_;
   mrroc_lcm::robot_state_t last_{};
   int count_ = 0;
+  std::vector<double> max_rate_;
 };
 
 double max_speed(const mrroc_lcm::robot_state_t& s) {
@@ -236,6 +252,16 @@ TEST_F(Operator, StartPauseResumeStopAndTerminate) {
 
   // The run finishes at the last pose.
   r = wait_for_state(Reply::FINISHED, std::chrono::seconds(60));
+  // Pausing stopped the robot off its planned path; the task went on from where it stood: no
+  // commanded motion ever exceeded a joint's velocity limit.
+  const RobotModel model = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+  const std::vector<double> rates = states.max_desired_rate();
+  ASSERT_EQ(rates.size(), model.axes());
+  for (std::size_t i = 0; i < rates.size(); ++i) {
+    EXPECT_LE(rates[i], model.max_velocity[i] * 1.001) << "joint " << i;
+    std::printf("joint %zu: fastest commanded %.3f rad/s (limit %.3f)\n", i, rates[i],
+                model.max_velocity[i]);
+  }
   ASSERT_EQ(r.state, +Reply::FINISHED) << r.text;
   const auto end = states.wait_for([](const auto& s) { return !s.moving; }, std::chrono::seconds(5));
   ASSERT_TRUE(end);

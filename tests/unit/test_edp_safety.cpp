@@ -158,6 +158,47 @@ TEST(EdpSafety, LostEcpBringsTheRobotToAStandstill) {
   EXPECT_EQ(edp.query().type, ReplyType::data);
 }
 
+// After a late successor the ramp leaves the robot past its last target. The macro-step the ECP
+// had planned next (a short step further along the old path) would now have to come back at
+// several times the velocity limit: the EDP refuses it at its start, names the joint, the
+// velocity and the limit, and the robot holds; a macro-step planned from where it stands is
+// accepted.
+TEST(EdpSafety, AMacroStepTooFastFromWhereARampLeftTheRobotIsRefused) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  const double start = q[4];
+  q[4] = start + 0.04;  // the wrist roll at 2 rad/s (limit 3), read early: successor promised
+  ASSERT_EQ(edp.set_joints(q, 10, 7).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.query().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));  // the successor never comes
+  ASSERT_EQ(edp.servo_->lost_successors(), 1);
+  const double stopped_at = edp.servo_->latest().desired[4];
+  EXPECT_GT(stopped_at, q[4] + 0.2) << "2 rad/s at 8 rad/s^2 overshoots by 0.25 rad";
+  // The old plan's next step: 0.04 rad further than the last target, i.e. ~0.2 rad back.
+  std::vector<double> planned = q;
+  planned[4] = q[4] + 0.04;
+  ASSERT_EQ(edp.set_joints(planned, 10, 7).type, ReplyType::acknowledge);
+  const Reply refused = edp.query();
+  EXPECT_EQ(refused.type, ReplyType::error);
+  EXPECT_EQ(refused.error_code, error_code::too_fast);
+  EXPECT_NE(refused.error_text.find("SET refused: joint 4 would move at"), std::string::npos)
+      << refused.error_text;
+  EXPECT_NE(refused.error_text.find("above its limit of 3.000 rad/s"), std::string::npos)
+      << refused.error_text;
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_DOUBLE_EQ(edp.servo_->latest().desired[4], stopped_at) << "the robot did not hold";
+  // From where it stands, within the limit: accepted.
+  planned[4] = stopped_at - 0.05;
+  ASSERT_EQ(edp.set_joints(planned, 100, 101).type, ReplyType::acknowledge);
+  const Reply ok = edp.query();
+  EXPECT_EQ(ok.type, ReplyType::data) << ok.error_text;
+  // No commanded velocity ever exceeded a limit.
+  for (const auto& v : edp.velocities(0))
+    for (std::size_t j = 0; j < v.size(); ++j)
+      EXPECT_LE(std::abs(v[j]), edp.model_.max_velocity[j] * 1.0001) << "joint " << j;
+}
+
 TEST(EdpSafety, MockPluginMirrorsCommands) {
   Edp edp("mock");
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);

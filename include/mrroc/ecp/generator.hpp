@@ -45,6 +45,13 @@ class Generator {
   /// Called after each exchange with the EDP: prepares the next command, or returns false when
   /// the terminal condition holds.
   virtual bool next_step(RobotImage& robot, const SensorList& sensors) = 0;
+  /// The robot stands away from the path this generator planned: after a PAUSE, or when the EDP
+  /// brought it to a standstill because a macro-step came late and then refused the planned one
+  /// as too fast from there (error `too_fast`). `robot` holds the state just read. Prepare a
+  /// command that continues the motion from where the robot stands, from rest, and return true;
+  /// return false (the default) when the generator cannot: after a PAUSE the motion then goes on
+  /// as planned (the EDP refuses what would exceed a limit), after a refusal Move fails with it.
+  virtual bool resume(RobotImage& /*robot*/, const SensorList& /*sensors*/) { return false; }
 };
 
 /// An initial condition for Wait.
@@ -55,7 +62,10 @@ class Condition {
   virtual bool check(const SensorList& sensors) = 0;
 };
 
-/// Runs a motion. @throws whatever the generator, the EDP link or a stop request throws.
+/// Runs a motion. After a PAUSE, and when the EDP refuses a macro-step as too fast after it had
+/// to stop the robot (a late macro-step), the generator's `resume` re-plans from where the robot
+/// stands (at most 3 refusals in a row). @throws whatever the generator, the EDP link or a stop
+/// request throws.
 void Move(Robot& robot, const SensorList& sensors, Generator& generator);
 
 /// Waits until `condition` holds, refreshing the sensor images every `period_s` [s].

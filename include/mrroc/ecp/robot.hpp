@@ -79,8 +79,9 @@ class Robot {
   void pause();
   void resume();
   [[nodiscard]] bool paused() const;
-  /// Blocks while paused. @throws TaskStopped when a stop is requested.
-  void wait_while_paused();
+  /// Blocks while paused; returns true if it did block. @throws TaskStopped when a stop is
+  /// requested.
+  bool wait_while_paused();
 
  private:
   edp::Reply exchange(const edp::Instruction& instruction);

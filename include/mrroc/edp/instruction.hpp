@@ -83,6 +83,7 @@ inline constexpr int not_supported = 9;      ///< valid instruction that this ED
 inline constexpr int emergency_stop = 10;    ///< motion refused: emergency stop engaged
 inline constexpr int servo_overrun = 11;     ///< a servo cycle woke more than one period late
 inline constexpr int unauthenticated = 12;   ///< a message without a valid HMAC or replayed (SRP report)
+inline constexpr int too_fast = 13;          ///< a macro-step would exceed a joint's velocity limit
 }  // namespace error_code
 
 struct Reply {

@@ -32,6 +32,8 @@ class JointPosesGenerator : public Generator {
 
   bool first_step(RobotImage& robot, const SensorList& sensors) override;
   bool next_step(RobotImage& robot, const SensorList& sensors) override;
+  /// Re-plans the segment to the current pose from where the robot stands, from rest.
+  bool resume(RobotImage& robot, const SensorList& sensors) override;
 
   /// Quintic time scaling s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5, tau in [0, 1].
   static double scaling(double tau);

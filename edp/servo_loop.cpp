@@ -211,9 +211,10 @@ void ServoLoop::cycle() {
       after_stop_id_ = 0;
     }
     if (!current_ && next_) {
-      // The macro-step starts where the robot stands. After a stopping ramp (a late successor)
-      // that is not where its task planned it to start: a straight line to its target faster
-      // than a joint's velocity limit is refused, and the robot holds.
+      // The macro-step starts where the robot stands (after a stopping ramp for a late
+      // successor, that is past the last target, not where the task planned it to start): a
+      // straight line to its target faster than a joint's velocity limit is refused, and the
+      // robot holds.
       bool too_fast = false;
       for (std::size_t i = 0; i < axes_ && !too_fast; ++i) {
         const double v = std::abs(next_->target[i] - desired_[i]) /
@@ -222,12 +223,13 @@ void ServoLoop::cycle() {
           too_fast = true;
           std::snprintf(refused_text_, sizeof refused_text_,
                         "joint %zu would move at %.3f rad/s, above its limit of %.3f rad/s "
-                        "(from %.4f to %.4f rad in %d steps of %.1f ms, starting where a stopping "
-                        "ramp left the robot); the robot holds",
+                        "(from %.4f to %.4f rad in %d steps of %.1f ms%s); the robot holds",
                         i, v, model_.max_velocity[i], desired_[i], next_->target[i],
-                        next_->steps, period_s_ * 1e3);
+                        next_->steps, period_s_ * 1e3,
+                        after_ramp_ ? ", starting where a stopping ramp left the robot" : "");
         }
       }
+      after_ramp_ = false;
       if (too_fast) {
         refused_id_ = next_->id;
         next_.reset();
@@ -261,6 +263,7 @@ void ServoLoop::cycle() {
           // acceleration limits instead of stopping it dead.
           ++lost_successors_;
           mode_ = Mode::stopping;
+          after_ramp_ = true;
         }
       }
     }

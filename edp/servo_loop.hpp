@@ -98,7 +98,8 @@ class ServoLoop {
   std::optional<Reading> wait_reading(std::uint64_t id, double timeout_s);
   /// Why macro-step `id` was refused when it was due to start, or "" if it was not: the straight
   /// line from where the robot stands to its target would need more than a joint's velocity limit
-  /// (after a stopping ramp left the robot away from the path its task planned). The robot holds.
+  /// (e.g. after a stopping ramp left the robot away from the path its task planned). The robot
+  /// holds.
   [[nodiscard]] std::string refusal(std::uint64_t id) const;
   /// The reading of the latest cycle.
   [[nodiscard]] Reading latest() const;
@@ -203,6 +204,7 @@ class ServoLoop {
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;
   std::uint64_t refused_id_ = 0;  ///< the last macro-step refused at its start
+  bool after_ramp_ = false;       ///< the robot stands where a lost successor's ramp left it
   char refused_text_[256] = {};
   AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
   std::array<AxisFeedback, kMaxAxes> sample_{};    ///< servo thread only

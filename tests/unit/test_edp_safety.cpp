@@ -186,6 +186,9 @@ TEST(EdpSafety, AMacroStepTooFastFromWhereARampLeftTheRobotIsRefused) {
       << refused.error_text;
   EXPECT_NE(refused.error_text.find("above its limit of 3.000 rad/s"), std::string::npos)
       << refused.error_text;
+  EXPECT_NE(refused.error_text.find("starting where a stopping ramp left the robot"),
+            std::string::npos)
+      << refused.error_text;
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_DOUBLE_EQ(edp.servo_->latest().desired[4], stopped_at) << "the robot did not hold";
   // From where it stands, within the limit: accepted.
@@ -199,11 +202,25 @@ TEST(EdpSafety, AMacroStepTooFastFromWhereARampLeftTheRobotIsRefused) {
       EXPECT_LE(std::abs(v[j]), edp.model_.max_velocity[j] * 1.0001) << "joint " << j;
 }
 
+TEST(EdpSafety, AMacroStepFasterThanTheVelocityLimitIsRefused) {
+  Edp edp("mock");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  q[0] += 0.4;  // 0.4 rad in 0.2 s: 2 rad/s, the column's limit is 1.5 rad/s
+  ASSERT_EQ(edp.set_joints(q, 100, 101).type, ReplyType::acknowledge);
+  const Reply r = edp.query();
+  EXPECT_EQ(r.error_code, error_code::too_fast);
+  EXPECT_EQ(r.error_text,
+            "SET refused: joint 0 would move at 2.000 rad/s, above its limit of 1.500 rad/s (from "
+            "0.0000 to 0.4000 rad in 100 steps of 2.0 ms); the robot holds");
+  EXPECT_DOUBLE_EQ(edp.servo_->latest().desired[0], edp.model_.synchro_joint_positions[0]);
+}
+
 TEST(EdpSafety, MockPluginMirrorsCommands) {
   Edp edp("mock");
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
   std::vector<double> q = {0.2, -1.4, 0.1, 0.3, -0.5};
-  ASSERT_EQ(edp.set_joints(q, 50, 51).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.set_joints(q, 250, 251).type, ReplyType::acknowledge);
   const Reply r = edp.query();
   ASSERT_EQ(r.type, ReplyType::data);
   for (std::size_t j = 0; j < q.size(); ++j) EXPECT_NEAR(r.joints[j], q[j], 1e-9);
@@ -238,9 +255,9 @@ TEST_P(PluginFaults, FaultHoldsRefusesAndSynchroResets) {
   ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_TRUE(r.synchronised);
   EXPECT_FALSE(edp.servo_->faulted());
-  ASSERT_EQ(edp.set_joints(q, 100, 101).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.set_joints(q, 250, 251).type, ReplyType::acknowledge);
   r = edp.query();
-  ASSERT_EQ(r.type, ReplyType::data);
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_NEAR(r.joints[0], 0.5, 1e-9);
 }
 

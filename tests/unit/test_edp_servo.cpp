@@ -76,6 +76,16 @@ class EdpTest : public ::testing::Test {
     EXPECT_EQ(exec(s).type, ReplyType::acknowledge);
     return query();
   }
+  /// Servo steps for a move from where everything queued ends to `q` at 80 % of every joint's
+  /// velocity limit (the EDP refuses faster macro-steps), at least `at_least`.
+  int steps_to(const std::vector<double>& q, int at_least) const {
+    const std::vector<double> from = servo_->planned_end();
+    double t = 0.0;
+    for (std::size_t j = 0; j < q.size() && j < from.size(); ++j)
+      t = std::max(t, std::abs(q[j] - from[j]) / (0.8 * model_.max_velocity[j]));
+    return std::max(at_least, static_cast<int>(std::ceil(t / kPeriod)));
+  }
+
   static Instruction set_joints(std::vector<double> q, int steps, int value_in_step_no,
                                 MotionType motion = MotionType::absolute) {
     Instruction in;
@@ -295,7 +305,8 @@ TEST_F(EdpTest, EveryServoStepStaysInsideTheLimits) {
         q[j] = mid + side * fraction * half;
       }
       q[2] = std::max(q[2], -44.0 * deg - 90.0 * deg - q[1]);  // upper-arm linkage range
-      const Reply r = exec(set_joints(q, 500, 501));
+      const int steps = steps_to(q, 500);
+      const Reply r = exec(set_joints(q, steps, steps + 1));
       if (r.type == ReplyType::error) {
         EXPECT_EQ(r.error_code, error_code::out_of_limits) << r.error_text;
         continue;
@@ -305,7 +316,8 @@ TEST_F(EdpTest, EveryServoStepStaysInsideTheLimits) {
       moved = true;
     }
     ASSERT_TRUE(moved);
-    ASSERT_EQ(exec(set_joints(model_.synchro_joint_positions, 300, 301)).type,
+    const int home_steps = steps_to(model_.synchro_joint_positions, 300);
+    ASSERT_EQ(exec(set_joints(model_.synchro_joint_positions, home_steps, home_steps + 1)).type,
               ReplyType::acknowledge);
     ASSERT_EQ(query().type, ReplyType::data);
   }
@@ -370,10 +382,10 @@ TEST_F(EdpTest, EveryArmRepresentationReachesTheSamePose) {
   for (ArmRepresentation rep : {ArmRepresentation::motor, ArmRepresentation::frame,
                                 ArmRepresentation::xyz_euler_zyz,
                                 ArmRepresentation::xyz_angle_axis}) {
-    ASSERT_EQ(exec(set_joints({0.0, -1.5, 0.0, 0.0, 0.0}, 100, 101)).type,
+    ASSERT_EQ(exec(set_joints({0.0, -1.5, 0.0, 0.0, 0.0}, 300, 301)).type,
               ReplyType::acknowledge);
     ASSERT_EQ(query().type, ReplyType::data);
-    Instruction back = set_joints(pose[rep], 100, 101);
+    Instruction back = set_joints(pose[rep], 300, 301);
     back.set_arm_type = rep;
     const Reply accepted = exec(back);
     ASSERT_EQ(accepted.type, ReplyType::acknowledge) << to_string(rep) << ": "

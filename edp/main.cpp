@@ -52,6 +52,11 @@ int run(const std::string& config_path, const std::string& robot_name) {
     } catch (const ConfigError& e) {
       throw ConfigError(fmt::format("{}: error: {}", robot.edp.where.str(), e.what()));
     }
+    if (robot.edp.lock_step && !hardware->simulated())
+      throw ConfigError(fmt::format(
+          "{}: error: lock_step = true needs simulated hardware; plugin '{}' drives its axes in "
+          "real time (for emulated drives, set lock_step in [emulator] instead)",
+          robot.edp.where.str(), hardware->name()));
     edp::HardwareSetup setup;
     setup.robot = robot.name;
     setup.model_dir = robot.model_dir;
@@ -64,6 +69,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
     const std::unique_ptr<edp::ArmKinematics> kinematics = edp::make_arm_kinematics(model);
     edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
     servo.set_limit_guard(kinematics.get());
+    if (robot.edp.lock_step) servo.set_lock_step(true);
     servo.start();
     edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
     comm::EdpServer server(bus, process, channels::edp_command(robot.name),

@@ -57,6 +57,10 @@ void ServoLoop::start() {
 
 void ServoLoop::stop() {
   if (!running_.exchange(false)) return;
+  {
+    std::lock_guard lock(mutex_);  // wakes a lock-step loop waiting for work or a successor
+    cv_.notify_all();
+  }
   if (thread_.joinable()) thread_.join();
   hardware_.deactivate();
   cv_.notify_all();
@@ -70,6 +74,11 @@ void ServoLoop::run() {
   {
     std::lock_guard lock(mutex_);
     scheduling_ = fifo ? "SCHED_FIFO 80" : "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)";
+    if (lock_step_) scheduling_ += ", lock-step";
+  }
+  if (lock_step_) {
+    run_lock_step();
+    return;
   }
   const auto period_ns = static_cast<std::int64_t>(std::llround(period_s_ * 1e9));
   timespec now{};
@@ -82,25 +91,60 @@ void ServoLoop::run() {
     clock_gettime(CLOCK_MONOTONIC, &now);
     const std::int64_t late_ns = to_ns(now) - deadline;
     cycle();
-    {
-      std::lock_guard lock(mutex_);
-      const double late_us = static_cast<double>(late_ns) / 1000.0;
-      lateness_us_[lateness_next_] = static_cast<float>(late_us);
-      lateness_next_ = (lateness_next_ + 1) % kLatenessSamples;
-      lateness_max_us_ = std::max(lateness_max_us_, late_us);
-      ++cycles_;
-      ++window_.cycles;
-      window_sum_us_ += late_us;
-      window_.lateness_max_us = std::max(window_.lateness_max_us, late_us);
-      if (late_ns > period_ns) {
-        ++overruns_;
-        ++window_.overruns;
-        window_.worst_overrun_us = std::max(window_.worst_overrun_us, late_us);
-      }
-    }
+    record_cycle(late_ns, period_ns);
     deadline += period_ns;
     // After an overrun, skip the periods already missed instead of running a burst of cycles.
     if (late_ns > period_ns) deadline += (late_ns / period_ns) * period_ns;
+  }
+}
+
+void ServoLoop::record_cycle(std::int64_t late_ns, std::int64_t period_ns) {
+  std::lock_guard lock(mutex_);
+  const double late_us = static_cast<double>(late_ns) / 1000.0;
+  lateness_us_[lateness_next_] = static_cast<float>(late_us);
+  lateness_next_ = (lateness_next_ + 1) % kLatenessSamples;
+  lateness_max_us_ = std::max(lateness_max_us_, late_us);
+  ++cycles_;
+  ++window_.cycles;
+  window_sum_us_ += late_us;
+  window_.lateness_max_us = std::max(window_.lateness_max_us, late_us);
+  if (late_ns > period_ns) {
+    ++overruns_;
+    ++window_.overruns;
+    window_.worst_overrun_us = std::max(window_.worst_overrun_us, late_us);
+  }
+}
+
+bool ServoLoop::has_work() const {
+  return mode_ != Mode::hold || current_.has_value() || next_.has_value() || reset_pending_ ||
+         after_stop_id_ != 0 || hold_at_measured_ || outputs_pending_ || servo_pending_;
+}
+
+bool ServoLoop::awaiting_successor() const {
+  return current_ && current_->value_in_step_no < current_->steps &&
+         current_->step + 1 >= current_->steps && !next_ && !faulted_ && !emergency_stop_;
+}
+
+void ServoLoop::run_lock_step() {
+  // Simulated time advances only in cycle() (the plugin's write()), so cycles with work run back
+  // to back; idle, the loop holds once a period (status and inputs stay fresh).
+  const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(period_s_));
+  const auto successor_wait = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(successor_wait_s_));
+  while (running_.load(std::memory_order_relaxed)) {
+    {
+      std::unique_lock lock(mutex_);
+      cv_.wait_for(lock, period, [&] { return !running_.load() || has_work(); });
+      // The ECP read this macro-step early to send its successor: simulated time stands still
+      // until it is queued (a real-time loop would run out of motion if it came late).
+      if (awaiting_successor())
+        cv_.wait_for(lock, successor_wait,
+                     [&] { return !running_.load() || !awaiting_successor() || reset_pending_; });
+    }
+    if (!running_.load(std::memory_order_relaxed)) break;
+    cycle();
+    record_cycle(0, 1);
   }
 }
 
@@ -346,6 +390,7 @@ void ServoLoop::release_emergency_stop() {
   // Hold where the axes really are: drives with their own quick stop may have stopped a little
   // away from the loop's own ramp.
   hold_at_measured_ = true;
+  cv_.notify_all();
   hardware_.emergency_stop(false);
 }
 
@@ -363,6 +408,7 @@ bool ServoLoop::reset_fault(double timeout_s) {
   std::unique_lock lock(mutex_);
   if (!faulted_) return true;
   reset_pending_ = true;
+  cv_.notify_all();
   cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
                [&] { return !reset_pending_ || !running_; });
   return !faulted_;
@@ -430,6 +476,7 @@ std::uint64_t ServoLoop::submit(const std::vector<double>& target, int steps,
   m.steps = steps;
   m.value_in_step_no = value_in_step_no;
   next_ = m;
+  cv_.notify_all();  // a lock-step loop waits for work
   return m.id;
 }
 
@@ -494,6 +541,7 @@ void ServoLoop::request_outputs(std::uint32_t values) {
   std::lock_guard lock(mutex_);
   outputs_ = values;
   outputs_pending_ = true;
+  cv_.notify_all();
 }
 
 void ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
@@ -504,6 +552,7 @@ void ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
     servo_parameter_set_[i] = parameter_set[i];
   }
   servo_pending_ = true;
+  cv_.notify_all();
 }
 
 void ServoLoop::enable_trace(std::size_t capacity) {

@@ -113,6 +113,20 @@ class ServoLoop {
   /// True when nothing is queued or running and the commanded velocity is zero.
   [[nodiscard]] bool stopped() const;
 
+  /// Lock-step (simulated hardware only; call before start()): while there is motion to execute
+  /// (a macro-step, synchronisation, a stopping ramp, a reading due after a stop) the cycles run
+  /// back to back, without waiting for the next period, so simulated time advances as fast as
+  /// the machine allows; when idle the loop waits for work for at most one period and then runs
+  /// a holding cycle. A macro-step that promised a successor (value_in_step_no < steps) waits
+  /// before its last step, with simulated time standing still, up to `successor_wait_s` of wall
+  /// time for it; only then is the successor lost and the robot ramped to a standstill. Lateness
+  /// and overruns are not measured in lock-step (there are no deadlines).
+  void set_lock_step(bool on, double successor_wait_s = 1.0) {
+    lock_step_ = on;
+    successor_wait_s_ = successor_wait_s;
+  }
+  [[nodiscard]] bool lock_step() const { return lock_step_; }
+
   /// Limits the stopping ramp must respect (besides the model's joint limits): a ramp step that
   /// would leave them ends the ramp where it is. Set before start(); may be null.
   void set_limit_guard(const ArmKinematics* guard) { guard_ = guard; }
@@ -168,6 +182,12 @@ class ServoLoop {
   };
 
   void run();
+  void run_lock_step();
+  /// Lock-step: something for the next cycle to do (mutex_ held).
+  [[nodiscard]] bool has_work() const;
+  /// Lock-step: the next cycle would end a macro-step whose promised successor is not queued.
+  [[nodiscard]] bool awaiting_successor() const;
+  void record_cycle(std::int64_t late_ns, std::int64_t period_ns);
   void cycle();
   void synchro_cycle();
   void stop_cycle();
@@ -183,6 +203,8 @@ class ServoLoop {
   std::atomic<bool> running_{false};
   std::atomic<bool> synchronised_{false};
   std::atomic<bool> faulted_{false};
+  bool lock_step_ = false;
+  double successor_wait_s_ = 1.0;
 
   mutable std::mutex mutex_;
   std::condition_variable cv_;

@@ -24,6 +24,7 @@ class MockHardware : public Hardware {
  public:
   std::string name() const override { return "mock"; }
   std::size_t axis_count() const override { return axes_; }
+  bool simulated() const override { return true; }
 
   void configure(const HardwareSetup& setup) override {
     const Params params = setup.params;

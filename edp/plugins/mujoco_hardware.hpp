@@ -88,6 +88,8 @@ class MujocoHardware : public Hardware {
   MujocoHardware& operator=(MujocoHardware&&) = delete;
 
   [[nodiscard]] std::string name() const override { return "mujoco"; }
+  /// Simulated time advances one servo period per write(): lock-step capable.
+  [[nodiscard]] bool simulated() const override { return true; }
   [[nodiscard]] std::size_t axis_count() const override { return axes_; }
 
   void configure(const HardwareSetup& setup) override;

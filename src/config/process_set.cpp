@@ -537,7 +537,7 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     }
     const toml::table& edp = r.table(t, "edp", "robot");
     r.only_keys(edp, "robot.edp",
-                Reader::with_options({"plugin", "library", "servo_period_ms", "params"}));
+                Reader::with_options({"plugin", "library", "servo_period_ms", "lock_step", "params"}));
     robot.edp.where = r.where(edp);
     robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
     if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{}); !lib.empty()) {
@@ -546,6 +546,10 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
                      "hardware plugin library");
     }
     robot.edp.servo_period_s = r.number(edp, "servo_period_ms", 2.0, 0.1, 100.0, "ms") / 1000.0;
+    if (const toml::node* ls = edp.get("lock_step")) {
+      if (!ls->is_boolean()) r.fail(*ls, "'lock_step' must be true or false");
+      robot.edp.lock_step = **ls->as_boolean();
+    }
     if (const toml::node* p = edp.get("params")) {
       if (!p->is_table()) r.fail(*p, "'params' must be a table");
       robot.edp.params = r.params(*p->as_table(), "robot.edp.params");

@@ -21,6 +21,7 @@
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 namespace fs = std::filesystem;
 using namespace mrroc;
@@ -162,8 +163,34 @@ TEST(LaunchDemo, RunsToTheEndAndReachesTheTargets) {
   ASSERT_EQ(last->joints.size(), target.size());
   for (std::size_t j = 0; j < target.size(); ++j)
     EXPECT_NEAR(last->joints[j], target[j], 2e-3) << "joint " << j;
-  // Every macro-step of the demo stayed inside the joint limits (EDP refuses otherwise).
-  for (const auto& reply : replies) EXPECT_NE(reply.type, edp::ReplyType::error) << reply.error_text;
+  // The EDP refused nothing the task planned. The one refusal a busy host may cause is part of
+  // the recovery from a late macro-step: the EDP brought the robot to a standstill past its
+  // target (a "lost successor", reported to SRP), refused the planned continuation as too fast
+  // from there, and Move re-planned from where the robot stood. Anything else fails the test.
+  const RobotModel model = load_robot_model(config.robots[0].model_dir);
+  int recoveries = 0;
+  for (const auto& reply : replies) {
+    if (reply.type == edp::ReplyType::error) {
+      const bool after_ramp =
+          reply.error_code == edp::error_code::too_fast &&
+          reply.error_text.find("starting where a stopping ramp left the robot") !=
+              std::string::npos;
+      EXPECT_TRUE(after_ramp) << "EDP refused: " << reply.error_text;
+      if (after_ramp) ++recoveries;
+    }
+    // Every reading in joint coordinates (after synchronisation) stayed inside the joint limits.
+    if (!reply.synchronised) continue;
+    for (std::size_t j = 0; j < reply.joints.size() && j < model.lower_limits.size(); ++j) {
+      EXPECT_GE(reply.joints[j], model.lower_limits[j] - 1e-3) << "joint " << j;
+      EXPECT_LE(reply.joints[j], model.upper_limits[j] + 1e-3) << "joint " << j;
+    }
+  }
+  if (recoveries > 0) {
+    std::printf("%d late macro-step(s) recovered by re-planning\n", recoveries);
+    EXPECT_NE(r.output.find("no next macro-step from the ECP in time"), std::string::npos)
+        << "a refusal after a stopping ramp without the EDP's report of the late macro-step\n"
+        << r.output;
+  }
 
   // SRP received messages from every process.
   const auto summary_at = r.output.find("srp summary:");
@@ -275,6 +302,70 @@ TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {
             std::string::npos)
       << r.output;
   EXPECT_NE(r.output.find(file.string() + ":"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("started mp"), std::string::npos) << r.output;
+  EXPECT_TRUE(mrroc_processes().empty());
+}
+
+/// The demo config with `extra` added to [robot.edp] and the model path made absolute, written
+/// to a temporary folder.
+static fs::path demo_variant(const std::string& tag, const std::string& edp_extra,
+                      const std::string& plugin = "mujoco") {
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-" + tag + "-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::ifstream demo(demo_config());
+  std::stringstream text;
+  text << demo.rdbuf();
+  std::string config = text.str();
+  config.replace(config.find("plugin = \"mujoco\""), 17,
+                 "plugin = \"" + plugin + "\"\n" + edp_extra);
+  config.replace(config.find("\"../robots/irb6\""), 16,
+                 "\"" + (kSource / "robots/irb6").string() + "\"");
+  const fs::path file = dir / (tag + ".toml");
+  std::ofstream(file) << config;
+  return file;
+}
+
+TEST(LaunchDemo, LockStepDemoRunsToTheEnd) {
+  const fs::path file = demo_variant("lockstep", "lock_step = true");
+  const ProcessSetConfig config = load_process_set(file);
+  ASSERT_TRUE(config.robots[0].edp.lock_step);
+  const auto poses = config.robots[0].ecp.args.get_double_rows("poses");
+  comm::Bus bus(config.lcm_url);
+  EdpReplyRecorder recorder(bus, "irb6");
+  bus.start();
+  const RunResult r = run({launcher(), file.string()}, 60.0);
+  bus.stop();
+  fs::remove_all(file.parent_path());
+  ASSERT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  std::printf("lock-step demo finished in %.2f s\n", r.seconds);
+  for (const char* expected : {"lock-step", "pose 3/3 reached", "task finished"})
+    EXPECT_NE(r.output.find(expected), std::string::npos) << "missing '" << expected << "'\n"
+                                                          << r.output;
+  // Simulated time stands still while the EDP waits for a successor: none is ever lost.
+  EXPECT_EQ(r.output.find("no next macro-step from the ECP in time"), std::string::npos)
+      << r.output;
+  const auto replies = recorder.replies();
+  const edp::Reply* last = nullptr;
+  for (const auto& reply : replies) {
+    EXPECT_NE(reply.type, edp::ReplyType::error) << reply.error_text;
+    if (reply.type == edp::ReplyType::data) last = &reply;
+  }
+  ASSERT_NE(last, nullptr);
+  for (std::size_t j = 0; j < poses.back().size(); ++j)
+    EXPECT_NEAR(last->joints[j], poses.back()[j], 2e-3) << "joint " << j;
+  EXPECT_TRUE(mrroc_processes().empty());
+}
+
+TEST(LaunchDemo, LockStepNeedsSimulatedHardware) {
+  const fs::path file = demo_variant("lockstep-can", "lock_step = true", "can");
+  const RunResult r = run({launcher(), file.string()}, 30.0);
+  fs::remove_all(file.parent_path());
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_NE(r.output.find("lock_step = true needs simulated hardware; plugin 'can' drives its "
+                          "axes in real time"),
+            std::string::npos)
+      << r.output;
   EXPECT_EQ(r.output.find("started mp"), std::string::npos) << r.output;
   EXPECT_TRUE(mrroc_processes().empty());
 }

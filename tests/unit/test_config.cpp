@@ -122,6 +122,14 @@ TEST_F(ConfigTest, WrongTypeAndRangeNameValueAndUnit) {
                  "'servo_period_ms' = 500 ms is outside 0.1..100 ms");
 }
 
+TEST_F(ConfigTest, LockStepIsABooleanAndOffByDefault) {
+  EXPECT_FALSE(load_process_set(write(valid())).robots[0].edp.lock_step);
+  EXPECT_TRUE(load_process_set(write(valid("lock_step = true\n"))).robots[0].edp.lock_step);
+  const std::string text = valid("lock_step = \"yes\"\n");
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "lock_step"),
+                 "'lock_step' must be true or false");
+}
+
 TEST_F(ConfigTest, DuplicateRobotAndBadName) {
   std::string text = valid();
   const std::string robot = text.substr(text.find("[[robot]]"));

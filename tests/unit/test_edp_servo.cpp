@@ -55,6 +55,7 @@ class EdpTest : public ::testing::Test {
     kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
     servo_->set_limit_guard(kinematics_.get());
+    if (lock_step_) servo_->set_lock_step(true, successor_wait_s_);
     servo_->enable_trace(20000);
     servo_->start();
     interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
@@ -99,11 +100,23 @@ class EdpTest : public ::testing::Test {
     return in;
   }
 
+  bool lock_step_ = false;
+  double successor_wait_s_ = 1.0;
   RobotModel model_;
   std::unique_ptr<Hardware> hardware_;
   std::unique_ptr<ServoLoop> servo_;
   std::unique_ptr<ArmKinematics> kinematics_;
   std::unique_ptr<CommandInterpreter> interpreter_;
+};
+
+/// The same EDP with its simulation lock-step ([robot.edp] lock_step = true).
+class EdpLockStepTest : public EdpTest {
+ protected:
+  void SetUp() override {
+    lock_step_ = true;
+    successor_wait_s_ = 0.5;
+    EdpTest::SetUp();
+  }
 };
 
 }  // namespace
@@ -532,4 +545,81 @@ TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
               soft, stiff, nominal, feed_forward);
   EXPECT_GT(soft, stiff * 1.5);
   EXPECT_LT(feed_forward, nominal * 0.5) << "velocity feed-forward must reduce the lag";
+}
+
+TEST_F(EdpLockStepTest, SimulatedTimeWaitsForALateSuccessor) {
+  EXPECT_TRUE(hardware_->simulated());
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  EXPECT_NE(servo_->timing().scheduling.find("lock-step"), std::string::npos);
+  constexpr int kSteps = 10;
+  constexpr int kSegments = 12;
+  const std::int64_t first_cycle = servo_->latest().cycle;
+  std::vector<double> q = model_.synchro_joint_positions;
+  for (int k = 1; k <= kSegments; ++k) {
+    q[0] = 0.0002 * kSteps * k;  // 0.1 rad/s on the column
+    // Read in the last step but one: a real-time loop would need the successor within one
+    // servo period.
+    const int value = k == kSegments ? kSteps + 1 : kSteps - 1;
+    ASSERT_EQ(exec(set_joints(q, kSteps, value)).type, ReplyType::acknowledge);
+    const Reply r = query();
+    ASSERT_EQ(r.type, ReplyType::data);
+    if (k < kSegments && k % 3 == 0) {
+      // The successor comes 20 servo periods late: simulated time stands still meanwhile.
+      const std::int64_t cycle = servo_->latest().cycle;
+      std::this_thread::sleep_for(std::chrono::duration<double>(20 * kPeriod));
+      EXPECT_EQ(servo_->latest().cycle, cycle) << "simulated time went on without a successor";
+    }
+  }
+  EXPECT_EQ(servo_->lost_successors(), 0);
+  // Every servo step of the motion at the commanded velocity: no idle step, no ramp.
+  const auto trace = servo_->trace();
+  std::vector<double> velocity;
+  for (std::size_t i = 1; i < trace.size(); ++i)
+    if (trace[i].cycle > first_cycle)
+      velocity.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
+  std::size_t start = 0;
+  while (start < velocity.size() && velocity[start] == 0.0) ++start;
+  ASSERT_LT(start + kSteps * kSegments, velocity.size() + 1);
+  int off = 0;
+  for (std::size_t i = start; i < start + kSteps * kSegments; ++i)
+    if (std::abs(velocity[i] - 0.1) > 1e-9) ++off;
+  EXPECT_EQ(off, 0) << "servo steps with a velocity other than the commanded 0.1 rad/s";
+  // The robot followed in simulated time.
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_NEAR(servo_->latest().joints[0], q[0], 2e-3);
+}
+
+TEST_F(EdpLockStepTest, ASuccessorThatNeverComesStopsTheRobotWithinItsLimits) {
+  ASSERT_EQ(synchronise().type, ReplyType::data);
+  std::vector<double> q = model_.synchro_joint_positions;
+  q[0] = 0.02;
+  ASSERT_EQ(exec(set_joints(q, 10, 9)).type, ReplyType::acknowledge);
+  ASSERT_EQ(query().type, ReplyType::data);
+  // No successor: after the successor wait (0.5 s of wall time) the loop ramps down.
+  for (int i = 0; i < 300 && !servo_->stopped(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_TRUE(servo_->stopped());
+  EXPECT_EQ(servo_->lost_successors(), 1);
+  const auto trace = servo_->trace();
+  for (std::size_t i = 1; i < trace.size(); ++i) {
+    if (!trace[i].synchronised || !trace[i - 1].synchronised) continue;
+    const double v = (trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod;
+    EXPECT_LE(std::abs(v), model_.max_velocity[0] + 1e-9);
+  }
+  // The next macro-step starts from where the ramp left the robot.
+  q[0] = 0.05;
+  const int steps = steps_to(q, 20);
+  ASSERT_EQ(exec(set_joints(q, steps, steps + 1)).type, ReplyType::acknowledge);
+  const Reply r = query();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_NEAR(r.desired_joints[0], 0.05, 1e-12);
+}
+
+TEST_F(EdpLockStepTest, IdleLoopStillHoldsAndAnswers) {
+  // Idle, the loop runs a holding cycle once a period: readings stay fresh.
+  const std::int64_t c0 = servo_->latest().cycle;
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_GT(servo_->latest().cycle, c0);
+  EXPECT_EQ(synchronise().type, ReplyType::data);
+  EXPECT_TRUE(servo_->synchronised());
 }

@@ -85,6 +85,9 @@ struct EdpConfig {
   std::string plugin;            ///< hardware plugin name, e.g. "mujoco"
   std::filesystem::path library; ///< shared library registering the plugin (optional)
   double servo_period_s = 0.002; ///< servo period [s]
+  /// Simulated hardware only: servo cycles run back to back while there is motion to execute
+  /// (simulated time advances as fast as the machine allows) instead of one per period.
+  bool lock_step = false;
   Params params;                 ///< the plugin's own parameters ([robot.edp.params])
   ProcessOptions options;
   SourceLocation where;

@@ -92,6 +92,11 @@ class Hardware {
   /// from the EDP's command thread, concurrently with read/write: keep it to an atomic flag.
   virtual void emergency_stop(bool engaged) { (void)engaged; }
 
+  /// True for simulated hardware whose time advances only in write(): the servo loop may then
+  /// run lock-step (`[robot.edp] lock_step = true`), cycles back to back instead of one per
+  /// period. Real drives keep their own clock and must answer false (the default).
+  [[nodiscard]] virtual bool simulated() const { return false; }
+
   /// Text of the last fault (read after a `CycleStatus::fault`).
   [[nodiscard]] virtual std::string fault_text() const { return {}; }
 };

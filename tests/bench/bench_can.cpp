@@ -39,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "mrroc/can/bus.hpp"
 #include "mrroc/core/error.hpp"
 
@@ -306,7 +307,17 @@ Figures run(const std::string& url, int paced, int unpaced) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int samples = argc > 1 ? std::max(100, std::atoi(argv[1])) : 8000;
+  if (mrroc::bench::help_requested(
+          argc, argv,
+          "Usage (inside scripts/netns-run): bench_can [SAMPLES]\n"
+          "B6: CAN frame round trip over the virtual bus against UDP loopback, SAMPLES (default\n"
+          "8000, at least 100) paced round trips per transport, then 20000 unpaced.\n"
+          "Prints RESULT B6 and NOTE lines.\n"))
+    return 0;
+  const int samples =
+      argc > 1 ? static_cast<int>(mrroc::bench::whole_number("bench_can", "SAMPLES", argv[1], 100,
+                                                             10000000, "round trips"))
+               : 8000;
   const int unpaced = 20000;
   try {
     const std::string url = "virtual:bench-b6-" + std::to_string(getpid());

@@ -63,6 +63,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "bench_args.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/reporter.hpp"
@@ -366,13 +367,14 @@ struct StepShape {
 };
 
 ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double servo_period_ms,
-                             int paced, int unpaced, const StepShape& shape) {
+                             bool lock_step, int paced, int unpaced, const StepShape& shape) {
   const fs::path config = dir / "bench-chain.toml";
   std::ofstream(config) << "[system]\nname = \"bench-chain\"\nlcm_url = \"" << kUrl << "\"\n"
                         << "[mp]\ntask = \"start_and_wait\"\n"
                         << "[[robot]]\nname = \"irb6\"\nmodel = \"" << MRROC_SOURCE_DIR
                         << "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\nservo_period_ms = "
-                        << servo_period_ms << "\n[robot.ecp]\ntask = \"follow_mp\"\n";
+                        << servo_period_ms << "\nlock_step = " << (lock_step ? "true" : "false")
+                        << "\n[robot.ecp]\ntask = \"follow_mp\"\n";
   mrroc::comm::Bus bus(kUrl);
   ReadyWatch ready;
   mrroc::SystemListener listener(bus, {},
@@ -461,13 +463,36 @@ fs::path own_directory() { return fs::read_symlink("/proc/self/exe").parent_path
 int main(int argc, char** argv) {
   if (argc > 1 && std::strcmp(argv[1], "--forward") == 0)
     return run_forwarder(std::vector<std::string>(argv + 2, argv + argc));
-  const int samples = argc > 1 ? std::atoi(argv[1]) : 2000;
+  using mrroc::bench::whole_number;
+  if (mrroc::bench::help_requested(
+          argc, argv,
+          "Usage (inside scripts/netns-run): bench_chain [SAMPLES [B1_STEPS B1_VALUE B4_STEPS "
+          "B4_VALUE]]\n"
+          "B1: paced macro-step round trip MP->ECP->EDP(MuJoCo)->ECP->MP against a bare LCM\n"
+          "two-process round trip; B4: unpaced macro-steps/s against a bare LCM chain.\n"
+          "SAMPLES (default 2000) paced macro-steps; B1_STEPS/B1_VALUE (default 1 2) and\n"
+          "B4_STEPS/B4_VALUE (default 2 1): motion_steps and value_in_step_no of each series.\n"
+          "Prints RESULT B1/B4 and NOTE lines (scripts/bench turns them into docs/benchmarks.md).\n"))
+    return 0;
+  if (argc != 1 && argc != 2 && argc != 6) {
+    std::fprintf(stderr, "bench_chain: expected 0, 1 or 5 arguments, got %d (see --help)\n",
+                 argc - 1);
+    return 2;
+  }
+  const int samples =
+      argc > 1 ? static_cast<int>(whole_number("bench_chain", "SAMPLES", argv[1], 10, 1000000,
+                                               "macro-steps"))
+               : 2000;
   StepShape shape;
   if (argc > 5) {
-    shape.paced_steps = std::atoi(argv[2]);
-    shape.paced_value = std::atoi(argv[3]);
-    shape.unpaced_steps = std::atoi(argv[4]);
-    shape.unpaced_value = std::atoi(argv[5]);
+    shape.paced_steps = static_cast<int>(
+        whole_number("bench_chain", "B1_STEPS", argv[2], 1, 1000, "servo steps"));
+    shape.paced_value = static_cast<int>(whole_number("bench_chain", "B1_VALUE", argv[3], 1,
+                                                      shape.paced_steps + 1, "servo steps"));
+    shape.unpaced_steps = static_cast<int>(
+        whole_number("bench_chain", "B4_STEPS", argv[4], 1, 1000, "servo steps"));
+    shape.unpaced_value = static_cast<int>(whole_number("bench_chain", "B4_VALUE", argv[5], 1,
+                                                        shape.unpaced_steps + 1, "servo steps"));
   }
   const int chain_samples = 5000;
   try {
@@ -479,8 +504,10 @@ int main(int argc, char** argv) {
     Series bare_two;
     Series bare_chain;
     run_bare(self, dir, samples / 2, chain_samples / 2, bare_two, bare_chain);
-    const ChainFigures set = run_process_set(bin, dir, 2.0, samples, samples, shape);
-    const ChainFigures fast = run_process_set(bin, dir, 1.0, samples / 2, samples / 2, shape);
+    const ChainFigures set = run_process_set(bin, dir, 2.0, false, samples, samples, shape);
+    const ChainFigures fast = run_process_set(bin, dir, 1.0, false, samples / 2, samples / 2, shape);
+    // B4's own set-up: the simulation lock-step, as fast as possible.
+    const ChainFigures lock = run_process_set(bin, dir, 2.0, true, samples, samples, shape);
     run_bare(self, dir, samples - samples / 2, chain_samples - chain_samples / 2, bare_two,
              bare_chain);
     fs::remove_all(dir);
@@ -495,12 +522,15 @@ int main(int argc, char** argv) {
     const double bare_rate = static_cast<double>(bare_chain.us.size()) / bare_chain.seconds;
     const double set_rate = static_cast<double>(set.unpaced.us.size()) / set.unpaced.seconds;
     const double fast_rate = static_cast<double>(fast.unpaced.us.size()) / fast.unpaced.seconds;
+    const double lock_rate = static_cast<double>(lock.unpaced.us.size()) / lock.unpaced.seconds;
     std::printf("B1 macro-step round trip, %d samples each, paced at 200 Hz\n", samples);
     std::printf("  bare LCM two-process round trip: p50 %.1f us, p99 %.1f us (%d lost)\n", b50,
                 b99, bare_two.lost);
     std::printf("  MP->ECP->EDP->ECP->MP, servo 2 ms: p50 %.1f us, p99 %.1f us\n", v50, v99);
     std::printf("  MP->ECP->EDP->ECP->MP, servo 1 ms: p50 %.1f us, p99 %.1f us (%zu samples)\n",
                 f50, percentile(fast.paced.us, 0.99), fast.paced.us.size());
+    std::printf("  MP->ECP->EDP->ECP->MP, lock-step simulation: p50 %.1f us, p99 %.1f us\n",
+                percentile(lock.paced.us, 0.5), percentile(lock.paced.us, 0.99));
     std::printf("B4 unpaced\n");
     std::printf("  bare LCM 3-process chain: %.0f round trips/s, p50 %.1f us, p99 %.1f us (%d "
                 "lost)\n",
@@ -509,6 +539,8 @@ int main(int argc, char** argv) {
                 percentile(set.unpaced.us, 0.5), percentile(set.unpaced.us, 0.99));
     std::printf("  macro-steps, servo 1 ms: %.0f /s, p50 %.1f us, p99 %.1f us\n", fast_rate,
                 percentile(fast.unpaced.us, 0.5), percentile(fast.unpaced.us, 0.99));
+    std::printf("  macro-steps, lock-step simulation: %.0f /s, p50 %.1f us, p99 %.1f us\n",
+                lock_rate, percentile(lock.unpaced.us, 0.5), percentile(lock.unpaced.us, 0.99));
     std::printf("  CPU per bare chain round trip: driver %.1f us, relay %.1f us, echo %.1f us\n",
                 bare_chain.cpu_us_per_sample("driver"), bare_chain.cpu_us_per_sample("relay"),
                 bare_chain.cpu_us_per_sample("echo"));
@@ -532,33 +564,43 @@ int main(int argc, char** argv) {
                 "average (%.0f us at 2 ms), against a bare round trip of %.0f us. p50 minus that "
                 "wait: %.0f us (2 ms servo) and %.0f us (1 ms servo, same run: p50 %.0f us, p99 "
                 "%.0f us), i.e. %.1f and %.1f x the bare round trip; fastest 1 %% at 2 ms: %.0f "
-                "us. Bare LCM: %d lost of %d; 64-byte raw messages on %s, the process set's URL.\n",
+                "us. With the simulation lock-step (no servo clock to wait for; [robot.edp] "
+                "lock_step = true) the same round trip is p50 %.0f us, p99 %.0f us, i.e. %.1f / "
+                "%.1f x the bare round trip. Bare LCM: %d lost of %d; 64-byte raw messages on %s, "
+                "the process set's URL.\n",
                 shape.paced_steps, shape.paced_value, wait2 / 2000.0, wait2, b50, v50 - wait2,
                 f50 - wait1, f50, percentile(fast.paced.us, 0.99), (v50 - wait2) / b50,
-                (f50 - wait1) / b50, percentile(set.paced.us, 0.01), bare_two.lost, samples, kUrl);
+                (f50 - wait1) / b50, percentile(set.paced.us, 0.01), percentile(lock.paced.us, 0.5),
+                percentile(lock.paced.us, 0.99), percentile(lock.paced.us, 0.5) / b50,
+                percentile(lock.paced.us, 0.99) / b99, bare_two.lost, samples, kUrl);
     std::printf("RESULT B1 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
                 "samples=%d unit=us\n",
                 b50, b99, v50, v99, samples);
-    std::printf("NOTE B4 interpreted as macro-steps/s of MP->ECP->EDP(MuJoCo) when the MP sends "
-                "NEXT_POSE back to back (a continuous motion, motion_steps = %d, "
-                "value_in_step_no = %d) against round trips/s of a bare LCM chain driver->relay->echo->"
-                "relay->driver sent back to back (%d samples, p50 %.0f us, p99 %.0f us). The EDP "
-                "runs its simulation in real time, one MuJoCo step per servo period, so a "
-                "macro-step of %d servo steps cannot take less than %d servo periods: at most %.0f /s with "
-                "a 2 ms servo (measured %.0f /s), %.0f /s with 1 ms (measured %.0f /s). There is no "
-                "lock-step (free-running) simulation mode yet. CPU time per macro-step: MP %.0f "
-                "us, ECP %.0f us, EDP %.0f us beyond its idle servo loop (%.1f us per ms); per bare "
-                "chain round trip: driver %.0f us, relay %.0f us, echo %.0f us.\n",
+    std::printf("NOTE B4 macro-steps/s of MP->ECP->EDP(MuJoCo, lock-step: [robot.edp] lock_step = "
+                "true, servo cycles back to back while there is motion, simulated time standing "
+                "still while the EDP waits for a promised successor) when the MP sends NEXT_POSE "
+                "back to back (a continuous motion, motion_steps = %d, value_in_step_no = %d) "
+                "against round trips/s of a bare LCM chain driver->relay->echo->relay->driver "
+                "sent back to back (%d samples, p50 %.0f us, p99 %.0f us). Before lock-step "
+                "existed the EDP ran its simulation in real time only, one MuJoCo step per servo "
+                "period, so a macro-step of %d servo steps could not take less than %d servo "
+                "periods; the same run measures that too: at most %.0f /s with a 2 ms servo "
+                "(measured %.0f /s), %.0f /s with 1 ms (measured %.0f /s). CPU time per "
+                "macro-step (real time, 2 ms): MP %.0f us, ECP %.0f us, EDP %.0f us beyond its "
+                "idle servo loop (%.1f us per ms); lock-step: MP %.0f us, ECP %.0f us, EDP %.0f "
+                "us; per bare chain round trip: driver %.0f us, relay %.0f us, echo %.0f us.\n",
                 shape.unpaced_steps, shape.unpaced_value, chain_samples, chain50, chain99,
                 shape.unpaced_steps, shape.unpaced_steps, 500.0 / shape.unpaced_steps, set_rate,
                 1000.0 / shape.unpaced_steps, fast_rate, set.unpaced.cpu_us_per_sample("mp"),
                 set.unpaced.cpu_us_per_sample("ecp"), set.unpaced.cpu_us_per_sample("edp"),
-                set.edp_idle_cpu_us_per_ms, bare_chain.cpu_us_per_sample("driver"),
-                bare_chain.cpu_us_per_sample("relay"), bare_chain.cpu_us_per_sample("echo"));
+                set.edp_idle_cpu_us_per_ms, lock.unpaced.cpu_us_per_sample("mp"),
+                lock.unpaced.cpu_us_per_sample("ecp"), lock.unpaced.cpu_us_per_sample("edp"),
+                bare_chain.cpu_us_per_sample("driver"), bare_chain.cpu_us_per_sample("relay"),
+                bare_chain.cpu_us_per_sample("echo"));
     std::printf("RESULT B4 baseline_rate=%.1f value_rate=%.1f baseline_p50=%.2f "
                 "baseline_p99=%.2f value_p50=%.2f value_p99=%.2f samples=%d unit=/s\n",
-                bare_rate, set_rate, chain50, chain99, percentile(set.unpaced.us, 0.5),
-                percentile(set.unpaced.us, 0.99), samples);
+                bare_rate, lock_rate, chain50, chain99, percentile(lock.unpaced.us, 0.5),
+                percentile(lock.unpaced.us, 0.99), samples);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_chain: %s\n", e.what());

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
@@ -89,8 +90,19 @@ double elapsed_us(Clock::time_point t0, Clock::time_point t1) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int poses = argc > 1 ? std::atoi(argv[1]) : 20000;
-  const unsigned rng_seed = argc > 2 ? static_cast<unsigned>(std::atoi(argv[2])) : 1U;
+  if (mrroc::bench::help_requested(
+          argc, argv,
+          "Usage: bench_ik [POSES [SEED]]\n"
+          "B3: IRb-6 analytic inverse kinematics against KDL LMA on POSES (default 20000) random\n"
+          "reachable poses drawn with SEED (default 1). Prints RESULT B3 and NOTE lines.\n"))
+    return 0;
+  const int poses = argc > 1 ? static_cast<int>(mrroc::bench::whole_number(
+                                   "bench_ik", "POSES", argv[1], 1, 100000000, "poses"))
+                             : 20000;
+  const unsigned rng_seed =
+      argc > 2 ? static_cast<unsigned>(mrroc::bench::whole_number("bench_ik", "SEED", argv[2], 0,
+                                                                  4294967295L, "(seed)"))
+               : 1U;
   const mrroc::kinematics::KdlSolver kdl(std::string(MRROC_SOURCE_DIR) + "/robots/irb6/irb6.urdf",
                                          "base_link", "flange");
   std::mt19937 rng(rng_seed);

@@ -36,6 +36,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "command_interpreter.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
@@ -164,7 +165,17 @@ Instruction set_joints(const std::vector<double>& q, int steps, int value_in_ste
 }  // namespace
 
 int main(int argc, char** argv) {
-  const double seconds = argc > 1 ? std::atof(argv[1]) : 30.0;
+  if (mrroc::bench::help_requested(
+          argc, argv,
+          "Usage: bench_servo [SECONDS]\n"
+          "B2: the EDP servo loop's wake-up lateness against a bare clock_nanosleep loop running\n"
+          "beside it for SECONDS (default 30); B7: heap allocations on the servo thread.\n"
+          "Prints RESULT B2/B7 and NOTE lines.\n"))
+    return 0;
+  const double seconds =
+      argc > 1 ? static_cast<double>(mrroc::bench::whole_number("bench_servo", "SECONDS", argv[1],
+                                                                1, 86400, "s"))
+               : 30.0;
   // The counter must see an allocation made on the watched thread.
   g_watched = std::this_thread::get_id();
   {

@@ -29,6 +29,9 @@ namespace {
 constexpr std::chrono::seconds kTimingReportPeriod{10};
 /// How often the EDP broadcasts its robot_state_t.
 constexpr std::chrono::milliseconds kStatePeriod{20};
+/// Longest a stop request waits for a moving robot to reach a standstill (below the launcher's
+/// default 3 s grace period).
+constexpr std::chrono::milliseconds kShutdownRampLimit{2000};
 /// Overruns are reported at once, then at most this often.
 constexpr std::chrono::seconds kOverrunReportPeriod{1};
 
@@ -193,7 +196,36 @@ int run(const std::string& config_path, const std::string& robot_name) {
     auto overrun_quiet_until = std::chrono::steady_clock::now();
     std::int64_t overruns_unreported = 0;
     double worst_unreported_us = 0;
-    while (!stop_requested()) {
+    // Shutdown never stops a moving robot dead: on SIGINT/SIGTERM a robot in motion is first
+    // brought to a standstill within its acceleration limits (the emergency-stop ramp), for at
+    // most kShutdownRampLimit, while its state still goes out; then the servo loop stops.
+    bool ramping = false;
+    std::chrono::steady_clock::time_point ramp_start;
+    std::int64_t ramp_first_step = 0;
+    for (;;) {
+      if (stop_requested()) {
+        const auto t = std::chrono::steady_clock::now();
+        if (!ramping) {
+          if (!servo.synchronised() || servo.faulted() || servo.stopped()) break;
+          ramping = true;
+          ramp_start = t;
+          ramp_first_step = servo.latest().cycle;
+          servo.emergency_stop();
+        } else if (servo.stopped() || t - ramp_start > kShutdownRampLimit) {
+          const std::int64_t steps = servo.latest().cycle - ramp_first_step;
+          const long ms = std::lround(std::chrono::duration<double, std::milli>(t - ramp_start).count());
+          if (servo.stopped())
+            reporter.info(fmt::format("stopping: the robot was moving; brought to a standstill "
+                                      "within its acceleration limits in {} servo steps ({} ms)",
+                                      steps, ms));
+          else
+            reporter.warning(fmt::format("stopping: the robot was still moving after {} ms of "
+                                         "ramping down; the servo loop stops holding its last "
+                                         "setpoint",
+                                         ms));
+          break;
+        }
+      }
       next_state += kStatePeriod;
       std::this_thread::sleep_until(next_state);
       const auto now = std::chrono::steady_clock::now();

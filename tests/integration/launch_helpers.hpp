@@ -20,6 +20,7 @@ using Clock = std::chrono::steady_clock;
 struct LaunchRun {
   int exit_code = -1;
   std::string output;
+  Clock::time_point killed_at{};  ///< when the victim was sent its signal (if it was)
 };
 
 /// Launches `config`; when `victim` is not empty, waits until `trigger` appears in the output,
@@ -66,6 +67,7 @@ inline LaunchRun launch_and_kill(const std::string& config, const std::string& v
   }
   if (triggered) {
     std::this_thread::sleep_for(delay);
+    run.killed_at = Clock::now();
     kill(victim_pid, signal);
   }
   int status = 0;

@@ -1,21 +1,31 @@
 // Fault injection by kill -9 in the middle of a motion, with the documented reactions
 // (docs/hil.md, "Processes that die"). The process set is configs/demo-irb6-can.toml: the EDP
 // drives emulated CiA 402 drives, so the drives' own reactions can be seen too.
+//   EDP terminated  -> (SIGTERM) the EDP first ramps the arm down within its acceleration limits,
+//                      then exits; the task fails or the launcher stops the set (exit 1 or 4).
 //   EDP killed      -> every drive misses its SYNCs and faults (EMCY 0x8130) within 50 ms: the
 //                      brakes hold the arm; the launcher stops the set, exit 4.
 //   emulator killed -> the EDP finds its drives silent within 10 cycles (20 ms) and holds; the
 //                      task fails or the launcher stops the set (exit 1 or 4).
-//   ECP killed      -> the EDP gets no next macro-step and ramps the arm down to standstill;
-//                      the launcher stops the set, exit 4.
+//   ECP killed      -> the EDP gets no next macro-step and ramps the arm down to standstill
+//                      within its acceleration limits (SRP: "no next macro-step from the ECP
+//                      in time"); the launcher stops the set, exit 4. Measured from the EDP's
+//                      robot_state_t: standstill within the bound below.
 //   MP killed       -> the task has failed: launcher exit 1; every other process stops cleanly.
 // In every case no process is left behind and nothing else crashes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <regex>
 #include <string>
 
 #include "launch_helpers.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "state_watch.hpp"
 
 namespace {
 
@@ -38,6 +48,23 @@ TEST(Kill, EdpKilledMidMotionDrivesBrakeThemselves) {
   expect_nothing_left();
 }
 
+TEST(Kill, EdpTerminatedMidMotionRampsDownBeforeItExits) {
+  // SIGTERM, not SIGKILL: the EDP's own shutdown never stops a moving arm dead.
+  const LaunchRun r = launch_and_kill(demo(), "edp/irb6", "pose 1/3 reached",
+                                      std::chrono::milliseconds(300), SIGTERM);
+  // Either the launcher sees the required EDP end (exit 4) or the task fails first, its ECP
+  // having lost the EDP (exit 1).
+  EXPECT_TRUE(r.exit_code == 1 || r.exit_code == 4) << r.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m,
+                                std::regex("edp/irb6: info: stopping: the robot was moving; "
+                                           "brought to a standstill within its acceleration "
+                                           "limits in ([0-9]+) servo steps")))
+      << r.output;
+  std::printf("EDP terminated mid-motion: standstill after %s servo steps\n", m[1].str().c_str());
+  expect_nothing_left();
+}
+
 TEST(Kill, EmulatorKilledMidMotionTheEdpHolds) {
   const LaunchRun r = launch_and_kill(demo(), "emu", "pose 1/3 reached", std::chrono::milliseconds(300));
   EXPECT_TRUE(r.exit_code == 1 || r.exit_code == 4) << r.output;
@@ -48,9 +75,54 @@ TEST(Kill, EmulatorKilledMidMotionTheEdpHolds) {
 }
 
 TEST(Kill, EcpKilledMidMotionTheEdpRampsDown) {
+  const mrroc::ProcessSetConfig config = mrroc::load_process_set(demo());
+  const mrroc::RobotModel model = mrroc::load_robot_model(config.robots[0].model_dir);
+  mrroc::comm::Bus bus(config.lcm_url);
+  StateWatch states(bus, "irb6");
+  bus.start();
   const LaunchRun r = launch_and_kill(demo(), "ecp/irb6", "pose 1/3 reached", std::chrono::milliseconds(300));
+  bus.stop();
   EXPECT_EQ(r.exit_code, 4) << r.output;
   EXPECT_TRUE(has(r.output, "ecp/irb6 ended while the task was running (code 137)")) << r.output;
+  // The EDP noticed the missing macro-step and said so.
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6.*no next macro-step from the ECP "
+                                                     "in time.*brought to a standstill")))
+      << r.output;
+  // Stated bound, in servo steps from the kill: the rest of the running macro-step
+  // (motion_steps), the ramp from the fastest joint's velocity limit at its acceleration limit,
+  // and two state periods (the broadcast every 20 ms).
+  const double period = config.robots[0].edp.servo_period_s;
+  double ramp_s = 0;
+  for (std::size_t j = 0; j < model.axes(); ++j)
+    ramp_s = std::max(ramp_s, model.max_velocity[j] / model.max_acceleration[j]);
+  const auto motion_steps = static_cast<double>(config.robots[0].ecp.args.get_int("motion_steps"));
+  const auto bound = static_cast<std::int64_t>(motion_steps + std::ceil(ramp_s / period) +
+                                               2 * 0.020 / period);
+  const auto history = states.history();
+  ASSERT_NE(r.killed_at, Clock::time_point{}) << r.output;
+  std::int64_t killed_step = -1;
+  std::int64_t still_step = -1;
+  double speed_at_kill = 0;
+  for (std::size_t i = 1; i < history.size(); ++i) {
+    const auto& s = history[i];
+    if (s.at < r.killed_at || !s.synchronised) continue;
+    if (killed_step < 0) {
+      killed_step = s.servo_step;
+      speed_at_kill = s.max_speed;
+    }
+    // Standstill: the EDP says it is not moving and commands the same position as before.
+    if (!s.moving && s.q_desired == history[i - 1].q_desired) {
+      still_step = s.servo_step;
+      break;
+    }
+  }
+  ASSERT_GE(killed_step, 0) << "no robot state after the kill";
+  EXPECT_GT(speed_at_kill, 0.05) << "the arm was not moving when the ECP was killed";
+  ASSERT_GE(still_step, 0) << "the arm never came to a standstill\n" << r.output;
+  std::printf("ECP killed at %.2f rad/s: standstill %lld servo steps later (bound %lld)\n",
+              speed_at_kill, static_cast<long long>(still_step - killed_step),
+              static_cast<long long>(bound));
+  EXPECT_LE(still_step - killed_step, bound);
   expect_nothing_left();
 }
 

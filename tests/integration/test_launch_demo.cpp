@@ -220,6 +220,14 @@ TEST(LaunchDemo, SigintMidMotionStopsEverythingInReverseOrder) {
     EXPECT_LT(mp, ecp);
   }
   EXPECT_EQ(r.output.find("killed"), std::string::npos) << "a process needed SIGKILL:\n" << r.output;
+  // The arm was moving: the EDP brought it to a standstill within its acceleration limits (for
+  // want of a next macro-step once the ECP stopped, or on its own stop request) before it exited.
+  const auto standstill = r.output.find("edp/irb6: ", r.output.find("stopping mp"));
+  ASSERT_NE(standstill, std::string::npos) << r.output;
+  const auto ramp = r.output.find("brought to a standstill", standstill);
+  const auto edp_exit = r.output.find("edp/irb6 exited with code 0");
+  EXPECT_NE(ramp, std::string::npos) << r.output;
+  EXPECT_LT(ramp, edp_exit) << r.output;
   EXPECT_TRUE(mrroc_processes().empty()) << "left behind: " << mrroc_processes().front();
 }
 

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "launch_helpers.hpp"
+#include "state_watch.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -49,76 +50,6 @@ std::string write_config(const std::string& name, const std::string& mp, const s
                       << "[robot.ecp]\ntask = \"visit_joint_poses\"\n[robot.ecp.args]\nposes = "
                       << poses << "\nvelocity_scale = 0.5\nacceleration_scale = 0.5\n";
   return file.string();
-}
-
-/// The robot states the EDP broadcasts, as the console sees them.
-class StateWatch {
- public:
-  explicit StateWatch(comm::Bus& bus) : bus_(bus) {
-    sub_ = bus_.lcm().subscribeFunction<StateWatch*>(channels::robot_state("irb6"),
-                                                      &StateWatch::on_state, this);
-  }
-  ~StateWatch() { bus_.lcm().unsubscribe(sub_); }
-  StateWatch(const StateWatch&) = delete;
-  StateWatch& operator=(const StateWatch&) = delete;
-
-  mrroc_lcm::robot_state_t last() const {
-    std::lock_guard lock(mutex_);
-    return last_;
-  }
-  int count() const {
-    std::lock_guard lock(mutex_);
-    return count_;
-  }
-  /// Per joint, the fastest commanded motion between two consecutive states [rad/s].
-  std::vector<double> max_desired_rate() const {
-    std::lock_guard lock(mutex_);
-    return max_rate_;
-  }
-  /// Waits until `pred(state)` holds for a state received after the call; returns it.
-  template <class Pred>
-  std::optional<mrroc_lcm::robot_state_t> wait_for(Pred pred, std::chrono::milliseconds timeout) {
-    const int from = count();
-    const auto until = Clock::now() + timeout;
-    while (Clock::now() < until) {
-      {
-        std::lock_guard lock(mutex_);
-        if (count_ > from && pred(last_)) return last_;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    return std::nullopt;
-  }
-
- private:
-  static void on_state(const lcm::ReceiveBuffer* buffer, const std::string&, StateWatch* self) {
-    mrroc_lcm::robot_state_t s;
-    if (!comm::detail::decode_received(buffer, s)) return;
-    std::lock_guard lock(self->mutex_);
-    if (self->count_ > 0 && s.servo_step > self->last_.servo_step && s.synchronised &&
-        self->last_.synchronised && s.q_desired.size() == self->last_.q_desired.size()) {
-      const double dt =
-          static_cast<double>(s.servo_step - self->last_.servo_step) * s.servo_period_s;
-      self->max_rate_.resize(s.q_desired.size(), 0.0);
-      for (std::size_t i = 0; i < s.q_desired.size(); ++i)
-        self->max_rate_[i] = std::max(self->max_rate_[i],
-                                      std::abs(s.q_desired[i] - self->last_.q_desired[i]) / dt);
-    }
-    self->last_ = s;
-    ++self->count_;
-  }
-  comm::Bus& bus_;
-  lcm::Subscription* sub_ = nullptr;
-  mutable std::mutex mutex_;
-  mrroc_lcm::robot_state_t last_{};
-  int count_ = 0;
-  std::vector<double> max_rate_;
-};
-
-double max_speed(const mrroc_lcm::robot_state_t& s) {
-  double v = 0;
-  for (double d : s.dq) v = std::max(v, std::abs(d));
-  return v;
 }
 
 /// mrroc-launch running in the background.

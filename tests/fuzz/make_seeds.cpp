@@ -7,8 +7,13 @@
 // the decoders after a message type changes.
 //
 //   fuzz_make_seeds <source dir>     (scripts/fuzz --seeds runs it)
+#include <linux/can.h>
+#include <linux/can/error.h>
+
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
+#include <initializer_list>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -18,6 +23,7 @@
 #include <fmt/format.h>
 
 #include "fuzz_auth_key.hpp"
+#include "mrroc/can/canopen.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -838,6 +844,75 @@ void text_seeds(const fs::path& source) {
   write("trajectory_file", "xyz_angle_axis", axis.to_text());
 }
 
+
+// --- CAN (fuzz_can.cpp): records of can_id (4, little endian), dlc, 8 data bytes, op -----------
+std::string can_record(const can_frame& f, std::uint8_t op) {
+  std::string r(14, '\0');
+  const std::uint32_t id = f.can_id;
+  std::memcpy(r.data(), &id, 4);
+  r[4] = static_cast<char>(f.can_dlc);
+  std::memcpy(r.data() + 5, f.data, 8);
+  r[13] = static_cast<char>(op);
+  return r;
+}
+can_frame raw_frame(std::uint32_t id, std::initializer_list<std::uint8_t> bytes) {
+  can_frame f{};
+  f.can_id = id;
+  f.can_dlc = static_cast<std::uint8_t>(bytes.size());
+  std::size_t i = 0;
+  for (const std::uint8_t b : bytes) f.data[i++] = b;
+  return f;
+}
+
+void can_seeds() {
+  namespace co = mrroc::can::canopen;
+  constexpr std::uint8_t kToDrive = 0x01;
+  constexpr std::uint8_t kCycle = 0x10;
+  constexpr std::uint8_t k2ms = 0x04;
+  // The master's bring-up of drive 1 as the drive sees it: NMT start, SDO writes (mode 8, the
+  // interpolation period), then shutdown -> switch on -> enable operation over RPDO1 with SYNCs.
+  std::string bring_up = can_record(raw_frame(0x000, {0x01, 0x01}), kToDrive);
+  bring_up += can_record(co::encode_request(1, {true, 0x6060, 0, 8, 1}), kToDrive);
+  bring_up += can_record(co::encode_request(1, {true, 0x60C2, 1, 2, 1}), kToDrive);
+  bring_up += can_record(co::encode_request(1, {false, 0x6041, 0, 0, 0}), kToDrive);
+  for (const std::uint16_t cw : {co::controlword::kShutdown, co::controlword::kSwitchOn,
+                                 co::controlword::kEnableOperation}) {
+    bring_up += can_record(co::encode(1, co::Rpdo1{cw, 0}), kToDrive);
+    bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
+  }
+  for (int k = 1; k <= 20; ++k) {
+    bring_up += can_record(co::encode(1, co::Rpdo1{co::controlword::kEnableOperation, 100 * k}),
+                           kToDrive);
+    bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
+  }
+  bring_up += can_record(co::encode(1, co::Rpdo1{co::controlword::kQuickStop, 0}), kToDrive);
+  bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
+  bring_up += can_record(co::encode(1, co::Rpdo1{co::controlword::kFaultReset, 0}), kToDrive);
+  write("can", "drive_bring_up", bring_up);
+
+  // What the master receives: boot-up and heartbeats, TPDOs of both drives, an EMCY, SDO
+  // responses (a value, a confirmed write, an abort), cycles in between.
+  std::string master = can_record(raw_frame(0x701, {0x00}), 0);
+  master += can_record(raw_frame(0x702, {0x05}), 0);
+  for (int k = 0; k < 10; ++k) {
+    master += can_record(co::encode(1, co::Tpdo1{0x0237, 1000 + k, co::kHomeSwitchBit}), 0);
+    master += can_record(co::encode(2, co::Tpdo1{0x0237, -500 - k, 0}), kCycle | k2ms);
+  }
+  master += can_record(co::encode_emcy(2, {co::emcy::kFollowingError, 0x81, {}}), kCycle);
+  master += can_record(co::encode_response(1, {0x6041, 0, false, 0, 0x0237, 2, false}), 0);
+  master += can_record(co::encode_response(1, {0x6060, 0, false, 0, 0, 0, true}), 0);
+  master += can_record(co::encode_response(2, {0x6060, 0, true, co::sdo_abort::kNoObject, 0, 0,
+                                                false}),
+                       kCycle);
+  master += can_record(co::encode(1, co::Tpdo1{0x0218, 1010, 0}), kCycle | k2ms);  // fault
+  write("can", "master_receives", master);
+
+  // An error frame (bus-off) and a remote frame.
+  write("can", "error_and_remote",
+        can_record(raw_frame(CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}), 0x80 | kCycle) +
+            can_record(raw_frame(0x181, {}), 0x40 | kCycle));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -876,6 +951,7 @@ int main(int argc, char** argv) {
             record(0, 0, request(instructions()[2], "ecp/irb6#1", 2)) + record(0, 4, "") +
             record(3, 0, reply(ecp_replies()[0], 1)) + record(3, 4, ""));
   g_link_flags = 0;
+  can_seeds();
   regression_inputs();
   text_seeds(source);
   std::printf("seeds written to %s, message regressions to %s\n", g_corpus.string().c_str(),

@@ -429,6 +429,9 @@ struct Console::Impl {
             reply_json(res, json{{"error", e.what()}}, e.status);
           } catch (const TimeoutError& e) {
             reply_json(res, json{{"error", e.what()}}, 504);
+          } catch (const json::exception& e) {
+            // A field of the request body has the wrong type (e.g. "robot": 5).
+            reply_json(res, json{{"error", fmt::format("request body: {}", e.what())}}, 400);
           } catch (const std::exception& e) {
             reply_json(res, json{{"error", e.what()}}, 500);
           } catch (...) {
@@ -458,7 +461,32 @@ struct Console::Impl {
                   command(req.matches[1], res);
                 });
     server.Post("/api/estop", [this](const httplib::Request& req, httplib::Response& res) {
-      emergency_stop(true, parse_body(req), res);
+      // Stopping is always safe: a request whose body cannot be understood (not JSON, a field
+      // of the wrong type, an unknown robot) stops every robot instead of none.
+      json body;
+      std::string doubt;
+      try {
+        body = parse_body(req);
+        if (body.contains("robot") && !body["robot"].is_string())
+          throw ApiError(400, "'robot' is not a string");
+        if (body.contains("reason") && !body["reason"].is_string())
+          throw ApiError(400, "'reason' is not a string");
+        if (const std::string robot = body.value("robot", std::string()); !robot.empty()) {
+          std::lock_guard lock(shared.mutex);
+          (void)robot_view(robot);
+        }
+      } catch (const ApiError& e) {
+        doubt = e.what();
+        body = json{{"reason", fmt::format("operator console (request not understood: {}; every "
+                                           "robot is stopped)",
+                                           doubt)}};
+      }
+      emergency_stop(true, body, res);
+      if (!doubt.empty()) {
+        json out = json::parse(res.body);
+        out["error"] = fmt::format("request not understood ({}): every robot was stopped", doubt);
+        reply_json(res, out, 400);
+      }
     });
     server.Post("/api/release", [this](const httplib::Request& req, httplib::Response& res) {
       emergency_stop(false, parse_body(req), res);
@@ -692,6 +720,8 @@ struct Console::Impl {
       throw ApiError(400, "jog needs a number 'step_rad' [rad]");
     const std::int64_t axis = body["axis"].get<std::int64_t>();
     const double step = body["step_rad"].get<double>();
+    if (body.contains("direction") && !body["direction"].is_number_integer())
+      throw ApiError(400, "jog 'direction' must be +1 or -1");
     const int direction = body.value("direction", 1);
     if (direction != 1 && direction != -1)
       throw ApiError(400, fmt::format("jog direction {} is neither +1 nor -1", direction));

@@ -58,6 +58,67 @@ def api(path, body=None):
         return json.load(e)
 
 
+def api_raw(path, data, content_type="application/json"):
+    """POSTs raw bytes; returns (HTTP status, parsed JSON answer or None)."""
+    request = urllib.request.Request(URL + path, data=data, method="POST")
+    request.add_header("X-Mrroc-Request", "1")
+    request.add_header("Content-Type", content_type)
+    try:
+        with urllib.request.urlopen(request, timeout=5) as response:
+            status, text = response.status, response.read()
+    except urllib.error.HTTPError as e:
+        status, text = e.code, e.read()
+    try:
+        return status, json.loads(text)
+    except ValueError:
+        return status, None
+
+
+def check_hostile_requests():
+    """Malformed and out-of-range request bodies get a 4xx with a clear text; nothing moves."""
+    before = api("/api/state")["robots"][0]["state"]
+    cases = [
+        ("/api/jog", b"{", 400, "not a JSON object"),
+        ("/api/jog", b"[1, 2]", 400, "not a JSON object"),
+        ("/api/jog", b"\xff\xfe\x00garbage", 400, "not a JSON object"),
+        ("/api/jog", b'{"robot": 5, "axis": 0, "step_rad": 0.01}', 400, "request body"),
+        ("/api/jog", b'{"robot": "irb6", "axis": "0", "step_rad": 0.01}', 400, "integer 'axis'"),
+        ("/api/jog", b'{"robot": "irb6", "axis": 99, "step_rad": 0.01}', 400, "axis 99 is out of range"),
+        ("/api/jog", b'{"robot": "irb6", "axis": -1, "step_rad": 0.01}', 400, "out of range"),
+        ("/api/jog", b'{"robot": "irb6", "axis": 0, "step_rad": 1e308}', 400, "rad is outside"),
+        ("/api/jog", b'{"robot": "irb6", "axis": 0, "step_rad": -0.01}', 400, "rad is outside"),
+        ("/api/jog", b'{"robot": "irb6", "axis": 0, "step_rad": 0.01, "direction": 2}', 400,
+         "neither +1 nor -1"),
+        ("/api/jog", b'{"robot": "irb6", "axis": 0, "step_rad": 0.01, "direction": 1.5}', 400,
+         "must be +1 or -1"),
+        ("/api/jog", b'{"robot": "nope", "axis": 0, "step_rad": 0.01}', 404, "no robot 'nope'"),
+        ("/api/teach", b'{"robot": "irb6", "file": "../escape.traj"}', 400, "not a plain file name"),
+        ("/api/teach", b'{"robot": "irb6", "file": 7}', 400, "request body"),
+        ("/api/release", b"not json", 400, "not a JSON object"),
+        ("/api/command/launch", b"{}", 404, ""),
+    ]
+    for path, data, status, words in cases:
+        got, answer = api_raw(path, data)
+        text = (answer or {}).get("error", "")
+        check(got == status and words in text,
+              f"POST {path} {data[:60]!r}: HTTP {got} (expected {status}) '{text}'")
+    after = api("/api/state")
+    moved = max(abs(a - b) for a, b in zip(after["robots"][0]["state"]["q"], before["q"]))
+    check(moved < 1e-4 and after["mp"]["state"] == "IDLE",
+          f"after the hostile requests nothing moved ({moved:.1e} rad) and the MP is still IDLE")
+
+
+def check_hostile_estop():
+    """An emergency stop whose body cannot be understood still stops every robot."""
+    for data in [b"{", b'{"robot": 5}', b'{"robot": "nope"}']:
+        got, answer = api_raw("/api/estop", data)
+        answer = answer or {}
+        check(got == 400 and answer.get("ok") is True and "every robot" in answer.get("error", ""),
+              f"POST /api/estop {data!r}: HTTP {got}, stops every robot: {answer.get('error')}")
+    state = api("/api/state")["robots"][0]["state"]
+    check(state["estop"], "the emergency stop is still engaged")
+
+
 def wait_for(what, predicate, timeout_s, period_s=0.05):
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -248,6 +309,7 @@ def main():
         check("ready: plugin" in driver.find_element(By.ID, "log").text,
               "the log shows the EDP's start message from the SRP's history")
         screenshot(driver, "idle")
+        check_hostile_requests()
         # The command line: STATUS answers, RESUME while IDLE is refused (exit 1).
         cli = [os.path.join(args.bin_dir, "mrroc-ui")]
         out = subprocess.run(cli + ["status", "--config", config], capture_output=True, text=True)
@@ -340,6 +402,7 @@ def main():
                   flush=True)
             check(0 < steps <= bound, f"standstill within {steps} servo steps <= bound {bound}")
         screenshot(driver, "emergency-stop")
+        check_hostile_estop()
 
         click(driver, "release")
         wait_for("the estop flag cleared", lambda: "on" not in driver.find_element(
@@ -431,8 +494,8 @@ def main():
                   f"without a launcher the table lists {rows} ({source})")
             check(api("/api/state")["launch"] is None, "no launcher table in /api/state")
             wait_for("NO MP shown", lambda: mp_state(driver) == "NO MP", 5)
-            check("no MP answers" in driver.find_element(By.ID, "mp-text").text,
-                  "the page says that no MP answers")
+            wait_for("the page says that no MP answers",
+                     lambda: "no MP answers" in driver.find_element(By.ID, "mp-text").text, 5)
             screenshot(driver, "no-launcher")
         finally:
             for p in reversed(by_hand):

@@ -17,6 +17,10 @@ using canopen::DriveState;
 namespace od = canopen::od;
 
 namespace {
+/// Cycles after a quick stop is released during which a drive may still report quick stop
+/// active (its TPDOs sent before it processed the re-enabling RPDO).
+constexpr std::uint64_t kQuickStopReleaseCycles = 5;
+
 std::string hex(std::uint32_t value, int digits) {
   char buffer[16];
   std::snprintf(buffer, sizeof buffer, "0x%0*X", digits, value);
@@ -93,7 +97,8 @@ void Cia402Master::handle(const Received& r) noexcept {
                         s.statusword, s.last_emcy, static_cast<int>(what.size()), what.data());
           set_fault(i, text);
         } else if (s.state != DriveState::operation_enabled &&
-                   !(quick_stopping_ && s.state == DriveState::quick_stop_active)) {
+                   !((quick_stopping_ || cycle_ < quick_stop_grace_until_) &&
+                     s.state == DriveState::quick_stop_active)) {
           const std::string_view state = canopen::to_string(s.state);
           std::snprintf(text, sizeof text, "left operation enabled by itself: %.*s",
                         static_cast<int>(state.size()), state.data());
@@ -149,8 +154,10 @@ void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::in
 void Cia402Master::send(std::span<const double> targets, bool quick_stop) noexcept {
   const bool stop = quick_stop || faulted_;
   if (quick_stopping_ && !stop) {
-    // Leaving quick stop: re-enable at the actual positions.
+    // Leaving quick stop: re-enable at the actual positions. TPDOs already on their way (one
+    // cycle old, more on a slow bus or emulator) still say quick stop active for a few cycles.
     quick_stopping_ = false;
+    quick_stop_grace_until_ = cycle_ + kQuickStopReleaseCycles;
     for (std::size_t i = 0; i < axes_.size(); ++i) held_[i] = counts(i, status_[i].position);
     cycle_once(canopen::controlword::kEnableOperation, held_);
     return;

@@ -362,6 +362,38 @@ TEST(Cia402Master, QuickStopDeceleratesAndReleaseReenablesWhereTheAxisStands) {
   EXPECT_NEAR(master.status(0).position, stopped, 1e-4);
 }
 
+TEST(Cia402Master, StaleQuickStopTpdosAfterReleaseAreNoFaultButALaterOneIs) {
+  MemoryHub hub;
+  DriveRack rack(hub, 1);
+  Cia402Master master(hub.add(), axes(1), MasterOptions{});
+  Bus& late = hub.add();  // delivers TPDOs that were on their way (a slow bus or emulator)
+  master.bring_up(2000ms);
+  run_cycles(master, 10, [](int) { return std::vector<double>{0.0}; });
+  run_cycles(master, 20, [](int) { return std::vector<double>{0.0}; }, true);
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  const co::Tpdo1 stale{static_cast<std::uint16_t>(
+                            co::state_bits(co::DriveState::quick_stop_active) |
+                            co::statusword::kVoltageEnabled),
+                        0, 0};
+  // Release, then a TPDO the drive sent before it saw the re-enable: no fault.
+  master.send(std::vector<double>{master.status(0).position}, false);
+  (void)late.send(co::encode(1, stale));
+  std::this_thread::sleep_for(2ms);
+  master.receive();
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  run_cycles(master, 20, [&](int) { return std::vector<double>{master.status(0).position}; });
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_EQ(master.status(0).state, co::DriveState::operation_enabled);
+  // Long after the release a drive in quick stop has left operation enabled by itself.
+  (void)late.send(co::encode(1, stale));
+  std::this_thread::sleep_for(2ms);
+  master.receive();
+  ASSERT_TRUE(master.faulted());
+  EXPECT_NE(std::string(master.fault_text()).find("left operation enabled by itself: quick stop"),
+            std::string::npos)
+      << master.fault_text();
+}
+
 TEST(Cia402Drive, SyncWatchdogFaultsWhenTheMasterIsGone) {
   MemoryHub hub;
   DriveRack rack(hub, 1);

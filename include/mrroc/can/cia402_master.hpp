@@ -107,6 +107,9 @@ class Cia402Master {
   std::uint64_t cycle_ = 0;
   bool faulted_ = false;
   bool quick_stopping_ = false;
+  /// After a quick stop is released: TPDOs sent before the drives saw the re-enable still report
+  /// quick stop active; they are accepted until this cycle (excluded).
+  std::uint64_t quick_stop_grace_until_ = 0;
   bool enabled_ = false;  ///< bring-up done: drives are expected in operation enabled
   char fault_[256] = {};
 };

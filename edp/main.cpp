@@ -211,10 +211,10 @@ int run(const std::string& config_path, const std::string& robot_name) {
           ramp_start = t;
           ramp_first_step = servo.latest().cycle;
           servo.emergency_stop();
-        } else if (servo.stopped() || t - ramp_start > kShutdownRampLimit) {
+        } else if (const bool still = servo.stopped(); still || t - ramp_start > kShutdownRampLimit) {
           const std::int64_t steps = servo.latest().cycle - ramp_first_step;
           const long ms = std::lround(std::chrono::duration<double, std::milli>(t - ramp_start).count());
-          if (servo.stopped())
+          if (still)
             reporter.info(fmt::format("stopping: the robot was moving; brought to a standstill "
                                       "within its acceleration limits in {} servo steps ({} ms)",
                                       steps, ms));

@@ -138,7 +138,7 @@ TEST_F(Hil, SilentNodeIsDetected) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_TRUE(std::regex_search(
       r.output, std::regex("\\[srp\\].*edp/irb6 .*drive node 4 \\(axis 'wrist_pitch'\\) on "
-                           "virtual:irb6: silent: no TPDO for 10 cycles \\(20 ms\\)")))
+                           "virtual:irb6: silent: no TPDO for 25 cycles \\(50 ms\\)")))
       << r.output;
   EXPECT_TRUE(has(r.output, "the robot is held")) << r.output;
   expect_clean_shutdown(r);

@@ -68,7 +68,7 @@ TEST(Kill, EdpTerminatedMidMotionRampsDownBeforeItExits) {
 TEST(Kill, EmulatorKilledMidMotionTheEdpHolds) {
   const LaunchRun r = launch_and_kill(demo(), "emu", "pose 1/3 reached", std::chrono::milliseconds(300));
   EXPECT_TRUE(r.exit_code == 1 || r.exit_code == 4) << r.output;
-  EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6.*silent: no TPDO for 10 cycles")))
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6.*silent: no TPDO for 25 cycles")))
       << r.output;
   EXPECT_TRUE(has(r.output, "the robot is held")) << r.output;
   expect_nothing_left();

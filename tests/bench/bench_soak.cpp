@@ -1072,8 +1072,10 @@ int main(int argc, char** argv) {
         "invalid or older than %d ms (%lld stale). Lost: resends or timeouts (attempts of 250 ms "
         "ECP, 40 ms VSP). Totals: %lld lost, %lld late; EDP servo overruns %lld. Baseline: bare "
         "LCM 64-byte ping at 1 kHz for %.0f s in the same run, %lld lost, %lld late against the "
-        "same %.1f ms deadline (max %.0f us). Scheduling: %s; nothing pinned. value p50/p99 = VSP "
-        "GET_READING round trip.\n",
+        "same %.1f ms deadline (max %.0f us). Host stalls (a probe pinned to each CPU, SCHED_FIFO "
+        "99 with --rt, woke 5 ms or more late): %zu in the baseline, %zu in the soak (the longest "
+        "%.1f ms), %lld late replies inside one; the soak used %.0f %% of %ld CPUs. Scheduling: "
+        "%s; nothing pinned (but the probes). value p50/p99 = VSP GET_READING round trip.\n",
         seconds, shape.steps, shape.value, static_cast<long long>(robot_requests),
         percentile(robot_us, 0.5), percentile(robot_us, 0.99),
         static_cast<long long>(set.lost_successors), late_interval_ms,
@@ -1081,7 +1083,8 @@ int main(int argc, char** argv) {
         static_cast<long long>(set.stale), static_cast<long long>(lost),
         static_cast<long long>(late), static_cast<long long>(set.overruns), baseline_seconds,
         static_cast<long long>(base.lost), static_cast<long long>(base.late), shape.vsp_deadline_ms,
-        max_of(base.us), scheduling.c_str());
+        max_of(base.us), baseline_stalls, stalls.size(), longest_stall_ms,
+        static_cast<long long>(late_in_stalls), 100.0 * cpu_share, cpus, scheduling.c_str());
     std::printf(
         "RESULT B5 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
         "baseline_lost=%lld baseline_late=%lld lost=%lld late=%lld robot_p50=%.2f "

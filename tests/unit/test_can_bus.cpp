@@ -20,10 +20,12 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <map>
 #include <new>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -227,9 +229,13 @@ TEST(VirtualBus, ThreeNodesSeeOneOrder) {
 TEST(VirtualBus, ConcurrentSendersOneOrderForAllReaders) {
   // Four threads, each one node, send and receive at once; every node must see the other nodes'
   // frames in one common order and each sender's frames in the order it sent them.
+  // 4000 frames < ring size, so the ring never wraps; but a sender preempted between claiming a
+  // slot and publishing it for kVirtualBusStallNs (10 ms: four busy threads on two cores, slower
+  // still under a sanitizer) makes a waiting reader skip that slot, as it would for a sender that
+  // died there. Such a frame must be counted in the reader's overruns: none is lost silently.
   TestBus bus("concurrent");
   constexpr int kNodes = 4;
-  constexpr int kPerNode = 1000;  // 4000 frames < ring size: no overruns are allowed
+  constexpr int kPerNode = 1000;
   std::vector<std::unique_ptr<can::Bus>> nodes;
   for (int n = 0; n < kNodes; ++n) nodes.push_back(bus.open());
   std::vector<std::vector<std::uint64_t>> received(kNodes);
@@ -245,7 +251,8 @@ TEST(VirtualBus, ConcurrentSendersOneOrderForAllReaders) {
       int sent = 0;
       can::Received r;
       const std::size_t expected = (kNodes - 1) * kPerNode;
-      while (sent < kPerNode || got.size() < expected) {
+      auto missing = [&] { return got.size() + node.stats().overruns < expected; };
+      while (sent < kPerNode || missing()) {
         if (sent < kPerNode) {
           const std::uint64_t tag =
               static_cast<std::uint64_t>(n) << 32 | static_cast<std::uint64_t>(sent);
@@ -260,29 +267,43 @@ TEST(VirtualBus, ConcurrentSendersOneOrderForAllReaders) {
     });
   }
   for (auto& t : threads) t.join();
+  std::vector<std::set<std::uint64_t>> have(kNodes);
   for (int n = 0; n < kNodes; ++n) {
     const auto& got = received[static_cast<std::size_t>(n)];
-    ASSERT_EQ(got.size(), static_cast<std::size_t>((kNodes - 1) * kPerNode)) << "node " << n;
-    EXPECT_EQ(nodes[static_cast<std::size_t>(n)]->stats().overruns, 0U);
-    std::map<std::uint64_t, std::uint64_t> next_from;  // per sender: frames in their order
+    const std::uint64_t skipped = nodes[static_cast<std::size_t>(n)]->stats().overruns;
+    // Every frame of the other nodes arrived or was counted as skipped.
+    ASSERT_EQ(got.size() + skipped, static_cast<std::size_t>((kNodes - 1) * kPerNode))
+        << "node " << n;
+    if (skipped > 0)
+      std::printf("node %d: %llu frame(s) skipped behind a stalled sender, counted as overruns\n",
+                  n, static_cast<unsigned long long>(skipped));
+    // Rarely, and only a few: a skip needs a sender stalled for 10 ms inside its claim.
+    EXPECT_LE(skipped, 10U) << "node " << n;
+    std::map<std::uint64_t, std::int64_t> last_from;  // per sender: frames in their order
     for (const std::uint64_t tag : got) {
       const std::uint64_t from = tag >> 32;
       EXPECT_NE(from, static_cast<std::uint64_t>(n)) << "node " << n << " got its own frame";
-      EXPECT_EQ(tag & 0xffffffffU, next_from[from]++) << "node " << n << " from " << from;
+      const auto number = static_cast<std::int64_t>(tag & 0xffffffffU);
+      auto [it, fresh] = last_from.try_emplace(from, -1);
+      EXPECT_GT(number, it->second) << "node " << n << " from " << from;
+      it->second = number;
+      EXPECT_TRUE(have[static_cast<std::size_t>(n)].insert(tag).second) << "duplicate at " << n;
     }
   }
-  // Pairwise: the frames neither of two nodes sent appear in the same order at both.
+  // Pairwise: the frames neither of two nodes sent, and both got, appear in the same order at both.
   for (int a = 0; a < kNodes; ++a) {
     for (int b = a + 1; b < kNodes; ++b) {
-      auto others = [&](int n) {
+      auto others = [&](int n, int other) {
         std::vector<std::uint64_t> v;
         for (const std::uint64_t tag : received[static_cast<std::size_t>(n)])
           if ((tag >> 32) != static_cast<std::uint64_t>(a) &&
-              (tag >> 32) != static_cast<std::uint64_t>(b))
+              (tag >> 32) != static_cast<std::uint64_t>(b) &&
+              have[static_cast<std::size_t>(other)].count(tag) != 0)
             v.push_back(tag);
         return v;
       };
-      EXPECT_EQ(others(a), others(b)) << "nodes " << a << " and " << b << " disagree on the order";
+      EXPECT_EQ(others(a, b), others(b, a))
+          << "nodes " << a << " and " << b << " disagree on the order";
     }
   }
 }

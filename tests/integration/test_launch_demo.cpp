@@ -13,6 +13,7 @@
 #include <fstream>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -114,15 +115,30 @@ class EdpReplyRecorder {
     if (msg->header.kind != mrroc_lcm::header_t::REPLY) return;
     std::lock_guard lock(mutex_);
     replies_.push_back(comm::decode(*msg));
+    const bool to_ecp = msg->header.recipient.rfind("ecp/", 0) == 0;
+    if (to_ecp && replies_.back().type == edp::ReplyType::data &&
+        (!final_ || msg->header.seq > final_seq_)) {
+      final_ = replies_.back();
+      final_seq_ = msg->header.seq;
+    }
   }
+  /// Every reply, in the order it arrived (with faulty links: copies, and out of order).
   std::vector<edp::Reply> replies() {
     std::lock_guard lock(mutex_);
     return replies_;
+  }
+  /// The reading that answered the ECP's last request: the data reply with the highest sequence
+  /// number (a delayed copy of an older reply may arrive after it).
+  std::optional<edp::Reply> final_reading() {
+    std::lock_guard lock(mutex_);
+    return final_;
   }
 
  private:
   std::mutex mutex_;
   std::vector<edp::Reply> replies_;
+  std::optional<edp::Reply> final_;
+  std::int64_t final_seq_ = 0;
 };
 
 std::string launcher() { return (kBin / "mrroc-launch").string(); }
@@ -154,10 +170,8 @@ TEST(LaunchDemo, RunsToTheEndAndReachesTheTargets) {
   // Final joints read back from the EDP's own replies.
   const auto replies = recorder.replies();
   ASSERT_FALSE(replies.empty()) << "no EDP reply observed";
-  const edp::Reply* last = nullptr;
-  for (const auto& reply : replies)
-    if (reply.type == edp::ReplyType::data) last = &reply;
-  ASSERT_NE(last, nullptr);
+  const std::optional<edp::Reply> last = recorder.final_reading();
+  ASSERT_TRUE(last.has_value());
   EXPECT_TRUE(last->synchronised);
   const auto& target = poses.back();
   ASSERT_EQ(last->joints.size(), target.size());
@@ -353,13 +367,10 @@ TEST(LaunchDemo, LockStepDemoRunsToTheEnd) {
   // Simulated time stands still while the EDP waits for a successor: none is ever lost.
   EXPECT_EQ(r.output.find("no next macro-step from the ECP in time"), std::string::npos)
       << r.output;
-  const auto replies = recorder.replies();
-  const edp::Reply* last = nullptr;
-  for (const auto& reply : replies) {
+  for (const auto& reply : recorder.replies())
     EXPECT_NE(reply.type, edp::ReplyType::error) << reply.error_text;
-    if (reply.type == edp::ReplyType::data) last = &reply;
-  }
-  ASSERT_NE(last, nullptr);
+  const std::optional<edp::Reply> last = recorder.final_reading();
+  ASSERT_TRUE(last.has_value());
   for (std::size_t j = 0; j < poses.back().size(); ++j)
     EXPECT_NEAR(last->joints[j], poses.back()[j], 2e-3) << "joint " << j;
   EXPECT_TRUE(mrroc_processes().empty());
@@ -404,11 +415,10 @@ void demo_reaches_final_pose_with_link_faults(const char* faults, const char* wh
   ::unsetenv("MRROC_LINK_FAULTS");
   ASSERT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  const auto replies = recorder.replies();
-  const edp::Reply* last = nullptr;
-  for (const auto& reply : replies)
-    if (reply.type == edp::ReplyType::data) last = &reply;
-  ASSERT_NE(last, nullptr);
+  // Copies of replies are delayed and reordered here: the final reading is the answer to the
+  // ECP's last request, not the last copy to arrive.
+  const std::optional<edp::Reply> last = recorder.final_reading();
+  ASSERT_TRUE(last.has_value());
   for (std::size_t j = 0; j < poses.back().size(); ++j)
     EXPECT_NEAR(last->joints[j], poses.back()[j], 2e-3) << "joint " << j;
   std::printf("demo over %s links finished in %.2f s\n", what, r.seconds);

@@ -440,10 +440,8 @@ class Watch {
   }
   void on_message(const mrroc::SrpMessage& m) {
     std::lock_guard lock(mutex_);
-    if (counting_ && m.text.find("no next macro-step from the ECP in time") != std::string::npos) {
-      ++lost_successors_[m.process];
+    if (counting_ && m.text.find("no next macro-step from the ECP in time") != std::string::npos)
       lost_successor_times_.push_back(now_ns());
-    }
     if (m.severity != mrroc::Severity::info && counting_)
       problems_.push_back(m.process + ": " + m.text);
   }
@@ -458,7 +456,6 @@ class Watch {
   void start_counting() {
     std::lock_guard lock(mutex_);
     counting_ = true;
-    lost_successors_.clear();
     lost_successor_times_.clear();
     problems_.clear();
   }
@@ -468,9 +465,7 @@ class Watch {
   }
   std::int64_t lost_successors() {
     std::lock_guard lock(mutex_);
-    std::int64_t n = 0;
-    for (const auto& [process, count] : lost_successors_) n += count;
-    return n;
+    return static_cast<std::int64_t>(lost_successor_times_.size());
   }
   std::vector<std::string> problems() {
     std::lock_guard lock(mutex_);
@@ -486,7 +481,6 @@ class Watch {
   std::mutex mutex_;
   std::condition_variable cv_;
   std::map<std::string, mrroc::ProcessState> states_;
-  std::map<std::string, std::int64_t> lost_successors_;
   std::vector<std::int64_t> lost_successor_times_;
   std::vector<std::string> problems_;
   bool counting_ = false;

@@ -22,6 +22,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
   const ProcessSetConfig config = load_process_set(config_path);
   const RobotConfig& robot_config = config.robot(robot_name);
   apply_cpu_affinity(robot_config.ecp.options.cpus);
+  const std::string scheduling = apply_priority(robot_config.ecp.options.priority);
   comm::Bus bus(config.lcm_url);
   comm::enable_auth_from_file(bus, config.auth_key_file);
   bus.start();
@@ -30,7 +31,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
     if (!robot_config.ecp.library.empty())
       load_plugin_library(robot_config.ecp.library, robot_config.ecp.where);
     ecp::EcpShell shell(bus, robot_config, reporter);
-    shell.run();
+    shell.run(scheduling);
     reporter.set_state(ProcessState::finished);
   } catch (const std::exception& e) {
     reporter.report(Severity::fatal, 0, e.what());

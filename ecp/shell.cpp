@@ -225,8 +225,8 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
   }
 }
 
-void EcpShell::run() {
-  reporter_.info(fmt::format("ready: task '{}'", config_.ecp.name));
+void EcpShell::run(const std::string& scheduling) {
+  reporter_.info(fmt::format("ready: task '{}', {}", config_.ecp.name, scheduling));
   reporter_.set_state(ProcessState::ready);
   while (!stop_requested()) {
     auto in = server_.wait_request(std::chrono::milliseconds(100));

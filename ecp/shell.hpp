@@ -44,7 +44,8 @@ class EcpShell {
   EcpShell& operator=(const EcpShell&) = delete;
 
   /// Serves commands until `stop_requested()` (SIGINT/SIGTERM); stops what runs on the way out.
-  void run();
+  /// `scheduling` (what apply_priority said) goes into the ready message.
+  void run(const std::string& scheduling);
 
  private:
   using Responder = comm::EcpServer::Responder;

@@ -40,6 +40,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
   const ProcessSetConfig config = load_process_set(config_path);
   const RobotConfig& robot = config.robot(robot_name);
   apply_cpu_affinity(robot.edp.options.cpus);
+  // Before any thread exists: the bus and command threads inherit it (the servo thread raises
+  // itself to 80).
+  const std::string scheduling = apply_priority(robot.edp.options.priority);
   const std::string process = "edp/" + robot.name;
 
   comm::Bus bus(config.lcm_url);
@@ -80,9 +83,10 @@ int run(const std::string& config_path, const std::string& robot_name) {
 
     std::this_thread::sleep_for(std::chrono::milliseconds(20));  // let the loop settle its policy
     reporter.info(fmt::format("ready: plugin '{}', {} axes, kinematics '{}', servo period {:.3f} "
-                              "ms, {}, {}",
+                              "ms, {}, communication {}, {}",
                               hardware->name(), model.axes(), kinematics->name(),
-                              robot.edp.servo_period_s * 1e3, servo.timing().scheduling, memory));
+                              robot.edp.servo_period_s * 1e3, servo.timing().scheduling,
+                              scheduling, memory));
     reporter.set_state(ProcessState::ready);
 
     // Emergency stop: acted on in the bus thread at once, reported from the command thread.

@@ -53,6 +53,7 @@ struct Options {
   std::map<std::string, std::string> buses;
   std::string lcm_url;
   std::vector<int> cpus;
+  int priority = 0;  ///< the process' threads; its stepping thread runs at 70 regardless
   double run_for_s = 0.0;
   bool print_scene = false;
 };
@@ -480,6 +481,7 @@ int main(int argc, char** argv) {
       options.faults.insert(options.faults.begin(), set.emulator->faults.begin(),
                             set.emulator->faults.end());
       options.cpus = set.emulator->options.cpus;
+      options.priority = set.emulator->options.priority;
       if (options.lcm_url.empty()) options.lcm_url = set.lcm_url;
     } else {
       options.scene = scene;
@@ -508,6 +510,7 @@ int main(int argc, char** argv) {
   }
 
   apply_cpu_affinity(options.cpus);
+  const std::string scheduling = apply_priority(options.priority);
   std::unique_ptr<comm::Bus> lcm;
   std::unique_ptr<Reporter> reporter;
   try {
@@ -521,7 +524,7 @@ int main(int argc, char** argv) {
   try {
     Emulator emulator(options, reporter.get(), lcm.get());
     emulator.setup();
-    std::cout << "mrroc-axis-emu: " << lock_memory() << "; "
+    std::cout << "mrroc-axis-emu: " << lock_memory() << "; " << scheduling << "; "
               << (options.lock_step ? "lock-step" : "real time") << "\n"
               << std::flush;
     if (reporter) {

@@ -324,10 +324,13 @@ class MpShell {
 int run(const std::string& config_path) {
   const ProcessSetConfig config = load_process_set(config_path);
   apply_cpu_affinity(config.mp.options.cpus);
+  const std::string scheduling = apply_priority(config.mp.options.priority);
   comm::Bus bus(config.lcm_url);
   comm::enable_auth_from_file(bus, config.auth_key_file);
   bus.start();
   Reporter reporter(bus, "mp");
+  // The MP has no ready line of its own: say so only when the system refused the priority.
+  if (scheduling.rfind("SCHED_OTHER (", 0) == 0) reporter.warning(fmt::format("runs {}", scheduling));
   try {
     if (!config.mp.library.empty()) load_plugin_library(config.mp.library, config.mp.where);
     MpShell shell(config, bus, reporter);

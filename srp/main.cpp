@@ -168,6 +168,7 @@ struct Options {
 int run(const Options& options) {
   const ProcessSetConfig config = load_process_set(options.config);
   apply_cpu_affinity(config.srp.options.cpus);
+  (void)apply_priority(config.srp.options.priority);  // 0 (SCHED_OTHER) unless configured
   Srp srp(static_cast<std::size_t>(config.srp.history));
   srp.console.colour =
       options.colour == "always" || (options.colour == "auto" && isatty(STDOUT_FILENO) == 1);

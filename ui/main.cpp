@@ -75,6 +75,7 @@ int send_task_command(const std::string& config_path, ui::OperatorCommand comman
 int serve(const std::string& config_path, const std::string& bind, int port) {
   const ProcessSetConfig config = load_process_set(config_path);
   apply_cpu_affinity(config.ui.options.cpus);
+  (void)apply_priority(config.ui.options.priority);  // 0 (SCHED_OTHER) unless configured
   ui::ConsoleOptions options;
   options.bind = bind.empty() ? config.ui.bind : bind;
   options.port = port > 0 ? port : config.ui.port;

@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
   const std::string process = "vsp/" + vsp->name;
   try {
     apply_cpu_affinity(vsp->options.cpus);
+    const std::string scheduling = apply_priority(vsp->options.priority);
     comm::Bus bus(config.lcm_url);
     comm::enable_auth_from_file(bus, config.auth_key_file);
     Reporter reporter(bus, process);
@@ -54,11 +55,12 @@ int main(int argc, char** argv) {
       vsp::Shell shell(bus, reporter, *vsp, std::move(plugin));
       bus.start();
       reporter.set_state(ProcessState::ready);
-      reporter.info(fmt::format("ready: plugin '{}', sources {}, {}", vsp->plugin,
+      reporter.info(fmt::format("ready: plugin '{}', sources {}, {}, {}", vsp->plugin,
                                 fmt::join(vsp->sources, ", "),
                                 vsp->periodic ? fmt::format("periodic every {:.0f} ms",
                                                             vsp->period_s * 1000.0)
-                                              : std::string("on demand")));
+                                              : std::string("on demand"),
+                                scheduling));
       shell.serve([] { return !stop_requested(); });
       reporter.set_state(ProcessState::finished);
       return 0;

@@ -15,6 +15,21 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/// The highest priority a process' threads may get: the EDP's servo thread runs at 80, above
+/// everything the process set starts.
+constexpr int kMaxProcessPriority = 79;
+
+/// The real-time chain of a macro-step (EDP reply, ECP or MP computing the next one, VSP
+/// readings) runs in SCHED_FIFO by default, so that ordinary load on the machine cannot make a
+/// successor late; the EDP's communication threads above the ECP that waits for them.
+int default_priority(const std::string& group) {
+  if (group == "edp") return 60;
+  if (group == "vsp") return 55;
+  if (group == "ecp") return 50;
+  if (group == "mp") return 45;
+  return 0;
+}
+
 class Reader {
  public:
   explicit Reader(fs::path file) : file_(std::move(file)) {}
@@ -98,7 +113,7 @@ class Reader {
 
   /// `keys` plus the keys of ProcessOptions (every process' table accepts them).
   static std::vector<const char*> with_options(std::vector<const char*> keys) {
-    for (const char* k : {"cpus", "stop_grace_s", "stop_signal", "host", "group", "restart",
+    for (const char* k : {"cpus", "priority", "stop_grace_s", "stop_signal", "host", "group", "restart",
                           "max_restarts", "restart_backoff_s", "required"})
       keys.push_back(k);
     return keys;
@@ -149,6 +164,19 @@ class Reader {
     o.max_restarts = static_cast<int>(number(t, "max_restarts", 3, 0, 1000, "restarts"));
     o.restart_backoff_s = number(t, "restart_backoff_s", 0.5, 0.0, 30.0, "s");
     o.required = boolean(t, "required", true);
+    o.priority = default_priority(default_group);
+    if (const toml::node* prio = t.get("priority")) {
+      if (!prio->is_integer())
+        fail(*prio, fmt::format("'priority' must be an integer (a SCHED_FIFO priority 0..{}; 0: "
+                                "the normal scheduler)",
+                                kMaxProcessPriority));
+      if (**prio->as_integer() < 0 || **prio->as_integer() > kMaxProcessPriority)
+        fail(*prio, fmt::format("'priority' = {} is outside 0..{} (SCHED_FIFO priority; 0: the "
+                                "normal scheduler; {} belongs to the EDP's servo thread)",
+                                **prio->as_integer(), kMaxProcessPriority,
+                                kMaxProcessPriority + 1));
+      o.priority = static_cast<int>(**prio->as_integer());
+    }
     if (const toml::node* cpus = t.get("cpus")) {
       const toml::array* arr = cpus->as_array();
       if (arr == nullptr) fail(*cpus, "'cpus' must be a list of CPU numbers");

@@ -40,6 +40,16 @@ void apply_cpu_affinity(const std::vector<int>& cpus) {
                             std::strerror(errno)));
 }
 
+std::string apply_priority(int priority) {
+  if (priority <= 0) return "SCHED_OTHER";
+  sched_param sp{};
+  sp.sched_priority = priority;
+  // Children (none of ours start any) would not inherit it.
+  if (sched_setscheduler(0, SCHED_FIFO | SCHED_RESET_ON_FORK, &sp) == 0)
+    return fmt::format("SCHED_FIFO {}", priority);
+  return fmt::format("SCHED_OTHER (SCHED_FIFO {} refused: {})", priority, std::strerror(errno));
+}
+
 std::string lock_memory() {
   if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return "memory locked (mlockall)";
   return fmt::format("memory not locked (mlockall: {})", std::strerror(errno));

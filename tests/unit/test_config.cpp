@@ -183,3 +183,26 @@ TEST_F(ConfigTest, ParamsReportUnreadAndWrongTypes) {
   EXPECT_THROW((void)args.get_double("absent"), ConfigError);
   EXPECT_DOUBLE_EQ(args.get_double("absent", 1.5), 1.5);
 }
+
+TEST_F(ConfigTest, PriorityDefaultsPutTheMacroStepChainInSchedFifo) {
+  const ProcessSetConfig c = load_process_set(write(valid()));
+  EXPECT_EQ(c.robots[0].edp.options.priority, 60);
+  EXPECT_EQ(c.robots[0].ecp.options.priority, 50);
+  EXPECT_EQ(c.mp.options.priority, 45);
+  EXPECT_EQ(c.srp.options.priority, 0);
+  EXPECT_EQ(c.ui.options.priority, 0);
+  EXPECT_EQ(load_process_set(write(valid("priority = 0\n"))).robots[0].edp.options.priority, 0);
+  EXPECT_EQ(load_process_set(write(valid("priority = 79\n"))).robots[0].edp.options.priority, 79);
+}
+
+TEST_F(ConfigTest, PriorityOutsideItsRangeNamesValueAndLimit) {
+  const std::string text = valid("priority = 80\n");
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "priority"),
+                 "'priority' = 80 is outside 0..79");
+  const std::string text2 = valid("priority = -1\n");
+  expect_located(error_of(text2), dir_ / "set.toml", line_of(text2, "priority"),
+                 "'priority' = -1 is outside 0..79");
+  const std::string text3 = valid("priority = 1.5\n");
+  expect_located(error_of(text3), dir_ / "set.toml", line_of(text3, "priority"),
+                 "'priority' must be an integer");
+}

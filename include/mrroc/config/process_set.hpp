@@ -29,6 +29,9 @@ enum class RestartPolicy {
 /// Options every process of the set accepts (the launcher's keys; docs/configs.md).
 struct ProcessOptions {
   std::vector<int> cpus;      ///< CPU affinity (empty: any CPU)
+  /// SCHED_FIFO priority of the process' threads, 0..79 (0: SCHED_OTHER). Default by process:
+  /// edp 60 (its servo thread runs at 80 regardless), vsp 55, ecp 50, mp 45, others 0.
+  int priority = 0;
   double stop_grace_s = 3.0;  ///< stop signal to SIGKILL grace period when stopping [s]
   int stop_signal = 15;       ///< signal that asks the process to stop (`stop_signal = "SIGINT"`)
   std::string host = "local"; ///< where it runs: "local" or the name of a [[launch.host]]

@@ -1,6 +1,7 @@
 #pragma once
 /// @file
-/// Small helpers every process binary uses: stop signals, CPU affinity, memory locking.
+/// Small helpers every process binary uses: stop signals, CPU affinity, real-time priority,
+/// memory locking.
 
 #include <string>
 #include <vector>
@@ -14,6 +15,12 @@ void request_stop();
 
 /// Pins the calling process to `cpus` (no-op when empty). @throws Error naming the CPUs.
 void apply_cpu_affinity(const std::vector<int>& cpus);
+
+/// Puts the calling thread, and every thread it starts afterwards, in SCHED_FIFO at `priority`
+/// (1..79; 0 keeps SCHED_OTHER). Call it first in main(), before any thread exists. Returns what
+/// happened, for the ready message: "SCHED_FIFO 50", "SCHED_OTHER" or, when the system refuses
+/// (no CAP_SYS_NICE, RLIMIT_RTPRIO), "SCHED_OTHER (SCHED_FIFO 50 refused: ...)". Never throws.
+std::string apply_priority(int priority);
 
 /// Tries `mlockall(MCL_CURRENT | MCL_FUTURE)`; returns what happened, for the log.
 std::string lock_memory();

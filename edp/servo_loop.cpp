@@ -344,15 +344,22 @@ void ServoLoop::cycle() {
 }
 
 void ServoLoop::stop_cycle() {
-  // Decelerate every axis at its maximum acceleration, never past a joint limit.
-  // The ramp goes on past the last target, where no limit was checked: a step that would leave
-  // a joint, linkage or motor limit ends the ramp where it is (the robot never leaves them).
+  // Decelerate all axes by one common factor, as fast as the axis with the least acceleration
+  // to spare allows: the joint velocities keep their ratios, so the robot stops on the straight
+  // continuation of its last motion (a tool in a groove stays in it) instead of each axis
+  // turning off the path as it stops on its own. Never past a joint limit: the ramp goes on past
+  // the last target, where no limit was checked, so a step that would leave a joint, linkage or
+  // motor limit ends the ramp where it is (the robot never leaves them).
+  double keep = 0.0;  // the common factor for this step's velocities, 0..1
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const double speed = std::abs(commanded_velocity_[i]);
+    if (speed > 0.0)
+      keep = std::max(keep, 1.0 - model_.max_acceleration[i] * period_s_ / speed);
+  }
   bool moving = false;
   bool inside = true;
   for (std::size_t i = 0; i < axes_; ++i) {
-    double v = commanded_velocity_[i];
-    const double dv = model_.max_acceleration[i] * period_s_;
-    v = std::abs(v) <= dv ? 0.0 : v - std::copysign(dv, v);
+    const double v = commanded_velocity_[i] * keep;
     proposal_[i] = desired_[i] + v * period_s_;
     inside = inside && proposal_[i] >= model_.lower_limits[i] &&
              proposal_[i] <= model_.upper_limits[i];

@@ -19,14 +19,13 @@ namespace fs = std::filesystem;
 /// everything the process set starts.
 constexpr int kMaxProcessPriority = 79;
 
-/// The real-time chain of a macro-step (EDP reply, ECP or MP computing the next one, VSP
-/// readings) runs in SCHED_FIFO by default, so that ordinary load on the machine cannot make a
-/// successor late; the EDP's communication threads above the ECP that waits for them.
+/// The chain that must deliver the next macro-step before the running one ends (EDP reply, ECP
+/// or MP computing it, VSP readings) runs in SCHED_FIFO by default, so that ordinary load on the
+/// machine cannot make a successor late. All of it at one priority: each link waits for the
+/// others, and a link above another could starve it (a 1 kHz VSP above its ECP did, in B5).
+constexpr int kChainPriority = 50;
 int default_priority(const std::string& group) {
-  if (group == "edp") return 60;
-  if (group == "vsp") return 55;
-  if (group == "ecp") return 50;
-  if (group == "mp") return 45;
+  if (group == "edp" || group == "vsp" || group == "ecp" || group == "mp") return kChainPriority;
   return 0;
 }
 

@@ -158,6 +158,38 @@ TEST(EdpSafety, LostEcpBringsTheRobotToAStandstill) {
   EXPECT_EQ(edp.query().type, ReplyType::data);
 }
 
+TEST(EdpSafety, StoppingRampKeepsTheDirectionOfTheMotion) {
+  // Two joints at different speeds (column 0.5 rad/s, shoulder -0.2 rad/s); the successor never
+  // comes. The ramp scales both velocities by one factor: their ratio stays that of the motion,
+  // so the arm stops on the straight continuation of its path in joint space.
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  q[0] += 0.01;
+  q[1] -= 0.004;
+  const std::int64_t at = edp.servo_->latest().cycle;
+  ASSERT_EQ(edp.set_joints(q, 10, 9).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.query().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_EQ(edp.servo_->lost_successors(), 1);
+  const auto v = edp.velocities(at);
+  std::size_t first = 0;
+  while (first < v.size() && v[first][0] == 0.0) ++first;
+  ASSERT_LT(first + 10, v.size());
+  const std::vector<std::vector<double>> tail(v.begin() + static_cast<long>(first) + 9, v.end());
+  const int cycles = check_stop(tail, edp.model_);
+  EXPECT_GT(cycles, 10) << "stopped dead instead of decelerating";
+  int ramp_steps = 0;
+  for (std::size_t k = 1; k < tail.size() && tail[k][0] != 0.0; ++k) {
+    EXPECT_NEAR(tail[k][1] / tail[k][0], -0.4, 1e-6) << "ramp step " << k << " turned off the path";
+    for (std::size_t j = 2; j < tail[k].size(); ++j) EXPECT_EQ(tail[k][j], 0.0);
+    ++ramp_steps;
+  }
+  EXPECT_GT(ramp_steps, 10);
+  // The column is the joint that limits the ramp: it decelerates at its own maximum.
+  EXPECT_NEAR(tail[1][0] - tail[2][0], edp.model_.max_acceleration[0] * kPeriod, 1e-6);
+}
+
 // After a late successor the ramp leaves the robot past its last target. The macro-step the ECP
 // had planned next (a short step further along the old path) would now have to come back at
 // several times the velocity limit: the EDP refuses it at its start, names the joint, the

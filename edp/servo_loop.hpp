@@ -131,8 +131,9 @@ class ServoLoop {
   /// would leave them ends the ramp where it is. Set before start(); may be null.
   void set_limit_guard(const ArmKinematics* guard) { guard_ = guard; }
 
-  /// Emergency stop: drops the queued motion, decelerates every axis at its maximum
-  /// acceleration (never past a joint limit) to a standstill and holds; no motion is accepted
+  /// Emergency stop: drops the queued motion, decelerates all axes by one common factor (the
+  /// axis with the least acceleration to spare at its maximum; never past a joint limit) to a
+  /// standstill and holds; no motion is accepted
   /// until release_emergency_stop(). Callable from any thread.
   void emergency_stop();
   void release_emergency_stop();

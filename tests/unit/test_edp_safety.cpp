@@ -78,6 +78,22 @@ class Edp {
     return out;
   }
 
+  /// Moves to `q` (joint 0 must change) in one macro-step of 10 servo steps whose reading, in
+  /// step 9, promises a successor; never sends one and waits 0.5 s. Returns the commanded
+  /// velocities from the macro-step's last step on (the stopping ramp and the hold after it);
+  /// empty when the motion was refused or never ran.
+  std::vector<std::vector<double>> move_without_successor(const std::vector<double>& q) {
+    const std::int64_t at = servo_->latest().cycle;
+    if (set_joints(q, 10, 9).type != ReplyType::acknowledge) return {};
+    if (query().type != ReplyType::data) return {};
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    const auto v = velocities(at);
+    std::size_t first = 0;
+    while (first < v.size() && v[first][0] == 0.0) ++first;
+    if (first + 10 >= v.size()) return {};
+    return {v.begin() + static_cast<long>(first) + 9, v.end()};
+  }
+
   RobotModel model_;
   std::unique_ptr<Hardware> hardware_;
   std::unique_ptr<ServoLoop> servo_;
@@ -137,18 +153,10 @@ TEST(EdpSafety, LostEcpBringsTheRobotToAStandstill) {
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
   std::vector<double> q = edp.model_.synchro_joint_positions;
   q[0] = 0.01;  // 0.5 rad/s, with the reading one step early: a successor is promised
-  const std::int64_t at = edp.servo_->latest().cycle;
-  ASSERT_EQ(edp.set_joints(q, 10, 9).type, ReplyType::acknowledge);
-  ASSERT_EQ(edp.query().type, ReplyType::data);
-  // ... and never sent.
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // ... and never sent. The constant-velocity macro-step, then a ramp down, not a dead stop.
+  const auto tail = edp.move_without_successor(q);
+  ASSERT_FALSE(tail.empty());
   EXPECT_EQ(edp.servo_->lost_successors(), 1);
-  const auto v = edp.velocities(at);
-  std::size_t first = 0;
-  while (first < v.size() && v[first][0] == 0.0) ++first;
-  ASSERT_LT(first, v.size());
-  // The constant-velocity macro-step, then a ramp down instead of a dead stop.
-  const std::vector<std::vector<double>> tail(v.begin() + static_cast<long>(first) + 9, v.end());
   const int cycles = check_stop(tail, edp.model_);
   EXPECT_GT(cycles, 10) << "stopped dead instead of decelerating";
   EXPECT_TRUE(edp.servo_->stopped());
@@ -167,16 +175,9 @@ TEST(EdpSafety, StoppingRampKeepsTheDirectionOfTheMotion) {
   std::vector<double> q = edp.model_.synchro_joint_positions;
   q[0] += 0.01;
   q[1] -= 0.004;
-  const std::int64_t at = edp.servo_->latest().cycle;
-  ASSERT_EQ(edp.set_joints(q, 10, 9).type, ReplyType::acknowledge);
-  ASSERT_EQ(edp.query().type, ReplyType::data);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const auto tail = edp.move_without_successor(q);
+  ASSERT_FALSE(tail.empty());
   EXPECT_EQ(edp.servo_->lost_successors(), 1);
-  const auto v = edp.velocities(at);
-  std::size_t first = 0;
-  while (first < v.size() && v[first][0] == 0.0) ++first;
-  ASSERT_LT(first + 10, v.size());
-  const std::vector<std::vector<double>> tail(v.begin() + static_cast<long>(first) + 9, v.end());
   const int cycles = check_stop(tail, edp.model_);
   EXPECT_GT(cycles, 10) << "stopped dead instead of decelerating";
   int ramp_steps = 0;

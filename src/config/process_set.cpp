@@ -19,15 +19,9 @@ namespace fs = std::filesystem;
 /// everything the process set starts.
 constexpr int kMaxProcessPriority = 79;
 
-/// The chain that must deliver the next macro-step before the running one ends (EDP reply, ECP
-/// or MP computing it, VSP readings) runs in SCHED_FIFO by default, so that ordinary load on the
-/// machine cannot make a successor late. All of it at one priority: each link waits for the
-/// others, and a link above another could starve it (a 1 kHz VSP above its ECP did, in B5).
-constexpr int kChainPriority = 50;
-int default_priority(const std::string& group) {
-  if (group == "edp" || group == "vsp" || group == "ecp" || group == "mp") return kChainPriority;
-  return 0;
-}
+/// Every process starts with the normal scheduler unless its table says otherwise (measured
+/// reasons in docs/configs.md, `priority`).
+constexpr int kDefaultPriority = 0;
 
 class Reader {
  public:
@@ -163,7 +157,7 @@ class Reader {
     o.max_restarts = static_cast<int>(number(t, "max_restarts", 3, 0, 1000, "restarts"));
     o.restart_backoff_s = number(t, "restart_backoff_s", 0.5, 0.0, 30.0, "s");
     o.required = boolean(t, "required", true);
-    o.priority = default_priority(default_group);
+    o.priority = kDefaultPriority;
     if (const toml::node* prio = t.get("priority")) {
       if (!prio->is_integer())
         fail(*prio, fmt::format("'priority' must be an integer (a SCHED_FIFO priority 0..{}; 0: "

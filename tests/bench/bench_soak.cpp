@@ -37,14 +37,13 @@
 //  - EDP servo overruns (robot_state_t.overruns, cycles whose work did not fit in one period)
 //    during the soak are reported, not counted as replies (the servo loop does not reply).
 //
-// Scheduling: with --rt (what scripts/soak, scripts/bench and the ctest use) the process set runs
-// with its default priorities (docs/configs.md, `priority`: EDP, VSP and ECP SCHED_FIFO 50, the
-// EDP's servo thread 80), and this program, which plays the MP, with the MP's 50 before it
-// starts any thread or process (the baseline's echo inherits it); a shared host's ordinary
-// (SCHED_OTHER) load then cannot hold the 1 kHz loops back. Without --rt every process gets
-// `priority = 0` (the default policy, as the other benchmarks), and a busy host makes replies
-// late. Nothing is pinned. Where SCHED_FIFO is refused (not root), the run says so and goes on
-// with the default policy.
+// Scheduling: with --rt (what scripts/soak, scripts/bench and the ctest use) this program runs with
+// SCHED_FIFO priority 10 before it starts any thread or process, so that every thread of it, of
+// the baseline's echo and of the process set inherits that policy (the EDP's servo thread sets
+// its own SCHED_FIFO 80); a shared host's ordinary (SCHED_OTHER) load then cannot hold the 1 kHz
+// loops back. Without --rt everything runs with the default policy, as the other benchmarks, and
+// a busy host makes replies late. Nothing is pinned. Where SCHED_FIFO is refused (not root), the
+// run says so and goes on with the default policy.
 //
 // Baseline (no mrroc code, same run): a bare LCM ping of 64 bytes at 1 kHz between this program
 // and a child echo process (this executable again) for `baseline_seconds` (default: the soak's
@@ -417,22 +416,19 @@ struct Shape {
   double vsp_deadline_ms = 10.0;
 };
 
-void write_config(const fs::path& file, bool rt) {
+void write_config(const fs::path& file) {
   std::ofstream out(file);
-  // Without --rt, every process runs with the default policy; with it, the set's defaults.
-  const std::string priority = rt ? "" : "priority = 0\n";
   out << "[system]\nname = \"bench-soak\"\nlcm_url = \"" << kUrl << "\"\n"
-      << "[mp]\ntask = \"start_and_wait\"\n" << priority;
+      << "[mp]\ntask = \"start_and_wait\"\n";
   for (const char* robot : kRobots)
     out << "[[robot]]\nname = \"" << robot << "\"\nmodel = \"" << MRROC_SOURCE_DIR
-        << "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\nservo_period_ms = 1\n" << priority
-        << "[robot.ecp]\ntask = \"follow_mp\"\n" << priority;
+        << "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\nservo_period_ms = 1\n"
+        << "[robot.ecp]\ntask = \"follow_mp\"\n";
   out << "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"soak_gauges\"]\n"
       << "mode = \"periodic\"\nperiod_ms = 1\nstale_after_ms = " << kStaleAfterMs << "\n"
-      << priority << "[vsp.params]\nfilter_hz = 50\n"
+      << "[vsp.params]\nfilter_hz = 50\n"
       << "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"soak_range\"]\n"
-      << "mode = \"periodic\"\nperiod_ms = 1\nstale_after_ms = " << kStaleAfterMs << "\n"
-      << priority;
+      << "mode = \"periodic\"\nperiod_ms = 1\nstale_after_ms = " << kStaleAfterMs << "\n";
 }
 
 class Watch {
@@ -539,9 +535,9 @@ void check_ecp_reply(const std::string& robot, const mrroc::ecp::EcpReply& r) {
 }
 
 SetFigures run_process_set(const fs::path& bin, const fs::path& dir, double seconds,
-                           const Shape& shape, bool rt) {
+                           const Shape& shape) {
   const fs::path config = dir / "bench-soak.toml";
-  write_config(config, rt);
+  write_config(config);
   mrroc::comm::Bus bus(kUrl);
   Watch watch;
   mrroc::SystemListener listener(
@@ -828,9 +824,8 @@ void usage(FILE* to) {
                "A VSP reply is late after VSP_DEADLINE_MS (default 10). Run inside\n"
                "scripts/netns-run. Prints RESULT B5 / NOTE B5 lines; exit code 0 only when\n"
                "nothing was lost or late.\n"
-               "--rt: run the process set with its default SCHED_FIFO priorities (EDP, VSP, ECP\n"
-               "50, servo threads 80) and this program, the MP, with the MP's 50, so that\n"
-               "ordinary load on the host cannot delay them. Without it, everything SCHED_OTHER.\n"
+               "--rt: run this program and every process it starts with SCHED_FIFO 10 (the EDPs'\n"
+               "servo threads use 80), so that ordinary load on the host cannot delay them.\n"
                "--allow-late=N: exit 0 with up to N late replies (0..1000; lost replies, resends\n"
                "and errors still fail). The figures printed are the same.\n"
                "--excuse-host-stalls: a late reply whose window overlaps a host stall (a probe\n"
@@ -888,10 +883,9 @@ int main(int argc, char** argv) {
   }
   if (rt) {
     sched_param sp{};
-    sp.sched_priority = 50;
+    sp.sched_priority = 10;
     if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
-      scheduling = "SCHED_FIFO: the process set's defaults (EDP, VSP, ECP 50, EDP servo threads "
-                   "80), this program as the MP 50";
+      scheduling = "SCHED_FIFO 10 for every process and thread (EDP servo threads 80)";
     } else {
       rt = false;
       scheduling = std::string("default policy (SCHED_FIFO refused: ") + std::strerror(errno) + ")";
@@ -956,7 +950,7 @@ int main(int argc, char** argv) {
     const std::int64_t wall0 = now_ns();
     SetFigures set;
     try {
-      set = run_process_set(bin, dir, seconds, shape, rt);
+      set = run_process_set(bin, dir, seconds, shape);
     } catch (...) {
       probe.stop();
       throw;

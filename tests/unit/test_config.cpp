@@ -184,15 +184,16 @@ TEST_F(ConfigTest, ParamsReportUnreadAndWrongTypes) {
   EXPECT_DOUBLE_EQ(args.get_double("absent", 1.5), 1.5);
 }
 
-TEST_F(ConfigTest, PriorityDefaultsPutTheMacroStepChainInSchedFifo) {
+TEST_F(ConfigTest, PriorityIsZeroUnlessATableSetsIt) {
   const ProcessSetConfig c = load_process_set(write(valid()));
-  EXPECT_EQ(c.robots[0].edp.options.priority, 60);
-  EXPECT_EQ(c.robots[0].ecp.options.priority, 50);
-  EXPECT_EQ(c.mp.options.priority, 45);
+  EXPECT_EQ(c.robots[0].edp.options.priority, 0);
+  EXPECT_EQ(c.robots[0].ecp.options.priority, 0);
+  EXPECT_EQ(c.mp.options.priority, 0);
   EXPECT_EQ(c.srp.options.priority, 0);
   EXPECT_EQ(c.ui.options.priority, 0);
-  EXPECT_EQ(load_process_set(write(valid("priority = 0\n"))).robots[0].edp.options.priority, 0);
-  EXPECT_EQ(load_process_set(write(valid("priority = 79\n"))).robots[0].edp.options.priority, 79);
+  const ProcessSetConfig set = load_process_set(write(valid("priority = 79\n")));
+  EXPECT_EQ(set.robots[0].edp.options.priority, 79);
+  EXPECT_EQ(set.robots[0].ecp.options.priority, 0);
 }
 
 TEST_F(ConfigTest, PriorityOutsideItsRangeNamesValueAndLimit) {

@@ -29,8 +29,8 @@ enum class RestartPolicy {
 /// Options every process of the set accepts (the launcher's keys; docs/configs.md).
 struct ProcessOptions {
   std::vector<int> cpus;      ///< CPU affinity (empty: any CPU)
-  /// SCHED_FIFO priority of the process' threads, 0..79 (0: SCHED_OTHER). Default: 50 for the
-  /// edp (its servo thread runs at 80 regardless), vsp, ecp and mp; 0 for the others.
+  /// SCHED_FIFO priority of the process' threads, 0..79 (default 0: the policy it was started
+  /// with, normally SCHED_OTHER). The EDP's servo thread runs at 80 regardless.
   int priority = 0;
   double stop_grace_s = 3.0;  ///< stop signal to SIGKILL grace period when stopping [s]
   int stop_signal = 15;       ///< signal that asks the process to stop (`stop_signal = "SIGINT"`)

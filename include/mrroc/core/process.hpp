@@ -17,9 +17,10 @@ void request_stop();
 void apply_cpu_affinity(const std::vector<int>& cpus);
 
 /// Puts the calling thread, and every thread it starts afterwards, in SCHED_FIFO at `priority`
-/// (1..79; 0 keeps SCHED_OTHER). Call it first in main(), before any thread exists. Returns what
-/// happened, for the ready message: "SCHED_FIFO 50", "SCHED_OTHER" or, when the system refuses
-/// (no CAP_SYS_NICE, RLIMIT_RTPRIO), "SCHED_OTHER (SCHED_FIFO 50 refused: ...)". Never throws.
+/// (1..79; 0 keeps the policy the process was started with). Call it first in main(), before any
+/// thread exists. Returns the policy now in force, for the ready message: "SCHED_FIFO 50",
+/// "SCHED_OTHER" or, when the system refuses (no CAP_SYS_NICE, RLIMIT_RTPRIO),
+/// "SCHED_OTHER (SCHED_FIFO 50 refused: ...)". Never throws.
 std::string apply_priority(int priority);
 
 /// Tries `mlockall(MCL_CURRENT | MCL_FUTURE)`; returns what happened, for the log.

@@ -19,10 +19,6 @@ namespace fs = std::filesystem;
 /// everything the process set starts.
 constexpr int kMaxProcessPriority = 79;
 
-/// Every process starts with the normal scheduler unless its table says otherwise (measured
-/// reasons in docs/configs.md, `priority`).
-constexpr int kDefaultPriority = 0;
-
 class Reader {
  public:
   explicit Reader(fs::path file) : file_(std::move(file)) {}
@@ -157,7 +153,6 @@ class Reader {
     o.max_restarts = static_cast<int>(number(t, "max_restarts", 3, 0, 1000, "restarts"));
     o.restart_backoff_s = number(t, "restart_backoff_s", 0.5, 0.0, 30.0, "s");
     o.required = boolean(t, "required", true);
-    o.priority = kDefaultPriority;
     if (const toml::node* prio = t.get("priority")) {
       if (!prio->is_integer())
         fail(*prio, fmt::format("'priority' must be an integer (a SCHED_FIFO priority 0..{}; 0: "

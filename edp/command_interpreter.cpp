@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "mrroc/core/error.hpp"
@@ -56,6 +57,8 @@ Reply CommandInterpreter::execute(const Instruction& in) {
   } else {
     try {
       reply = accept(in);
+      // One exchange: the reply carries what the QUERY would have returned.
+      if (in.with_query) reply = query();
     } catch (const CommandError& e) {
       reply = error(e.code(), e.what());
     } catch (const HardwareError& e) {
@@ -138,10 +141,15 @@ Reply CommandInterpreter::accept(const Instruction& in) {
   due_tool_type_ = is_cartesian(in.tool_type) ? in.tool_type : ArmRepresentation::frame;
   due_get_ = gets ? in.get : 0;
   if (!target.empty()) {
+    // A macro-step refused when it was due to start takes every one queued behind it along; the
+    // client hears of it once, here or in the reply it waits for.
+    if (const std::uint64_t refused = servo_.refused_upto(); refused > refusal_reported_) {
+      refusal_reported_ = refused;
+      throw CommandError(error_code::too_fast, "SET refused: an earlier macro-step was refused: " +
+                                                   servo_.refusal(refused));
+    }
     due_macro_step_ = servo_.submit(target, in.motion_steps, in.value_in_step_no);
-    // The new macro-step may start only after the one submitted before it.
-    steps_ahead_ = due_steps_;
-    due_steps_ = in.motion_steps;
+    due_at_ = servo_.reply_due_at(due_macro_step_, in.value_in_step_no < in.motion_steps);
     due_ = Due::arm_reading;
     return Reply{};
   }
@@ -271,16 +279,18 @@ Reply CommandInterpreter::query() {
     case Due::get:
       return reading_reply(servo_.latest());
     case Due::arm_reading: {
-      // Generous bound: the macro-step that may still run ahead of it, this one, a stopping ramp
-      // (when its predecessor's successor came late), plus 5 s: this only catches a stuck loop.
-      const double timeout = 2.0 * (steps_ahead_ + due_steps_ + 2) * period_s_ + 5.0;
-      auto reading = servo_.wait_reading(due_macro_step_, timeout);
+      // Generous bound: every macro-step queued up to this one, a stopping ramp (when a
+      // successor came late), plus 5 s: this only catches a stuck loop.
+      const double timeout = 2.0 * static_cast<double>(servo_.queued_steps() + 2) * period_s_ + 5.0;
+      auto reading = servo_.wait_reply(due_macro_step_, due_at_, timeout);
       if (!reading && servo_.emergency_stopped())
         return error(error_code::emergency_stop,
                      "macro-step interrupted: emergency stop engaged; the robot is held");
       if (!reading)
-        if (const std::string why = servo_.refusal(due_macro_step_); !why.empty())
+        if (const std::string why = servo_.refusal(due_macro_step_); !why.empty()) {
+          refusal_reported_ = std::max(refusal_reported_, servo_.refused_upto());
           return error(error_code::too_fast, "SET refused: " + why);
+        }
       if (!reading)
         return error(error_code::hardware_fault,
                      servo_.faulted()
@@ -297,6 +307,7 @@ Reply CommandInterpreter::reading_reply(const Reading& reading) const {
   Reply r;
   r.type = ReplyType::data;
   r.step_no = reading.step_no;
+  r.macro_steps_ahead = reading.macro_steps_ahead;
   r.servo_cycle = reading.cycle;
   const auto n = static_cast<std::ptrdiff_t>(model_.axes());
   r.joints.assign(reading.joints.begin(), reading.joints.begin() + n);

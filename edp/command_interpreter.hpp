@@ -6,6 +6,13 @@
 ///   (refused: nothing moves). An accepted instruction must be followed by QUERY, whose reply
 ///   carries the result: for SET ARM the reading taken in step `value_in_step_no`, for SYNCHRO
 ///   the state after synchronisation, for GET the current reading.
+/// - An instruction with `with_query` is answered with that result directly (one exchange; no
+///   QUERY follows).
+/// - With a lookahead of D macro-steps (ServoLoop::set_lookahead), the result of a SET ARM that
+///   promises a successor (value_in_step_no < motion_steps) is the reading taken in step
+///   value_in_step_no of the macro-step D - 1 places before it, so the client may run up to D
+///   macro-steps ahead of the robot; a SET ARM that promises none is answered with its own
+///   reading (docs/edp.md, "Lookahead").
 /// - Any other instruction while a QUERY is due is refused with "query expected"; a QUERY with
 ///   nothing due is refused with "query unexpected".
 /// - Motion before SYNCHRO is refused ("not synchronised"); a second SYNCHRO is refused
@@ -55,8 +62,8 @@ class CommandInterpreter {
   double period_s_;
   Due due_ = Due::nothing;
   std::uint64_t due_macro_step_ = 0;
-  int due_steps_ = 0;
-  int steps_ahead_ = 0;  ///< steps of the macro-step submitted before the due one
+  std::uint64_t due_at_ = 0;  ///< the macro-step whose reading answers due_macro_step_
+  std::uint64_t refusal_reported_ = 0;  ///< the newest refused macro-step a client was told of
   ArmRepresentation due_arm_type_ = ArmRepresentation::joint;
   std::uint8_t due_get_ = 0;
   ArmRepresentation due_tool_type_ = ArmRepresentation::frame;

@@ -76,6 +76,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
     edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
     servo.set_limit_guard(kinematics.get());
     if (robot.edp.lock_step) servo.set_lock_step(true);
+    servo.set_lookahead(robot.edp.lookahead);
     servo.start();
     edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
     comm::EdpServer server(bus, process, channels::edp_command(robot.name),
@@ -83,9 +84,10 @@ int run(const std::string& config_path, const std::string& robot_name) {
 
     std::this_thread::sleep_for(std::chrono::milliseconds(20));  // let the loop settle its policy
     reporter.info(fmt::format("ready: plugin '{}', {} axes, kinematics '{}', servo period {:.3f} "
-                              "ms, {}, communication {}, {}",
+                              "ms, {}, lookahead {} macro-step{}, communication {}, {}",
                               hardware->name(), model.axes(), kinematics->name(),
                               robot.edp.servo_period_s * 1e3, servo.timing().scheduling,
+                              robot.edp.lookahead, robot.edp.lookahead == 1 ? "" : "s",
                               scheduling, memory));
     reporter.set_state(ProcessState::ready);
 

@@ -5,31 +5,34 @@
 ///
 /// Macro-step semantics (paper, section 5): a SET ARM is divided into `steps` interpolation steps,
 /// one per servo period; the reading for the QUERY reply is taken in step `value_in_step_no`
-/// (1..steps; steps+1 means "after the motion stopped"). A macro-step submitted while another runs
-/// is queued and starts in the servo cycle right after the current one ends, so a continuous
-/// trajectory has no idle servo step.
+/// (1..steps; steps+1 means "after the motion stopped"). Macro-steps wait in a queue of bounded
+/// depth (the lookahead, `[robot.edp] lookahead`) and each starts in the servo cycle right after
+/// its predecessor ends, so a continuous trajectory has no idle servo step; only a macro-step
+/// that promised a successor (value_in_step_no < steps) and ends with the queue empty brings the
+/// robot to a standstill (docs/edp.md, "Lookahead").
 ///
-/// Threads: the servo thread owns the hardware; the command thread calls the public methods.
-/// The cycle neither allocates nor blocks on anything but a short mutex.
+/// Threads: the servo thread owns the hardware; the command, bus and state threads call the
+/// public methods. The servo thread holds no lock across the plugin's read() and write(); its
+/// shared state sits behind a priority-inheriting mutex held only for copies, and it wakes
+/// waiters through a futex that never blocks (rt_sync.hpp). The cycle does not allocate.
 
 #include <array>
 #include <atomic>
-#include <condition_variable>
 #include <cstdint>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "macro_step_queue.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
+#include "rt_sync.hpp"
+#include "servo_timing.hpp"
+#include "synchroniser.hpp"
 
 namespace mrroc::edp {
-
-inline constexpr std::size_t kMaxAxes = 16;
-using AxisArray = std::array<double, kMaxAxes>;
 
 /// One reading of the arm, taken in a given step of a macro-step.
 struct Reading {
@@ -44,6 +47,8 @@ struct Reading {
   std::uint32_t outputs = 0;  ///< binary outputs as last written
   std::array<std::int8_t, kMaxAxes> servo_algorithm{};
   std::array<std::int8_t, kMaxAxes> servo_parameter_set{};
+  /// Macro-steps queued when the reading was taken, the running one included.
+  int macro_steps_ahead = 0;
 };
 
 /// One servo cycle as recorded by the trace (see ServoLoop::enable_trace).
@@ -52,28 +57,6 @@ struct TraceSample {
   bool synchronised = false;  ///< false: positions are raw axis positions, not joint coordinates
   AxisArray desired{};   ///< commanded joint position written in this cycle [rad]
   AxisArray measured{};  ///< measured joint position read in this cycle [rad]
-};
-
-/// Lateness of the servo wake-ups against their absolute deadlines.
-struct TimingStats {
-  std::int64_t cycles = 0;
-  std::int64_t overruns = 0;  ///< cycles woken more than one period late
-  double period_us = 0;
-  double lateness_p50_us = 0;
-  double lateness_p99_us = 0;
-  double lateness_max_us = 0;
-  std::string scheduling;  ///< "SCHED_FIFO 80" or "SCHED_OTHER, timer slack 1 ns"
-};
-
-/// Wake-up lateness since the previous `take_timing_window()` (for the robot-state broadcast).
-struct TimingWindow {
-  std::int64_t cycles = 0;
-  double lateness_mean_us = 0;
-  double lateness_max_us = 0;
-  std::int64_t overruns_total = 0;
-  /// The worst overrun in the window: how late that cycle woke [us] (0 if none in the window).
-  double worst_overrun_us = 0;
-  std::int64_t overruns = 0;  ///< overruns in the window
 };
 
 class ServoLoop {
@@ -88,9 +71,25 @@ class ServoLoop {
   /// Stops the thread (holding the last setpoint) and deactivates the hardware. Idempotent.
   void stop();
 
+  /// Macro-steps that may wait ahead of the servo loop (1..kMaxLookahead; default 1, the
+  /// paper's single successor). Set before start().
+  void set_lookahead(int depth);
+  [[nodiscard]] int lookahead() const { return lookahead_; }
+
   /// Queues a macro-step towards `target` (joint coordinates, already limit-checked). Blocks
-  /// while another macro-step is already queued. Returns its id.
+  /// while the queue is full (a second client beside one that fills the lookahead). Returns its
+  /// id; ids increase by one per macro-step.
   std::uint64_t submit(const std::vector<double>& target, int steps, int value_in_step_no);
+  /// The id of the macro-step whose reading answers macro-step `id` with this lookahead: `id`
+  /// itself when it promises no successor or the lookahead is 1, else the one lookahead - 1
+  /// places before it (its reading in step value_in_step_no).
+  [[nodiscard]] std::uint64_t reply_due_at(std::uint64_t id, bool promises_successor) const;
+  /// Waits until the reading that answers macro-step `id` (taken in macro-step `due_at`, see
+  /// reply_due_at) exists: that reading, or the latest one if `due_at` passed its reading step
+  /// before. Nothing on timeout, fault, emergency stop, or when `id` was refused.
+  std::optional<Reading> wait_reply(std::uint64_t id, std::uint64_t due_at, double timeout_s);
+  /// Servo steps still to run in everything queued, the running macro-step included.
+  [[nodiscard]] std::int64_t queued_steps() const;
   /// Desired joint position at the end of everything queued.
   [[nodiscard]] std::vector<double> planned_end() const;
   /// Waits for the reading of macro-step `id`. Returns nothing on timeout, fault, or when the
@@ -99,8 +98,10 @@ class ServoLoop {
   /// Why macro-step `id` was refused when it was due to start, or "" if it was not: the straight
   /// line from where the robot stands to its target would need more than a joint's velocity limit
   /// (e.g. after a stopping ramp left the robot away from the path its task planned). The robot
-  /// holds.
+  /// holds, and every macro-step queued behind the refused one is refused with it.
   [[nodiscard]] std::string refusal(std::uint64_t id) const;
+  /// The newest macro-step id refused so far (0: none).
+  [[nodiscard]] std::uint64_t refused_upto() const;
   /// The reading of the latest cycle.
   [[nodiscard]] Reading latest() const;
 
@@ -172,15 +173,7 @@ class ServoLoop {
   [[nodiscard]] std::thread::id servo_thread_id() const { return thread_.get_id(); }
 
  private:
-  enum class Mode { hold, synchro_search, synchro_approach, stopping };
-  struct Motion {
-    std::uint64_t id = 0;
-    AxisArray start{};
-    AxisArray target{};
-    int steps = 1;
-    int value_in_step_no = 1;
-    int step = 0;
-  };
+  enum class Mode { hold, synchronising, stopping };
 
   void run();
   void run_lock_step();
@@ -190,15 +183,24 @@ class ServoLoop {
   [[nodiscard]] bool awaiting_successor() const;
   void record_cycle(std::int64_t late_ns, std::int64_t period_ns);
   void cycle();
-  void synchro_cycle();
-  void stop_cycle();
+  /// The part of a cycle that decides the setpoints (mutex_ held; no hardware call).
+  void plan_cycle();
+  void motion_cycle();
+  void start_next_macro_step();
   void set_fault(const char* text);
   void store_reading(std::uint64_t id, int step_no);
+  /// Drops every queued macro-step; waiters for them are answered by their refusal or the
+  /// emergency stop.
+  void drop_queue();
+  [[nodiscard]] int queued() const {
+    return static_cast<int>(queue_.size()) + (current_ ? 1 : 0);
+  }
 
   Hardware& hardware_;
   const RobotModel& model_;
   std::size_t axes_;
   double period_s_;
+  int lookahead_ = 1;
 
   std::thread thread_;
   std::atomic<bool> running_{false};
@@ -207,39 +209,36 @@ class ServoLoop {
   bool lock_step_ = false;
   double successor_wait_s_ = 1.0;
 
-  mutable std::mutex mutex_;
-  std::condition_variable cv_;
+  mutable PiMutex mutex_;
+  Wakeup changed_;              ///< moved whenever a waiter's condition may have changed
+  bool notify_pending_ = false;  ///< the servo thread notifies changed_ after unlocking
   Mode mode_ = Mode::hold;
-  std::optional<Motion> current_;
-  std::optional<Motion> next_;
+  Synchroniser synchroniser_;
+  std::optional<MacroStep> current_;
+  MacroStepQueue queue_;
   std::uint64_t next_id_ = 1;
+  std::uint64_t reached_id_ = 0;  ///< the newest macro-step past its reading step (or dropped)
   std::uint64_t after_stop_id_ = 0;  ///< macro-step whose reading is due after it stopped
   int after_stop_step_ = 0;
   Reading latest_;
   Reading delivered_;  ///< the last reading requested by a macro-step
   AxisArray desired_{};  ///< joint coordinates (raw before synchronisation)
   AxisArray commanded_velocity_{};  ///< of desired_ over the last cycle [rad/s]
-  AxisArray proposal_{};            ///< next position of the stopping ramp
+  AxisArray scratch_{};             ///< the stopping ramp's proposal
   const ArmKinematics* guard_ = nullptr;
   std::int64_t limit_stops_ = 0;  ///< stopping ramps ended at a limit
   bool emergency_stop_ = false;
   bool hold_at_measured_ = false;  ///< after an emergency stop: hold at the measured joints
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;
-  std::uint64_t refused_id_ = 0;  ///< the last macro-step refused at its start
+  std::uint64_t refused_first_ = 0;  ///< the refused range: the macro-step refused at its start
+  std::uint64_t refused_last_ = 0;   ///< ... and the newest one dropped with it
   bool after_ramp_ = false;       ///< the robot stands where a lost successor's ramp left it
   char refused_text_[256] = {};
   AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
   std::array<AxisFeedback, kMaxAxes> sample_{};    ///< servo thread only
   std::array<AxisFeedback, kMaxAxes> feedback_{};  ///< under mutex_
-  std::array<double, kMaxAxes> raw_setpoints_{};
-  // synchronisation
-  std::array<bool, kMaxAxes> switch_found_{};
-  std::array<bool, kMaxAxes> switch_initial_{};
-  std::array<double, kMaxAxes> search_direction_{};
-  AxisArray search_start_{};
-  int approach_steps_left_ = 0;
-  AxisArray approach_step_{};
+  std::array<double, kMaxAxes> raw_setpoints_{};   ///< servo thread only (written outside mutex_)
   char fault_[256] = {};
 
   bool outputs_pending_ = false;
@@ -249,15 +248,8 @@ class ServoLoop {
   std::array<std::int8_t, kMaxAxes> servo_parameter_set_{};
   std::vector<TraceSample> trace_;  ///< preallocated by enable_trace
   std::size_t trace_count_ = 0;
-  // timing
-  std::int64_t cycles_ = 0;
-  std::int64_t overruns_ = 0;
-  std::vector<float> lateness_us_;  ///< ring of the last samples, preallocated
-  std::size_t lateness_next_ = 0;
-  double lateness_max_us_ = 0;
+  ServoTiming timing_;
   std::string scheduling_;
-  TimingWindow window_{};
-  double window_sum_us_ = 0;
 };
 
 }  // namespace mrroc::edp

@@ -62,6 +62,7 @@ mrroc_lcm::edp_instruction_t encode(const edp::Instruction& in) {
   m.servo_algorithm = in.servo_algorithm;
   m.servo_parameters_no = in.servo_parameters_no;
   m.output_values = static_cast<std::int32_t>(in.output_values);
+  m.with_query = in.with_query ? 1 : 0;
   return m;
 }
 
@@ -88,6 +89,9 @@ edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   in.servo_algorithm = checked_vector(m.servo_algorithm, m.n_servo, "servo_algorithm");
   in.servo_parameters_no = checked_vector(m.servo_parameters_no, m.n_servo, "servo_parameters_no");
   in.output_values = static_cast<std::uint32_t>(m.output_values);
+  if (m.with_query != 0 && m.with_query != 1)
+    throw DecodeError(fmt::format("with_query {} is not 0 or 1", m.with_query));
+  in.with_query = m.with_query == 1;
   return in;
 }
 
@@ -98,6 +102,7 @@ mrroc_lcm::edp_reply_t encode(const edp::Reply& in) {
   m.error_text = in.error_text;
   m.is_synchronised = in.synchronised ? 1 : 0;
   m.step_no = in.step_no;
+  m.macro_steps_ahead = in.macro_steps_ahead;
   m.servo_cycle = in.servo_cycle;
   m.arm_type = arm_code(in.arm_type);
   m.n_arm = length(in.arm, "arm");
@@ -138,6 +143,7 @@ edp::Reply decode(const mrroc_lcm::edp_reply_t& m) {
   out.error_text = m.error_text;
   out.synchronised = m.is_synchronised != 0;
   out.step_no = m.step_no;
+  out.macro_steps_ahead = m.macro_steps_ahead;
   out.servo_cycle = m.servo_cycle;
   out.arm_type = arm_of(m.arm_type, "arm_type");
   out.arm = checked_vector(m.arm, m.n_arm, "arm");

@@ -553,7 +553,8 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     }
     const toml::table& edp = r.table(t, "edp", "robot");
     r.only_keys(edp, "robot.edp",
-                Reader::with_options({"plugin", "library", "servo_period_ms", "lock_step", "params"}));
+                Reader::with_options(
+                    {"plugin", "library", "servo_period_ms", "lookahead", "lock_step", "params"}));
     robot.edp.where = r.where(edp);
     robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
     if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{}); !lib.empty()) {
@@ -562,6 +563,18 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
                      "hardware plugin library");
     }
     robot.edp.servo_period_s = r.number(edp, "servo_period_ms", 2.0, 0.1, 100.0, "ms") / 1000.0;
+    if (const toml::node* la = edp.get("lookahead")) {
+      if (!la->is_integer())
+        r.fail(*la, fmt::format("'lookahead' must be an integer (macro-steps queued ahead of the "
+                                "servo loop, 1..{})",
+                                kMaxLookahead));
+      const std::int64_t v = **la->as_integer();
+      if (v < 1 || v > kMaxLookahead)
+        r.fail(*la, fmt::format("'lookahead' = {} macro-steps is outside 1..{} (1: the paper's "
+                                "one successor)",
+                                v, kMaxLookahead));
+      robot.edp.lookahead = static_cast<int>(v);
+    }
     if (const toml::node* ls = edp.get("lock_step")) {
       if (!ls->is_boolean()) r.fail(*ls, "'lock_step' must be true or false");
       robot.edp.lock_step = **ls->as_boolean();

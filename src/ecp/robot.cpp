@@ -29,6 +29,7 @@ void Robot::update_image(const edp::Reply& reply) {
   image_.desired_joints = reply.desired_joints;
   image_.joint_velocities = reply.joint_velocities;
   image_.step_no = reply.step_no;
+  image_.macro_steps_ahead = reply.macro_steps_ahead;
   image_.servo_cycle = reply.servo_cycle;
   image_.arm_type = reply.arm_type;
   image_.arm = reply.arm;
@@ -77,6 +78,12 @@ std::vector<double> Robot::pose(edp::ArmRepresentation representation, bool desi
 }
 
 void Robot::execute() {
+  if (!separate_query_ && image_.command.type != edp::InstructionType::query) {
+    edp::Instruction command = image_.command;
+    command.with_query = true;
+    update_image(exchange(command));
+    return;
+  }
   exchange(image_.command);
   edp::Instruction query;
   query.type = edp::InstructionType::query;

@@ -84,10 +84,19 @@ struct SrpConfig {
   ProcessOptions options;
 };
 
+/// Macro-steps an EDP queues ahead of its servo loop by default (`[robot.edp] lookahead`);
+/// chosen by measurement (docs/edp.md, "Lookahead").
+inline constexpr int kDefaultLookahead = 8;
+/// The most macro-steps an EDP may queue (its queue is allocated once, this long).
+inline constexpr int kMaxLookahead = 64;
+
 struct EdpConfig {
   std::string plugin;            ///< hardware plugin name, e.g. "mujoco"
   std::filesystem::path library; ///< shared library registering the plugin (optional)
   double servo_period_s = 0.002; ///< servo period [s]
+  /// Macro-steps queued ahead of the servo loop (1..kMaxLookahead; 1: the paper's one successor,
+  /// for sensor-driven generators that need the shortest reaction).
+  int lookahead = kDefaultLookahead;
   /// Simulated hardware only: servo cycles run back to back while there is motion to execute
   /// (simulated time advances as fast as the machine allows) instead of one per period.
   bool lock_step = false;

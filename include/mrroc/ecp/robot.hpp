@@ -23,6 +23,9 @@ struct RobotImage {
   std::vector<double> desired_joints;    ///< commanded (from the EDP's last reply)
   std::vector<double> joint_velocities;  ///< measured [rad/s]
   int step_no = 0;                       ///< step of the macro-step the reading was taken in
+  /// Macro-steps queued in the EDP when the reading was taken (the running one included): with
+  /// a lookahead above 1 the reading is older than the command just sent (docs/edp.md).
+  int macro_steps_ahead = 0;
   std::int64_t servo_cycle = 0;
   /// The last reading in the representation the command asked for (GET ARM), e.g. a frame.
   edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
@@ -61,9 +64,15 @@ class Robot {
   [[nodiscard]] std::vector<double> pose(edp::ArmRepresentation representation,
                                          bool desired = false) const;
 
-  /// Sends `image().command` and then QUERY; updates the image from the QUERY reply.
+  /// Sends `image().command` and updates the image from its result: one exchange (the command
+  /// goes with `with_query`, and the EDP answers with what its QUERY would return), or, with
+  /// set_separate_query(true), the paper's two: the command, then QUERY.
   /// @throws EdpRefused (the EDP refused; nothing moved), TimeoutError.
   void execute();
+  /// True: execute() sends a separate QUERY after every command (the paper's sequence; one more
+  /// round trip per macro-step). Default false.
+  void set_separate_query(bool separate) { separate_query_ = separate; }
+  [[nodiscard]] bool separate_query() const { return separate_query_; }
   /// Reads the arm (GET ARM JOINT + QUERY) into the image.
   void read_state();
   /// SYNCHRO + QUERY unless the EDP is already synchronised.
@@ -96,6 +105,7 @@ class Robot {
   mutable std::mutex pause_mutex_;
   std::condition_variable pause_cv_;
   bool paused_ = false;
+  bool separate_query_ = false;
 };
 
 }  // namespace mrroc::ecp

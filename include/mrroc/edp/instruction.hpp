@@ -64,6 +64,11 @@ struct Instruction {
   std::vector<std::int8_t> servo_parameters_no;
 
   std::uint32_t output_values = 0;
+
+  /// The reply carries the result a QUERY would return (for SET ARM the reading taken in step
+  /// `value_in_step_no`, or as the EDP's lookahead allows, see docs/edp.md) and no QUERY follows:
+  /// one exchange per macro-step. False: the paper's SET + QUERY sequence.
+  bool with_query = false;
 };
 
 enum class ReplyType : std::int8_t { acknowledge = 1, data = 2, error = 3 };
@@ -93,6 +98,9 @@ struct Reply {
   bool synchronised = false;
   int step_no = 0;               ///< step of the macro-step in which the reading was taken
   std::int64_t servo_cycle = 0;  ///< servo cycle counter at the reading
+  /// Macro-steps queued in the EDP when the reading was taken, the running one included: how far
+  /// the commands run ahead of the robot (0: it had nothing left to do).
+  int macro_steps_ahead = 0;
 
   ArmRepresentation arm_type = ArmRepresentation::joint;
   std::vector<double> arm;               ///< in arm_type

@@ -1,0 +1,314 @@
+// The EDP's lookahead and its servo thread's independence: macro-steps queued ahead of the
+// servo loop carry a trajectory across a client that stalls for longer than a macro-step (the
+// same stall with the paper's single successor stops the robot), the last macro-step of a motion
+// is still answered after its stop, one exchange (with_query) gives what SET + QUERY gives, a
+// refused macro-step takes everything queued behind it along, and an emergency stop, state
+// reads and submissions never wait for a plugin's write() (a simulation step).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <future>
+#include <mutex>
+#include <thread>
+
+#include "command_interpreter.hpp"
+#include "macro_step_queue.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
+#include "mrroc/edp/hardware.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "servo_loop.hpp"
+
+using namespace mrroc;
+using namespace mrroc::edp;
+
+namespace {
+
+constexpr double kPeriod = 0.002;
+
+TEST(MacroStepQueue, KeepsOrderWrapsAroundAndKnowsWhenFull) {
+  MacroStepQueue q;
+  EXPECT_TRUE(q.empty());
+  std::uint64_t next_in = 1;
+  std::uint64_t next_out = 1;
+  // Three times round the ring, half full on average.
+  for (int round = 0; round < 3 * static_cast<int>(MacroStepQueue::kCapacity); ++round) {
+    while (q.size() < MacroStepQueue::kCapacity / 2) {
+      MacroStep m;
+      m.id = next_in++;
+      q.push(m);
+    }
+    EXPECT_EQ(q.front().id, next_out);
+    EXPECT_EQ(q.back().id, next_in - 1);
+    EXPECT_EQ(q.pop().id, next_out++);
+  }
+  while (!q.full()) {
+    MacroStep m;
+    m.id = next_in++;
+    q.push(m);
+  }
+  EXPECT_EQ(q.size(), MacroStepQueue::kCapacity);
+  EXPECT_EQ(q.at(q.size() - 1).id, next_in - 1);
+  q.clear();
+  EXPECT_TRUE(q.empty());
+}
+
+class Lookahead : public ::testing::Test {
+ protected:
+  void start(int depth) {
+    model_ = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+    hardware_ = make_hardware("mujoco");
+    HardwareSetup setup;
+    setup.robot = "irb6";
+    setup.model_dir = model_.folder;
+    setup.servo_period_s = kPeriod;
+    setup.synchro_positions = model_.synchro_joint_positions;
+    hardware_->configure(setup);
+    kinematics_ = make_arm_kinematics(model_);
+    servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
+    servo_->set_limit_guard(kinematics_.get());
+    servo_->set_lookahead(depth);
+    servo_->enable_trace(20000);
+    servo_->start();
+    interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
+    Instruction s;
+    s.type = InstructionType::synchro;
+    s.with_query = true;
+    ASSERT_EQ(interpreter_->execute(s).type, ReplyType::data);
+  }
+  void TearDown() override {
+    if (servo_) servo_->stop();
+  }
+
+  static Instruction set_joints(std::vector<double> q, int steps, int value, bool with_query) {
+    Instruction in;
+    in.type = InstructionType::set;
+    in.set = item::arm;
+    in.set_arm_type = ArmRepresentation::joint;
+    in.motion_steps = steps;
+    in.value_in_step_no = value;
+    in.arm = std::move(q);
+    in.with_query = with_query;
+    return in;
+  }
+
+  /// Column velocities [rad/s] commanded from the first moving step after `from` on.
+  std::vector<double> column_velocities(std::int64_t from) const {
+    const auto trace = servo_->trace();
+    std::vector<double> v;
+    for (std::size_t i = 1; i < trace.size(); ++i)
+      if (trace[i].cycle > from) v.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
+    std::size_t first = 0;
+    while (first < v.size() && v[first] == 0.0) ++first;
+    return {v.begin() + static_cast<std::ptrdiff_t>(first), v.end()};
+  }
+
+  /// A constant-velocity column motion of `segments` macro-steps of 10 servo steps (20 ms), one
+  /// exchange each, read 3 steps early; the client stalls `stall_ms` before macro-step
+  /// `stall_at`. Returns the servo steps commanded at a velocity other than 0.1 rad/s.
+  int run_with_stall(int segments, int stall_at, int stall_ms) {
+    constexpr int kSteps = 10;
+    const std::int64_t from = servo_->latest().cycle;
+    std::vector<double> q = model_.synchro_joint_positions;
+    const double q0 = q[0];
+    for (int k = 1; k <= segments; ++k) {
+      if (k == stall_at) std::this_thread::sleep_for(std::chrono::milliseconds(stall_ms));
+      q[0] = q0 + 0.0002 * kSteps * k;
+      const int value = k == segments ? kSteps + 1 : kSteps - 3;
+      const Reply r = interpreter_->execute(set_joints(q, kSteps, value, true));
+      if (r.type != ReplyType::data) {
+        ADD_FAILURE() << "macro-step " << k << ": " << r.error_text;
+        return -1;
+      }
+    }
+    const std::vector<double> v = column_velocities(from);
+    int off = 0;
+    for (std::size_t i = 0; i < v.size() && i < static_cast<std::size_t>(kSteps * segments); ++i)
+      if (std::abs(v[i] - 0.1) > 1e-9) ++off;
+    return off;
+  }
+
+  RobotModel model_;
+  std::unique_ptr<Hardware> hardware_;
+  std::unique_ptr<ServoLoop> servo_;
+  std::unique_ptr<ArmKinematics> kinematics_;
+  std::unique_ptr<CommandInterpreter> interpreter_;
+};
+
+TEST_F(Lookahead, AQueueOfEightCarriesTheMotionAcrossA60MsClientStall) {
+  start(8);
+  const int off = run_with_stall(40, 20, 60);
+  EXPECT_EQ(off, 0) << "servo steps off the commanded 0.1 rad/s";
+  EXPECT_EQ(servo_->lost_successors(), 0);
+}
+
+TEST_F(Lookahead, WithTheSingleSuccessorTheSameStallStopsTheRobot) {
+  // The paper's depth 1: 60 ms of client silence is longer than the 6 ms its reading leaves.
+  start(1);
+  const int off = run_with_stall(40, 20, 60);
+  EXPECT_GT(off, 0);
+  EXPECT_GE(servo_->lost_successors(), 1);
+}
+
+TEST_F(Lookahead, RepliesRunAheadByTheDepthAndTheLastOneComesAfterTheStop) {
+  start(4);
+  std::vector<double> q = model_.synchro_joint_positions;
+  const double q0 = q[0];
+  const std::int64_t before = servo_->latest().cycle;
+  // The first three replies do not wait for the robot: macro-steps 1..3 sit in the queue.
+  for (int k = 1; k <= 3; ++k) {
+    q[0] = q0 + 0.002 * k;
+    const Reply r = interpreter_->execute(set_joints(q, 10, 7, true));
+    ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+    EXPECT_LE(r.servo_cycle, before + 3) << "reply " << k << " waited for the servo loop";
+  }
+  // The fourth is answered by the reading of macro-step 1 (3 places before it) in its step 7.
+  q[0] = q0 + 0.008;
+  Reply r = interpreter_->execute(set_joints(q, 10, 7, true));
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_EQ(r.step_no, 7);
+  EXPECT_NEAR(r.desired_joints[0], q0 + 0.002 * 0.7, 1e-12);
+  EXPECT_EQ(r.macro_steps_ahead, 4);
+  // The last one promises no successor: its reply is its own reading, after the stop.
+  q[0] = q0 + 0.010;
+  r = interpreter_->execute(set_joints(q, 10, 11, true));
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_EQ(r.step_no, 11);
+  EXPECT_DOUBLE_EQ(r.desired_joints[0], q0 + 0.010);
+  EXPECT_EQ(r.macro_steps_ahead, 0);
+  EXPECT_EQ(servo_->lost_successors(), 0);
+}
+
+TEST_F(Lookahead, OneExchangeAnswersAsSetThenQuery) {
+  start(1);
+  std::vector<double> q = model_.synchro_joint_positions;
+  const double q0 = q[0];
+  q[0] = q0 + 0.02;
+  const Reply one = interpreter_->execute(set_joints(q, 20, 5, true));
+  ASSERT_EQ(one.type, ReplyType::data) << one.error_text;
+  EXPECT_EQ(one.step_no, 5);
+  EXPECT_NEAR(one.desired_joints[0], q0 + 0.02 * 5.0 / 20.0, 1e-12);
+  // The paper's pair on the same interpreter: ACKNOWLEDGE, then the reading for the QUERY.
+  q[0] = q0 + 0.04;
+  ASSERT_EQ(interpreter_->execute(set_joints(q, 20, 5, false)).type, ReplyType::acknowledge);
+  Instruction query;
+  query.type = InstructionType::query;
+  const Reply two = interpreter_->execute(query);
+  ASSERT_EQ(two.type, ReplyType::data) << two.error_text;
+  EXPECT_EQ(two.step_no, 5);
+  EXPECT_NEAR(two.desired_joints[0], q0 + 0.02 + 0.02 * 5.0 / 20.0, 1e-12);
+  // with_query leaves no QUERY due: a QUERY now is unexpected.
+  q[0] = q0;
+  ASSERT_EQ(interpreter_->execute(set_joints(q, 50, 51, true)).type, ReplyType::data);
+  EXPECT_EQ(interpreter_->execute(query).error_code, error_code::query_unexpected);
+}
+
+TEST_F(Lookahead, ARefusedMacroStepTakesTheQueueBehindItAlongAndIsReportedOnce) {
+  start(4);
+  std::vector<double> q = model_.synchro_joint_positions;
+  const double q0 = q[0];
+  // A motion at 1.5 rad/s on the column (its limit; 3 rad/s^2) whose successor never comes:
+  // the ramp carries the column 0.375 rad past the target.
+  q[0] = q0 + 0.06;
+  ASSERT_EQ(interpreter_->execute(set_joints(q, 20, 17, true)).type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  ASSERT_EQ(servo_->lost_successors(), 1);
+  // The planned continuation is too fast from where the ramp left the robot. With a lookahead
+  // of 4 the first three replies come before the first of them is due to start (and refused);
+  // the refusal reaches the client in the reply to the fourth at the latest.
+  for (int k = 1; k <= 4; ++k) {
+    q[0] = q0 + 0.06 + 0.03 * k;
+    const Reply r = interpreter_->execute(set_joints(q, 20, 17, true));
+    if (r.type == ReplyType::error) {
+      EXPECT_EQ(r.error_code, error_code::too_fast) << r.error_text;
+      EXPECT_NE(r.error_text.find("rad/s"), std::string::npos) << r.error_text;
+      break;
+    }
+    ASSERT_LT(k, 4) << "four macro-steps accepted from where the ramp left the robot";
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_TRUE(servo_->stopped());
+  // Reported once: a new plan from where the robot stands is accepted.
+  const std::vector<double> here = servo_->planned_end();
+  q = here;
+  q[0] -= 0.01;
+  const Reply r = interpreter_->execute(set_joints(q, 20, 21, true));
+  EXPECT_EQ(r.type, ReplyType::data) << r.error_text;
+}
+
+/// Mirrors its setpoints (the axes are where they were told to be); its write() can be held
+/// at a gate, as a long simulation step would hold it.
+class GatedHardware : public Hardware {
+ public:
+  explicit GatedHardware(std::size_t axes) : axes_(axes), position_(axes, 0.0) {}
+  std::string name() const override { return "gated"; }
+  std::size_t axis_count() const override { return axes_; }
+  void configure(const HardwareSetup&) override {}
+  void activate() override {}
+  void deactivate() override {}
+  CycleStatus read(std::span<AxisFeedback> out) override {
+    std::lock_guard lock(mutex_);
+    for (std::size_t i = 0; i < axes_; ++i) out[i].position = position_[i];
+    return CycleStatus::ok;
+  }
+  CycleStatus write(std::span<const double> setpoints) override {
+    std::unique_lock lock(mutex_);
+    for (std::size_t i = 0; i < axes_; ++i) position_[i] = setpoints[i];
+    if (close_) {
+      inside_ = true;
+      cv_.notify_all();
+      cv_.wait(lock, [&] { return !close_; });
+      inside_ = false;
+    }
+    return CycleStatus::ok;
+  }
+  void close_gate() {
+    std::lock_guard lock(mutex_);
+    close_ = true;
+  }
+  bool wait_inside(std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, timeout, [&] { return inside_; });
+  }
+  void open_gate() {
+    std::lock_guard lock(mutex_);
+    close_ = false;
+    cv_.notify_all();
+  }
+
+ private:
+  std::size_t axes_;
+  std::vector<double> position_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool close_ = false;
+  bool inside_ = false;
+};
+
+TEST(ServoLoopThreads, NothingWaitsForAPluginWrite) {
+  const RobotModel model = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+  GatedHardware hardware(model.axes());
+  ServoLoop servo(hardware, model, kPeriod);
+  servo.start();
+  hardware.close_gate();
+  ASSERT_TRUE(hardware.wait_inside(std::chrono::seconds(2)));
+  // The servo thread is inside write() (a simulation step that does not end): every call from
+  // another thread still returns.
+  auto calls = std::async(std::launch::async, [&] {
+    (void)servo.latest();
+    (void)servo.stopped();
+    (void)servo.moving();
+    (void)servo.take_timing_window();
+    servo.emergency_stop();
+    return servo.emergency_stopped();
+  });
+  const bool returned = calls.wait_for(std::chrono::seconds(2)) == std::future_status::ready;
+  hardware.open_gate();
+  ASSERT_TRUE(returned) << "a call waited for the plugin's write()";
+  EXPECT_TRUE(calls.get());
+  servo.stop();
+}
+
+}  // namespace

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <functional>
 #include <cstdio>
 #include <mutex>
 #include <regex>
@@ -24,12 +25,11 @@ struct LaunchRun {
 };
 
 /// Launches `config`; when `victim` is not empty, waits until `trigger` appears in the output,
-/// waits `delay` and kills the process named `victim` (pid from the launcher's "started <victim>
-/// (pid N)" line) with `signal`.
-inline LaunchRun launch_and_kill(const std::string& config, const std::string& victim = {},
-                                 const std::string& trigger = {},
-                                 std::chrono::milliseconds delay = std::chrono::milliseconds(0),
-                                 int signal = SIGKILL) {
+/// waits `delay` and calls `act` with the pid of the process named `victim` (from the launcher's
+/// "started <victim> (pid N)" line).
+inline LaunchRun launch_and_act(const std::string& config, const std::string& victim,
+                                const std::string& trigger, std::chrono::milliseconds delay,
+                                const std::function<void(pid_t)>& act) {
   int out[2];
   if (pipe(out) != 0) return {};
   const pid_t pid = fork();
@@ -68,7 +68,7 @@ inline LaunchRun launch_and_kill(const std::string& config, const std::string& v
   if (triggered) {
     std::this_thread::sleep_for(delay);
     run.killed_at = Clock::now();
-    kill(victim_pid, signal);
+    act(victim_pid);
   }
   int status = 0;
   waitpid(pid, &status, 0);
@@ -77,6 +77,16 @@ inline LaunchRun launch_and_kill(const std::string& config, const std::string& v
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   if (!victim.empty() && !triggered) run.output += "\n[test] trigger '" + trigger + "' never came\n";
   return run;
+}
+
+/// Launches `config`; when `victim` is not empty, waits until `trigger` appears in the output,
+/// waits `delay` and kills the process named `victim` (pid from the launcher's "started <victim>
+/// (pid N)" line) with `signal`.
+inline LaunchRun launch_and_kill(const std::string& config, const std::string& victim = {},
+                                 const std::string& trigger = {},
+                                 std::chrono::milliseconds delay = std::chrono::milliseconds(0),
+                                 int signal = SIGKILL) {
+  return launch_and_act(config, victim, trigger, delay, [signal](pid_t pid) { kill(pid, signal); });
 }
 
 inline bool has(const std::string& s, const std::string& what) {

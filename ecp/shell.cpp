@@ -29,7 +29,10 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
       reporter_(reporter),
       process_("ecp/" + config.name),
       robot_(bus, process_, config.name, load_robot_model(config.model_dir)),
-      server_(bus, process_, channels::ecp_command(config.name), channels::ecp_reply(config.name)) {
+      // Commands are dispatched on the bus thread as they arrive (dispatch never blocks: a task,
+      // sub-task or macro-step goes to the worker), one thread hand-off less than a queue.
+      server_(bus, process_, channels::ecp_command(config.name), channels::ecp_reply(config.name),
+              [this](comm::EcpServer::Incoming in) { serve(std::move(in)); }) {
   // Build the configured task once now, so that a wrong name or argument fails before "ready".
   TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s, &bus_,
                       process_};
@@ -225,20 +228,39 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
   }
 }
 
+void EcpShell::serve(comm::EcpServer::Incoming in) {
+  {
+    std::lock_guard lock(serve_mutex_);
+    if (!serving_) {
+      // Before "ready" (served then) or while stopping (never: the process ends).
+      early_.push_back(std::move(in));
+      return;
+    }
+  }
+  if (!in.request) {
+    reporter_.report(Severity::warning, error_code::malformed,
+                     "malformed MP command dropped: " + in.decode_error);
+    in.responder.reply(error_reply(ErrorClass::non_fatal, error_code::malformed,
+                                   "malformed command: " + in.decode_error));
+    return;
+  }
+  dispatch(*in.request, in.responder);
+}
+
 void EcpShell::run(const std::string& scheduling) {
   reporter_.info(fmt::format("ready: task '{}', {}", config_.ecp.name, scheduling));
   reporter_.set_state(ProcessState::ready);
-  while (!stop_requested()) {
-    auto in = server_.wait_request(std::chrono::milliseconds(100));
-    if (!in) continue;
-    if (!in->request) {
-      reporter_.report(Severity::warning, error_code::malformed,
-                       "malformed MP command dropped: " + in->decode_error);
-      in->responder.reply(error_reply(ErrorClass::non_fatal, error_code::malformed,
-                                      "malformed command: " + in->decode_error));
-      continue;
-    }
-    dispatch(*in->request, in->responder);
+  std::vector<comm::EcpServer::Incoming> early;
+  {
+    std::lock_guard lock(serve_mutex_);
+    serving_ = true;
+    early.swap(early_);
+  }
+  for (auto& in : early) serve(std::move(in));
+  while (!stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  {
+    std::lock_guard lock(serve_mutex_);
+    serving_ = false;
   }
   reporter_.set_state(ProcessState::stopping);
   robot_.request_stop();

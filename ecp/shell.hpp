@@ -26,6 +26,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <vector>
 
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -49,6 +50,8 @@ class EcpShell {
 
  private:
   using Responder = comm::EcpServer::Responder;
+  /// On the bus thread: a decoded (or malformed) command from the MP.
+  void serve(comm::EcpServer::Incoming in);
   void dispatch(const MpCommand& command, const Responder& responder);
   /// Runs `body` on the worker; its reply (or the error it throws) goes to `responder`.
   bool start_activity(const std::string& what, std::function<EcpReply()> body,
@@ -64,7 +67,6 @@ class EcpShell {
   Reporter& reporter_;
   std::string process_;
   Robot robot_;
-  comm::EcpServer server_;
 
   std::mutex mutex_;
   std::condition_variable cv_;
@@ -72,6 +74,12 @@ class EcpShell {
   bool busy_ = false;
   bool closing_ = false;
   std::thread worker_;
+
+  std::mutex serve_mutex_;
+  bool serving_ = false;  ///< between "ready" and the stop request
+  std::vector<comm::EcpServer::Incoming> early_;  ///< commands that came before "ready"
+  /// Last: the bus thread calls into the members above as soon as it exists.
+  comm::EcpServer server_;
 };
 
 }  // namespace mrroc::ecp

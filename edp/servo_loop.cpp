@@ -503,7 +503,7 @@ std::optional<Reading> ServoLoop::wait_reply(std::uint64_t id, std::uint64_t due
   wait_until_ready(mutex_, changed_, seconds(timeout_s), [&] {
     if (refused() || faulted_ || emergency_stop_ || !running_) return true;
     if (reached_id_ < due_at) return false;
-    if (delivered_.macro_step == due_at) {
+    if (due_at != 0 && delivered_.macro_step == due_at) {
       out = delivered_;
     } else {
       // The macro-step it waits for passed its reading step before (or was dropped): the

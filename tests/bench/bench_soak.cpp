@@ -417,12 +417,15 @@ struct Shape {
 };
 
 void write_config(const fs::path& file) {
+  // Lookahead 4: the last macro-step (read after the stop) is answered when everything queued
+  // has run out, (lookahead + 1) macro-steps of up to 40 ms here; with the default 8 that is
+  // 360 ms, past the MP client's 250 ms attempt, and its resend would count as a lost reply.
   std::ofstream out(file);
   out << "[system]\nname = \"bench-soak\"\nlcm_url = \"" << kUrl << "\"\n"
       << "[mp]\ntask = \"start_and_wait\"\n";
   for (const char* robot : kRobots)
     out << "[[robot]]\nname = \"" << robot << "\"\nmodel = \"" << MRROC_SOURCE_DIR
-        << "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\nservo_period_ms = 1\n"
+        << "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\nservo_period_ms = 1\nlookahead = 4\n"
         << "[robot.ecp]\ntask = \"follow_mp\"\n";
   out << "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"soak_gauges\"]\n"
       << "mode = \"periodic\"\nperiod_ms = 1\nstale_after_ms = " << kStaleAfterMs << "\n"

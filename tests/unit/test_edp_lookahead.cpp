@@ -157,12 +157,17 @@ TEST_F(Lookahead, RepliesRunAheadByTheDepthAndTheLastOneComesAfterTheStop) {
   std::vector<double> q = model_.synchro_joint_positions;
   const double q0 = q[0];
   const std::int64_t before = servo_->latest().cycle;
-  // The first three replies do not wait for the robot: macro-steps 1..3 sit in the queue.
+  // The first three replies do not wait for the robot: macro-steps 1..3 sit in the queue. They
+  // carry the latest reading: the robot where it stands, synchronised.
   for (int k = 1; k <= 3; ++k) {
     q[0] = q0 + 0.002 * k;
     const Reply r = interpreter_->execute(set_joints(q, 10, 7, true));
     ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
     EXPECT_LE(r.servo_cycle, before + 3) << "reply " << k << " waited for the servo loop";
+    EXPECT_TRUE(r.synchronised);
+    ASSERT_EQ(r.joints.size(), model_.axes());
+    for (std::size_t j = 0; j < model_.axes(); ++j)
+      EXPECT_NEAR(r.joints[j], model_.synchro_joint_positions[j], 0.01) << "reply " << k;
   }
   // The fourth is answered by the reading of macro-step 1 (3 places before it) in its step 7.
   q[0] = q0 + 0.008;

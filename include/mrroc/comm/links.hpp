@@ -6,6 +6,7 @@
 ///   EcpClient  (MP side)   <-> EcpServer (ECP side)   channels <robot>/ecp/cmd, <robot>/ecp/reply
 
 #include <chrono>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -54,25 +55,43 @@ class PlainServer {
     Responder responder;
   };
 
+  /// Queue mode: requests wait for `wait_request`.
   PlainServer(Bus& bus, const std::string& name, const std::string& request_channel,
               const std::string& reply_channel, ServerOptions options = {})
       : server_(bus, name, request_channel, reply_channel, {}, options) {}
 
+  /// Handler mode: `handler` gets every new request on the bus thread, as soon as it is decoded
+  /// (one thread hand-off less than the queue); it must not block.
+  using Handler = std::function<void(Incoming)>;
+  PlainServer(Bus& bus, const std::string& name, const std::string& request_channel,
+              const std::string& reply_channel, Handler handler, ServerOptions options = {})
+      : server_(bus, name, request_channel, reply_channel,
+                [handler = std::move(handler)](const LcmReq& raw,
+                                               typename Raw::Responder responder) {
+                  handler(convert(raw, std::move(responder)));
+                },
+                options) {}
+
+  /// Queue mode only: the next request, or nothing after `timeout`.
   std::optional<Incoming> wait_request(std::chrono::milliseconds timeout) {
     auto raw = server_.wait_request(timeout);
     if (!raw) return std::nullopt;
+    return convert(raw->request, raw->responder);
+  }
+  [[nodiscard]] LinkStats stats() const { return server_.stats(); }
+
+ private:
+  static Incoming convert(const LcmReq& raw, typename Raw::Responder responder) {
     Incoming in;
-    in.responder = Responder(raw->responder);
+    in.responder = Responder(std::move(responder));
     try {
-      in.request = decode(raw->request);
+      in.request = decode(raw);
     } catch (const DecodeError& e) {
       in.decode_error = e.what();
     }
     return in;
   }
-  [[nodiscard]] LinkStats stats() const { return server_.stats(); }
 
- private:
   Raw server_;
 };
 

@@ -35,6 +35,8 @@ Reply CommandInterpreter::error(int code, const std::string& text) {
 
 Reply CommandInterpreter::execute(const Instruction& in) {
   Reply reply;
+  // Said of the macro-steps already queued, whatever becomes of this instruction.
+  if (in.no_successor) servo_.waive_successor();
   if (in.type == InstructionType::query) {
     reply = query();
   } else if (due_ != Due::nothing) {

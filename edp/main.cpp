@@ -125,6 +125,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
     bool hardware_fault_reported = false;
     bool estop_reported = false;
     std::int64_t lost_reported = 0;
+    std::int64_t planned_reported = 0;
     std::thread commands([&] {
       while (!stop_requested()) {
         auto in = server.wait_request(std::chrono::milliseconds(100));
@@ -149,6 +150,12 @@ int run(const std::string& config_path, const std::string& robot_name) {
                             "EMERGENCY STOP: robot brought to a standstill: " + reason);
           else
             reporter.warning("emergency stop released");
+        }
+        if (const std::int64_t planned = servo.planned_stops(); planned != planned_reported) {
+          planned_reported = planned;
+          reporter.info(fmt::format("the task paused or stopped mid-motion ({} so far): the robot "
+                                    "was brought to a standstill within its acceleration limits",
+                                    planned));
         }
         if (const std::int64_t lost = servo.lost_successors(); lost != lost_reported) {
           lost_reported = lost;

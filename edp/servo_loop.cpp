@@ -384,9 +384,13 @@ void ServoLoop::motion_cycle() {
   notify_pending_ = true;
   if (promised_successor && queue_.empty()) {
     // The ECP read this macro-step early to send the next one in time, and none came: the link
-    // or the ECP is lost, or the host held it back longer than the lookahead covers. Bring the
-    // robot to a standstill within its acceleration limits instead of stopping it dead.
-    ++lost_successors_;
+    // or the ECP is lost, or the host held it back longer than the lookahead covers (or, when
+    // the client waived it, the task paused or stopped). Bring the robot to a standstill within
+    // its acceleration limits instead of stopping it dead.
+    if (m.id <= waived_upto_)
+      ++planned_stops_;
+    else
+      ++lost_successors_;
     mode_ = Mode::stopping;
     after_ramp_ = true;
   }
@@ -430,6 +434,16 @@ bool ServoLoop::emergency_stopped() const {
 std::int64_t ServoLoop::lost_successors() const {
   std::lock_guard lock(mutex_);
   return lost_successors_;
+}
+
+void ServoLoop::waive_successor() {
+  std::lock_guard lock(mutex_);
+  waived_upto_ = next_id_ - 1;
+}
+
+std::int64_t ServoLoop::planned_stops() const {
+  std::lock_guard lock(mutex_);
+  return planned_stops_;
 }
 
 bool ServoLoop::reset_fault(double timeout_s) {

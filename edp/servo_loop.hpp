@@ -142,6 +142,11 @@ class ServoLoop {
   /// Macro-steps that promised a successor (value_in_step_no < motion_steps) which never came;
   /// each brought the robot to a standstill within its acceleration limits.
   [[nodiscard]] std::int64_t lost_successors() const;
+  /// The client said no macro-step follows those queued (it pauses or stops on purpose): if the
+  /// last of them promised a successor, the stopping ramp at its end is a planned stop.
+  void waive_successor();
+  /// Stopping ramps that ended a motion whose successor was waived.
+  [[nodiscard]] std::int64_t planned_stops() const;
   /// After a fault: the servo thread deactivates and re-activates the plugin, clears the fault,
   /// forgets the synchronisation (the position reference is lost) and holds where the axes are.
   /// Waits up to `timeout_s` for that; returns false if the fault persists.
@@ -231,6 +236,8 @@ class ServoLoop {
   bool hold_at_measured_ = false;  ///< after an emergency stop: hold at the measured joints
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;
+  std::int64_t planned_stops_ = 0;
+  std::uint64_t waived_upto_ = 0;  ///< macro-steps up to this id need no successor
   std::uint64_t refused_first_ = 0;  ///< the refused range: the macro-step refused at its start
   std::uint64_t refused_last_ = 0;   ///< ... and the newest one dropped with it
   bool after_ramp_ = false;       ///< the robot stands where a lost successor's ramp left it

@@ -63,6 +63,7 @@ mrroc_lcm::edp_instruction_t encode(const edp::Instruction& in) {
   m.servo_parameters_no = in.servo_parameters_no;
   m.output_values = static_cast<std::int32_t>(in.output_values);
   m.with_query = in.with_query ? 1 : 0;
+  m.no_successor = in.no_successor ? 1 : 0;
   return m;
 }
 
@@ -92,6 +93,9 @@ edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   if (m.with_query != 0 && m.with_query != 1)
     throw DecodeError(fmt::format("with_query {} is not 0 or 1", m.with_query));
   in.with_query = m.with_query == 1;
+  if (m.no_successor != 0 && m.no_successor != 1)
+    throw DecodeError(fmt::format("no_successor {} is not 0 or 1", m.no_successor));
+  in.no_successor = m.no_successor == 1;
   return in;
 }
 

@@ -17,6 +17,13 @@ bool check_stop(Robot& robot) {
     throw TaskStopped("task stopped on request");
   return robot.wait_while_paused();
 }
+/// check_stop() in the middle of a motion: before a pause holds the task or a stop ends it, the
+/// EDP learns that no macro-step follows, so the robot comes to rest as a planned stop.
+bool check_stop_moving(Robot& robot) {
+  if (robot.stop_requested() || mrroc::stop_requested() || robot.paused())
+    robot.announce_no_successor();
+  return check_stop(robot);
+}
 }  // namespace
 
 void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
@@ -38,7 +45,7 @@ void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
       continue;
     }
     refresh(sensors);
-    if (check_stop(robot)) {
+    if (check_stop_moving(robot)) {
       // After a pause the robot stands (its EDP ran out of macro-steps): continue from there.
       robot.read_state();
       if (generator.resume(robot.image(), sensors)) continue;

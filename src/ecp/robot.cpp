@@ -101,6 +101,19 @@ void Robot::read_state() {
   image_.command = saved;
 }
 
+void Robot::announce_no_successor() noexcept {
+  try {
+    edp::Instruction get;
+    get.type = edp::InstructionType::get;
+    get.get = edp::item::arm;
+    get.get_arm_type = edp::ArmRepresentation::joint;
+    get.no_successor = true;
+    get.with_query = true;
+    update_image(exchange(get));
+  } catch (...) {
+  }
+}
+
 void Robot::synchronise() {
   read_state();
   if (image_.synchronised) return;

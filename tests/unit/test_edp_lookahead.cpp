@@ -244,6 +244,33 @@ TEST_F(Lookahead, ARefusedMacroStepTakesTheQueueBehindItAlongAndIsReportedOnce) 
   EXPECT_EQ(r.type, ReplyType::data) << r.error_text;
 }
 
+TEST_F(Lookahead, AWaivedSuccessorEndsInAPlannedStopNotALostOne) {
+  start(4);
+  std::vector<double> q = model_.synchro_joint_positions;
+  const double q0 = q[0];
+  for (int k = 1; k <= 3; ++k) {
+    q[0] = q0 + 0.01 * k;
+    ASSERT_EQ(interpreter_->execute(set_joints(q, 10, 7, true)).type, ReplyType::data);
+  }
+  // The task pauses: no macro-step follows the three queued.
+  Instruction get;
+  get.type = InstructionType::get;
+  get.get = item::arm;
+  get.no_successor = true;
+  get.with_query = true;
+  ASSERT_EQ(interpreter_->execute(get).type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_TRUE(servo_->stopped());
+  EXPECT_EQ(servo_->planned_stops(), 1);
+  EXPECT_EQ(servo_->lost_successors(), 0);
+  // A motion after the pause that again runs dry without a word is a lost successor.
+  q[0] = servo_->planned_end()[0] + 0.005;
+  ASSERT_EQ(interpreter_->execute(set_joints(q, 10, 7, true)).type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_EQ(servo_->planned_stops(), 1);
+  EXPECT_EQ(servo_->lost_successors(), 1);
+}
+
 /// Mirrors its setpoints (the axes are where they were told to be); its write() can be held
 /// at a gate, as a long simulation step would hold it.
 class GatedHardware : public Hardware {

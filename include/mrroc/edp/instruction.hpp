@@ -69,6 +69,9 @@ struct Instruction {
   /// `value_in_step_no`, or as the EDP's lookahead allows, see docs/edp.md) and no QUERY follows:
   /// one exchange per macro-step. False: the paper's SET + QUERY sequence.
   bool with_query = false;
+  /// No macro-step follows those already sent (the task pauses or stops on purpose): the
+  /// stopping ramp at the end of the queue is a planned stop, not a lost successor.
+  bool no_successor = false;
 };
 
 enum class ReplyType : std::int8_t { acknowledge = 1, data = 2, error = 3 };

@@ -569,9 +569,9 @@ int main(int argc, char** argv) {
     // that first cycle.
     const double wait2 = 2000.0 * (0.5 + (shape.paced_value - 1));
     const double wait1 = 1000.0 * (0.5 + (shape.paced_value - 1));
-    std::printf("NOTE B1 one NEXT_POSE = MP->ECP, ECP->EDP SET_GET, EDP->ECP ACK, ECP->EDP "
-                "QUERY, EDP->ECP reading, ECP->MP: three LCM round trips, and the reading waits "
-                "for the servo loop. With motion_steps = %d and value_in_step_no = %d and the MP "
+    std::printf("NOTE B1 one NEXT_POSE = MP->ECP, ECP->EDP SET_GET (with_query), EDP->ECP "
+                "reading, ECP->MP: two LCM round trips, and the reading waits for the servo "
+                "loop. With motion_steps = %d and value_in_step_no = %d and the MP "
                 "paced independently of the servo clock that wait is %.1f servo periods on "
                 "average (%.0f us at 2 ms), against a bare round trip of %.0f us. p50 minus that "
                 "wait: %.0f us (2 ms servo) and %.0f us (1 ms servo, same run: p50 %.0f us, p99 "

@@ -33,36 +33,16 @@
 #include <thread>
 #include <vector>
 
+#include "../integration/busy_loops.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
+using mrroc::test::BusyLoops;
 
 const fs::path kSource = MRROC_SOURCE_DIR;
 
-/// Busy loops at nice 0, one per core (or `n`), ended by their own pids.
-class BusyLoops {
- public:
-  explicit BusyLoops(int n) {
-    for (int i = 0; i < n; ++i) {
-      const pid_t pid = fork();
-      if (pid == 0) {
-        volatile unsigned long spin = 0;
-        for (;;) spin = spin + 1;
-      }
-      if (pid > 0) pids_.push_back(pid);
-    }
-  }
-  ~BusyLoops() {
-    for (pid_t pid : pids_) kill(pid, SIGKILL);
-    for (pid_t pid : pids_) waitpid(pid, nullptr, 0);
-  }
-  BusyLoops(const BusyLoops&) = delete;
-  BusyLoops& operator=(const BusyLoops&) = delete;
-
- private:
-  std::vector<pid_t> pids_;
-};
 
 struct Run {
   int exit_code = -1;

@@ -18,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "busy_loops.hpp"
 #include "launch_helpers.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "state_watch.hpp"
@@ -26,38 +27,13 @@ namespace fs = std::filesystem;
 using namespace mrroc;
 using mrroc::test::Clock;
 using mrroc::test::LaunchRun;
+using mrroc::test::BusyLoops;
 using mrroc::test::StateWatch;
 
 namespace {
 
 const fs::path kSource = MRROC_SOURCE_DIR;
 
-/// One CPU-bound busy loop per core, at nice 0, for as long as the object lives; each ended by
-/// its own pid.
-class BusyLoops {
- public:
-  BusyLoops() {
-    const long cores = std::max(1L, sysconf(_SC_NPROCESSORS_ONLN));
-    for (long i = 0; i < cores; ++i) {
-      const pid_t pid = fork();
-      if (pid == 0) {
-        volatile unsigned long spin = 0;
-        for (;;) spin = spin + 1;
-      }
-      if (pid > 0) pids_.push_back(pid);
-    }
-  }
-  ~BusyLoops() {
-    for (pid_t pid : pids_) kill(pid, SIGKILL);
-    for (pid_t pid : pids_) waitpid(pid, nullptr, 0);
-  }
-  BusyLoops(const BusyLoops&) = delete;
-  BusyLoops& operator=(const BusyLoops&) = delete;
-  [[nodiscard]] std::size_t count() const { return pids_.size(); }
-
- private:
-  std::vector<pid_t> pids_;
-};
 
 int count_of(const std::string& text, const std::string& what) {
   int n = 0;
@@ -171,18 +147,21 @@ TEST(Continuity, TheBarCarryBesideABusyLoopOnEveryCoreNeverStops) {
               c.deviation_mm);
 }
 
-TEST(Continuity, AMpStopped50MsMidCarryCausesNoStandstill) {
-  const CarryRun c = carry(false, "mp");
+namespace {
+/// The bar carry with `victim` stopped for 50 ms mid-carry: no standstill, the bar rigid.
+void expect_no_standstill_across_a_stop_of(const std::string& victim) {
+  const CarryRun c = carry(false, victim);
   ASSERT_EQ(c.run.exit_code, 0) << c.run.output;
-  ASSERT_NE(c.run.killed_at, Clock::time_point{}) << "the MP was never stopped: " << c.run.output;
+  ASSERT_NE(c.run.killed_at, Clock::time_point{}) << victim << " was never stopped: " << c.run.output;
   EXPECT_EQ(c.standstills, 0) << c.run.output;
   EXPECT_LT(c.deviation_mm, 0.2);
 }
+}  // namespace
+
+TEST(Continuity, AMpStopped50MsMidCarryCausesNoStandstill) {
+  expect_no_standstill_across_a_stop_of("mp");
+}
 
 TEST(Continuity, AnEcpStopped50MsMidCarryCausesNoStandstill) {
-  const CarryRun c = carry(false, "ecp/right");
-  ASSERT_EQ(c.run.exit_code, 0) << c.run.output;
-  ASSERT_NE(c.run.killed_at, Clock::time_point{}) << "the ECP was never stopped: " << c.run.output;
-  EXPECT_EQ(c.standstills, 0) << c.run.output;
-  EXPECT_LT(c.deviation_mm, 0.2);
+  expect_no_standstill_across_a_stop_of("ecp/right");
 }

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "command_interpreter.hpp"
+#include "edp_parts.hpp"
 #include "macro_step_queue.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
@@ -58,14 +59,8 @@ TEST(MacroStepQueue, KeepsOrderWrapsAroundAndKnowsWhenFull) {
 class Lookahead : public ::testing::Test {
  protected:
   void start(int depth) {
-    model_ = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
-    hardware_ = make_hardware("mujoco");
-    HardwareSetup setup;
-    setup.robot = "irb6";
-    setup.model_dir = model_.folder;
-    setup.servo_period_s = kPeriod;
-    setup.synchro_positions = model_.synchro_joint_positions;
-    hardware_->configure(setup);
+    model_ = test::stock_model("irb6");
+    hardware_ = test::configured_hardware(model_, "mujoco", kPeriod);
     kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
     servo_->set_limit_guard(kinematics_.get());
@@ -83,13 +78,7 @@ class Lookahead : public ::testing::Test {
   }
 
   static Instruction set_joints(std::vector<double> q, int steps, int value, bool with_query) {
-    Instruction in;
-    in.type = InstructionType::set;
-    in.set = item::arm;
-    in.set_arm_type = ArmRepresentation::joint;
-    in.motion_steps = steps;
-    in.value_in_step_no = value;
-    in.arm = std::move(q);
+    Instruction in = test::set_joints_instruction(std::move(q), steps, value);
     in.with_query = with_query;
     return in;
   }
@@ -321,7 +310,7 @@ class GatedHardware : public Hardware {
 };
 
 TEST(ServoLoopThreads, NothingWaitsForAPluginWrite) {
-  const RobotModel model = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+  const RobotModel model = test::stock_model("irb6");
   GatedHardware hardware(model.axes());
   ServoLoop servo(hardware, model, kPeriod);
   servo.start();

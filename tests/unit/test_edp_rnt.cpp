@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "command_interpreter.hpp"
+#include "edp_parts.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/kinematics/pose.hpp"
@@ -24,14 +25,8 @@ constexpr double kPeriod = 0.002;
 class RntEdpTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    model_ = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/rnt");
-    hardware_ = make_hardware("mujoco");
-    HardwareSetup setup;
-    setup.robot = "rnt";
-    setup.model_dir = model_.folder;
-    setup.servo_period_s = kPeriod;
-    setup.synchro_positions = model_.synchro_joint_positions;
-    hardware_->configure(setup);
+    model_ = test::stock_model("rnt");
+    hardware_ = test::configured_hardware(model_, "mujoco", kPeriod);
     kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
     servo_->set_limit_guard(kinematics_.get());

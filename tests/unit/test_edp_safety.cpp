@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "command_interpreter.hpp"
+#include "edp_parts.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
@@ -23,15 +24,8 @@ constexpr double kPeriod = 0.002;
 class Edp {
  public:
   explicit Edp(const std::string& plugin, Params params = {}) {
-    model_ = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
-    hardware_ = make_hardware(plugin);
-    HardwareSetup setup;
-    setup.robot = "irb6";
-    setup.model_dir = model_.folder;
-    setup.servo_period_s = kPeriod;
-    setup.synchro_positions = model_.synchro_joint_positions;
-    setup.params = std::move(params);
-    hardware_->configure(setup);
+    model_ = test::stock_model("irb6");
+    hardware_ = test::configured_hardware(model_, plugin, kPeriod, std::move(params));
     kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
     servo_->set_limit_guard(kinematics_.get());
@@ -55,14 +49,7 @@ class Edp {
     return query();
   }
   Reply set_joints(std::vector<double> q, int steps, int value) {
-    Instruction in;
-    in.type = InstructionType::set;
-    in.set = item::arm;
-    in.set_arm_type = ArmRepresentation::joint;
-    in.motion_steps = steps;
-    in.value_in_step_no = value;
-    in.arm = std::move(q);
-    return exec(in);
+    return exec(test::set_joints_instruction(std::move(q), steps, value));
   }
   /// Commanded joint velocities of the trace from cycle `from` on [rad/s].
   std::vector<std::vector<double>> velocities(std::int64_t from) {

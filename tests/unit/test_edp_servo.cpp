@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "command_interpreter.hpp"
+#include "edp_parts.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/kinematics/pose.hpp"
@@ -44,14 +45,8 @@ constexpr double kPeriod = 0.002;
 class EdpTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    model_ = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
-    hardware_ = make_hardware("mujoco");
-    HardwareSetup setup;
-    setup.robot = "irb6";
-    setup.model_dir = model_.folder;
-    setup.servo_period_s = kPeriod;
-    setup.synchro_positions = model_.synchro_joint_positions;
-    hardware_->configure(setup);
+    model_ = test::stock_model("irb6");
+    hardware_ = test::configured_hardware(model_, "mujoco", kPeriod);
     kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
     servo_->set_limit_guard(kinematics_.get());
@@ -107,15 +102,7 @@ class EdpTest : public ::testing::Test {
 
   static Instruction set_joints(std::vector<double> q, int steps, int value_in_step_no,
                                 MotionType motion = MotionType::absolute) {
-    Instruction in;
-    in.type = InstructionType::set;
-    in.set = item::arm;
-    in.set_arm_type = ArmRepresentation::joint;
-    in.motion_type = motion;
-    in.motion_steps = steps;
-    in.value_in_step_no = value_in_step_no;
-    in.arm = std::move(q);
-    return in;
+    return test::set_joints_instruction(std::move(q), steps, value_in_step_no, motion);
   }
 
   bool lock_step_ = false;

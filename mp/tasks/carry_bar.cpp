@@ -79,8 +79,9 @@ class BarCarryGenerator : public Generator {
     const double s = tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
     const Eigen::Vector3d centre = from_ + (to_ - from_) * s;
     const bool last = segment_ + 2 == path_.size() && macro_ == segment_macros_;
-    // Readings three servo steps early: the next poses pass MP -> ECP -> EDP for both robots
-    // before the running macro-step ends, so neither robot stops between macro-steps.
+    // Readings three servo steps early: the next poses must reach both EDPs before the
+    // macro-steps queued ahead of them (the EDPs' lookahead) run out, so that neither robot
+    // stops between macro-steps.
     command(robots, centre, steps_, last ? steps_ + 1 : std::max(1, steps_ - 3));
     return true;
   }

@@ -91,10 +91,10 @@ edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   in.servo_parameters_no = checked_vector(m.servo_parameters_no, m.n_servo, "servo_parameters_no");
   in.output_values = static_cast<std::uint32_t>(m.output_values);
   if (m.with_query != 0 && m.with_query != 1)
-    throw DecodeError(fmt::format("with_query {} is not 0 or 1", m.with_query));
+    throw DecodeError(fmt::format("field 'with_query' = {} is not 0 or 1", m.with_query));
   in.with_query = m.with_query == 1;
   if (m.no_successor != 0 && m.no_successor != 1)
-    throw DecodeError(fmt::format("no_successor {} is not 0 or 1", m.no_successor));
+    throw DecodeError(fmt::format("field 'no_successor' = {} is not 0 or 1", m.no_successor));
   in.no_successor = m.no_successor == 1;
   return in;
 }

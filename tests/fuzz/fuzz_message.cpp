@@ -152,20 +152,23 @@ std::string canonical(const mrroc::edp::Instruction& v, bool) {
   return fmt::format(
       "type={} set={} get={} set_arm_type={} get_arm_type={} motion_type={} motion_steps={} "
       "value_in_step_no={} arm={} tool_type={} tool={} kinematic_model_no={} corrector_no={} "
-      "servo_algorithm={} servo_parameters_no={} output_values={}",
+      "servo_algorithm={} servo_parameters_no={} output_values={} with_query={} "
+      "no_successor={}",
       code(v.type), v.set, v.get, code(v.set_arm_type), code(v.get_arm_type), code(v.motion_type),
       v.motion_steps, v.value_in_step_no, doubles(v.arm), code(v.tool_type), doubles(v.tool),
       v.kinematic_model_no, v.corrector_no, bytes(v.servo_algorithm), bytes(v.servo_parameters_no),
-      v.output_values);
+      v.output_values, v.with_query, v.no_successor);
 }
 std::string canonical(const mrroc::edp::Reply& v, bool wire) {
   return fmt::format(
-      "type={} error_code={} error_text={} synchronised={} step_no={} servo_cycle={} arm_type={} "
+      "type={} error_code={} error_text={} synchronised={} step_no={} macro_steps_ahead={} "
+      "servo_cycle={} arm_type={} "
       "arm={} joints={} desired_joints={} joint_velocities={} tool_type={} tool={} "
       "kinematic_model_no={} corrector_no={} servo_algorithm={} servo_parameters_no={} "
       "input_values={} servo_cycles={} servo_overruns={} servo_period_us={} lateness_p50_us={} "
       "lateness_p99_us={} lateness_max_us={}",
-      code(v.type), v.error_code, str(v.error_text, wire), v.synchronised, v.step_no, v.servo_cycle,
+      code(v.type), v.error_code, str(v.error_text, wire), v.synchronised, v.step_no,
+      v.macro_steps_ahead, v.servo_cycle,
       code(v.arm_type), doubles(v.arm), doubles(v.joints), doubles(v.desired_joints),
       doubles(v.joint_velocities), code(v.tool_type), doubles(v.tool), v.kinematic_model_no,
       v.corrector_no, bytes(v.servo_algorithm), bytes(v.servo_parameters_no), v.input_values,

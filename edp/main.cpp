@@ -154,7 +154,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
         if (const std::int64_t planned = servo.planned_stops(); planned != planned_reported) {
           planned_reported = planned;
           reporter.info(fmt::format("the task paused or stopped mid-motion ({} so far): the robot "
-                                    "was brought to a standstill within its acceleration limits",
+                                    "was brought to rest within its acceleration limits",
                                     planned));
         }
         if (const std::int64_t lost = servo.lost_successors(); lost != lost_reported) {

@@ -24,10 +24,16 @@ bool check_stop_moving(Robot& robot) {
     robot.announce_no_successor();
   return check_stop(robot);
 }
+/// The macro-step `c` read its arm early: it promised the EDP a successor.
+bool promises_successor(const edp::Instruction& c) {
+  return (c.type == edp::InstructionType::set || c.type == edp::InstructionType::set_get) &&
+         (c.set & edp::item::arm) != 0 && c.value_in_step_no < c.motion_steps;
+}
 }  // namespace
 
 void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
   constexpr int kMaxRefusals = 3;
+  bool promised = false;  // the last macro-step sent promised a successor
   check_stop(robot);
   refresh(sensors);
   bool more = generator.first_step(robot.image(), sensors);
@@ -35,6 +41,7 @@ void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
   while (more) {
     try {
       robot.execute();
+      promised = promises_successor(robot.image().command);
       refusals = 0;
     } catch (const EdpRefused& e) {
       // A late macro-step made the EDP stop the robot off the planned path, and the planned
@@ -52,6 +59,9 @@ void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
     }
     more = generator.next_step(robot.image(), sensors);
   }
+  // A generator that ends after a macro-step that promised a successor (a guarded move that
+  // felt its contact) stops the robot on purpose: the EDP's ramp is a planned stop.
+  if (promised) robot.announce_no_successor();
 }
 
 void Wait(Robot& robot, const SensorList& sensors, Condition& condition, double period_s) {

@@ -109,7 +109,7 @@ void Robot::announce_no_successor() noexcept {
     get.get_arm_type = edp::ArmRepresentation::joint;
     get.no_successor = true;
     get.with_query = true;
-    update_image(exchange(get));
+    (void)exchange(get);  // the image keeps the reading of the last macro-step
   } catch (...) {
   }
 }

@@ -77,8 +77,8 @@ class Robot {
   void read_state();
   /// Tells the EDP that no macro-step follows those already sent (the task pauses or stops on
   /// purpose), so the stopping ramp at the end of its queue is a planned stop, not a lost
-  /// successor; reads the arm on the way. Never throws: a failure only leaves the EDP to report
-  /// a lost successor.
+  /// successor. The image is left as it is. Never throws: a failure only leaves the EDP to
+  /// report a lost successor.
   void announce_no_successor() noexcept;
   /// SYNCHRO + QUERY unless the EDP is already synchronised.
   void synchronise();

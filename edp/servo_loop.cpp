@@ -97,17 +97,11 @@ void ServoLoop::run() {
     }
     clock_gettime(CLOCK_MONOTONIC, &now);
     const std::int64_t late_ns = to_ns(now) - deadline;
-    cycle();
-    record_cycle(late_ns, period_ns);
+    cycle(late_ns, period_ns);
     deadline += period_ns;
     // After an overrun, skip the periods already missed instead of running a burst of cycles.
     if (late_ns > period_ns) deadline += (late_ns / period_ns) * period_ns;
   }
-}
-
-void ServoLoop::record_cycle(std::int64_t late_ns, std::int64_t period_ns) {
-  std::lock_guard lock(mutex_);
-  timing_.record(late_ns, period_ns);
 }
 
 bool ServoLoop::has_work() const {
@@ -133,8 +127,7 @@ void ServoLoop::run_lock_step() {
       return !running_.load() || !awaiting_successor() || reset_pending_;
     });
     if (!running_.load(std::memory_order_relaxed)) break;
-    cycle();
-    record_cycle(0, 1);
+    cycle(0, 1);
   }
 }
 
@@ -163,7 +156,7 @@ void ServoLoop::store_reading(std::uint64_t id, int step_no) {
   notify_pending_ = true;
 }
 
-void ServoLoop::cycle() {
+void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
   bool reset = false;
   {
     std::lock_guard lock(mutex_);
@@ -239,6 +232,8 @@ void ServoLoop::cycle() {
       raw_setpoints_[i] = desired_[i] - (use_offset ? offset_[i] : 0.0);
     notify = notify_pending_;
     notify_pending_ = false;
+    // Counted after the cycle's reading took the counter (latest_.cycle), as before the write.
+    timing_.record(late_ns, period_ns);
   }
   if (notify) changed_.notify();
 

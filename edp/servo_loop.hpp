@@ -186,8 +186,9 @@ class ServoLoop {
   [[nodiscard]] bool has_work() const;
   /// Lock-step: the next cycle would end a macro-step whose promised successor is not queued.
   [[nodiscard]] bool awaiting_successor() const;
-  void record_cycle(std::int64_t late_ns, std::int64_t period_ns);
-  void cycle();
+  /// One cycle that woke `late_ns` after its deadline (lock-step: 0 of 1): read, plan (and
+  /// record the lateness) under the mutex, write.
+  void cycle(std::int64_t late_ns, std::int64_t period_ns);
   /// The part of a cycle that decides the setpoints (mutex_ held; no hardware call).
   void plan_cycle();
   void motion_cycle();

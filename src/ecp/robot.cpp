@@ -90,23 +90,27 @@ void Robot::execute() {
   update_image(exchange(query));
 }
 
-void Robot::read_state() {
+namespace {
+/// GET ARM in JOINT coordinates.
+edp::Instruction get_joints() {
   edp::Instruction get;
   get.type = edp::InstructionType::get;
   get.get = edp::item::arm;
   get.get_arm_type = edp::ArmRepresentation::joint;
+  return get;
+}
+}  // namespace
+
+void Robot::read_state() {
   const edp::Instruction saved = image_.command;
-  image_.command = get;
+  image_.command = get_joints();
   execute();
   image_.command = saved;
 }
 
 void Robot::announce_no_successor() noexcept {
   try {
-    edp::Instruction get;
-    get.type = edp::InstructionType::get;
-    get.get = edp::item::arm;
-    get.get_arm_type = edp::ArmRepresentation::joint;
+    edp::Instruction get = get_joints();
     get.no_successor = true;
     get.with_query = true;
     (void)exchange(get);  // the image keeps the reading of the last macro-step

@@ -189,6 +189,7 @@ std::string_view describe_emcy(std::uint16_t code) {
     case emcy::kContinuousOverCurrent: return "continuous over-current";
     case emcy::kDeviceHardware: return "device hardware";
     case emcy::kPositionSensor: return "position sensor (incremental encoder) fault";
+    case emcy::kCommunication: return "communication error (SYNC lost)";
     case emcy::kHeartbeatError: return "heartbeat / life guard error";
     case emcy::kRecoveredFromBusOff: return "recovered from bus-off";
     case emcy::kFollowingError: return "following error";

@@ -61,15 +61,28 @@ void Cia402Drive::power_on(const AxisSample& sample, double now_s) {
   following_error_ = false;
   following_error_since_s_ = over_current_since_s_ = -1.0;
   heartbeat_ms_ = 0;
+  reset_communication_objects();
+  abort_connection_ = canopen::abort_connection::kFault;
+  quick_stop_option_ = canopen::quick_stop_option::kRampThenHold;
+  comm_error_ = 0;
   last_update_s_ = last_sync_s_ = now_s;
   state_ = DriveState::switch_on_disabled;
   nmt_ = NmtState::pre_operational;
   send(canopen::heartbeat_frame(config_.node, NmtState::boot_up));
 }
 
+void Cia402Drive::reset_communication_objects() noexcept {
+  consumer_heartbeat_ = 0;
+  cycle_period_us_ = 0;
+  error_behaviour_ = canopen::error_behaviour::kPreOperational;
+  heartbeat_armed_ = false;
+  sync_armed_ = false;
+}
+
 void Cia402Drive::enter(DriveState state, double now_s) {
   const bool was_powered = powered();
   state_ = state;
+  if (state == DriveState::operation_enabled && !was_powered) comm_error_ = 0;
   if (!powered()) {
     // Brake: hold where the axis is.
     demand_ = from_ = to_ = sample_.position;
@@ -119,6 +132,7 @@ void Cia402Drive::on_sync(double now_s) {
   if (nmt_ != NmtState::operational) return;
   ++syncs_;
   last_sync_s_ = now_s;
+  sync_armed_ = cycle_period_us_ != 0;
   if (rpdo_pending_) {
     rpdo_pending_ = false;
     apply_controlword(rpdo_.controlword, now_s);
@@ -142,6 +156,41 @@ void Cia402Drive::on_sync(double now_s) {
   send(canopen::encode(config_.node, tpdo));
 }
 
+void Cia402Drive::communication_error(std::uint16_t code, double now_s) {
+  comm_error_ = code;
+  comm_error_at_s_ = now_s;
+  last_emcy_ = code;
+  const bool enabled = state_ == DriveState::operation_enabled;
+  if (enabled && abort_connection_ == canopen::abort_connection::kFault) {
+    fault(code, now_s);  // sends the EMCY
+  } else {
+    canopen::Emergency e;
+    e.code = code;
+    e.error_register = 0x11;  // generic + communication
+    send(canopen::encode_emcy(config_.node, e));
+    if (enabled && abort_connection_ == canopen::abort_connection::kDisableVoltage)
+      enter(DriveState::switch_on_disabled, now_s);
+    else if (enabled && abort_connection_ == canopen::abort_connection::kQuickStop) {
+      // The targets have stopped: the ramp starts from where the axis is and how fast it
+      // moves (not from the last target, which may lie behind a moving axis).
+      demand_ = from_ = to_ = sample_.position;
+      demand_velocity_ = sample_.velocity;
+      enter(DriveState::quick_stop_active, now_s);
+    }
+  }
+  if (error_behaviour_ == canopen::error_behaviour::kPreOperational)
+    nmt_ = NmtState::pre_operational;
+  else if (error_behaviour_ == canopen::error_behaviour::kStopped)
+    nmt_ = NmtState::stopped;
+}
+
+void Cia402Drive::on_heartbeat(const can_frame& frame, double now_s) {
+  const auto producer = static_cast<std::uint8_t>((consumer_heartbeat_ >> 16U) & 0x7FU);
+  if (producer == 0 || frame.len != 1 || frame.can_id != canopen::heartbeat_id(producer)) return;
+  heartbeat_armed_ = true;
+  last_heartbeat_s_ = now_s;
+}
+
 void Cia402Drive::on_nmt(const can_frame& frame, double now_s) {
   if (frame.len != 2) return;
   if (frame.data[1] != 0 && frame.data[1] != config_.node) return;
@@ -161,6 +210,7 @@ void Cia402Drive::on_nmt(const can_frame& frame, double now_s) {
       break;
     case canopen::NmtCommand::reset_communication:
       nmt_ = NmtState::pre_operational;
+      reset_communication_objects();
       send(canopen::heartbeat_frame(config_.node, NmtState::boot_up));
       break;
   }
@@ -207,6 +257,50 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
     case od::kErrorRegister:
       return no_sub(0) ? fail(abort::kNoSubindex)
                        : read(state_ == DriveState::fault ? 1U : 0U, 1);
+    case od::kCommunicationCyclePeriod:
+      if (no_sub(0)) return fail(abort::kNoSubindex);
+      return writable(4, cycle_period_us_, [&](std::uint32_t v) {
+        cycle_period_us_ = v;
+        sync_armed_ = false;  // re-armed by the next SYNC
+        return 0U;
+      });
+    case od::kConsumerHeartbeatTime:
+      if (no_sub(1)) return fail(abort::kNoSubindex);
+      if (q.subindex == 0) return read(1, 1);
+      return writable(4, consumer_heartbeat_, [&](std::uint32_t v) {
+        if ((v >> 16U) > canopen::kMaxNode || (v >> 23U) != 0) return abort::kValueRange;
+        consumer_heartbeat_ = v;
+        heartbeat_armed_ = false;  // re-armed by the producer's next heartbeat
+        return 0U;
+      });
+    case od::kErrorBehaviour:
+      if (no_sub(1)) return fail(abort::kNoSubindex);
+      if (q.subindex == 0) return read(1, 1);
+      return writable(1, error_behaviour_, [&](std::uint32_t v) {
+        if (v > canopen::error_behaviour::kStopped) return abort::kValueRange;
+        error_behaviour_ = static_cast<std::uint8_t>(v);
+        return 0U;
+      });
+    case od::kAbortConnectionOption:
+      if (no_sub(0)) return fail(abort::kNoSubindex);
+      return writable(2, static_cast<std::uint16_t>(abort_connection_), [&](std::uint32_t v) {
+        const auto code = static_cast<std::int16_t>(static_cast<std::uint16_t>(v));
+        if (code < canopen::abort_connection::kNoAction ||
+            code > canopen::abort_connection::kQuickStop)
+          return abort::kValueRange;
+        abort_connection_ = code;
+        return 0U;
+      });
+    case od::kQuickStopOption:
+      if (no_sub(0)) return fail(abort::kNoSubindex);
+      return writable(2, static_cast<std::uint16_t>(quick_stop_option_), [&](std::uint32_t v) {
+        const auto code = static_cast<std::int16_t>(static_cast<std::uint16_t>(v));
+        if (code != canopen::quick_stop_option::kRampThenDisabled &&
+            code != canopen::quick_stop_option::kRampThenHold)
+          return abort::kValueRange;
+        quick_stop_option_ = code;
+        return 0U;
+      });
     case od::kHeartbeatTime:
       if (no_sub(0)) return fail(abort::kNoSubindex);
       return writable(2, heartbeat_ms_, [&](std::uint32_t v) {
@@ -307,6 +401,7 @@ void Cia402Drive::on_frame(const can_frame& frame, double now_s) {
   const canopen::CobId id = canopen::split_id(frame.can_id);
   if (id.function == canopen::kNmtId) return on_nmt(frame, now_s);
   if (id.function == canopen::kSyncId && id.node == 0) return on_sync(now_s);
+  if (id.function == 0x700U && id.node != config_.node) return on_heartbeat(frame, now_s);
   if (nmt_ == NmtState::boot_up || nmt_ == NmtState::stopped) return;
   if (id.node != config_.node) return;
   if (frame.can_id == canopen::sdo_request_id(config_.node)) return on_sdo(frame, now_s);
@@ -327,16 +422,26 @@ void Cia402Drive::update(const AxisSample& sample, double now_s) {
     send(canopen::heartbeat_frame(config_.node, nmt_));
     next_heartbeat_s_ = now_s + heartbeat_ms_ / 1000.0;
   }
+  if (nmt_ == NmtState::operational) {
+    const double heartbeat_s = static_cast<double>(consumer_heartbeat_ & 0xFFFFU) / 1000.0;
+    if (heartbeat_armed_ && heartbeat_s > 0.0 && now_s - last_heartbeat_s_ > heartbeat_s) {
+      heartbeat_armed_ = false;
+      communication_error(canopen::emcy::kHeartbeatError, now_s);
+    }
+    const double sync_loss_s =
+        config_.sync_loss_periods * static_cast<double>(cycle_period_us_) * 1e-6;
+    if (sync_armed_ && cycle_period_us_ != 0 && now_s - last_sync_s_ > sync_loss_s) {
+      sync_armed_ = false;
+      communication_error(canopen::emcy::kCommunication, now_s);
+    }
+    if (state_ == DriveState::fault) return;
+  }
   if (state_ == DriveState::operation_enabled) {
     const double s =
         std::clamp((now_s - segment_start_s_) / config_.interpolation_period_s, 0.0, 1.0);
     demand_ = from_ + (to_ - from_) * s;
     // The segment's velocity holds until the next SYNC; a late SYNC means standstill.
     if (now_s - segment_start_s_ > 1.5 * config_.interpolation_period_s) demand_velocity_ = 0.0;
-    if (now_s - last_sync_s_ > config_.sync_timeout_s) {
-      fault(canopen::emcy::kHeartbeatError, now_s);
-      return;
-    }
   } else if (state_ == DriveState::quick_stop_active) {
     const double dv = config_.quick_stop_deceleration * dt;
     double v = demand_velocity_;
@@ -344,6 +449,10 @@ void Cia402Drive::update(const AxisSample& sample, double now_s) {
     demand_velocity_ = v;
     demand_ += v * dt;
     from_ = to_ = demand_;
+    if (v == 0.0 && quick_stop_option_ == canopen::quick_stop_option::kRampThenDisabled) {
+      enter(DriveState::switch_on_disabled, now_s);
+      return;
+    }
   }
   if (powered()) {
     const double error = std::abs(demand_ - sample.position) * config_.counts_per_unit;

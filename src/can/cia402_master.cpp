@@ -41,10 +41,26 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
       if (axes_[j].node == a.node)
         throw HardwareError(bus_.url() + ": axes '" + axes_[j].name + "' and '" + a.name +
                             "' have the same node id " + std::to_string(a.node));
+    if (a.node == options_.master_node)
+      throw HardwareError(bus_.url() + ": axis '" + a.name + "': node id " +
+                          std::to_string(a.node) +
+                          " is the master's own node id (its heartbeat); choose another");
     if (!(a.counts_per_unit > 0.0) || !std::isfinite(a.counts_per_unit))
       throw HardwareError(bus_.url() + ": axis '" + a.name + "': counts_per_unit " +
                           std::to_string(a.counts_per_unit) + " must be a positive number");
   }
+  if (options_.master_node < 1 || options_.master_node > canopen::kMaxNode)
+    throw HardwareError(bus_.url() + ": master node id " + std::to_string(options_.master_node) +
+                        " outside 1..127");
+  if (options_.master_heartbeat_ms < 1 || options_.master_heartbeat_ms > 1000)
+    throw HardwareError(bus_.url() + ": master heartbeat " +
+                        std::to_string(options_.master_heartbeat_ms) +
+                        " ms outside 1..1000 ms");
+  if (options_.heartbeat_consumer_ms <= options_.master_heartbeat_ms)
+    throw HardwareError(bus_.url() + ": drives' heartbeat consumer time " +
+                        std::to_string(options_.heartbeat_consumer_ms) +
+                        " ms must exceed the master's heartbeat period " +
+                        std::to_string(options_.master_heartbeat_ms) + " ms");
   const double ms = options_.period_s * 1000.0;
   if (!(ms >= 1.0) || std::abs(ms - std::round(ms)) > 1e-9 || ms > 255.0)
     throw HardwareError(bus_.url() + ": cycle " + std::to_string(options_.period_s) +
@@ -137,6 +153,13 @@ void Cia402Master::receive() noexcept {
   }
 }
 
+void Cia402Master::heartbeat_if_due() noexcept {
+  const auto now = std::chrono::steady_clock::now();
+  if (now < next_heartbeat_) return;
+  (void)bus_.send(canopen::heartbeat_frame(options_.master_node, canopen::NmtState::operational));
+  next_heartbeat_ = now + std::chrono::milliseconds(options_.master_heartbeat_ms);
+}
+
 void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets) {
   for (std::size_t i = 0; i < axes_.size(); ++i) {
     canopen::Rpdo1 pdo{controlword, targets[i]};
@@ -148,6 +171,7 @@ void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::in
     }
   }
   (void)bus_.send(canopen::sync_frame());
+  heartbeat_if_due();
   ++cycle_;
 }
 
@@ -174,11 +198,19 @@ canopen::SdoResponse Cia402Master::sdo_transfer(std::uint8_t node, const canopen
            hex(q.index, 4) + ":" + std::to_string(q.subindex);
   };
   for (int attempt = 0; attempt < options_.sdo_attempts; ++attempt) {
+    heartbeat_if_due();
     (void)bus_.send(canopen::encode_request(node, q));
     const auto deadline = std::chrono::steady_clock::now() + options_.sdo_timeout;
     Received r;
-    while (std::chrono::steady_clock::now() < deadline) {
-      if (!bus_.receive(r, deadline - std::chrono::steady_clock::now())) break;
+    for (;;) {
+      // Keep the heartbeat going while waiting (the drives supervise it).
+      heartbeat_if_due();
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= deadline) break;
+      if (!bus_.receive(r, std::min(deadline, next_heartbeat_) - now)) {
+        if (std::chrono::steady_clock::now() >= deadline) break;
+        continue;
+      }
       if (r.frame.can_id != canopen::sdo_response_id(node)) {
         handle(r);
         continue;
@@ -268,6 +300,30 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
                   std::max(1L, std::lround(a.quick_stop_deceleration * a.counts_per_unit))),
               4);
     sdo_write(n, od::kHeartbeatTime, 0, options_.heartbeat_ms, 2);
+    // Supervision of the master: heartbeat consumer, SYNC period, reaction (see the header).
+    const auto period_us = static_cast<std::uint32_t>(std::lround(options_.period_s * 1e6));
+    const std::uint32_t consumer =
+        (static_cast<std::uint32_t>(options_.master_node) << 16U) | options_.heartbeat_consumer_ms;
+    const auto qs = [](std::int16_t v) { return static_cast<std::uint32_t>(static_cast<std::uint16_t>(v)); };
+    const struct {
+      std::uint16_t index;
+      std::uint8_t sub;
+      std::uint32_t value;
+      std::uint8_t size;
+    } supervision[] = {
+        {od::kCommunicationCyclePeriod, 0, period_us, 4},
+        {od::kConsumerHeartbeatTime, 1, consumer, 4},
+        {od::kErrorBehaviour, 1, canopen::error_behaviour::kNoChange, 1},
+        {od::kAbortConnectionOption, 0, qs(canopen::abort_connection::kQuickStop), 2},
+        {od::kQuickStopOption, 0, qs(canopen::quick_stop_option::kRampThenHold), 2},
+    };
+    for (const auto& o : supervision) {
+      sdo_write(n, o.index, o.sub, o.value, o.size);
+      if (const std::uint32_t back = sdo_read(n, o.index, o.sub); back != o.value)
+        throw HardwareError(who(i) + ": supervision object " + hex(o.index, 4) + ":" +
+                            std::to_string(o.sub) + " reads back " + hex(back, 8) +
+                            " after writing " + hex(o.value, 8) + " (see docs/hil.md)");
+    }
     const auto actual = static_cast<std::int32_t>(sdo_read(n, od::kPositionActual, 0));
     held_[i] = actual;
     status_[i].position = static_cast<double>(actual) / a.counts_per_unit;

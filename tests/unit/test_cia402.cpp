@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <condition_variable>
 #include <deque>
 #include <memory>
@@ -394,17 +395,241 @@ TEST(Cia402Master, StaleQuickStopTpdosAfterReleaseAreNoFaultButALaterOneIs) {
       << master.fault_text();
 }
 
-TEST(Cia402Drive, SyncWatchdogFaultsWhenTheMasterIsGone) {
+/// One drive on a simulated clock (no threads): a perfect axis (position = demand, velocity =
+/// demand velocity), frames handed straight to the drive, its frames collected.
+class ClockedDrive {
+ public:
+  explicit ClockedDrive(double quick_stop_deceleration) {
+    DriveConfig c;
+    c.node = 1;
+    c.quick_stop_deceleration = quick_stop_deceleration;
+    drive_ = std::make_unique<Cia402Drive>(c, [this](const can_frame& f) { sent.push_back(f); });
+    drive_->power_on(sample(), 0.0);
+  }
+  AxisSample sample() const { return {position, velocity, 0.0, false}; }
+  void frame(const can_frame& f) { drive_->on_frame(f, now); }
+  void sdo(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size) {
+    frame(co::encode_request(1, co::SdoRequest{true, index, sub, value, size}));
+    ASSERT_FALSE(sent.empty());
+    const auto r = co::decode_response(sent.back());
+    ASSERT_TRUE(r && r->write_confirmed) << std::hex << index;
+  }
+  /// 1 ms physics step.
+  void step() {
+    now += 0.001;
+    drive_->update(sample(), now);
+    if (drive_->powered()) {
+      position = drive_->demand();
+      velocity = drive_->demand_velocity();
+    } else {
+      velocity = 0.0;
+    }
+  }
+  /// One master cycle of 2 ms: optionally heartbeat, RPDO (enable operation, target) and SYNC.
+  void cycle(bool heartbeat, bool sync, double target) {
+    if (heartbeat) frame(co::heartbeat_frame(0x7F, co::NmtState::operational));
+    if (sync) {
+      frame(co::encode(1, co::Rpdo1{co::controlword::kEnableOperation,
+                                    drive_->counts(target)}));
+      frame(co::sync_frame());
+    }
+    step();
+    step();
+  }
+  Cia402Drive& drive() { return *drive_; }
+  double now = 0.0;
+  double position = 0.0;
+  double velocity = 0.0;
+  std::vector<can_frame> sent;
+
+ private:
+  std::unique_ptr<Cia402Drive> drive_;
+};
+
+/// Configures the supervision as Cia402Master::bring_up does, enables the drive and accelerates
+/// it to 1 rad/s (0.5 s at 2 rad/s^2), heartbeats every 10 ms.
+double supervised_and_moving(ClockedDrive& d) {
+  d.sdo(co::od::kCommunicationCyclePeriod, 0, 2000, 4);
+  d.sdo(co::od::kConsumerHeartbeatTime, 1, (0x7FU << 16U) | 50U, 4);
+  d.sdo(co::od::kErrorBehaviour, 1, co::error_behaviour::kNoChange, 1);
+  d.sdo(co::od::kAbortConnectionOption, 0, 3, 2);
+  d.sdo(co::od::kQuickStopOption, 0, 6, 2);
+  d.frame(co::nmt_frame(co::NmtCommand::start, 0));
+  for (const std::uint16_t cw : {co::controlword::kShutdown, co::controlword::kSwitchOn,
+                                 co::controlword::kEnableOperation}) {
+    d.frame(co::encode(1, co::Rpdo1{cw, 0}));
+    d.frame(co::sync_frame());
+    d.step();
+    d.step();
+  }
+  EXPECT_EQ(d.drive().state(), co::DriveState::operation_enabled);
+  double target = 0.0;
+  for (int k = 0; k < 300; ++k) {
+    target += 0.002 * std::min(1.0, (k + 1) / 250.0);
+    d.cycle(k % 5 == 0, true, target);
+  }
+  EXPECT_NEAR(d.velocity, 1.0, 0.01);
+  EXPECT_EQ(d.drive().communication_error(), 0);
+  return target;
+}
+
+/// The quick stop's ramp after the reaction at `reacted_at`: velocity falls at the quick-stop
+/// deceleration (2 rad/s^2), standstill after v0 / a, distance v0^2 / (2 a).
+void expect_ramp(ClockedDrive& d, double v0, double p0) {
+  double previous = d.velocity;
+  for (int k = 0; k < 700; ++k) {
+    d.step();
+    EXPECT_LE(previous - d.velocity, 2.0 * 0.001 + 1e-9) << "step " << k;  // never harder
+    previous = d.velocity;
+    if (k == 199 && v0 > 0.5) {
+      EXPECT_NEAR(d.velocity, v0 - 2.0 * 0.2, 0.01);  // still ramping
+    }
+  }
+  EXPECT_EQ(d.velocity, 0.0);
+  EXPECT_NEAR(d.position - p0, v0 * v0 / (2.0 * 2.0), 0.01);
+  EXPECT_EQ(d.drive().state(), co::DriveState::quick_stop_active);  // 0x605A = 6: holds
+}
+
+TEST(Cia402Drive, MasterHeartbeatLostQuickStopsAtTheQuickStopDeceleration) {
+  ClockedDrive d(2.0);
+  double target = supervised_and_moving(d);
+  const double last_heartbeat = d.now - 0.010;  // the heartbeat of cycle 295
+  // The heartbeat stops; SYNCs and targets go on until the drive reacts.
+  while (d.drive().communication_error() == 0 && d.now < last_heartbeat + 1.0) {
+    target += 0.002;
+    d.cycle(false, true, target);
+  }
+  ASSERT_EQ(d.drive().communication_error(), co::emcy::kHeartbeatError);
+  const double delay = d.drive().communication_error_at() - last_heartbeat;
+  std::printf("heartbeat lost: quick stop %.1f ms after the last heartbeat (consumer 50 ms)\n",
+              delay * 1000.0);
+  EXPECT_GE(delay, 0.050 - 1e-9);
+  EXPECT_LE(delay, 0.0515);  // the consumer time, to the next 1 ms step
+  EXPECT_EQ(d.drive().state(), co::DriveState::quick_stop_active);
+  EXPECT_EQ(d.drive().last_emcy(), co::emcy::kHeartbeatError);
+  const auto emcy = co::decode_emcy(d.sent.back());
+  ASSERT_TRUE(emcy);
+  EXPECT_EQ(emcy->code, co::emcy::kHeartbeatError);
+  EXPECT_EQ(d.drive().nmt_state(), co::NmtState::operational);  // 0x1029 sub 1 = 1
+  EXPECT_NEAR(d.velocity, 1.0, 0.01) << "not a dead stop";
+  expect_ramp(d, d.velocity, d.position);
+  // The heartbeat returns: no re-enable by itself, the quick stop holds.
+  d.cycle(true, false, target);
+  EXPECT_EQ(d.drive().state(), co::DriveState::quick_stop_active);
+}
+
+TEST(Cia402Drive, SyncLostQuickStopsWithinTheSyncLossTime) {
+  ClockedDrive d(2.0);
+  const double target = supervised_and_moving(d);
+  const double last_sync = d.now - 0.002;
+  // SYNCs and targets stop; the heartbeat goes on. The drive holds its last target (CSP) and
+  // quick-stops after 25 periods of 0x1006 (50 ms) without SYNC.
+  double previous = d.position;
+  while (d.drive().communication_error() == 0 && d.now < last_sync + 1.0) {
+    d.cycle(true, false, target);
+    EXPECT_LE(std::abs(d.position - previous), 0.0021);  // no jump
+    previous = d.position;
+  }
+  ASSERT_EQ(d.drive().communication_error(), co::emcy::kCommunication);
+  const double delay = d.drive().communication_error_at() - last_sync;
+  std::printf("SYNC lost: quick stop %.1f ms after the last SYNC (25 x 0x1006 = 50 ms)\n",
+              delay * 1000.0);
+  EXPECT_GE(delay, 0.050 - 1e-9);
+  EXPECT_LE(delay, 0.0515);
+  EXPECT_EQ(d.drive().state(), co::DriveState::quick_stop_active);
+  EXPECT_EQ(co::decode_emcy(d.sent.back())->code, co::emcy::kCommunication);
+  EXPECT_NEAR(d.position, target, 1e-5);  // held at the last target
+  expect_ramp(d, d.velocity, d.position);
+}
+
+TEST(Cia402Drive, SupervisionReactionsFollowTheirCodes) {
+  {  // 0x6007 = 1: fault (brake)
+    ClockedDrive d(2.0);
+    double target = supervised_and_moving(d);
+    d.sdo(co::od::kAbortConnectionOption, 0, 1, 2);
+    for (int k = 0; k < 40 && d.drive().communication_error() == 0; ++k)
+      d.cycle(false, true, target += 0.002);
+    EXPECT_EQ(d.drive().state(), co::DriveState::fault);
+    EXPECT_EQ(d.drive().last_emcy(), co::emcy::kHeartbeatError);
+  }
+  {  // 0x605A = 2: ramp, then switch on disabled; 0x1029 = 2: NMT stopped
+    ClockedDrive d(2.0);
+    double target = supervised_and_moving(d);
+    d.sdo(co::od::kQuickStopOption, 0, 2, 2);
+    d.sdo(co::od::kErrorBehaviour, 1, co::error_behaviour::kStopped, 1);
+    for (int k = 0; k < 40 && d.drive().communication_error() == 0; ++k)
+      d.cycle(false, true, target += 0.002);
+    EXPECT_EQ(d.drive().state(), co::DriveState::quick_stop_active);
+    EXPECT_EQ(d.drive().nmt_state(), co::NmtState::stopped);
+    for (int k = 0; k < 700; ++k) d.step();
+    EXPECT_EQ(d.drive().state(), co::DriveState::switch_on_disabled);
+  }
+  {  // never configured (power-on values): no supervision
+    ClockedDrive d(2.0);
+    d.frame(co::nmt_frame(co::NmtCommand::start, 0));
+    for (const std::uint16_t cw : {co::controlword::kShutdown, co::controlword::kSwitchOn,
+                                   co::controlword::kEnableOperation}) {
+      d.frame(co::encode(1, co::Rpdo1{cw, 0}));
+      d.frame(co::sync_frame());
+      d.step();
+    }
+    for (int k = 0; k < 500; ++k) d.step();
+    EXPECT_EQ(d.drive().state(), co::DriveState::operation_enabled);
+    EXPECT_EQ(d.drive().communication_error(), 0);
+  }
+}
+
+TEST(Cia402Master, BringUpConfiguresTheSupervisionAndSendsItsHeartbeat) {
   MemoryHub hub;
-  DriveRack rack(hub, 1);
-  Cia402Master master(hub.add(), axes(1), MasterOptions{});
+  DriveRack rack(hub, 2);
+  Bus& spy = hub.add();
+  Cia402Master master(hub.add(), axes(2), MasterOptions{});
   master.bring_up(2000ms);
-  std::this_thread::sleep_for(150ms);  // no SYNC any more
-  rack.with([](auto& drives, auto&) {
-    EXPECT_EQ(drives[0]->state(), co::DriveState::fault);
-    EXPECT_EQ(drives[0]->last_emcy(), co::emcy::kHeartbeatError);
+  for (std::uint8_t n = 1; n <= 2; ++n) {
+    EXPECT_EQ(master.sdo_read(n, co::od::kCommunicationCyclePeriod, 0), 2000U);
+    EXPECT_EQ(master.sdo_read(n, co::od::kConsumerHeartbeatTime, 0), 1U);
+    EXPECT_EQ(master.sdo_read(n, co::od::kConsumerHeartbeatTime, 1), (0x7FU << 16U) | 50U);
+    EXPECT_EQ(master.sdo_read(n, co::od::kErrorBehaviour, 1), 1U);
+    EXPECT_EQ(master.sdo_read(n, co::od::kAbortConnectionOption, 0), 3U);
+    EXPECT_EQ(master.sdo_read(n, co::od::kQuickStopOption, 0), 6U);
+  }
+  // Its heartbeat, every 10 ms, while it cycles.
+  Received r;
+  while (spy.receive(r, 0ms)) {
+  }
+  run_cycles(master, 50, [](int) { return std::vector<double>{0.0, 0.3}; });
+  int heartbeats = 0;
+  while (spy.receive(r, 0ms)) {
+    if (r.frame.can_id == co::heartbeat_id(0x7F)) {
+      ++heartbeats;
+      EXPECT_EQ(r.frame.len, 1);
+      EXPECT_EQ(r.frame.data[0], static_cast<std::uint8_t>(co::NmtState::operational));
+    }
+  }
+  EXPECT_GE(heartbeats, 9);   // 100 ms of cycles
+  EXPECT_LE(heartbeats, 12);
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  // The master stops (killed): every drive quick-stops within the consumer time.
+  const double stopped = rack.now();
+  std::this_thread::sleep_for(150ms);
+  rack.with([&](auto& drives, auto&) {
+    for (auto& d : drives) {
+      EXPECT_EQ(d->state(), co::DriveState::quick_stop_active);
+      EXPECT_NE(d->communication_error(), 0);
+      EXPECT_LT(d->communication_error_at() - stopped, 0.060);
+    }
     return 0;
   });
+}
+
+TEST(Cia402Master, RefusesItsOwnNodeIdAndAConsumerTimeBelowItsHeartbeat) {
+  MemoryHub hub;
+  std::vector<MasterAxis> a = axes(1);
+  a[0].node = 0x7F;
+  EXPECT_THROW(Cia402Master(hub.add(), a, MasterOptions{}), HardwareError);
+  MasterOptions o;
+  o.heartbeat_consumer_ms = 10;
+  EXPECT_THROW(Cia402Master(hub.add(), axes(1), o), HardwareError);
 }
 
 TEST(Cia402Master, NoDriveOnTheBusIsAClearError) {

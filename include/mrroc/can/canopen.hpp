@@ -66,11 +66,22 @@ std::string_view to_string(NmtState state);
 namespace od {
 inline constexpr std::uint16_t kDeviceType = 0x1000;         ///< u32; CiA 402 servo: 0x00020192
 inline constexpr std::uint16_t kErrorRegister = 0x1001;      ///< u8
+/// u32 communication cycle period [us]: the SYNC period; a drive supervises SYNC with it (0: off).
+inline constexpr std::uint16_t kCommunicationCyclePeriod = 0x1006;
+/// Consumer heartbeat time: sub 0 = entries (1), sub 1 = u32 (producer node << 16 | time [ms]);
+/// time 0 or node 0: not monitored.
+inline constexpr std::uint16_t kConsumerHeartbeatTime = 0x1016;
 inline constexpr std::uint16_t kHeartbeatTime = 0x1017;      ///< u16, producer heartbeat [ms]
 inline constexpr std::uint16_t kRpdo1Mapping = 0x1600;       ///< sub 0 = count, 1.. = entries
 inline constexpr std::uint16_t kTpdo1Mapping = 0x1A00;
+/// Error behaviour: sub 0 = 1, sub 1 = u8 NMT reaction to a communication error while
+/// operational: 0 enter pre-operational, 1 no change, 2 enter stopped.
+inline constexpr std::uint16_t kErrorBehaviour = 0x1029;
 inline constexpr std::uint16_t kDigitalInputsLow = 0x2001;   ///< u16, bit 2 home switch
 inline constexpr std::uint16_t kEncoderResolution = 0x2002;  ///< u32, counts per revolution / m
+/// i16 abort connection option code (CiA 402): the device control reaction to a communication
+/// error (heartbeat or SYNC lost): 0 none, 1 fault, 2 disable voltage, 3 quick stop.
+inline constexpr std::uint16_t kAbortConnectionOption = 0x6007;
 inline constexpr std::uint16_t kControlword = 0x6040;        ///< u16
 inline constexpr std::uint16_t kStatusword = 0x6041;         ///< u16
 inline constexpr std::uint16_t kModesOfOperation = 0x6060;   ///< i8
@@ -80,6 +91,9 @@ inline constexpr std::uint16_t kFollowingErrorWindow = 0x6065;   ///< u32 [count
 inline constexpr std::uint16_t kFollowingErrorTimeout = 0x6066;  ///< u16 [ms]
 inline constexpr std::uint16_t kCurrentActual = 0x6078;      ///< i16 [per mille of rated]
 inline constexpr std::uint16_t kTargetPosition = 0x607A;     ///< i32 [counts]
+/// i16 quick stop option code: 2 ramp at 0x6085, then switch on disabled; 6 ramp at 0x6085,
+/// then stay in quick stop active (holding). Only these two are implemented.
+inline constexpr std::uint16_t kQuickStopOption = 0x605A;
 inline constexpr std::uint16_t kQuickStopDeceleration = 0x6085;  ///< u32 [counts/s^2]
 inline constexpr std::uint16_t kDigitalInputs = 0x60FD;      ///< u32, bit 2 home switch
 inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;    ///< sub 1: u8 value, sub 2: i8 exp
@@ -88,6 +102,25 @@ inline constexpr std::uint32_t kServoDeviceType = 0x00020192;
 inline constexpr std::array<std::uint32_t, 2> kRpdo1Entries{0x60400010, 0x607A0020};
 inline constexpr std::array<std::uint32_t, 3> kTpdo1Entries{0x60410010, 0x60640020, 0x20010010};
 }  // namespace od
+
+/// Values of the supervision objects.
+namespace abort_connection {
+inline constexpr std::int16_t kNoAction = 0;
+inline constexpr std::int16_t kFault = 1;
+inline constexpr std::int16_t kDisableVoltage = 2;
+inline constexpr std::int16_t kQuickStop = 3;
+}  // namespace abort_connection
+namespace quick_stop_option {
+inline constexpr std::int16_t kRampThenDisabled = 2;
+inline constexpr std::int16_t kRampThenHold = 6;
+}  // namespace quick_stop_option
+namespace error_behaviour {
+inline constexpr std::uint8_t kPreOperational = 0;
+inline constexpr std::uint8_t kNoChange = 1;
+inline constexpr std::uint8_t kStopped = 2;
+}  // namespace error_behaviour
+/// The master's default node id for its own heartbeat (0x700 + id); no drive may use it.
+inline constexpr std::uint8_t kDefaultMasterNode = 0x7F;
 
 /// Modes of operation (0x6060) used.
 inline constexpr std::int8_t kModeHoming = 6;
@@ -174,6 +207,7 @@ inline constexpr std::uint16_t kErrorReset = 0x0000;
 inline constexpr std::uint16_t kContinuousOverCurrent = 0x2310;
 inline constexpr std::uint16_t kDeviceHardware = 0x5000;
 inline constexpr std::uint16_t kPositionSensor = 0x7305;   ///< incremental sensor 1 fault
+inline constexpr std::uint16_t kCommunication = 0x8100;    ///< communication (SYNC lost)
 inline constexpr std::uint16_t kHeartbeatError = 0x8130;   ///< life guard / heartbeat error
 inline constexpr std::uint16_t kRecoveredFromBusOff = 0x8140;
 inline constexpr std::uint16_t kFollowingError = 0x8611;

@@ -18,10 +18,20 @@
 ///    interpolation period (0x60C2), so the axis follows a ramp, not steps.
 ///  - Monitors (operation enabled): following error |demand - actual| > 0x6065 counts for longer
 ///    than 0x6066 ms -> fault, EMCY 0x8611; |force| above the current limit for longer than
-///    `over_current_time_s` -> fault, EMCY 0x2310; no SYNC for longer than `sync_timeout_s`
-///    (the master is gone) -> fault, EMCY 0x8130. A fault stops the axis (brake) at once.
-///  - Quick stop: the demand decelerates at 0x6085 to standstill and holds (quick stop option
-///    code 6: stays in quick stop active until enable operation or disable voltage).
+///    `over_current_time_s` -> fault, EMCY 0x2310. A fault stops the axis (brake) at once.
+///  - Supervision of the master (CiA 301), while the node is NMT operational:
+///    heartbeat consumer 0x1016 sub 1 (producer node << 16 | time ms; armed by the first
+///    heartbeat of that node, re-armed by the next one): no heartbeat for longer than the time ->
+///    EMCY 0x8130; SYNC supervision with 0x1006 (cycle period, us; armed by the first SYNC):
+///    no SYNC for longer than `sync_loss_periods` periods -> EMCY 0x8100. Either communication
+///    error then changes the NMT state as 0x1029 sub 1 says (0 pre-operational, 1 none,
+///    2 stopped) and, in operation enabled, reacts as 0x6007 says (0 none, 1 fault (brake),
+///    2 disable voltage (brake), 3 quick stop as 0x605A says). Never configured (0x1016 sub 1 = 0,
+///    0x1006 = 0, the power-on values) the drive is not supervised, as a real one: the master
+///    writes and reads back these objects at bring-up.
+///  - Quick stop: the demand decelerates at 0x6085 from the axis' velocity to standstill; then
+///    quick stop option code 0x605A 6 holds in quick stop active (until enable operation or
+///    disable voltage), 2 goes to switch on disabled (brake).
 ///  - Heartbeat every 0x1017 ms when non-zero.
 ///  - Fault injection: `inject_fault(code)` (drive fault with that EMCY code), `set_silent(true)`
 ///    (the node neither sends nor receives: a dead or disconnected node).
@@ -44,7 +54,10 @@ struct DriveConfig {
   double over_current_time_s = 0.05;    ///< how long the limit may be exceeded
   double quick_stop_deceleration = 5.0;  ///< [units/s^2] (0x6085 is in counts/s^2)
   double interpolation_period_s = 0.002;  ///< 0x60C2 (the master sets it to its cycle)
-  double sync_timeout_s = 0.05;          ///< SYNC watchdog in operation enabled
+  /// SYNC supervision: no SYNC for this many 0x1006 periods is a communication error. A
+  /// drive's own (manufacturer) setting; 25 periods (50 ms at 2 ms) tolerates a shared host
+  /// holding the emulator or the EDP back for 20 ms or more (a CI run saw 22 ms).
+  double sync_loss_periods = 25.0;
 };
 
 /// What the owner samples from the axis every physics step.
@@ -82,6 +95,11 @@ class Cia402Drive {
   [[nodiscard]] std::uint8_t node() const noexcept { return config_.node; }
   [[nodiscard]] std::uint16_t last_emcy() const noexcept { return last_emcy_; }
   [[nodiscard]] std::uint64_t syncs() const noexcept { return syncs_; }
+  /// EMCY code of the last communication error the supervision reacted to (0x8130 heartbeat,
+  /// 0x8100 SYNC lost), 0 when none since the drive was last enabled or powered on.
+  [[nodiscard]] std::uint16_t communication_error() const noexcept { return comm_error_; }
+  /// When that error was detected [s] (the time base of `update`).
+  [[nodiscard]] double communication_error_at() const noexcept { return comm_error_at_s_; }
   /// Interpolation period (0x60C2) [s]: the master's cycle.
   [[nodiscard]] double interpolation_period_s() const noexcept {
     return config_.interpolation_period_s;
@@ -102,6 +120,9 @@ class Cia402Drive {
   void on_sync(double now_s);
   void on_sdo(const can_frame& frame, double now_s);
   void on_nmt(const can_frame& frame, double now_s);
+  void on_heartbeat(const can_frame& frame, double now_s);
+  void communication_error(std::uint16_t code, double now_s);
+  void reset_communication_objects() noexcept;
   [[nodiscard]] double position_of(std::int32_t counts) const noexcept;
 
   DriveConfig config_;
@@ -133,6 +154,17 @@ class Cia402Drive {
   double next_heartbeat_s_ = 0.0;
   std::uint16_t last_emcy_ = 0;
   std::uint64_t syncs_ = 0;
+  // Supervision objects and state.
+  std::uint32_t consumer_heartbeat_ = 0;  ///< 0x1016 sub 1
+  std::uint32_t cycle_period_us_ = 0;     ///< 0x1006
+  std::uint8_t error_behaviour_ = canopen::error_behaviour::kPreOperational;  ///< 0x1029 sub 1
+  std::int16_t abort_connection_ = canopen::abort_connection::kFault;         ///< 0x6007
+  std::int16_t quick_stop_option_ = canopen::quick_stop_option::kRampThenHold;  ///< 0x605A
+  bool heartbeat_armed_ = false;
+  double last_heartbeat_s_ = 0.0;
+  bool sync_armed_ = false;
+  std::uint16_t comm_error_ = 0;
+  double comm_error_at_s_ = 0.0;
 };
 
 }  // namespace mrroc::can

@@ -10,6 +10,15 @@
 /// starts the nodes (NMT) and steps the drives through shutdown -> switch on -> enable operation
 /// with the target held at each drive's actual position, so nothing moves.
 ///
+/// Supervision (CiA 301/402): the master produces its own heartbeat (COB-ID 0x700 + `master_node`,
+/// every `master_heartbeat_ms`, from `send` and while waiting for SDO answers) and bring-up makes
+/// every drive a consumer of it and of the SYNC: 0x1016 sub 1 = master_node << 16 |
+/// heartbeat_consumer_ms, 0x1006 = the cycle [us], 0x1029 sub 1 = 1 (a communication error
+/// leaves the NMT state as it is, so the drive's TPDOs and EMCY still show what happened),
+/// 0x6007 = 3 (quick stop on a communication error), 0x605A = 6 (quick stop ramps at 0x6085 and
+/// holds). Each value is read back; a drive that does not keep it is refused. So a drive whose
+/// master dies (no heartbeat, no SYNC) ramps to a standstill at its quick-stop deceleration.
+///
 /// Cycle (`receive` then `send`, from the servo loop; no allocation, no blocking): `receive`
 /// drains the bus and checks each drive; `send` sends one RPDO1 per drive and then SYNC. A drive
 /// answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions sampled at the
@@ -47,6 +56,10 @@ struct MasterOptions {
   std::chrono::milliseconds sdo_timeout{100};
   int sdo_attempts = 3;
   std::uint16_t heartbeat_ms = 100;  ///< producer heartbeat the drives are told to send
+  std::uint8_t master_node = canopen::kDefaultMasterNode;  ///< node id of the master's heartbeat
+  std::uint16_t master_heartbeat_ms = 10;  ///< the master's heartbeat period (1..1000 ms)
+  /// Drives' heartbeat consumer time for the master (0x1016); must exceed master_heartbeat_ms.
+  std::uint16_t heartbeat_consumer_ms = 50;
 };
 
 /// What the master knows about one drive after `receive`.
@@ -97,6 +110,8 @@ class Cia402Master {
   [[nodiscard]] std::string who(std::size_t axis) const;
   [[nodiscard]] std::int32_t counts(std::size_t axis, double position) const noexcept;
   void cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets);
+  /// Sends the master's heartbeat when it is due (no allocation, no blocking).
+  void heartbeat_if_due() noexcept;
 
   Bus& bus_;
   std::vector<MasterAxis> axes_;
@@ -111,6 +126,7 @@ class Cia402Master {
   /// quick stop active; they are accepted until this cycle (excluded).
   std::uint64_t quick_stop_grace_until_ = 0;
   bool enabled_ = false;  ///< bring-up done: drives are expected in operation enabled
+  std::chrono::steady_clock::time_point next_heartbeat_{};
   char fault_[256] = {};
 };
 

@@ -8,11 +8,11 @@
 #include <thread>
 
 #include "command_interpreter.hpp"
+#include "estop_listener.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/links.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
-#include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
@@ -34,6 +34,39 @@ constexpr std::chrono::milliseconds kStatePeriod{20};
 constexpr std::chrono::milliseconds kShutdownRampLimit{2000};
 /// Overruns are reported at once, then at most this often.
 constexpr std::chrono::seconds kOverrunReportPeriod{1};
+/// How long the EDP listens for another EDP of its robot (its robot_state_t, every 20 ms) on the
+/// set's LCM URL before it starts its servo loop.
+constexpr std::chrono::milliseconds kOtherEdpListen{250};
+
+/// Throws when another EDP of `robot` broadcasts its robot_state_t on the bus' URL.
+void refuse_if_another_edp(mrroc::comm::Bus& bus, const std::string& robot,
+                           const std::string& config_file) {
+  struct Seen {
+    std::mutex mutex;
+    std::string sender;
+    std::int64_t servo_step = 0;
+  } seen;
+  const std::string channel = mrroc::channels::robot_state(robot);
+  lcm::Subscription* sub = bus.lcm().subscribeFunction<Seen*>(
+      channel,
+      +[](const lcm::ReceiveBuffer* buffer, const std::string&, Seen* s) {
+        mrroc_lcm::robot_state_t m;
+        if (!mrroc::comm::detail::decode_received(buffer, m)) return;
+        std::lock_guard lock(s->mutex);
+        s->sender = m.header.sender;
+        s->servo_step = m.servo_step;
+      },
+      &seen);
+  std::this_thread::sleep_for(kOtherEdpListen);
+  bus.lcm().unsubscribe(sub);
+  std::lock_guard lock(seen.mutex);
+  if (!seen.sender.empty())
+    throw mrroc::Error(fmt::format(
+        "another EDP of robot '{}' is running on LCM {}: '{}' broadcasts its state on '{}' (servo "
+        "step {}); one EDP per robot and one process set per LCM URL: stop it first, or give "
+        "this set ({}) another [system] lcm_url",
+        robot, bus.url(), seen.sender, channel, seen.servo_step, config_file));
+}
 
 int run(const std::string& config_path, const std::string& robot_name) {
   using namespace mrroc;
@@ -50,6 +83,8 @@ int run(const std::string& config_path, const std::string& robot_name) {
   bus.start();
   Reporter reporter(bus, process, robot.name);
   try {
+    // Before anything is configured or moves: one EDP per robot on this LCM URL.
+    refuse_if_another_edp(bus, robot.name, config.file.string());
     const RobotModel model = load_robot_model(robot.model_dir);
     if (!robot.edp.library.empty()) load_plugin_library(robot.edp.library, robot.edp.where);
     std::unique_ptr<edp::Hardware> hardware;
@@ -78,52 +113,49 @@ int run(const std::string& config_path, const std::string& robot_name) {
     if (robot.edp.lock_step) servo.set_lock_step(true);
     servo.set_lookahead(robot.edp.lookahead);
     servo.start();
+    // Its own socket and thread; the robot is stopped from here until the stop's state is heard.
+    edp::EstopListener estop(
+        servo, robot.name, config.lcm_url, config.auth_key_file,
+        edp::EstopListener::priority_for(robot.edp.options.priority),
+        [&reporter](int code, const std::string& text) {
+          reporter.report(Severity::warning, code, text);
+        });
     edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
     comm::EdpServer server(bus, process, channels::edp_command(robot.name),
                            channels::edp_reply(robot.name));
 
     std::this_thread::sleep_for(std::chrono::milliseconds(20));  // let the loop settle its policy
+    // The EDP starts stopped and waits (at most EstopListener::kStateWait) for the stop's state:
+    // the latch holder (mrroc-launch) announces it every 150 ms.
+    const auto wait_start = std::chrono::steady_clock::now();
+    const bool heard = estop.wait_state(edp::EstopListener::kStateWait);
+    const long waited_ms = std::lround(std::chrono::duration<double, std::milli>(
+                                           std::chrono::steady_clock::now() - wait_start)
+                                           .count());
+    std::string estop_text;
+    if (!heard)
+      estop_text = fmt::format(
+          "emergency stop ENGAGED: no emergency stop state heard within {} ms (no mrroc-launch "
+          "announces it): motion refused until an authentic release (mrroc-ui release)",
+          edp::EstopListener::kStateWait.count());
+    else if (servo.emergency_stopped())
+      estop_text = fmt::format("emergency stop ENGAGED ({}; heard after {} ms): motion refused "
+                               "until an authentic release",
+                               estop.reason(), waited_ms);
+    else
+      estop_text = fmt::format("emergency stop released (heard after {} ms{})", waited_ms,
+                               estop.announcer().empty() ? "" : " from " + estop.announcer());
     reporter.info(fmt::format("ready: plugin '{}', {} axes, kinematics '{}', servo period {:.3f} "
-                              "ms, {}, lookahead {} macro-step{}, communication {}, {}",
+                              "ms, {}, lookahead {} macro-step{}, communication {}, emergency "
+                              "stop listener {}, {}; {}",
                               hardware->name(), model.axes(), kinematics->name(),
                               robot.edp.servo_period_s * 1e3, servo.timing().scheduling,
                               robot.edp.lookahead, robot.edp.lookahead == 1 ? "" : "s",
-                              scheduling, memory));
+                              scheduling, estop.scheduling(), memory, estop_text));
     reporter.set_state(ProcessState::ready);
 
-    // Emergency stop: acted on in the bus thread at once, reported from the command thread.
-    // ENGAGE is obeyed from anybody (stopping is always safe); with a key, RELEASE must be
-    // authentic. Malformed and refused messages are reported to the SRP (rate-limited).
-    struct EstopContext {
-      edp::ServoLoop* servo;
-      comm::Bus* bus;
-      std::string robot;
-      std::mutex mutex;
-      std::string reason;
-      std::uint64_t dropped = 0;
-    } estop{&servo, &bus, robot.name, {}, {}, 0};
-    auto on_estop = +[](const lcm::ReceiveBuffer* buffer, const std::string& channel,
-                        EstopContext* c) {
-      mrroc_lcm::emergency_stop_t m;
-      if (!comm::detail::decode_received(buffer, m)) {
-        comm::detail::report_malformed(*c->bus, channel, static_cast<int>(buffer->data_size));
-        return;
-      }
-      if (!m.robot.empty() && m.robot != c->robot) return;
-      if (m.action == mrroc_lcm::emergency_stop_t::ENGAGE) {
-        c->servo->emergency_stop();
-        std::lock_guard lock(c->mutex);
-        c->reason = m.reason + " (from " + m.header.sender + ")";
-      } else if (m.action == mrroc_lcm::emergency_stop_t::RELEASE) {
-        if (!comm::detail::authentic(*c->bus, m, channel, c->dropped)) return;
-        c->servo->release_emergency_stop();
-      }
-    };
-    lcm::Subscription* estop_subscription =
-        bus.lcm().subscribeFunction<EstopContext*>(channels::emergency_stop, on_estop, &estop);
-
     bool hardware_fault_reported = false;
-    bool estop_reported = false;
+    bool estop_reported = servo.emergency_stopped();  // the ready line said so
     std::int64_t lost_reported = 0;
     std::int64_t planned_reported = 0;
     std::thread commands([&] {
@@ -140,14 +172,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
         }
         if (servo.emergency_stopped() != estop_reported) {
           estop_reported = servo.emergency_stopped();
-          std::string reason;
-          {
-            std::lock_guard lock(estop.mutex);
-            reason = estop.reason;
-          }
           if (estop_reported)
             reporter.report(Severity::error, edp::error_code::emergency_stop,
-                            "EMERGENCY STOP: robot brought to a standstill: " + reason);
+                            "EMERGENCY STOP: robot brought to a standstill: " + estop.reason());
           else
             reporter.warning("emergency stop released");
         }
@@ -223,7 +250,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
           ramping = true;
           ramp_start = t;
           ramp_first_step = servo.latest().cycle;
-          servo.emergency_stop();
+          estop.hold_for_shutdown();  // no announcement may release it now
         } else if (const bool still = servo.stopped(); still || t - ramp_start > kShutdownRampLimit) {
           const std::int64_t steps = servo.latest().cycle - ramp_first_step;
           const long ms = std::lround(std::chrono::duration<double, std::milli>(t - ramp_start).count());
@@ -284,7 +311,6 @@ int run(const std::string& config_path, const std::string& robot_name) {
     reporter.set_state(ProcessState::stopping);
     servo.stop();  // wakes a command waiting for a reading
     commands.join();
-    bus.lcm().unsubscribe(estop_subscription);
     report_timing();
     reporter.set_state(ProcessState::finished);
   } catch (const std::exception& e) {

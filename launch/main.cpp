@@ -20,7 +20,9 @@
 #include <map>
 #include <mutex>
 
+#include "estop_latch.hpp"
 #include "launch_plan.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/reporter.hpp"
@@ -189,9 +191,22 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   launch::install_stop_signal_handlers();
   if (!config.lcm_url.empty()) ::setenv("LCM_DEFAULT_URL", config.lcm_url.c_str(), 1);
   comm::Bus bus(config.lcm_url);
+  comm::enable_auth_from_file(bus, config.auth_key_file);  // signs the stop's announcements
   ReadyWatch ready;
   SystemListener listener(bus, {}, [&](const ProcessStatus& s) { ready.on_status(s); });
   bus.start();
+  // One process set per LCM URL: listen (sending nothing) for a set that runs there already.
+  std::vector<std::string> robot_names;
+  for (const auto& r : config.robots) robot_names.push_back(r.name);
+  if (const auto other = launch::running_set(bus, robot_names)) {
+    std::fprintf(stderr,
+                 "mrroc-launch: refusing to start set '%s' (%s): another process set runs on LCM "
+                 "%s: %s. One process set per LCM URL: stop it first, or give this set another "
+                 "[system] lcm_url\nmrroc-launch: nothing started\n",
+                 config.name.c_str(), config.file.string().c_str(), bus.url().c_str(),
+                 other->describe().c_str());
+    return kExitConfig;
+  }
 
   launch::LaunchStatus initial;
   initial.set_name = config.name;
@@ -214,6 +229,9 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   }
 
   launch::Supervisor supervisor(std::cout);
+  // The emergency stop's latch: announced before any EDP starts, kept across EDP restarts.
+  launch::EstopLatch estop_latch(bus, robot_names,
+                                 [&](const std::string& line) { supervisor.log(line); });
   launch::StatusBoard board(bus, std::move(initial));
   std::size_t width = 0;
   for (const auto& p : plan) width = std::max(width, p.name.size());

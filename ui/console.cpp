@@ -703,13 +703,27 @@ struct Console::Impl {
       }
     }
     const std::string reason = body.value("reason", std::string("operator console"));
-    publish_emergency_stop(bus, engage, robot, reason);
-    const std::string what = describe_emergency_stop(engage, robot, reason);
-    if (engage)
+    // Sent, then confirmed from every robot's robot_state_t within kEstopConfirmDeadline.
+    std::vector<std::string> names;
+    for (const RobotConfig& r : config.robots) names.push_back(r.name);
+    const EstopConfirmation c =
+        send_and_confirm_emergency_stop(bus, engage, names, robot, reason);
+    const std::string what =
+        describe_emergency_stop(engage, robot, reason) + ": " + describe_confirmation(engage, c);
+    if (engage || !c.all())
       reporter->report(Severity::error, 10, what);
     else
       reporter->warning(what);
-    reply_json(res, json{{"ok", true}, {"text", what}, {"servo_step_at_send", steps}});
+    json latency = json::object();
+    for (const auto& [name, ms] : c.latency_ms) latency[name] = ms;
+    reply_json(res, json{{"ok", true},
+                         {"text", what},
+                         {"servo_step_at_send", steps},
+                         {"confirmed", c.confirmed},
+                         {"unconfirmed", c.unconfirmed},
+                         {"confirm_ms", latency},
+                         {"deadline_ms", kEstopConfirmDeadline.count()},
+                         {"latched_by", c.latched_by}});
   }
 
   json jog(const json& body) {

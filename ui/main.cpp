@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <vector>
 
 #include "console.hpp"
 #include "mrroc/comm/auth.hpp"
@@ -24,6 +25,7 @@ using namespace mrroc;
 constexpr int kExitRefused = 1;  // the MP answered and refused the command
 constexpr int kExitConfig = 2;   // bad command line or config
 constexpr int kExitNoMp = 3;     // no MP answered
+constexpr int kExitUnconfirmed = 4;  // estop / release: a robot did not confirm in time
 
 int send_emergency_stop(const std::string& config_path, bool engage, const std::string& robot,
                         const std::string& reason) {
@@ -31,13 +33,22 @@ int send_emergency_stop(const std::string& config_path, bool engage, const std::
   if (!robot.empty()) (void)config.robot(robot);  // a typo in the robot name is an error
   comm::Bus bus(config.lcm_url);
   comm::enable_auth_from_file(bus, config.auth_key_file);
+  bus.start();
   Reporter reporter(bus, "ui");
-  ui::publish_emergency_stop(bus, engage, robot, reason);
-  const std::string what = ui::describe_emergency_stop(engage, robot, reason);
-  if (engage)
+  std::vector<std::string> robots;
+  for (const auto& r : config.robots) robots.push_back(r.name);
+  const ui::EstopConfirmation c =
+      ui::send_and_confirm_emergency_stop(bus, engage, robots, robot, reason);
+  const std::string what = ui::describe_emergency_stop(engage, robot, reason) + ": " +
+                           ui::describe_confirmation(engage, c);
+  if (engage || !c.all())
     reporter.report(Severity::error, 10, what);
   else
     reporter.warning(what);
+  if (!c.all()) {
+    std::fprintf(stderr, "mrroc-ui: %s\n", what.c_str());
+    return kExitUnconfirmed;
+  }
   std::printf("mrroc-ui: %s\n", what.c_str());
   return 0;
 }
@@ -99,7 +110,9 @@ int serve(const std::string& config_path, const std::string& bind, int port) {
 int main(int argc, char** argv) {
   CLI::App app{
       "mrroc-ui: operator commands for a running process set.\n"
-      "  estop / release      engage / release the emergency stop of every robot (or one)\n"
+      "  estop / release      engage / release the emergency stop of every robot (or one) and\n"
+      "                       confirm it from every robot's state within 500 ms (exit 4: a\n"
+      "                       robot did not confirm; the message names it)\n"
       "  start / pause / resume / stop / terminate / status\n"
       "                       task commands to the MP (exit 1: refused, 3: no MP answers)\n"
       "  serve                the web operator console (docs/operating.md)"};

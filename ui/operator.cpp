@@ -3,14 +3,19 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/faults.hpp"
+#include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/robot_state_t.hpp"
 
 namespace mrroc::ui {
 
@@ -82,14 +87,119 @@ void publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robo
   m.action = engage ? mrroc_lcm::emergency_stop_t::ENGAGE : mrroc_lcm::emergency_stop_t::RELEASE;
   m.robot = robot;
   m.reason = reason;
+  comm::FaultDice dice(comm::link_faults_from_environment());
   for (int i = 0; i < 5; ++i) {
     m.header.seq = i + 1;
     m.header.utime = now_utime();
-    if (bus.auth() != nullptr) comm::sign(*bus.auth(), m);  // an EDP releases only when signed
-    comm::detail::published();
-    bus.lcm().publish(channels::emergency_stop, &m);
+    // Signed when the set has a key (an EDP releases only when signed).
+    comm::detail::publish_with_faults(bus, dice, channels::emergency_stop, m);
     if (i < 4) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+}
+
+EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
+                                                  const std::vector<std::string>& robots,
+                                                  const std::string& robot,
+                                                  const std::string& reason,
+                                                  std::chrono::milliseconds deadline) {
+  using Clock = std::chrono::steady_clock;
+  struct Watch {
+    std::mutex mutex;
+    std::condition_variable cv;
+    bool engage = false;
+    bool armed = false;
+    std::int64_t sent_utime = 0;
+    Clock::time_point sent{};
+    std::map<std::string, double> latency_ms;
+    std::map<std::string, std::int64_t> step;
+    std::string latched_by;
+  } w;
+  w.engage = engage;
+  std::vector<lcm::Subscription*> subs;
+  for (const std::string& r : robots) {
+    if (!robot.empty() && r != robot) continue;
+    subs.push_back(bus.lcm().subscribeFunction<Watch*>(
+        channels::robot_state(r),
+        +[](const lcm::ReceiveBuffer* b, const std::string&, Watch* c) {
+          mrroc_lcm::robot_state_t s;
+          if (!comm::detail::decode_received(b, s)) return;
+          const auto now = Clock::now();
+          std::lock_guard lock(c->mutex);
+          if (!c->armed || c->latency_ms.count(s.robot) != 0 || s.estop != c->engage) return;
+          c->latency_ms[s.robot] = std::chrono::duration<double, std::milli>(now - c->sent).count();
+          c->step[s.robot] = s.servo_step;
+          c->cv.notify_all();
+        },
+        &w));
+  }
+  subs.push_back(bus.lcm().subscribeFunction<Watch*>(
+      channels::emergency_stop,
+      +[](const lcm::ReceiveBuffer* b, const std::string&, Watch* c) {
+        mrroc_lcm::emergency_stop_t m;
+        if (!comm::detail::decode_received(b, m)) return;
+        using S = mrroc_lcm::emergency_stop_t;
+        std::lock_guard lock(c->mutex);
+        if (!c->armed || m.latched_utime < c->sent_utime) return;
+        if (m.action == (c->engage ? S::ENGAGED : S::RELEASED)) c->latched_by = m.header.sender;
+      },
+      &w));
+  {
+    std::lock_guard lock(w.mutex);
+    w.armed = true;
+    w.sent = Clock::now();
+    w.sent_utime = now_utime();
+  }
+  publish_emergency_stop(bus, engage, robot, reason);
+  EstopConfirmation out;
+  {
+    std::unique_lock lock(w.mutex);
+    const std::size_t wanted = subs.size() - 1;
+    w.cv.wait_until(lock, w.sent + deadline, [&] { return w.latency_ms.size() >= wanted; });
+  }
+  // The latch announces every 150 ms and at once on a change: give it a moment when it has not.
+  const auto latch_until = w.sent + std::chrono::milliseconds(200);
+  while (Clock::now() < latch_until) {
+    {
+      std::lock_guard lock(w.mutex);
+      if (!w.latched_by.empty()) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  for (lcm::Subscription* s : subs) bus.lcm().unsubscribe(s);
+  std::lock_guard lock(w.mutex);
+  for (const std::string& r : robots) {
+    if (!robot.empty() && r != robot) continue;
+    if (auto it = w.latency_ms.find(r); it != w.latency_ms.end()) {
+      out.confirmed.push_back(r);
+      out.latency_ms[r] = it->second;
+      out.servo_step[r] = w.step[r];
+    } else {
+      out.unconfirmed.push_back(r);
+    }
+  }
+  out.latched_by = w.latched_by;
+  return out;
+}
+
+std::string describe_confirmation(bool engage, const EstopConfirmation& c,
+                                  std::chrono::milliseconds deadline) {
+  std::string text;
+  if (!c.unconfirmed.empty()) {
+    std::string names;
+    for (const auto& r : c.unconfirmed) names += (names.empty() ? "" : ", ") + r;
+    text = fmt::format("NOT CONFIRMED by {} within {} ms (no robot_state_t showed the stop {})",
+                       names, deadline.count(), engage ? "engaged" : "released");
+  }
+  if (!c.confirmed.empty()) {
+    std::string names;
+    for (const auto& r : c.confirmed)
+      names += fmt::format("{}{} ({:.0f} ms)", names.empty() ? "" : ", ", r, c.latency_ms.at(r));
+    text += (text.empty() ? "" : "; ") + std::string("confirmed by ") + names;
+  }
+  text += c.latched_by.empty() ? "; no latch holder announced it (an EDP that starts now will "
+                                 "not know: is mrroc-launch running?)"
+                               : "; latched by " + c.latched_by;
+  return text;
 }
 
 std::string describe_emergency_stop(bool engage, const std::string& robot,

@@ -2,9 +2,12 @@
 // Operator commands to the MP (operator_command_t / operator_reply_t over request/reply), shared
 // by the command line and the web console.
 
+#include <chrono>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
@@ -51,9 +54,35 @@ class Bus;
 
 namespace mrroc::ui {
 /// Publishes emergency_stop_t on mrroc/estop 5 times, 5 ms apart (UDP may drop one; an EDP acts
-/// on the first copy and ignores the others). `robot` empty: every robot.
+/// on the first copy and ignores the others). `robot` empty: every robot. Honours
+/// MRROC_LINK_FAULTS (comm/faults.hpp), so that a test can drop every copy.
 void publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robot,
                             const std::string& reason);
+
+/// How long the operator's tools wait for every robot to confirm the stop (or its release).
+inline constexpr std::chrono::milliseconds kEstopConfirmDeadline{500};
+
+/// The answer of the robots to an emergency stop or release.
+struct EstopConfirmation {
+  std::vector<std::string> confirmed;    ///< robots whose robot_state_t showed the new state
+  std::vector<std::string> unconfirmed;  ///< robots that did not within the deadline
+  std::map<std::string, double> latency_ms;  ///< per confirmed robot: from sending to the state
+  std::map<std::string, std::int64_t> servo_step;  ///< the step of the confirming state
+  /// The latch holder that announced the new state ("launch#41"), empty when none did.
+  std::string latched_by;
+  [[nodiscard]] bool all() const { return unconfirmed.empty(); }
+};
+
+/// Sends the stop (publish_emergency_stop) and waits at most `deadline` for the robot_state_t of
+/// each of `robots` (on <robot>/edp/state, received after the send) to show `estop == engage`.
+/// The bus must be started.
+EstopConfirmation send_and_confirm_emergency_stop(
+    comm::Bus& bus, bool engage, const std::vector<std::string>& robots, const std::string& robot,
+    const std::string& reason, std::chrono::milliseconds deadline = kEstopConfirmDeadline);
+/// One line: "confirmed by irb6 (24 ms), irb6b (31 ms)" / "NOT CONFIRMED by irb6 within 500 ms
+/// (no robot_state_t shows the stop engaged); confirmed by ...", plus the latch.
+std::string describe_confirmation(bool engage, const EstopConfirmation& c,
+                                  std::chrono::milliseconds deadline = kEstopConfirmDeadline);
 /// "EMERGENCY STOP (operator) for every robot", as printed and reported to the SRP.
 std::string describe_emergency_stop(bool engage, const std::string& robot,
                                     const std::string& reason);

@@ -84,15 +84,31 @@ for (const button of document.querySelectorAll("#mp-panel button[data-command]")
   });
 }
 
+// A red banner names the robots that did not confirm the stop (or its release) in time.
+function showEstopConfirmation(data, engage) {
+  const banner = $("estop-banner");
+  const missing = data.unconfirmed || [];
+  if (missing.length > 0) {
+    banner.textContent = (engage ? "EMERGENCY STOP NOT CONFIRMED by " : "RELEASE NOT CONFIRMED by ") +
+      missing.join(", ") + " within " + data.deadline_ms + " ms: " +
+      (engage ? "check the robot and use the hard-wired emergency stop" : "the robot may still be stopped");
+    banner.hidden = false;
+  } else {
+    banner.hidden = true;
+    banner.textContent = "";
+  }
+}
 $("estop").addEventListener("click", async () => {
   const data = await api("POST", "/api/estop", {});
   const steps = Object.entries(data.servo_step_at_send || {})
     .map(([robot, step]) => robot + " at servo step " + step).join(", ");
   showResult($("command-result"), data, data.text + (steps ? " (sent: " + steps + ")" : ""));
+  showEstopConfirmation(data, true);
 });
 $("release").addEventListener("click", async () => {
   const data = await api("POST", "/api/release", {});
   showResult($("command-result"), data);
+  showEstopConfirmation(data, false);
 });
 
 // ---------------------------------------------------------------------------------------------

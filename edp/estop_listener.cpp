@@ -1,0 +1,177 @@
+#include "estop_listener.hpp"
+
+#include <fmt/format.h>
+#include <pthread.h>
+#include <sched.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+#include "mrroc/comm/auth.hpp"
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc_lcm/emergency_stop_t.hpp"
+
+namespace mrroc::edp {
+
+namespace {
+using Stop = mrroc_lcm::emergency_stop_t;
+/// The servo thread's SCHED_FIFO priority (servo_loop.cpp); the listener never goes above it.
+constexpr int kServoPriority = 80;
+/// The listener's priority when the command threads run at the normal scheduler.
+constexpr int kDefaultPriority = 70;
+}  // namespace
+
+int EstopListener::priority_for(int command_priority) {
+  return std::min(kServoPriority, std::max(kDefaultPriority, command_priority + 1));
+}
+
+EstopListener::EstopListener(ServoLoop& servo, std::string robot, const std::string& lcm_url,
+                             const std::filesystem::path& auth_key_file, int priority,
+                             comm::Bus::DropSink drop_sink)
+    : servo_(servo), robot_(std::move(robot)), bus_(lcm_url), priority_(priority) {
+  comm::enable_auth_from_file(bus_, auth_key_file);
+  bus_.set_drop_sink(std::move(drop_sink));
+  reason_ = "the EDP starts stopped until it hears the emergency stop's state";
+  servo_.emergency_stop();  // before anything can move
+  bus_.lcm().subscribeFunction<EstopListener*>(
+      channels::emergency_stop,
+      +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, EstopListener* self) {
+        Stop m;
+        if (!comm::detail::decode_received(buffer, m)) {
+          comm::detail::report_malformed(self->bus_, channel,
+                                         static_cast<int>(buffer->data_size));
+          return;
+        }
+        self->on_message(m, channel);
+      },
+      this);
+  std::unique_lock lock(mutex_);
+  thread_ = std::thread([this] { run(); });
+  heard_cv_.wait(lock, [this] { return !scheduling_.empty(); });
+}
+
+EstopListener::~EstopListener() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  bus_.set_drop_sink({});
+}
+
+void EstopListener::run() {
+  sched_param sp{};
+  sp.sched_priority = priority_;
+  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  {
+    std::lock_guard lock(mutex_);
+    scheduling_ = rc == 0 ? fmt::format("SCHED_FIFO {}", priority_)
+                          : fmt::format("SCHED_OTHER (SCHED_FIFO {} refused: {})", priority_,
+                                        std::strerror(rc));
+  }
+  heard_cv_.notify_all();
+  while (!stop_) {
+    // Returns at once when a message is waiting; the timeout only bounds how long stopping waits.
+    if (bus_.lcm().handleTimeout(100) < 0) break;
+  }
+}
+
+void EstopListener::on_message(const Stop& m, const std::string& channel) {
+  if (!m.robot.empty() && m.robot != robot_) return;
+  const std::string from = m.header.sender;
+  switch (m.action) {
+    case Stop::ENGAGE: {
+      {
+        std::lock_guard lock(mutex_);
+        last_command_utime_ = std::max(last_command_utime_, m.header.utime);
+      }
+      engage(m.reason + " (from " + from + ")", false);
+      break;
+    }
+    case Stop::RELEASE: {
+      if (!comm::detail::authentic(bus_, m, channel, dropped_)) return;
+      {
+        std::lock_guard lock(mutex_);
+        last_command_utime_ = std::max(last_command_utime_, m.header.utime);
+        heard_ = true;
+      }
+      release();
+      break;
+    }
+    case Stop::ENGAGED: {
+      {
+        std::lock_guard lock(mutex_);
+        announcer_ = from;
+        if (m.latched_utime < last_command_utime_) {
+          heard_ = true;  // the EDP's own later command stands
+          break;
+        }
+      }
+      engage(fmt::format("latched: {} (announced by {})", m.reason, from), true);
+      break;
+    }
+    case Stop::RELEASED: {
+      if (!comm::detail::authentic(bus_, m, channel, dropped_)) return;
+      {
+        std::lock_guard lock(mutex_);
+        announcer_ = from;
+        heard_ = true;
+        if (m.latched_utime < last_command_utime_) break;  // sent before the latch saw ours
+      }
+      release();
+      break;
+    }
+    default:
+      return;  // another value: ignored (docs/messages.md)
+  }
+  heard_cv_.notify_all();
+}
+
+void EstopListener::engage(const std::string& why, bool only_if_released) {
+  {
+    std::lock_guard lock(mutex_);
+    heard_ = true;
+    reason_ = why;
+    if (only_if_released && servo_.emergency_stopped()) return;
+  }
+  servo_.emergency_stop();
+}
+
+void EstopListener::release() {
+  std::lock_guard lock(mutex_);
+  // Only a stop that is engaged is released: a release resets the hold position to the measured
+  // joints, which must not happen to a robot in motion (announcements come every 150 ms).
+  if (shutdown_ || !servo_.emergency_stopped()) return;
+  servo_.release_emergency_stop();
+}
+
+bool EstopListener::wait_state(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mutex_);
+  return heard_cv_.wait_for(lock, timeout, [this] { return heard_; });
+}
+
+std::string EstopListener::scheduling() const {
+  std::lock_guard lock(mutex_);
+  return scheduling_;
+}
+
+std::string EstopListener::reason() const {
+  std::lock_guard lock(mutex_);
+  return reason_;
+}
+
+std::string EstopListener::announcer() const {
+  std::lock_guard lock(mutex_);
+  return announcer_;
+}
+
+void EstopListener::hold_for_shutdown() {
+  {
+    std::lock_guard lock(mutex_);
+    shutdown_ = true;
+    reason_ = "the EDP is stopping";
+  }
+  servo_.emergency_stop();
+}
+
+}  // namespace mrroc::edp

@@ -1,0 +1,88 @@
+#pragma once
+/// @file
+/// The emergency stop's latch, held by mrroc-launch (which outlives EDP restarts), and the check
+/// that no other process set runs on the set's LCM URL.
+///
+/// EstopLatch follows the operators' ENGAGE / RELEASE on `mrroc/estop` by the EDP's rules (ENGAGE
+/// from anybody, RELEASE only when authentic), keeps the state per robot of the set, and
+/// announces it every kPeriod (and at once on a change) as one emergency_stop_t ENGAGED or
+/// RELEASED per robot, signed when the set has a key. An EDP that starts hears it within a
+/// period and starts stopped or released accordingly (edp/estop_listener.hpp,
+/// docs/operating.md "Emergency stop").
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "mrroc/comm/bus.hpp"
+
+namespace lcm {
+class Subscription;
+}
+
+namespace mrroc::launch {
+
+class EstopLatch {
+ public:
+  /// How often the state is announced.
+  static constexpr std::chrono::milliseconds kPeriod{150};
+  /// `log` gets one line per change of the latched state.
+  EstopLatch(comm::Bus& bus, std::vector<std::string> robots,
+             std::function<void(const std::string&)> log);
+  ~EstopLatch();
+  EstopLatch(const EstopLatch&) = delete;
+  EstopLatch& operator=(const EstopLatch&) = delete;
+
+  /// True when the stop of `robot` is latched engaged.
+  [[nodiscard]] bool engaged(const std::string& robot) const;
+
+ private:
+  struct Latched {
+    bool engaged = false;
+    std::int64_t utime = 0;  ///< header.utime of the command that set it (0: start)
+    std::string reason;
+  };
+  void on_command(std::int8_t action, const std::string& robot, const std::string& reason,
+                  const std::string& sender, std::int64_t utime);
+  void announce();
+  void run();
+
+  comm::Bus& bus_;
+  const std::string sender_;
+  std::function<void(const std::string&)> log_;
+  lcm::Subscription* subscription_ = nullptr;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::map<std::string, Latched> robots_;
+  bool changed_ = false;
+  bool stop_ = false;
+  std::uint64_t dropped_ = 0;
+  std::thread thread_;
+};
+
+/// What runs on an LCM URL, as heard by running_set().
+struct RunningSet {
+  std::string launcher;     ///< e.g. "launcher pid 41 ('launch#41'), set 'demo-irb6' from F"
+  std::vector<std::string> edps;  ///< e.g. "EDP of robot irb6 ('edp/irb6#57')"
+  [[nodiscard]] std::string describe() const;
+};
+
+/// How long mrroc-launch listens for a running set before it starts anything.
+inline constexpr std::chrono::milliseconds kRunningSetListen{600};
+/// After traffic of a running set was heard: how much longer it waits for that set's launcher
+/// table (broadcast every second) to name its config file.
+inline constexpr std::chrono::milliseconds kRunningSetNameWait{1100};
+
+/// Listens on the (started) bus for a running set, sending nothing: another launcher's table
+/// (launch_status_t) or stop announcements, or robot_state_t of one of `robots`. Nothing when
+/// the URL is quiet.
+std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::string>& robots);
+
+}  // namespace mrroc::launch

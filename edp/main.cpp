@@ -81,10 +81,11 @@ int run(const std::string& config_path, const std::string& robot_name) {
   comm::Bus bus(config.lcm_url);
   comm::enable_auth_from_file(bus, config.auth_key_file);
   bus.start();
+  // Before the EDP says anything (its status would reach the other set) or configures anything:
+  // one EDP per robot on this LCM URL. Refusing ends the EDP with exit code 2 (main).
+  refuse_if_another_edp(bus, robot.name, config.file.string());
   Reporter reporter(bus, process, robot.name);
   try {
-    // Before anything is configured or moves: one EDP per robot on this LCM URL.
-    refuse_if_another_edp(bus, robot.name, config.file.string());
     const RobotModel model = load_robot_model(robot.model_dir);
     if (!robot.edp.library.empty()) load_plugin_library(robot.edp.library, robot.edp.where);
     std::unique_ptr<edp::Hardware> hardware;

@@ -1,0 +1,189 @@
+// The latched and confirmed emergency stop (mrroc-launch holds the latch, the EDP's own listener
+// follows it, mrroc-ui confirms from robot_state_t) and one process set per LCM URL: real sets
+// started by mrroc-launch in the test's own network namespace (scripts/netns-run).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <mutex>
+
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc_lcm/robot_state_t.hpp"
+#include "operator_helpers.hpp"
+
+using namespace mrroc::test;
+
+namespace {
+
+constexpr const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+
+std::string ui() { return (kBin / "mrroc-ui").string(); }
+
+/// The robot_state_t of irb6, as they arrive.
+class States {
+ public:
+  States() : bus_(kUrl) {
+    bus_.lcm().subscribeFunction<States*>(
+        mrroc::channels::robot_state("irb6"),
+        +[](const lcm::ReceiveBuffer* b, const std::string&, States* self) {
+          mrroc_lcm::robot_state_t s;
+          if (!mrroc::comm::detail::decode_received(b, s)) return;
+          std::lock_guard lock(self->mutex_);
+          self->all_.push_back(s);
+        },
+        this);
+    bus_.start();
+  }
+  std::vector<mrroc_lcm::robot_state_t> since(std::size_t from) {
+    std::lock_guard lock(mutex_);
+    return {all_.begin() + static_cast<std::ptrdiff_t>(std::min(from, all_.size())), all_.end()};
+  }
+  std::size_t count() {
+    std::lock_guard lock(mutex_);
+    return all_.size();
+  }
+
+ private:
+  mrroc::comm::Bus bus_;
+  std::mutex mutex_;
+  std::vector<mrroc_lcm::robot_state_t> all_;
+};
+
+double max_joint_change(const std::vector<mrroc_lcm::robot_state_t>& states) {
+  double worst = 0;
+  for (const auto& s : states)
+    for (std::size_t i = 0; i < s.q.size(); ++i)
+      worst = std::max(worst, std::abs(s.q[i] - states.front().q[i]));
+  return worst;
+}
+
+}  // namespace
+
+TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) {
+  const fs::path dir = temp_dir("estop");
+  std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
+  text.replace(text.find("\"../../../robots/irb6\""), 22,
+               "\"" + (kSource / "robots/irb6").string() + "\"");
+  text.replace(text.find("task = \"start_and_wait\""), 23,
+               "task = \"start_and_wait\"\nstart = \"operator\"");
+  text.replace(text.find("servo_period_ms = 2.0"), 21,
+               "servo_period_ms = 2.0\nrestart = \"on-failure\"\nmax_restarts = 2\n"
+               "restart_backoff_s = 0.5");
+  const fs::path config = dir / "estop.toml";
+  std::ofstream(config) << text;
+  States states;
+  Background launch({launcher(), config.string()});
+  ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
+  ASSERT_TRUE(has(launch.output(), "emergency stop released (heard after")) << launch.output();
+
+  // Every datagram of the ENGAGE dropped: nobody stops, and mrroc-ui says so (exit 4).
+  auto [dropped_code, dropped] = run({"env", "MRROC_LINK_FAULTS=drop=0.9999999,seed=1", ui(),
+                                      "estop", "--config", config.string()});
+  std::printf("%s", dropped.c_str());
+  EXPECT_EQ(dropped_code, 4) << dropped;
+  EXPECT_TRUE(has(dropped, "NOT CONFIRMED by irb6 within 500 ms")) << dropped;
+  EXPECT_FALSE(states.since(states.count() > 5 ? states.count() - 5 : 0).back().estop);
+
+  // The confirmed path: exit 0, confirmed from the robot's state, latched by the launcher.
+  auto [code, out] = run({ui(), "estop", "--config", config.string(), "--reason", "test stop"});
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_TRUE(has(out, "confirmed by irb6 (")) << out;
+  EXPECT_TRUE(has(out, "latched by launch#")) << out;
+  EXPECT_TRUE(launch.wait_for("emergency stop ENGAGED for irb6 (test stop, from ui#", 5s));
+
+  // kill -9 the EDP: the launcher restarts it under the engaged stop; it starts stopped.
+  const pid_t old_edp = launch.pid_of("edp/irb6");
+  ASSERT_GT(old_edp, 0);
+  const std::size_t from_line = launch.line_count();
+  ASSERT_EQ(::kill(old_edp, SIGKILL), 0);
+  ASSERT_TRUE(launch.wait_for("edp/irb6 ready again", 30s, from_line)) << launch.output();
+  EXPECT_TRUE(launch.wait_for("emergency stop ENGAGED (latched: test stop", 1s, from_line))
+      << launch.output();
+  const std::size_t from_state = states.count();
+  // START: the task's ECP asks the new EDP to synchronise (move): refused.
+  auto [start_code, start_out] = run({ui(), "start", "--config", config.string()});
+  EXPECT_EQ(start_code, 0) << start_out;
+  EXPECT_TRUE(launch.wait_for("SYNCHRO refused: emergency stop engaged", 10s, from_line))
+      << launch.output();
+  std::this_thread::sleep_for(1s);
+  std::vector<mrroc_lcm::robot_state_t> held;
+  for (const auto& s : states.since(from_state))
+    if (s.header.sender != states.since(0).front().header.sender) held.push_back(s);
+  ASSERT_GT(held.size(), 40u) << "states of the restarted EDP";
+  double worst = max_joint_change(held);
+  bool always_stopped = true, never_synchronised = true;
+  for (const auto& s : held) {
+    always_stopped = always_stopped && s.estop;
+    never_synchronised = never_synchronised && !s.synchronised;
+  }
+  std::printf("restarted EDP under the stop: %zu states, max joint change %.2e rad\n", held.size(),
+              worst);
+  EXPECT_TRUE(always_stopped);
+  EXPECT_TRUE(never_synchronised);
+  EXPECT_LT(worst, 1e-9);
+
+  // Release (confirmed), START again: the robot synchronises and moves.
+  auto [release_code, release_out] = run({ui(), "release", "--config", config.string()});
+  std::printf("%s", release_out.c_str());
+  EXPECT_EQ(release_code, 0) << release_out;
+  EXPECT_TRUE(has(release_out, "confirmed by irb6 (")) << release_out;
+  const std::size_t from_moving = states.count();
+  auto [again_code, again_out] = run({ui(), "start", "--config", config.string()});
+  EXPECT_EQ(again_code, 0) << again_out;
+  const auto until = Clock::now() + 30s;
+  double moved = 0;
+  while (Clock::now() < until && moved < 0.1) {
+    std::this_thread::sleep_for(100ms);
+    const auto after = states.since(from_moving);
+    if (!after.empty()) moved = max_joint_change(after);
+  }
+  std::printf("after the release the robot moved %.3f rad\n", moved);
+  EXPECT_GE(moved, 0.1) << launch.output();
+  (void)run({ui(), "terminate", "--config", config.string()});
+  EXPECT_NE(launch.wait(60s), -1);
+  EXPECT_EQ(leftovers(), "");
+}
+
+TEST(OneSetPerUrl, ASecondLaunchAndASecondEdpRefuseAndTheFirstSetFinishes) {
+  const fs::path dir = temp_dir("oneset");
+  std::string text = slurp(kSource / "configs/demo-irb6.toml");
+  text.replace(text.find("\"../robots/irb6\""), 16,
+               "\"" + (kSource / "robots/irb6").string() + "\"");
+  const fs::path config = dir / "demo-irb6.toml";
+  std::ofstream(config) << text;
+  Background first({launcher(), config.string()});
+  ASSERT_TRUE(first.wait_for("task running", 60s)) << first.output();
+  const pid_t first_launcher = first.pid();
+
+  const auto t0 = Clock::now();
+  auto [code, out] = run({launcher(), config.string()}, 30s);
+  std::printf("second launch (%.2f s): exit %d\n%s", seconds(Clock::now() - t0), code, out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_TRUE(has(out, "mrroc-launch: refusing to start set 'demo-irb6' (" + config.string() +
+                           "): another process set runs on LCM " + kUrl + ": a launcher (pid " +
+                           std::to_string(first_launcher) + ", "))
+      << out;
+  EXPECT_TRUE(has(out, "runs set 'demo-irb6' from " + config.string())) << out;
+  EXPECT_TRUE(has(out, "the EDP of robot irb6 ('edp/irb6#")) << out;
+  EXPECT_TRUE(has(out, "nothing started")) << out;
+  EXPECT_FALSE(has(out, "mrroc-launch: started")) << out;
+
+  // An EDP of the same robot started by hand refuses too (before it says anything).
+  auto [edp_code, edp_out] = run({(kBin / "mrroc-edp").string(), "--config", config.string(),
+                                  "--robot", "irb6"},
+                                 30s);
+  std::printf("second EDP: exit %d\n%s", edp_code, edp_out.c_str());
+  EXPECT_EQ(edp_code, 2) << edp_out;
+  EXPECT_TRUE(has(edp_out, "another EDP of robot 'irb6' is running on LCM")) << edp_out;
+
+  // The first set is not disturbed: it visits its three poses and finishes.
+  EXPECT_EQ(first.wait(120s), 0) << first.output();
+  const std::string all = first.output();
+  EXPECT_TRUE(has(all, "pose 3/3 reached")) << all;
+  for (const char* bad : {"refused", "timed out", "dropped a message", "edp/irb6: fatal"})
+    EXPECT_FALSE(has(all, bad)) << bad << "\n" << all;
+  EXPECT_EQ(leftovers(), "");
+}

@@ -147,8 +147,9 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     // client hears of it once, here or in the reply it waits for.
     if (const std::uint64_t refused = servo_.refused_upto(); refused > refusal_reported_) {
       refusal_reported_ = refused;
-      throw CommandError(error_code::too_fast, "SET refused: an earlier macro-step was refused: " +
-                                                   servo_.refusal(refused));
+      throw CommandError(servo_.refusal_code(refused),
+                         "SET refused: an earlier macro-step was refused: " +
+                             servo_.refusal(refused));
     }
     due_macro_step_ = servo_.submit(target, in.motion_steps, in.value_in_step_no);
     due_at_ = servo_.reply_due_at(due_macro_step_, in.value_in_step_no < in.motion_steps);
@@ -291,7 +292,7 @@ Reply CommandInterpreter::query() {
       if (!reading)
         if (const std::string why = servo_.refusal(due_macro_step_); !why.empty()) {
           refusal_reported_ = std::max(refusal_reported_, servo_.refused_upto());
-          return error(error_code::too_fast, "SET refused: " + why);
+          return error(servo_.refusal_code(due_macro_step_), "SET refused: " + why);
         }
       if (!reading)
         return error(error_code::hardware_fault,

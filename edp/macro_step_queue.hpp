@@ -15,12 +15,15 @@ namespace mrroc::edp {
 inline constexpr std::size_t kMaxAxes = 16;
 using AxisArray = std::array<double, kMaxAxes>;
 
-/// One macro-step: a straight line in joint coordinates from where the previous one ended (or
-/// where the robot stands) to `target`, in `steps` servo steps.
+/// One macro-step: from where the previous one ended (or where the robot stands) to `target`, in
+/// `steps` servo steps, each joint on a cubic in time that joins the previous macro-step's
+/// velocity without exceeding its acceleration limit (motion_blend.hpp).
 struct MacroStep {
   std::uint64_t id = 0;
   AxisArray start{};
   AxisArray target{};
+  AxisArray start_velocity{};  ///< set when it starts (motion_blend.hpp)
+  AxisArray end_velocity{};    ///< chosen when it starts
   int steps = 1;
   int value_in_step_no = 1;
   int step = 0;  ///< servo steps done

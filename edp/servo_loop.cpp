@@ -14,6 +14,8 @@
 #include <fmt/format.h>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/edp/instruction.hpp"
+#include "motion_blend.hpp"
 #include "stopping_ramp.hpp"
 
 namespace mrroc::edp {
@@ -135,6 +137,7 @@ void ServoLoop::set_fault(const char* text) {
   std::snprintf(fault_, sizeof fault_, "%s", text);
   faulted_ = true;
   current_.reset();
+  end_velocity_.fill(0.0);
   drop_queue();
   synchroniser_.abandon();
   mode_ = Mode::hold;
@@ -319,33 +322,44 @@ void ServoLoop::plan_cycle() {
 }
 
 void ServoLoop::start_next_macro_step() {
-  // The macro-step starts where the previous one ended, or where the robot stands (after a
-  // stopping ramp for a late successor, that is past the last target, not where the task
-  // planned it to start): a straight line to its target faster than a joint's velocity limit is
-  // refused, with every macro-step queued behind it, and the robot holds.
+  // The macro-step starts where the previous one ended, with the velocity it ended with, or where
+  // the robot stands (after a stopping ramp for a late successor, that is past the last target,
+  // not where the task planned it to start). One that would need more than a joint's velocity or
+  // acceleration limit, or pass a joint limit, is refused with every macro-step queued behind
+  // it; a robot still moving is brought to rest within its acceleration limits, else it holds.
   const MacroStep& next = queue_.front();
-  bool too_fast = false;
-  for (std::size_t i = 0; i < axes_ && !too_fast; ++i) {
-    const double v =
-        std::abs(next.target[i] - desired_[i]) / (static_cast<double>(next.steps) * period_s_);
-    if (v > model_.max_velocity[i] * (1.0 + 1e-9)) {
-      too_fast = true;
-      std::snprintf(refused_text_, sizeof refused_text_,
-                    "joint %zu would move at %.3f rad/s, above its limit of %.3f rad/s "
-                    "(from %.4f to %.4f rad in %d steps of %.1f ms%s); the robot holds",
-                    i, v, model_.max_velocity[i], desired_[i], next.target[i], next.steps,
-                    period_s_ * 1e3,
-                    after_ramp_ ? ", starting where a stopping ramp left the robot" : "");
-    }
-  }
+  BlendInput in;
+  in.start = &desired_;
+  in.velocity = &end_velocity_;
+  in.step = &next;
+  std::size_t following = 0;
+  for (std::size_t k = 1; k < queue_.size(); ++k) following_[following++] = &queue_.at(k);
+  in.following = std::span<const MacroStep* const>(following_.data(), following);
+  in.period_s = period_s_;
+  in.after_ramp = after_ramp_;
+  AxisArray end_velocity{};
+  const BlendRefusal refusal = plan_blend(in, model_, axes_, end_velocity, refused_text_);
   after_ramp_ = false;
-  if (too_fast) {
+  if (refusal != BlendRefusal::none) {
+    bool moving = false;
+    for (std::size_t i = 0; i < axes_; ++i) moving = moving || end_velocity_[i] != 0.0;
+    const std::size_t used = std::strlen(refused_text_);
+    std::snprintf(refused_text_ + used, sizeof refused_text_ - used, "%s",
+                  moving ? "; the robot is brought to rest within its acceleration limits"
+                         : "; the robot holds");
+    refused_code_ = refusal == BlendRefusal::acceleration ? error_code::too_abrupt
+                    : refusal == BlendRefusal::limit      ? error_code::out_of_limits
+                                                          : error_code::too_fast;
     refused_first_ = next.id;
     refused_last_ = queue_.back().id;
     drop_queue();
+    if (moving) mode_ = Mode::stopping;
+    end_velocity_.fill(0.0);
   } else {
     current_ = queue_.pop();
     current_->start = desired_;
+    current_->start_velocity = end_velocity_;
+    current_->end_velocity = end_velocity;
   }
   notify_pending_ = true;  // a queue slot is free
 }
@@ -363,8 +377,15 @@ void ServoLoop::motion_cycle() {
   if (!current_) return;
   MacroStep& m = *current_;
   ++m.step;
-  const double s = static_cast<double>(m.step) / static_cast<double>(m.steps);
-  for (std::size_t i = 0; i < axes_; ++i) desired_[i] = m.start[i] + (m.target[i] - m.start[i]) * s;
+  if (m.step >= m.steps) {
+    for (std::size_t i = 0; i < axes_; ++i) desired_[i] = m.target[i];
+  } else {
+    const double s = static_cast<double>(m.step) / static_cast<double>(m.steps);
+    const double duration = static_cast<double>(m.steps) * period_s_;
+    for (std::size_t i = 0; i < axes_; ++i)
+      desired_[i] = blend_position(m.start[i], m.target[i], m.start_velocity[i],
+                                   m.end_velocity[i], duration, s);
+  }
   latest_.desired = desired_;
   if (m.step == m.value_in_step_no) store_reading(m.id, m.step);
   if (m.step < m.steps) return;
@@ -375,6 +396,7 @@ void ServoLoop::motion_cycle() {
     after_stop_id_ = m.id;
     after_stop_step_ = m.steps + 1;
   }
+  end_velocity_ = m.end_velocity;
   current_.reset();
   notify_pending_ = true;
   if (promised_successor && queue_.empty()) {
@@ -388,6 +410,7 @@ void ServoLoop::motion_cycle() {
       ++lost_successors_;
     mode_ = Mode::stopping;
     after_ramp_ = true;
+    end_velocity_.fill(0.0);  // the ramp ends at rest
   }
 }
 
@@ -398,6 +421,7 @@ void ServoLoop::emergency_stop() {
     emergency_stop_ = true;
     if (current_) reached_id_ = std::max(reached_id_, current_->id);
     current_.reset();
+    end_velocity_.fill(0.0);
     drop_queue();
     if (synchronised_ && !faulted_ && (mode_ == Mode::hold || mode_ == Mode::stopping)) {
       mode_ = Mode::stopping;
@@ -531,6 +555,11 @@ std::string ServoLoop::refusal(std::uint64_t id) const {
   return refused_first_ != 0 && id >= refused_first_ && id <= refused_last_
              ? std::string(refused_text_)
              : std::string{};
+}
+
+int ServoLoop::refusal_code(std::uint64_t id) const {
+  std::lock_guard lock(mutex_);
+  return refused_first_ != 0 && id >= refused_first_ && id <= refused_last_ ? refused_code_ : 0;
 }
 
 std::uint64_t ServoLoop::refused_upto() const {

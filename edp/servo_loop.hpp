@@ -100,6 +100,9 @@ class ServoLoop {
   /// (e.g. after a stopping ramp left the robot away from the path its task planned). The robot
   /// holds, and every macro-step queued behind the refused one is refused with it.
   [[nodiscard]] std::string refusal(std::uint64_t id) const;
+  /// The error code of that refusal (error_code::too_fast, too_abrupt or out_of_limits), 0 if
+  /// macro-step `id` was not refused.
+  [[nodiscard]] int refusal_code(std::uint64_t id) const;
   /// The newest macro-step id refused so far (0: none).
   [[nodiscard]] std::uint64_t refused_upto() const;
   /// The reading of the latest cycle.
@@ -230,6 +233,8 @@ class ServoLoop {
   Reading delivered_;  ///< the last reading requested by a macro-step
   AxisArray desired_{};  ///< joint coordinates (raw before synchronisation)
   AxisArray commanded_velocity_{};  ///< of desired_ over the last cycle [rad/s]
+  AxisArray end_velocity_{};  ///< the velocity the last macro-step ended with (0: at rest)
+  std::array<const MacroStep*, MacroStepQueue::kCapacity> following_{};  ///< for plan_blend
   AxisArray scratch_{};             ///< the stopping ramp's proposal
   const ArmKinematics* guard_ = nullptr;
   std::int64_t limit_stops_ = 0;  ///< stopping ramps ended at a limit
@@ -242,7 +247,8 @@ class ServoLoop {
   std::uint64_t refused_first_ = 0;  ///< the refused range: the macro-step refused at its start
   std::uint64_t refused_last_ = 0;   ///< ... and the newest one dropped with it
   bool after_ramp_ = false;       ///< the robot stands where a lost successor's ramp left it
-  char refused_text_[256] = {};
+  char refused_text_[384] = {};
+  int refused_code_ = 0;
   AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
   std::array<AxisFeedback, kMaxAxes> sample_{};    ///< servo thread only
   std::array<AxisFeedback, kMaxAxes> feedback_{};  ///< under mutex_

@@ -45,8 +45,10 @@ void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
       refusals = 0;
     } catch (const EdpRefused& e) {
       // A late macro-step made the EDP stop the robot off the planned path, and the planned
-      // continuation would be too fast from there: re-plan from where it stands.
-      if (e.code() != edp::error_code::too_fast || ++refusals > kMaxRefusals) throw;
+      // continuation would be too fast or too abrupt from there: re-plan from where it stands.
+      const bool replan = e.code() == edp::error_code::too_fast ||
+                          e.code() == edp::error_code::too_abrupt;
+      if (!replan || ++refusals > kMaxRefusals) throw;
       robot.read_state();
       if (!generator.resume(robot.image(), sensors)) throw;
       continue;

@@ -172,6 +172,7 @@ RobotModel load_robot_model(const fs::path& folder) {
                                     m.urdf.string(), jn, file.string()));
     m.lower_limits.push_back(joint->limits->lower);
     m.upper_limits.push_back(joint->limits->upper);
+    m.prismatic.push_back(joint->type == urdf::Joint::PRISMATIC);
   }
   return m;
 }

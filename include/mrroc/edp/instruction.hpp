@@ -92,6 +92,7 @@ inline constexpr int emergency_stop = 10;    ///< motion refused: emergency stop
 inline constexpr int servo_overrun = 11;     ///< a servo cycle woke more than one period late
 inline constexpr int unauthenticated = 12;   ///< a message without a valid HMAC or replayed (SRP report)
 inline constexpr int too_fast = 13;          ///< a macro-step would exceed a joint's velocity limit
+inline constexpr int too_abrupt = 14;        ///< a macro-step would exceed a joint's acceleration limit
 }  // namespace error_code
 
 struct Reply {

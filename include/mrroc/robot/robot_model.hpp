@@ -21,6 +21,9 @@ struct RobotModel {
   std::vector<double> max_velocity;            ///< [rad/s]
   std::vector<double> max_acceleration;        ///< [rad/s^2]
   std::vector<double> synchro_joint_positions; ///< [rad]
+  /// Per joint: true for a prismatic joint (its values are in m, m/s, m/s^2 where the others are
+  /// in rad), from the URDF's joint type.
+  std::vector<bool> prismatic;
   /// Kinematics solver name ([robot.kinematics] solver), empty: joint-only.
   std::string kinematics;
   /// Local correctors of the kinematic model ([robot.kinematics] correctors), each a frame as
@@ -34,6 +37,10 @@ struct RobotModel {
   /// a = coupling q ([robot.transmission] coupling, n x n, row by row); empty: identity.
   std::vector<std::vector<double>> coupling;
   [[nodiscard]] std::size_t axes() const { return joint_names.size(); }
+  /// "m" for a prismatic joint, else "rad".
+  [[nodiscard]] const char* unit(std::size_t joint) const {
+    return joint < prismatic.size() && prismatic[joint] ? "m" : "rad";
+  }
 
   /// Checks one joint vector. @throws CommandError (code out_of_limits) such as
   /// "joint 2 (upper_arm) target 0.81 rad exceeds upper limit 0.70 rad".

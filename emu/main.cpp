@@ -309,6 +309,18 @@ class Emulator {
                                      world_.robot(d.robot).name, d.axis,
                                      world_.robot(d.robot).axis_names[d.axis], d.drive->node(),
                                      d.port->url, code, co::describe_emcy(code)));
+    } else if (const std::uint16_t code = d.drive->communication_error();
+               code != 0 && state != co::DriveState::operation_enabled) {
+      // The drive's supervision of its master (0x1016 heartbeat, 0x1006 SYNC) reacted.
+      report_error(code, fmt::format("robot '{}' axis {} '{}' (node {} on {}): master lost, EMCY "
+                                     "0x{:04X} {}: {} at t = {:.3f} s (wall clock {:.6f} s)",
+                                     world_.robot(d.robot).name, d.axis,
+                                     world_.robot(d.robot).axis_names[d.axis], d.drive->node(),
+                                     d.port->url, code, co::describe_emcy(code),
+                                     co::to_string(state), d.drive->communication_error_at(),
+                                     std::chrono::duration<double>(
+                                         std::chrono::system_clock::now().time_since_epoch())
+                                         .count()));
     }
   }
 

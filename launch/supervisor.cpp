@@ -191,7 +191,35 @@ struct ExecPlan {
   int error_w;  // close-on-exec; receives errno if exec (or the set-up) fails
   pid_t parent;
   const sigset_t* empty_mask;
+  int life_r;                // read end of the launcher's life pipe: EOF when the launcher is gone
+  struct timespec escalate;  // after the launcher is gone (and SIGTERM came): SIGKILL then
 };
+
+/// The stop guard, forked by the child before exec (only async-signal-safe calls): when the
+/// launcher dies the child gets SIGTERM (PR_SET_PDEATHSIG) and may ramp down; if its group is
+/// still there `escalate` later, the guard SIGKILLs it. The guard dies with the child
+/// (PR_SET_PDEATHSIG SIGKILL), holds no descriptor but the life pipe, and is a member of the
+/// child's process group.
+void fork_stop_guard(const ExecPlan& p) {
+  const pid_t child = ::getpid();
+  const pid_t guard = ::fork();
+  if (guard != 0) return;  // the child (or fork failed: no guard, PDEATHSIG still applies)
+  if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || ::getppid() != child) ::_exit(0);
+  ::prctl(PR_SET_NAME, "mrroc-stopguard");
+  if (p.life_r > 0) ::close_range(0, static_cast<unsigned>(p.life_r) - 1U, 0);
+  ::close_range(static_cast<unsigned>(p.life_r) + 1U, ~0U, 0);
+  char c = 0;
+  for (;;) {
+    const ssize_t n = ::read(p.life_r, &c, 1);
+    if (n == 0) break;                       // the launcher is gone
+    if (n < 0 && errno != EINTR) ::_exit(0);  // cannot watch
+  }
+  struct timespec left = p.escalate;
+  while (::nanosleep(&left, &left) != 0 && errno == EINTR) {
+  }
+  ::kill(-child, SIGKILL);  // the child's group (the guard with it)
+  ::_exit(0);
+}
 
 /// Runs in the child after fork: only async-signal-safe calls.
 [[noreturn]] void exec_child(const ExecPlan& p) {
@@ -201,8 +229,11 @@ struct ExecPlan {
   };
 
   ::setpgid(0, 0);
-  if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0) fail(errno);
+  // The launcher's death stops the child as a stop request would (SIGTERM: an EDP ramps its
+  // robot down); the stop guard escalates to SIGKILL if the child does not end in time.
+  if (::prctl(PR_SET_PDEATHSIG, SIGTERM) != 0) fail(errno);
   if (::getppid() != p.parent) ::_exit(kExecFailedStatus);  // the launcher already died
+  fork_stop_guard(p);
 
   // Default dispositions for everything (ignored signals would survive exec). All signals
   // are blocked here (the parent blocked them around fork), so no launcher handler can run.
@@ -279,6 +310,10 @@ struct Supervisor::Impl {
 
   Fd wake_r;
   Fd wake_w;
+  /// Life pipe: the launcher alone holds the write end; each child's stop guard reads EOF when
+  /// the launcher is gone.
+  Fd life_r;
+  Fd life_w;
   std::thread thread;
 
   void emit(std::string_view text) {
@@ -569,6 +604,9 @@ Supervisor::Supervisor(std::ostream& out) : impl_(std::make_unique<Impl>(out)) {
   auto [r, w] = make_pipe(O_NONBLOCK);
   impl_->wake_r = std::move(r);
   impl_->wake_w = std::move(w);
+  auto [lr, lw] = make_pipe();
+  impl_->life_r = std::move(lr);
+  impl_->life_w = std::move(lw);
   impl_->seen_signals = g_stop_signal_count.load();
   impl_->thread = std::thread([impl = impl_.get()] { impl->run(); });
 }
@@ -632,8 +670,19 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   set_nonblocking(out_r.get());
   set_nonblocking(err_r.get());
 
-  const ExecPlan plan{path->c_str(), argv.data(),   envp.data(), devnull.get(), out_w.get(),
-                      err_w.get(),   error_w.get(), ::getpid(),  &empty_mask};
+  const auto grace = std::clamp(spec.stop_grace, milliseconds(0), kMaxWait);
+  const ExecPlan plan{path->c_str(),
+                      argv.data(),
+                      envp.data(),
+                      devnull.get(),
+                      out_w.get(),
+                      err_w.get(),
+                      error_w.get(),
+                      ::getpid(),
+                      &empty_mask,
+                      impl_->life_r.get(),
+                      {static_cast<time_t>(grace.count() / 1000),
+                       static_cast<long>(grace.count() % 1000) * 1000000L}};
 
   // Block all signals around fork so that no launcher handler runs in the child before it
   // has reset the dispositions.

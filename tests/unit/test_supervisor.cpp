@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -452,6 +453,63 @@ TEST(Supervisor, ChildrenDieWithAKilledLauncher) {
   }
   EXPECT_TRUE(dead_or_zombie(child));
   if (!dead_or_zombie(child)) ::kill(child, SIGKILL);
+}
+
+TEST(Supervisor, AKilledLauncherTermsItsChildrenAndTheirGuardsKillOnesThatStayTooLong) {
+  // kill -9 of the launcher: each child gets SIGTERM (PR_SET_PDEATHSIG), so that an EDP ramps
+  // its robot down; a child still there after its stop_grace is SIGKILLed by its stop guard.
+  const std::string dir = ::testing::TempDir() + "/mrroc-pdeath-" + std::to_string(::getpid());
+  std::filesystem::create_directories(dir);
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const pid_t launcher = ::fork();
+  ASSERT_GE(launcher, 0);
+  if (launcher == 0) {
+    ::close(fds[0]);
+    Capture cap;
+    Supervisor s(cap.stream());
+    pid_t pids[2];
+    pids[0] = s.start(ChildSpec{
+        .name = "polite",
+        .argv = {"/bin/sh", "-c",
+                 "trap 'echo term > " + dir + "/polite; exit 0' TERM; while :; do sleep 0.02; done"},
+        .stop_grace = 1500ms});
+    pids[1] = s.start(ChildSpec{
+        .name = "stubborn",
+        .argv = {"/bin/sh", "-c",
+                 "trap 'echo term > " + dir + "/stubborn' TERM; while :; do sleep 0.02; done"},
+        .stop_grace = 500ms});
+    [[maybe_unused]] const ssize_t n = ::write(fds[1], pids, sizeof pids);
+    ::pause();
+    ::_exit(1);
+  }
+  ::close(fds[1]);
+  pid_t pids[2] = {-1, -1};
+  ASSERT_EQ(::read(fds[0], pids, sizeof pids), static_cast<ssize_t>(sizeof pids));
+  ::close(fds[0]);
+  std::this_thread::sleep_for(200ms);  // the shells have set their traps
+  ::kill(launcher, SIGKILL);
+  const auto killed = std::chrono::steady_clock::now();
+  int status = 0;
+  ASSERT_EQ(::waitpid(launcher, &status, 0), launcher);
+  double gone_ms[2] = {-1, -1};
+  while (std::chrono::steady_clock::now() < killed + 5000ms && (gone_ms[0] < 0 || gone_ms[1] < 0)) {
+    for (int i = 0; i < 2; ++i)
+      if (gone_ms[i] < 0 && dead_or_zombie(pids[i]))
+        gone_ms[i] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - killed).count();
+    std::this_thread::sleep_for(5ms);
+  }
+  for (const pid_t p : pids)
+    if (!dead_or_zombie(p)) ::kill(-p, SIGKILL);
+  std::printf("launcher killed: polite child gone after %.0f ms, stubborn child (grace 500 ms) "
+              "after %.0f ms\n", gone_ms[0], gone_ms[1]);
+  EXPECT_TRUE(std::filesystem::exists(dir + "/polite")) << "the child got no SIGTERM";
+  EXPECT_TRUE(std::filesystem::exists(dir + "/stubborn")) << "the child got no SIGTERM";
+  EXPECT_GE(gone_ms[0], 0.0);
+  EXPECT_LT(gone_ms[0], 400.0);  // ended by itself on SIGTERM, well before its grace
+  EXPECT_GE(gone_ms[1], 450.0);  // not before its grace
+  EXPECT_LT(gone_ms[1], 1500.0);
+  std::filesystem::remove_all(dir);
 }
 
 /// Runs `body` in a forked copy of this (single-threaded) test process, so that the signal

@@ -116,6 +116,15 @@ bool ServoLoop::awaiting_successor() const {
          queue_.empty() && !faulted_ && !emergency_stop_;
 }
 
+bool ServoLoop::awaiting_lookahead() const {
+  // At the start of macro-step k, its client may have sent up to k + lookahead - 2 (the reply to
+  // k + lookahead - 1 is the reading taken in k): waiting for those cannot deadlock.
+  if (current_ || queue_.empty() || faulted_ || emergency_stop_ || mode_ != Mode::hold) return false;
+  if (!queue_.back().promises_successor()) return false;  // the motion's end is queued
+  const std::size_t known = queue_.size() - 1;
+  return lookahead_ >= 3 && known < static_cast<std::size_t>(lookahead_ - 2);
+}
+
 void ServoLoop::run_lock_step() {
   // Simulated time advances only in cycle() (the plugin's write()), so cycles with work run back
   // to back; idle, the loop holds once a period (status and inputs stay fresh).
@@ -125,8 +134,11 @@ void ServoLoop::run_lock_step() {
     wait_until_ready(mutex_, changed_, period, [&] { return !running_.load() || has_work(); });
     // The ECP read this macro-step early to send its successor: simulated time stands still
     // until it is queued (a real-time loop would run out of motion if it came late).
+    // Likewise at the start of a macro-step for the successors its client may already send,
+    // so that its end velocity is chosen knowing them (motion_blend.hpp), as in real time.
     wait_until_ready(mutex_, changed_, successor_wait, [&] {
-      return !running_.load() || !awaiting_successor() || reset_pending_;
+      return !running_.load() || (!awaiting_successor() && !awaiting_lookahead()) ||
+             reset_pending_;
     });
     if (!running_.load(std::memory_order_relaxed)) break;
     cycle(0, 1);

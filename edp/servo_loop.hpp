@@ -123,7 +123,8 @@ class ServoLoop {
   /// the machine allows; when idle the loop waits for work for at most one period and then runs
   /// a holding cycle. A macro-step that promised a successor (value_in_step_no < steps) waits
   /// before its last step, with simulated time standing still, up to `successor_wait_s` of wall
-  /// time for it; only then is the successor lost and the robot ramped to a standstill. Lateness
+  /// time for it (and before it starts, for the successors its client may already have sent, so
+  /// that it is joined to them as in real time); only then is the successor lost and the robot ramped to a standstill. Lateness
   /// and overruns are not measured in lock-step (there are no deadlines).
   void set_lock_step(bool on, double successor_wait_s = 1.0) {
     lock_step_ = on;
@@ -189,6 +190,9 @@ class ServoLoop {
   [[nodiscard]] bool has_work() const;
   /// Lock-step: the next cycle would end a macro-step whose promised successor is not queued.
   [[nodiscard]] bool awaiting_successor() const;
+  /// Lock-step: the next macro-step would start before the successors its client may already
+  /// have sent are queued.
+  [[nodiscard]] bool awaiting_lookahead() const;
   /// One cycle that woke `late_ns` after its deadline (lock-step: 0 of 1): read, plan (and
   /// record the lateness) under the mutex, write.
   void cycle(std::int64_t late_ns, std::int64_t period_ns);

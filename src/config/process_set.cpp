@@ -150,8 +150,14 @@ class Reader {
       fail(*t.get("restart"), fmt::format("restart '{}' must be \"never\", \"on-failure\" or "
                                           "\"always\"",
                                           restart));
-    o.max_restarts = static_cast<int>(number(t, "max_restarts", 3, 0, 1000, "restarts"));
+    o.max_restarts =
+        static_cast<int>(number(t, "max_restarts", 3, 0, kMaxRestartsLimit, "restarts"));
     o.restart_backoff_s = number(t, "restart_backoff_s", 0.5, 0.0, 30.0, "s");
+    if (o.restart_backoff_s < kMinRestartBackoffS)
+      fail(*t.get("restart_backoff_s"),
+           fmt::format("'restart_backoff_s' = {} s is below the minimum of {} s (a process that "
+                       "keeps failing must not be restarted in a tight loop)",
+                       o.restart_backoff_s, kMinRestartBackoffS));
     o.required = boolean(t, "required", true);
     if (const toml::node* prio = t.get("priority")) {
       if (!prio->is_integer())

@@ -25,6 +25,31 @@ std::vector<std::string> row_of(const std::string& table, const std::string& nam
 constexpr std::size_t kState = 3, kPid = 4, kCpu = 5, kRss = 6, kRestarts = 7, kExit = 9,
                       kRequired = 10, kRestart = 11;
 
+TEST(LaunchRestart, ABackOffBelowTheMinimumAndTooManyRestartsAreRefused) {
+  const fs::path dir = temp_dir("backoff");
+  const struct {
+    const char* keys;
+    const char* error;
+  } cases[] = {
+      {"restart = \"always\"\nrestart_backoff_s = 0\n",
+       "error: 'restart_backoff_s' = 0 s is below the minimum of 0.2 s"},
+      {"restart = \"always\"\nrestart_backoff_s = 0.1\n",
+       "error: 'restart_backoff_s' = 0.1 s is below the minimum of 0.2 s"},
+      {"restart = \"always\"\nmax_restarts = 1000\n",
+       "error: 'max_restarts' = 1000 restarts is outside 0..20 restarts"},
+  };
+  for (const auto& c : cases) {
+    const fs::path config = write_config(dir, "long-irb6.toml", c.keys);
+    const auto [code, out] = run({launcher(), "--check", config.string()});
+    EXPECT_EQ(code, 2) << c.keys << out;  // a config error
+    EXPECT_TRUE(std::regex_search(out, std::regex("set\\.toml:[0-9]+: " + std::string(c.error))))
+        << c.keys << out;
+  }
+  const fs::path ok = write_config(dir, "long-irb6.toml", "restart = \"always\"\nrestart_backoff_s = 0.2\n");
+  const auto [code, out] = run({launcher(), "--check", ok.string()});
+  EXPECT_EQ(code, 0) << out;
+}
+
 TEST(LaunchRestart, OnFailureRestartsTheSrpWhileTheTaskFinishesWithStatusAndLogs) {
   const fs::path dir = temp_dir("onfailure");
   const fs::path config =

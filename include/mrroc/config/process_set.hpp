@@ -18,6 +18,10 @@
 
 namespace mrroc {
 
+/// Restart limits: the shortest back-off a config may set [s] and the most restarts.
+inline constexpr double kMinRestartBackoffS = 0.2;
+inline constexpr int kMaxRestartsLimit = 20;
+
 /// What the launcher does when a process ends while the set runs.
 enum class RestartPolicy {
   never,       ///< leave it ended
@@ -38,8 +42,8 @@ struct ProcessOptions {
   SourceLocation host_where;  ///< where `host` was given (for errors)
   std::string group;          ///< group name (default: srp, emu, vsp, edp, ecp, mp, ui)
   RestartPolicy restart = RestartPolicy::never;
-  int max_restarts = 3;           ///< restarts allowed before the process counts as ended
-  double restart_backoff_s = 0.5; ///< wait before the first restart; doubles each time, ≤ 30 s
+  int max_restarts = 3;           ///< restarts allowed before the process counts as ended (≤ 20)
+  double restart_backoff_s = 0.5; ///< wait before the first restart (≥ 0.2 s); doubles, ≤ 30 s
   bool required = true;  ///< its end (after its restarts) stops the whole set
 };
 

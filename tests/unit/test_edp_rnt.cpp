@@ -93,8 +93,14 @@ TEST_F(RntEdpTest, CartesianMovesOverTheBoard) {
     Eigen::Isometry3d goal = Eigen::Isometry3d::Identity();
     goal.linear() = down;
     goal.translation() = Eigen::Vector3d(x, y, 0.22);
-    const Reply r = move(ArmRepresentation::frame, kinematics::to_vector(goal, ArmRepresentation::frame), 400);
-    ASSERT_EQ(r.type, ReplyType::data) << "corner (" << x << ", " << y << "): " << r.error_text;
+    // In the fewest steps the joints' velocity and acceleration limits allow from rest to rest
+    // to the joints the EDP will solve for, with a margin for their rounding.
+    const std::vector<double> from = servo_->planned_end();
+    const int steps =
+        test::rest_to_rest_steps(model_, from, kinematics_->inverse(goal, from), kPeriod) + 5;
+    const Reply r = move(ArmRepresentation::frame, kinematics::to_vector(goal, ArmRepresentation::frame), steps);
+    ASSERT_EQ(r.type, ReplyType::data) << "corner (" << x << ", " << y << ") in " << steps
+                                        << " steps: " << r.error_text;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     const Eigen::Isometry3d reached = tool_frame();
     EXPECT_LT((reached.translation() - goal.translation()).norm(), 1e-3)

@@ -72,20 +72,37 @@ class EdpTest : public ::testing::Test {
     EXPECT_EQ(exec(s).type, ReplyType::acknowledge);
     return query();
   }
-  /// Servo steps for a move from where everything queued ends to `q` at 80 % of every joint's
-  /// velocity limit (the EDP refuses faster macro-steps), at least `at_least`.
+  /// Servo steps for a move from rest where everything queued ends to rest at `q` within 80 % of
+  /// every joint's velocity and acceleration limits (the EDP refuses macro-steps beyond them), at
+  /// least `at_least`.
   int steps_to(const std::vector<double>& q, int at_least) const {
-    const std::vector<double> from = servo_->planned_end();
-    double t = 0.0;
-    for (std::size_t j = 0; j < q.size() && j < from.size(); ++j)
-      t = std::max(t, std::abs(q[j] - from[j]) / (0.8 * model_.max_velocity[j]));
-    return std::max(at_least, static_cast<int>(std::ceil(t / kPeriod)));
+    return std::max(at_least,
+                    test::rest_to_rest_steps(model_, servo_->planned_end(), q, kPeriod, 0.8));
+  }
+
+  /// Runs test::cruise on joint `joint` (SET, then QUERY, each SET read `early` steps before
+  /// its end, the last one after its stop); `late` is called after each QUERY with the index of
+  /// the macro-step.
+  template <typename Late>
+  void run_cruise(std::size_t joint, double velocity, int ramp_steps, int steps, int segments,
+                  int early, Late late) {
+    std::vector<double> q = model_.synchro_joint_positions;
+    const auto plan = test::cruise(q[joint], velocity, ramp_steps, steps, segments, kPeriod);
+    for (std::size_t k = 0; k < plan.size(); ++k) {
+      q[joint] = plan[k].first;
+      const int n = plan[k].second;
+      const int value = k + 1 == plan.size() ? n + 1 : n - early;
+      ASSERT_EQ(exec(set_joints(q, n, value)).type, ReplyType::acknowledge) << "macro-step " << k;
+      const Reply r = query();
+      ASSERT_EQ(r.type, ReplyType::data) << "macro-step " << k << ": " << r.error_text;
+      late(k);
+    }
   }
 
   /// Of the `steps` servo steps of the column's motion after `first_cycle` (from the first step
-  /// that moves), how many were commanded at a velocity other than `velocity` [rad/s]; all of them
-  /// when the trace holds fewer.
-  int steps_off_velocity(std::int64_t first_cycle, int steps, double velocity) const {
+  /// that moves, `skip` steps later), how many were commanded at a velocity other than `velocity`
+  /// [rad/s]; all of them when the trace holds fewer.
+  int steps_off_velocity(std::int64_t first_cycle, int steps, double velocity, int skip = 0) const {
     const auto trace = servo_->trace();
     std::vector<double> v;
     for (std::size_t i = 1; i < trace.size(); ++i)
@@ -93,6 +110,7 @@ class EdpTest : public ::testing::Test {
         v.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
     std::size_t start = 0;
     while (start < v.size() && v[start] == 0.0) ++start;
+    start += static_cast<std::size_t>(skip);
     if (start + static_cast<std::size_t>(steps) > v.size()) return steps;
     int off = 0;
     for (std::size_t i = start; i < start + static_cast<std::size_t>(steps); ++i)
@@ -201,23 +219,30 @@ TEST_F(EdpTest, LimitsAreRefusedBeforeAnythingMoves) {
 TEST_F(EdpTest, ReadingComesInTheRequestedStep) {
   ASSERT_EQ(synchronise().type, ReplyType::data);
   std::vector<double> q = model_.synchro_joint_positions;
+  // 0.02 rad in 80 steps from rest, read in step 5 (a successor is promised): with no successor
+  // queued yet the EDP ends it at its mean velocity, 0.125 rad/s; in between the column
+  // accelerates uniformly in each half (edp::blend_position).
   q[0] = 0.02;
-  ASSERT_EQ(exec(set_joints(q, 20, 5)).type, ReplyType::acknowledge);
+  ASSERT_EQ(exec(set_joints(q, 80, 5)).type, ReplyType::acknowledge);
   Reply r = query();
-  ASSERT_EQ(r.type, ReplyType::data);
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_EQ(r.step_no, 5);
-  EXPECT_NEAR(r.desired_joints[0], 0.02 * 5.0 / 20.0, 1e-12);
-  // Let the motion end: motion_steps + 1 reads after the stop, at the target.
+  EXPECT_NEAR(r.desired_joints[0], blend_position(0.0, 0.02, 0.0, 0.125, 80 * kPeriod, 5.0 / 80.0),
+              1e-12);
+  // Let the motion end (from 0.125 rad/s to rest): motion_steps + 1 reads after the stop, at the
+  // target.
   q[0] = 0.04;
-  ASSERT_EQ(exec(set_joints(q, 20, 21)).type, ReplyType::acknowledge);
+  ASSERT_EQ(exec(set_joints(q, 80, 81)).type, ReplyType::acknowledge);
   r = query();
-  ASSERT_EQ(r.type, ReplyType::data);
-  EXPECT_EQ(r.step_no, 21);
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
+  EXPECT_EQ(r.step_no, 81);
   EXPECT_DOUBLE_EQ(r.desired_joints[0], 0.04);
   // Relative motion from the last target.
-  ASSERT_EQ(exec(set_joints({0.01, 0, 0, 0, 0}, 10, 11, MotionType::relative)).type,
+  const int steps = steps_to({0.05, q[1], q[2], q[3], q[4]}, 10);
+  ASSERT_EQ(exec(set_joints({0.01, 0, 0, 0, 0}, steps, steps + 1, MotionType::relative)).type,
             ReplyType::acknowledge);
   r = query();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_NEAR(r.desired_joints[0], 0.05, 1e-12);
 }
 
@@ -225,17 +250,14 @@ TEST_F(EdpTest, ConsecutiveMacroStepsHaveNoIdleServoStep) {
   ASSERT_EQ(synchronise().type, ReplyType::data);
   constexpr int kSteps = 10;
   constexpr int kSegments = 40;
-  // A constant-velocity joint motion cut into macro-steps; each SET goes out as soon as the
-  // reading of the previous one (step N-1) arrives, as a generator does.
+  constexpr int kRamp = 60;  // from rest to 0.1 rad/s: 2.5 rad/s^2 at most (limit 3)
+  // A constant-velocity joint motion (0.1 rad/s on the column) cut into macro-steps, between a
+  // macro-step that accelerates to it and one that brings the column to rest; each SET goes out
+  // as soon as the reading of the previous one (step N-3, 6 ms of margin) arrives, as a
+  // generator does.
   const std::int64_t first_cycle = servo_->latest().cycle;
-  std::vector<double> q = model_.synchro_joint_positions;
-  for (int k = 1; k <= kSegments; ++k) {
-    q[0] = 0.0002 * kSteps * k;  // 0.1 rad/s on the column
-    const int value = k == kSegments ? kSteps + 1 : kSteps - 3;  // 6 ms of margin
-    ASSERT_EQ(exec(set_joints(q, kSteps, value)).type, ReplyType::acknowledge);
-    ASSERT_EQ(query().type, ReplyType::data);
-  }
-  const int idle = steps_off_velocity(first_cycle, kSteps * kSegments, 0.1);
+  run_cruise(0, 0.1, kRamp, kSteps, kSegments, 3, [](std::size_t) {});
+  const int idle = steps_off_velocity(first_cycle, kSteps * kSegments, 0.1, kRamp);
   EXPECT_EQ(idle, 0) << "servo steps with a velocity other than the commanded 0.1 rad/s";
   std::printf("%d macro-steps, %d servo steps, all at 0.1 rad/s\n", kSegments, kSteps * kSegments);
 }
@@ -245,12 +267,9 @@ TEST_F(EdpTest, ServoCycleDoesNotAllocate) {
   g_watched = servo_->servo_thread_id();
   g_allocations = 0;
   ASSERT_EQ(synchronise().type, ReplyType::data);  // synchronisation runs in the servo cycle
-  std::vector<double> q = model_.synchro_joint_positions;
-  for (int k = 1; k <= 20; ++k) {
-    q[1] = -1.5708 + 0.001 * k;
-    ASSERT_EQ(exec(set_joints(q, 10, k == 20 ? 11 : 9)).type, ReplyType::acknowledge);
-    ASSERT_EQ(query().type, ReplyType::data);
-  }
+  // 20 macro-steps of the shoulder at 0.05 rad/s, each read one step early, between a
+  // macro-step that accelerates to it and one that brings it to rest.
+  run_cruise(1, 0.05, 60, 10, 20, 1, [](std::size_t) {});
   const std::int64_t cycles = servo_->latest().cycle;
   g_watched = std::thread::id{};
   EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in the servo thread";
@@ -361,7 +380,8 @@ TEST_F(EdpTest, LinkageLimitIsCheckedOnThePath) {
 TEST_F(EdpTest, EveryArmRepresentationReachesTheSamePose) {
   ASSERT_EQ(synchronise().type, ReplyType::data);
   const std::vector<double> q = {0.3, -1.3, 0.2, -0.4, 0.7};
-  ASSERT_EQ(exec(set_joints(q, 200, 201)).type, ReplyType::acknowledge);
+  const int steps = steps_to(q, 200);
+  ASSERT_EQ(exec(set_joints(q, steps, steps + 1)).type, ReplyType::acknowledge);
   ASSERT_EQ(query().type, ReplyType::data);
   // Let the servos settle on the target first: the readings below are taken one after the other,
   // and must all see the same measured pose (a slow instrumented build still lags at step 201).
@@ -388,10 +408,12 @@ TEST_F(EdpTest, EveryArmRepresentationReachesTheSamePose) {
   for (ArmRepresentation rep : {ArmRepresentation::motor, ArmRepresentation::frame,
                                 ArmRepresentation::xyz_euler_zyz,
                                 ArmRepresentation::xyz_angle_axis}) {
-    ASSERT_EQ(exec(set_joints({0.0, -1.5, 0.0, 0.0, 0.0}, 300, 301)).type,
-              ReplyType::acknowledge);
+    const std::vector<double> away = {0.0, -1.5, 0.0, 0.0, 0.0};
+    const int out = steps_to(away, 300);
+    ASSERT_EQ(exec(set_joints(away, out, out + 1)).type, ReplyType::acknowledge);
     ASSERT_EQ(query().type, ReplyType::data);
-    Instruction back = set_joints(pose[rep], 300, 301);
+    const int in = steps_to(pose[ArmRepresentation::joint], 300);
+    Instruction back = set_joints(pose[rep], in, in + 1);
     back.set_arm_type = rep;
     const Reply accepted = exec(back);
     ASSERT_EQ(accepted.type, ReplyType::acknowledge) << to_string(rep) << ": "
@@ -421,10 +443,17 @@ TEST_F(EdpTest, RelativeCartesianMoveIsInTheToolFrame) {
   EXPECT_EQ(r.tool, tool.tool);
   const std::vector<double> before = r.arm;  // tool frame, 3x4 row-major
   // 2 cm along the tool's own z axis (the approach direction).
-  Instruction step = set_joints({0, 0, 0.02, 0, 0, 0}, 100, 101, MotionType::relative);
+  // (Within the joints' acceleration limits: the joint target the EDP will compute, from rest
+  // to rest within 80 % of the limits.)
+  const Eigen::Isometry3d goal =
+      kinematics::from_vector(before, ArmRepresentation::frame) *
+      Eigen::Translation3d(0.0, 0.0, 0.02);
+  const int steps = steps_to(kinematics_->inverse(goal, servo_->planned_end()), 100);
+  Instruction step = set_joints({0, 0, 0.02, 0, 0, 0}, steps, steps + 1, MotionType::relative);
   step.set_arm_type = ArmRepresentation::xyz_angle_axis;
-  ASSERT_EQ(exec(step).type, ReplyType::acknowledge);
-  ASSERT_EQ(query().type, ReplyType::data);
+  ASSERT_EQ(exec(step).type, ReplyType::acknowledge) << steps << " steps";
+  const Reply moved = query();
+  ASSERT_EQ(moved.type, ReplyType::data) << moved.error_text;
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   Instruction get;
   get.type = InstructionType::get;
@@ -507,7 +536,9 @@ TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
   EXPECT_EQ((r.input_values >> 16) & 0xFU, 0xAU) << std::hex << r.input_values;
 
   // Track the same fast joint move with the soft and the stiff parameter set: the soft servo
-  // lags more.
+  // lags more. The column accelerates to 0.5 rad/s (300 steps, 2.5 rad/s^2 at most), cruises at
+  // it for 200 steps, read half way (the lag measured at constant velocity), and comes to rest
+  // in 150 steps.
   bool forward = true;
   auto lag_with = [&](std::int8_t set, std::int8_t algorithm = 0) {
     Instruction servo;
@@ -517,23 +548,39 @@ TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
     servo.servo_parameters_no.assign(model_.axes(), set);
     EXPECT_EQ(exec(servo).type, ReplyType::acknowledge);
     EXPECT_EQ(query().type, ReplyType::data);
-    std::vector<double> q = model_.synchro_joint_positions;
-    q[0] = forward ? 0.2 : 0.0;  // alternate direction so each run moves 0.2 rad
+    // Alternate direction so each run moves the column 0.575 rad and back.
+    const double sign = forward ? 1.0 : -1.0;
+    const auto plan =
+        test::cruise(servo_->planned_end()[0], sign * 0.5, 300, 200, 1, kPeriod);
     forward = !forward;
-    EXPECT_EQ(exec(set_joints(q, 100, 50)).type, ReplyType::acknowledge);
+    std::vector<double> q = model_.synchro_joint_positions;
+    q[0] = plan[0].first;
+    EXPECT_EQ(exec(set_joints(q, plan[0].second, plan[0].second - 3)).type,
+              ReplyType::acknowledge);
+    EXPECT_EQ(query().type, ReplyType::data);
+    q[0] = plan[1].first;
+    EXPECT_EQ(exec(set_joints(q, plan[1].second, plan[1].second / 2)).type,
+              ReplyType::acknowledge);
     const Reply mid = query();
+    if (mid.type != ReplyType::data || mid.servo_parameters_no.empty()) {
+      ADD_FAILURE() << "no reading at the constant velocity: " << mid.error_text;
+      return 0.0;
+    }
     EXPECT_EQ(mid.servo_parameters_no[0], set);
     EXPECT_EQ(mid.servo_algorithm[0], algorithm);
     const double lag = std::abs(mid.desired_joints[0] - mid.joints[0]);
-    EXPECT_EQ(exec(set_joints(q, 100, 101)).type, ReplyType::acknowledge);  // settle
+    q[0] = plan[2].first;
+    EXPECT_EQ(exec(set_joints(q, plan[2].second, plan[2].second + 1)).type,
+              ReplyType::acknowledge);  // to rest
     EXPECT_EQ(query().type, ReplyType::data);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // settle
     return lag;
   };
   const double soft = lag_with(1);
   const double stiff = lag_with(2);
   const double nominal = lag_with(0, 0);
   const double feed_forward = lag_with(0, 1);
-  std::printf("tracking lag at 1 rad/s: soft %.5f rad, stiff %.5f rad, nominal %.5f rad, "
+  std::printf("tracking lag at 0.5 rad/s: soft %.5f rad, stiff %.5f rad, nominal %.5f rad, "
               "nominal with velocity feed-forward %.5f rad\n",
               soft, stiff, nominal, feed_forward);
   EXPECT_GT(soft, stiff * 1.5);
@@ -546,36 +593,34 @@ TEST_F(EdpLockStepTest, SimulatedTimeWaitsForALateSuccessor) {
   EXPECT_NE(servo_->timing().scheduling.find("lock-step"), std::string::npos);
   constexpr int kSteps = 10;
   constexpr int kSegments = 12;
+  constexpr int kRamp = 60;
   const std::int64_t first_cycle = servo_->latest().cycle;
-  std::vector<double> q = model_.synchro_joint_positions;
-  for (int k = 1; k <= kSegments; ++k) {
-    q[0] = 0.0002 * kSteps * k;  // 0.1 rad/s on the column
-    // Read in the last step but one: a real-time loop would need the successor within one
-    // servo period.
-    const int value = k == kSegments ? kSteps + 1 : kSteps - 1;
-    ASSERT_EQ(exec(set_joints(q, kSteps, value)).type, ReplyType::acknowledge);
-    const Reply r = query();
-    ASSERT_EQ(r.type, ReplyType::data);
-    if (k < kSegments && k % 3 == 0) {
+  // 0.1 rad/s on the column between a macro-step that accelerates to it and one that brings it
+  // to rest; each read in the last step but one: a real-time loop would need the successor
+  // within one servo period.
+  const std::size_t last = kSegments + 1;
+  run_cruise(0, 0.1, kRamp, kSteps, kSegments, 1, [&](std::size_t k) {
+    if (k > 0 && k < last && k % 3 == 0) {
       // The successor comes 20 servo periods late: simulated time stands still meanwhile.
       const std::int64_t cycle = servo_->latest().cycle;
       std::this_thread::sleep_for(std::chrono::duration<double>(20 * kPeriod));
       EXPECT_EQ(servo_->latest().cycle, cycle) << "simulated time went on without a successor";
     }
-  }
+  });
   EXPECT_EQ(servo_->lost_successors(), 0);
-  // Every servo step of the motion at the commanded velocity: no idle step, no ramp.
-  EXPECT_EQ(steps_off_velocity(first_cycle, kSteps * kSegments, 0.1), 0) << "servo steps with a velocity other than the commanded 0.1 rad/s";
+  // Every servo step of the cruise at the commanded velocity: no idle step, no ramp.
+  EXPECT_EQ(steps_off_velocity(first_cycle, kSteps * kSegments, 0.1, kRamp), 0) << "servo steps with a velocity other than the commanded 0.1 rad/s";
   // The robot followed in simulated time.
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  EXPECT_NEAR(servo_->latest().joints[0], q[0], 2e-3);
+  EXPECT_NEAR(servo_->latest().joints[0], servo_->planned_end()[0], 2e-3);
 }
 
 TEST_F(EdpLockStepTest, ASuccessorThatNeverComesStopsTheRobotWithinItsLimits) {
   ASSERT_EQ(synchronise().type, ReplyType::data);
   std::vector<double> q = model_.synchro_joint_positions;
-  q[0] = 0.02;
-  ASSERT_EQ(exec(set_joints(q, 10, 9)).type, ReplyType::acknowledge);
+  q[0] = 0.02;  // from rest to 0.25 rad/s in 80 steps (1.6 rad/s^2), a successor promised
+  const std::int64_t from = servo_->latest().cycle;
+  ASSERT_EQ(exec(set_joints(q, 80, 79)).type, ReplyType::acknowledge);
   ASSERT_EQ(query().type, ReplyType::data);
   // No successor: after the successor wait (0.5 s of wall time) the loop ramps down.
   for (int i = 0; i < 300 && !servo_->stopped(); ++i)
@@ -583,10 +628,13 @@ TEST_F(EdpLockStepTest, ASuccessorThatNeverComesStopsTheRobotWithinItsLimits) {
   EXPECT_TRUE(servo_->stopped());
   EXPECT_EQ(servo_->lost_successors(), 1);
   const auto trace = servo_->trace();
-  for (std::size_t i = 1; i < trace.size(); ++i) {
-    if (!trace[i].synchronised || !trace[i - 1].synchronised) continue;
+  for (std::size_t i = 2; i < trace.size(); ++i) {
+    if (trace[i - 2].cycle < from) continue;
     const double v = (trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod;
+    const double before = (trace[i - 1].desired[0] - trace[i - 2].desired[0]) / kPeriod;
     EXPECT_LE(std::abs(v), model_.max_velocity[0] + 1e-9);
+    EXPECT_LE(std::abs(v - before) / kPeriod, model_.max_acceleration[0] * (1 + 2e-6))
+        << "cycle " << trace[i].cycle;
   }
   // The next macro-step starts from where the ramp left the robot.
   q[0] = 0.05;

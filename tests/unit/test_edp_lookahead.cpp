@@ -94,29 +94,45 @@ class Lookahead : public ::testing::Test {
     return {v.begin() + static_cast<std::ptrdiff_t>(first), v.end()};
   }
 
-  /// A constant-velocity column motion of `segments` macro-steps of 10 servo steps (20 ms), one
-  /// exchange each, read 3 steps early; the client stalls `stall_ms` before macro-step
-  /// `stall_at`. Returns the servo steps commanded at a velocity other than 0.1 rad/s.
-  int run_with_stall(int segments, int stall_at, int stall_ms) {
+  struct StallRun {
+    int off = -1;  ///< cruise servo steps commanded at a velocity other than 0.1 rad/s
+    int refused_at = -1;  ///< the first macro-step (0: the first ramp) whose reply was an error
+    Reply refusal;        ///< that reply
+  };
+
+  /// A constant-velocity column motion (0.1 rad/s) of `segments` macro-steps of 10 servo steps
+  /// (20 ms), one exchange each, read 3 steps early, between a macro-step of 60 steps that
+  /// accelerates to it from rest and one that brings the column to rest (test::cruise); the
+  /// client stalls `stall_ms` before cruise macro-step `stall_at`. Stops at the first refusal.
+  /// `off` counts the servo steps of the cruise but its last macro-step.
+  StallRun run_with_stall(int segments, int stall_at, int stall_ms) {
     constexpr int kSteps = 10;
+    constexpr int kRamp = 60;
     const std::int64_t from = servo_->latest().cycle;
     std::vector<double> q = model_.synchro_joint_positions;
-    const double q0 = q[0];
-    for (int k = 1; k <= segments; ++k) {
-      if (k == stall_at) std::this_thread::sleep_for(std::chrono::milliseconds(stall_ms));
-      q[0] = q0 + 0.0002 * kSteps * k;
-      const int value = k == segments ? kSteps + 1 : kSteps - 3;
-      const Reply r = interpreter_->execute(set_joints(q, kSteps, value, true));
+    const auto plan = test::cruise(q[0], 0.1, kRamp, kSteps, segments, kPeriod);
+    StallRun run;
+    for (std::size_t k = 0; k < plan.size(); ++k) {
+      if (static_cast<int>(k) == stall_at)
+        std::this_thread::sleep_for(std::chrono::milliseconds(stall_ms));
+      q[0] = plan[k].first;
+      const int n = plan[k].second;
+      const int value = k + 1 == plan.size() ? n + 1 : n - 3;
+      const Reply r = interpreter_->execute(set_joints(q, n, value, true));
       if (r.type != ReplyType::data) {
-        ADD_FAILURE() << "macro-step " << k << ": " << r.error_text;
-        return -1;
+        run.refused_at = static_cast<int>(k);
+        run.refusal = r;
+        break;
       }
     }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
     const std::vector<double> v = column_velocities(from);
-    int off = 0;
-    for (std::size_t i = 0; i < v.size() && i < static_cast<std::size_t>(kSteps * segments); ++i)
-      if (std::abs(v[i] - 0.1) > 1e-9) ++off;
-    return off;
+    // The cruise but its last macro-step, which the EDP may already blend into the final
+    // deceleration when it sees that coming in its lookahead.
+    run.off = 0;
+    for (std::size_t i = kRamp; i < kRamp + static_cast<std::size_t>(kSteps * (segments - 1)); ++i)
+      if (i >= v.size() || std::abs(v[i] - 0.1) > 1e-9) ++run.off;
+    return run;
   }
 
   RobotModel model_;
@@ -128,17 +144,27 @@ class Lookahead : public ::testing::Test {
 
 TEST_F(Lookahead, AQueueOfEightCarriesTheMotionAcrossA60MsClientStall) {
   start(8);
-  const int off = run_with_stall(40, 20, 60);
-  EXPECT_EQ(off, 0) << "servo steps off the commanded 0.1 rad/s";
+  const StallRun run = run_with_stall(40, 20, 60);
+  EXPECT_EQ(run.refused_at, -1) << run.refusal.error_text;
+  EXPECT_EQ(run.off, 0) << "servo steps off the commanded 0.1 rad/s";
   EXPECT_EQ(servo_->lost_successors(), 0);
 }
 
 TEST_F(Lookahead, WithTheSingleSuccessorTheSameStallStopsTheRobot) {
   // The paper's depth 1: 60 ms of client silence is longer than the 6 ms its reading leaves.
+  // The robot ramps down; the plan's next macro-steps, which assume it kept its 0.1 rad/s, are
+  // then too abrupt from where the ramp left it (refused, the robot holds).
   start(1);
-  const int off = run_with_stall(40, 20, 60);
-  EXPECT_GT(off, 0);
+  const StallRun run = run_with_stall(40, 20, 60);
+  EXPECT_GT(run.off, 0);
   EXPECT_GE(servo_->lost_successors(), 1);
+  EXPECT_GE(run.refused_at, 20);
+  if (run.refused_at >= 0) {
+    EXPECT_EQ(run.refusal.error_code, error_code::too_abrupt) << run.refusal.error_text;
+    EXPECT_NE(run.refusal.error_text.find("rad/s^2"), std::string::npos)
+        << run.refusal.error_text;
+  }
+  EXPECT_TRUE(servo_->stopped());
 }
 
 TEST_F(Lookahead, RepliesRunAheadByTheDepthAndTheLastOneComesAfterTheStop) {
@@ -146,11 +172,17 @@ TEST_F(Lookahead, RepliesRunAheadByTheDepthAndTheLastOneComesAfterTheStop) {
   std::vector<double> q = model_.synchro_joint_positions;
   const double q0 = q[0];
   const std::int64_t before = servo_->latest().cycle;
+  // The column at 0.1 rad/s: macro-step 1 accelerates to it from rest in 60 steps (it ends at
+  // its mean velocity: its successors have the same one), 2..4 keep it for 10 steps each and
+  // the last brings it to rest in 40 steps.
+  constexpr int kFirst = 60;
+  const double first = 0.1 * kFirst * kPeriod;
   // The first three replies do not wait for the robot: macro-steps 1..3 sit in the queue. They
   // carry the latest reading: the robot where it stands, synchronised.
   for (int k = 1; k <= 3; ++k) {
-    q[0] = q0 + 0.002 * k;
-    const Reply r = interpreter_->execute(set_joints(q, 10, 7, true));
+    q[0] = q0 + first + 0.002 * (k - 1);
+    const int steps = k == 1 ? kFirst : 10;
+    const Reply r = interpreter_->execute(set_joints(q, steps, 7, true));
     ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
     // Macro-step 1 starts in the cycle after its submission and reads in its step 7.
     EXPECT_LT(r.servo_cycle, before + 7) << "reply " << k << " waited for the servo loop";
@@ -159,19 +191,21 @@ TEST_F(Lookahead, RepliesRunAheadByTheDepthAndTheLastOneComesAfterTheStop) {
     for (std::size_t j = 0; j < model_.axes(); ++j)
       EXPECT_NEAR(r.joints[j], model_.synchro_joint_positions[j], 0.01) << "reply " << k;
   }
-  // The fourth is answered by the reading of macro-step 1 (3 places before it) in its step 7.
-  q[0] = q0 + 0.008;
+  // The fourth is answered by the reading of macro-step 1 (3 places before it) in its step 7:
+  // from rest towards 0.1 rad/s, accelerating uniformly (edp::blend_position).
+  q[0] = q0 + first + 0.006;
   Reply r = interpreter_->execute(set_joints(q, 10, 7, true));
   ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_EQ(r.step_no, 7);
-  EXPECT_NEAR(r.desired_joints[0], q0 + 0.002 * 0.7, 1e-12);
+  EXPECT_NEAR(r.desired_joints[0],
+              blend_position(q0, q0 + first, 0.0, 0.1, kFirst * kPeriod, 7.0 / kFirst), 1e-12);
   EXPECT_EQ(r.macro_steps_ahead, 4);
   // The last one promises no successor: its reply is its own reading, after the stop.
-  q[0] = q0 + 0.010;
-  r = interpreter_->execute(set_joints(q, 10, 11, true));
+  q[0] = q0 + first + 0.006 + 0.05 * 40 * kPeriod;
+  r = interpreter_->execute(set_joints(q, 40, 41, true));
   ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
-  EXPECT_EQ(r.step_no, 11);
-  EXPECT_DOUBLE_EQ(r.desired_joints[0], q0 + 0.010);
+  EXPECT_EQ(r.step_no, 41);
+  EXPECT_DOUBLE_EQ(r.desired_joints[0], q[0]);
   EXPECT_EQ(r.macro_steps_ahead, 0);
   EXPECT_EQ(servo_->lost_successors(), 0);
 }
@@ -180,23 +214,32 @@ TEST_F(Lookahead, OneExchangeAnswersAsSetThenQuery) {
   start(1);
   std::vector<double> q = model_.synchro_joint_positions;
   const double q0 = q[0];
+  // 0.02 rad in 80 steps from rest, read in step 5: no successor is queued when it starts, so
+  // the EDP ends it at its mean velocity (0.125 rad/s), accelerating uniformly in each half.
   q[0] = q0 + 0.02;
-  const Reply one = interpreter_->execute(set_joints(q, 20, 5, true));
+  const Reply one = interpreter_->execute(set_joints(q, 80, 5, true));
   ASSERT_EQ(one.type, ReplyType::data) << one.error_text;
   EXPECT_EQ(one.step_no, 5);
-  EXPECT_NEAR(one.desired_joints[0], q0 + 0.02 * 5.0 / 20.0, 1e-12);
-  // The paper's pair on the same interpreter: ACKNOWLEDGE, then the reading for the QUERY.
+  EXPECT_NEAR(one.desired_joints[0],
+              blend_position(q0, q0 + 0.02, 0.0, 0.125, 80 * kPeriod, 5.0 / 80.0), 1e-12);
+  // The paper's pair on the same interpreter: ACKNOWLEDGE, then the reading for the QUERY (the
+  // column keeps its 0.125 rad/s: a straight line).
   q[0] = q0 + 0.04;
-  ASSERT_EQ(interpreter_->execute(set_joints(q, 20, 5, false)).type, ReplyType::acknowledge);
+  ASSERT_EQ(interpreter_->execute(set_joints(q, 80, 5, false)).type, ReplyType::acknowledge);
   Instruction query;
   query.type = InstructionType::query;
   const Reply two = interpreter_->execute(query);
   ASSERT_EQ(two.type, ReplyType::data) << two.error_text;
   EXPECT_EQ(two.step_no, 5);
-  EXPECT_NEAR(two.desired_joints[0], q0 + 0.02 + 0.02 * 5.0 / 20.0, 1e-12);
-  // with_query leaves no QUERY due: a QUERY now is unexpected.
-  q[0] = q0;
-  ASSERT_EQ(interpreter_->execute(set_joints(q, 50, 51, true)).type, ReplyType::data);
+  EXPECT_NEAR(two.desired_joints[0],
+              blend_position(q0 + 0.02, q0 + 0.04, 0.125, 0.125, 80 * kPeriod, 5.0 / 80.0),
+              1e-12);
+  EXPECT_NEAR(two.desired_joints[0], q0 + 0.02 + 0.02 * 5.0 / 80.0, 1e-12);
+  // with_query leaves no QUERY due: a QUERY now is unexpected (the last macro-step brings the
+  // column to rest, 0.01 rad further).
+  q[0] = q0 + 0.05;
+  const Reply last = interpreter_->execute(set_joints(q, 80, 81, true));
+  ASSERT_EQ(last.type, ReplyType::data) << last.error_text;
   EXPECT_EQ(interpreter_->execute(query).error_code, error_code::query_unexpected);
 }
 
@@ -204,21 +247,26 @@ TEST_F(Lookahead, ARefusedMacroStepTakesTheQueueBehindItAlongAndIsReportedOnce) 
   start(4);
   std::vector<double> q = model_.synchro_joint_positions;
   const double q0 = q[0];
-  // A motion at 1.5 rad/s on the column (its limit; 3 rad/s^2) whose successor never comes:
-  // the ramp carries the column 0.375 rad past the target.
-  q[0] = q0 + 0.06;
-  ASSERT_EQ(interpreter_->execute(set_joints(q, 20, 17, true)).type, ReplyType::data);
-  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  // A motion from rest to 0.5 rad/s on the column in 300 steps (2.5 rad/s^2 at most; limit 3)
+  // whose successor never comes: the ramp carries the column 0.042 rad past the target.
+  q[0] = q0 + 0.15;
+  const Reply first = interpreter_->execute(set_joints(q, 300, 297, true));
+  ASSERT_EQ(first.type, ReplyType::data) << first.error_text;
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
   ASSERT_EQ(servo_->lost_successors(), 1);
-  // The planned continuation is too fast from where the ramp left the robot. With a lookahead
-  // of 4 the first three replies come before the first of them is due to start (and refused);
-  // the refusal reaches the client in the reply to the fourth at the latest.
+  // The planned continuation (0.75 rad/s) is too abrupt from where the ramp left the robot (at
+  // rest, 0.04 rad past the target). With a lookahead of 4 the first three replies come before
+  // the first of them is due to start (and refused); the refusal reaches the client in the
+  // reply to the fourth at the latest.
   for (int k = 1; k <= 4; ++k) {
-    q[0] = q0 + 0.06 + 0.03 * k;
+    q[0] = q0 + 0.15 + 0.03 * k;
     const Reply r = interpreter_->execute(set_joints(q, 20, 17, true));
     if (r.type == ReplyType::error) {
-      EXPECT_EQ(r.error_code, error_code::too_fast) << r.error_text;
-      EXPECT_NE(r.error_text.find("rad/s"), std::string::npos) << r.error_text;
+      EXPECT_EQ(r.error_code, error_code::too_abrupt) << r.error_text;
+      EXPECT_NE(r.error_text.find("rad/s^2"), std::string::npos) << r.error_text;
+      EXPECT_NE(r.error_text.find("starting where a stopping ramp left the robot"),
+                std::string::npos)
+          << r.error_text;
       break;
     }
     ASSERT_LT(k, 4) << "four macro-steps accepted from where the ramp left the robot";
@@ -229,7 +277,8 @@ TEST_F(Lookahead, ARefusedMacroStepTakesTheQueueBehindItAlongAndIsReportedOnce) 
   const std::vector<double> here = servo_->planned_end();
   q = here;
   q[0] -= 0.01;
-  const Reply r = interpreter_->execute(set_joints(q, 20, 21, true));
+  const int steps = test::rest_to_rest_steps(model_, here, q, kPeriod);
+  const Reply r = interpreter_->execute(set_joints(q, steps, steps + 1, true));
   EXPECT_EQ(r.type, ReplyType::data) << r.error_text;
 }
 
@@ -237,9 +286,11 @@ TEST_F(Lookahead, AWaivedSuccessorEndsInAPlannedStopNotALostOne) {
   start(4);
   std::vector<double> q = model_.synchro_joint_positions;
   const double q0 = q[0];
+  // The column to 0.1 rad/s in 60 steps, then two macro-steps of 10 at it.
   for (int k = 1; k <= 3; ++k) {
-    q[0] = q0 + 0.01 * k;
-    ASSERT_EQ(interpreter_->execute(set_joints(q, 10, 7, true)).type, ReplyType::data);
+    q[0] = q0 + 0.012 + 0.002 * (k - 1);
+    const Reply r = interpreter_->execute(set_joints(q, k == 1 ? 60 : 10, 7, true));
+    ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   }
   // The task pauses: no macro-step follows the three queued.
   Instruction get;
@@ -253,8 +304,10 @@ TEST_F(Lookahead, AWaivedSuccessorEndsInAPlannedStopNotALostOne) {
   EXPECT_EQ(servo_->planned_stops(), 1);
   EXPECT_EQ(servo_->lost_successors(), 0);
   // A motion after the pause that again runs dry without a word is a lost successor.
+  // (From rest to 0.0625 rad/s in 40 steps: 1.6 rad/s^2.)
   q[0] = servo_->planned_end()[0] + 0.005;
-  ASSERT_EQ(interpreter_->execute(set_joints(q, 10, 7, true)).type, ReplyType::data);
+  const Reply again = interpreter_->execute(set_joints(q, 40, 37, true));
+  ASSERT_EQ(again.type, ReplyType::data) << again.error_text;
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   EXPECT_EQ(servo_->planned_stops(), 1);
   EXPECT_EQ(servo_->lost_successors(), 1);

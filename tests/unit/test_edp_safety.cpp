@@ -65,20 +65,33 @@ class Edp {
     return out;
   }
 
-  /// Moves to `q` (joint 0 must change) in one macro-step of 10 servo steps whose reading, in
-  /// step 9, promises a successor; never sends one and waits 0.5 s. Returns the commanded
-  /// velocities from the macro-step's last step on (the stopping ramp and the hold after it);
-  /// empty when the motion was refused or never ran.
-  std::vector<std::vector<double>> move_without_successor(const std::vector<double>& q) {
+  /// Rest-to-rest SET to `q` in the fewest servo steps the joints' limits allow.
+  Reply set_joints_at_rest(const std::vector<double>& q) {
+    const int steps = test::rest_to_rest_steps(model_, servo_->planned_end(), q, kPeriod);
+    return set_joints(q, steps, steps + 1);
+  }
+
+  /// Moves from rest to `q` (joint 0 must change) in one macro-step of `steps` servo steps whose
+  /// reading, in step steps-1, promises a successor (with none queued, the EDP ends it at its
+  /// mean velocity); never sends one and waits 0.5 s. Returns the commanded velocities from the
+  /// macro-step's last step on (the stopping ramp and the hold after it); empty when the motion
+  /// was refused or never ran.
+  std::vector<std::vector<double>> move_without_successor(const std::vector<double>& q,
+                                                          int steps) {
     const std::int64_t at = servo_->latest().cycle;
-    if (set_joints(q, 10, 9).type != ReplyType::acknowledge) return {};
-    if (query().type != ReplyType::data) return {};
+    if (set_joints(q, steps, steps - 1).type != ReplyType::acknowledge) return {};
+    const Reply r = query();
+    if (r.type != ReplyType::data) {
+      ADD_FAILURE() << r.error_text;
+      return {};
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     const auto v = velocities(at);
     std::size_t first = 0;
     while (first < v.size() && v[first][0] == 0.0) ++first;
-    if (first + 10 >= v.size()) return {};
-    return {v.begin() + static_cast<long>(first) + 9, v.end()};
+    const auto last = first + static_cast<std::size_t>(steps) - 1;
+    if (last + 1 >= v.size()) return {};
+    return {v.begin() + static_cast<long>(last), v.end()};
   }
 
   RobotModel model_;
@@ -113,15 +126,19 @@ TEST(EdpSafety, EmergencyStopDeceleratesWithinLimitsAndHolds) {
   Edp edp("mujoco");
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
   std::vector<double> q = edp.model_.synchro_joint_positions;
-  q[0] = 1.0;  // 1 rad in 1 s: 1 rad/s on the column
-  ASSERT_EQ(edp.set_joints(q, 500, 501).type, ReplyType::acknowledge);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  // 1 rad in 1.4 s from rest to rest: the column accelerates at 2.04 rad/s^2 (limit 3) for 0.7 s.
+  q[0] = 1.0;
+  ASSERT_EQ(edp.set_joints(q, 700, 701).type, ReplyType::acknowledge);
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
   const std::int64_t at = edp.servo_->latest().cycle;
   edp.servo_->emergency_stop();
   std::this_thread::sleep_for(std::chrono::milliseconds(800));
-  const int cycles = check_stop(edp.velocities(at - 5), edp.model_);
-  // 1 rad/s at 3 rad/s^2 needs about 167 cycles of 2 ms.
-  EXPECT_LT(cycles, 200);
+  const auto v = edp.velocities(at - 5);
+  ASSERT_FALSE(v.empty());
+  EXPECT_GT(v[0][0], 0.6) << "the column was not moving fast when stopped";
+  const int cycles = check_stop(v, edp.model_);
+  // About 0.8 rad/s at 3 rad/s^2 needs about 135 cycles of 2 ms (it slows down from the stop on).
+  EXPECT_LT(cycles, static_cast<int>(v[0][0] / (3.0 * kPeriod)) + 10);
   std::printf("standstill %d servo steps after the emergency stop\n", cycles);
   EXPECT_TRUE(edp.servo_->stopped());
   // The QUERY of the interrupted motion reports an error (its macro-step never ended), and
@@ -130,39 +147,42 @@ TEST(EdpSafety, EmergencyStopDeceleratesWithinLimitsAndHolds) {
   Reply r = edp.set_joints(edp.model_.synchro_joint_positions, 100, 101);
   EXPECT_EQ(r.error_code, error_code::emergency_stop) << r.error_text;
   edp.servo_->release_emergency_stop();
-  r = edp.set_joints(edp.model_.synchro_joint_positions, 300, 301);
+  r = edp.set_joints_at_rest(edp.model_.synchro_joint_positions);
   ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
-  EXPECT_EQ(edp.query().type, ReplyType::data);
+  r = edp.query();
+  EXPECT_EQ(r.type, ReplyType::data) << r.error_text;
 }
 
 TEST(EdpSafety, LostEcpBringsTheRobotToAStandstill) {
   Edp edp("mujoco");
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
   std::vector<double> q = edp.model_.synchro_joint_positions;
-  q[0] = 0.01;  // 0.5 rad/s, with the reading one step early: a successor is promised
-  // ... and never sent. The constant-velocity macro-step, then a ramp down, not a dead stop.
-  const auto tail = edp.move_without_successor(q);
+  // To 0.2 rad/s in 120 steps (2.5 rad/s^2 at most), with the reading one step early: a
+  // successor is promised ... and never sent. The macro-step, then a ramp down, not a dead stop.
+  q[0] = 0.048;
+  const auto tail = edp.move_without_successor(q, 120);
   ASSERT_FALSE(tail.empty());
   EXPECT_EQ(edp.servo_->lost_successors(), 1);
   const int cycles = check_stop(tail, edp.model_);
   EXPECT_GT(cycles, 10) << "stopped dead instead of decelerating";
   EXPECT_TRUE(edp.servo_->stopped());
   // The ECP may carry on afterwards.
-  ASSERT_EQ(edp.set_joints(edp.model_.synchro_joint_positions, 100, 101).type,
+  ASSERT_EQ(edp.set_joints_at_rest(edp.model_.synchro_joint_positions).type,
             ReplyType::acknowledge);
   EXPECT_EQ(edp.query().type, ReplyType::data);
 }
 
 TEST(EdpSafety, StoppingRampKeepsTheDirectionOfTheMotion) {
-  // Two joints at different speeds (column 0.5 rad/s, shoulder -0.2 rad/s); the successor never
-  // comes. The ramp scales both velocities by one factor: their ratio stays that of the motion,
-  // so the arm stops on the straight continuation of its path in joint space.
+  // Two joints at different speeds (column 0.2 rad/s, shoulder -0.08 rad/s, reached in one
+  // macro-step of 120 steps); the successor never comes. The ramp scales both velocities by one
+  // factor: their ratio stays that of the motion, so the arm stops on the straight continuation
+  // of its path in joint space.
   Edp edp("mujoco");
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
   std::vector<double> q = edp.model_.synchro_joint_positions;
-  q[0] += 0.01;
-  q[1] -= 0.004;
-  const auto tail = edp.move_without_successor(q);
+  q[0] += 0.048;
+  q[1] -= 0.0192;
+  const auto tail = edp.move_without_successor(q, 120);
   ASSERT_FALSE(tail.empty());
   EXPECT_EQ(edp.servo_->lost_successors(), 1);
   const int cycles = check_stop(tail, edp.model_);
@@ -188,16 +208,20 @@ TEST(EdpSafety, AMacroStepTooFastFromWhereARampLeftTheRobotIsRefused) {
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
   std::vector<double> q = edp.model_.synchro_joint_positions;
   const double start = q[4];
-  q[4] = start + 0.04;  // the wrist roll at 2 rad/s (limit 3), read early: successor promised
-  ASSERT_EQ(edp.set_joints(q, 10, 7).type, ReplyType::acknowledge);
-  ASSERT_EQ(edp.query().type, ReplyType::data);
+  // The wrist roll from rest to 1.875 rad/s (limit 3) in 400 steps (7 rad/s^2 at most, limit 8),
+  // read early: successor promised.
+  q[4] = start + 1.5;
+  ASSERT_EQ(edp.set_joints(q, 400, 397).type, ReplyType::acknowledge);
+  const Reply moving = edp.query();
+  ASSERT_EQ(moving.type, ReplyType::data) << moving.error_text;
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // the successor never comes
   ASSERT_EQ(edp.servo_->lost_successors(), 1);
   const double stopped_at = edp.servo_->latest().desired[4];
-  EXPECT_GT(stopped_at, q[4] + 0.2) << "2 rad/s at 8 rad/s^2 overshoots by 0.25 rad";
-  // The old plan's next step: 0.04 rad further than the last target, i.e. ~0.2 rad back.
+  EXPECT_GT(stopped_at, q[4] + 0.2) << "1.875 rad/s at 8 rad/s^2 overshoots by 0.22 rad";
+  // The old plan's next step: 0.0375 rad further than the last target (10 steps at 1.875
+  // rad/s), i.e. ~0.18 rad back.
   std::vector<double> planned = q;
-  planned[4] = q[4] + 0.04;
+  planned[4] = q[4] + 0.0375;
   ASSERT_EQ(edp.set_joints(planned, 10, 7).type, ReplyType::acknowledge);
   const Reply refused = edp.query();
   EXPECT_EQ(refused.type, ReplyType::error);
@@ -240,7 +264,7 @@ TEST(EdpSafety, MockPluginMirrorsCommands) {
   Edp edp("mock");
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
   std::vector<double> q = {0.2, -1.4, 0.1, 0.3, -0.5};
-  ASSERT_EQ(edp.set_joints(q, 250, 251).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.set_joints_at_rest(q).type, ReplyType::acknowledge);
   const Reply r = edp.query();
   ASSERT_EQ(r.type, ReplyType::data);
   for (std::size_t j = 0; j < q.size(); ++j) EXPECT_NEAR(r.joints[j], q[j], 1e-9);
@@ -275,7 +299,7 @@ TEST_P(PluginFaults, FaultHoldsRefusesAndSynchroResets) {
   ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_TRUE(r.synchronised);
   EXPECT_FALSE(edp.servo_->faulted());
-  ASSERT_EQ(edp.set_joints(q, 250, 251).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.set_joints_at_rest(q).type, ReplyType::acknowledge);
   r = edp.query();
   ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_NEAR(r.joints[0], 0.5, 1e-9);
@@ -303,16 +327,18 @@ TEST(EdpSafety, StoppingRampNeverLeavesALimit) {
     (edp.kinematics_->within_limits(along(mid)) ? inside : outside) = mid;
   }
   const std::vector<double> near_limit = along(inside - 0.02);
-  const std::vector<double> away = along(inside - 0.32);
-  Reply r = edp.set_joints(away, 400, 401);
+  const std::vector<double> away = along(inside - 0.42);
+  Reply r = edp.set_joints_at_rest(away);
   ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
   ASSERT_EQ(edp.query().type, ReplyType::data);
   const std::int64_t from = edp.servo_->latest().cycle;
-  // Towards the limit at 0.75 rad/s, promising a successor that never comes: the ramp alone
-  // would carry the arm 0.14 rad further, past the limit.
-  r = edp.set_joints(near_limit, 200, 199);
+  // Towards the limit, from rest to 0.5 rad/s in 400 steps (1.875 rad/s^2 at most, limit 2),
+  // promising a successor that never comes: the ramp alone would carry the arm 0.06 rad further,
+  // past the limit.
+  r = edp.set_joints(near_limit, 400, 399);
   ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
-  ASSERT_EQ(edp.query().type, ReplyType::data);
+  r = edp.query();
+  ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   std::this_thread::sleep_for(std::chrono::milliseconds(600));
   EXPECT_EQ(edp.servo_->lost_successors(), 1);
   EXPECT_TRUE(edp.servo_->stopped());
@@ -329,4 +355,221 @@ TEST(EdpSafety, StoppingRampNeverLeavesALimit) {
   const double reached = sync[1] - now.desired[1];
   EXPECT_NEAR(reached, inside, 0.01);
   std::printf("limit at %.4f rad along the path; stopped at %.4f rad\n", inside, reached);
+}
+
+// The acceleration limits through the real command interpreter and servo loop: a macro-step that
+// would need more than a joint's acceleration limit is refused before it starts (error
+// too_abrupt, naming joint, value, unit and limit) whichever way its target was given; one
+// within the limits runs with every servo step inside them and ends exactly at its target.
+
+namespace {
+
+/// The largest |acceleration| (second difference / period^2) and |velocity| of each joint over
+/// the servo steps of `trace` from cycle `from` on, each checked against the joint's limits.
+struct Peaks {
+  std::vector<double> acceleration, velocity;
+};
+Peaks check_trace_within_limits(const std::vector<TraceSample>& trace, std::int64_t from,
+                                const RobotModel& model) {
+  Peaks p{std::vector<double>(model.axes()), std::vector<double>(model.axes())};
+  int checked = 0;
+  for (std::size_t i = 2; i < trace.size(); ++i) {
+    if (trace[i - 2].cycle < from) continue;
+    ++checked;
+    for (std::size_t j = 0; j < model.axes(); ++j) {
+      const double v = (trace[i].desired[j] - trace[i - 1].desired[j]) / kPeriod;
+      const double before = (trace[i - 1].desired[j] - trace[i - 2].desired[j]) / kPeriod;
+      const double a = (v - before) / kPeriod;
+      EXPECT_LE(std::abs(a), model.max_acceleration[j] * (1 + 2e-6))
+          << "joint " << j << " cycle " << trace[i].cycle;
+      EXPECT_LE(std::abs(v), model.max_velocity[j] * (1 + 2e-6))
+          << "joint " << j << " cycle " << trace[i].cycle;
+      p.acceleration[j] = std::max(p.acceleration[j], std::abs(a));
+      p.velocity[j] = std::max(p.velocity[j], std::abs(v));
+    }
+  }
+  EXPECT_GT(checked, 10) << "the trace holds no motion";
+  return p;
+}
+
+/// Checks that the desired pose stayed where it was at cycle `from` (the robot did not move).
+void expect_held(const std::vector<TraceSample>& trace, std::int64_t from) {
+  const TraceSample* first = nullptr;
+  int held = 0;
+  for (const auto& t : trace) {
+    if (t.cycle < from) continue;
+    if (!first) first = &t;
+    for (std::size_t j = 0; j < t.desired.size(); ++j)
+      EXPECT_EQ(t.desired[j], first->desired[j]) << "joint " << j << " moved at cycle " << t.cycle;
+    ++held;
+  }
+  EXPECT_GT(held, 10);
+}
+
+void expect_too_abrupt(const Reply& r, const std::string& joint) {
+  EXPECT_EQ(r.type, ReplyType::error);
+  EXPECT_EQ(r.error_code, error_code::too_abrupt) << r.error_text;
+  EXPECT_NE(r.error_text.find(joint + " would accelerate at "), std::string::npos)
+      << r.error_text;
+  EXPECT_NE(r.error_text.find(" rad/s^2, above its limit of "), std::string::npos)
+      << r.error_text;
+}
+
+}  // namespace
+
+TEST(EdpAcceleration, AJointSetFromStandstillAtTheVelocityLimitIsRefusedAndNothingMoves) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const std::int64_t from = edp.servo_->latest().cycle;
+  // The column to 1.5 rad/s (its velocity limit) times 20 ms in 10 steps, from rest to rest:
+  // 4 * 1.5 / 0.02 = 300 rad/s^2 against a limit of 3; 100 steps would do (2 sqrt(0.03 / 3)).
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  q[0] = edp.model_.max_velocity[0] * 10 * kPeriod;
+  ASSERT_EQ(shortest_rest_to_rest_steps(q[0], edp.model_.max_velocity[0],
+                                        edp.model_.max_acceleration[0], kPeriod),
+            100);
+  ASSERT_EQ(edp.set_joints(q, 10, 11).type, ReplyType::acknowledge);
+  const Reply r = edp.query();
+  expect_too_abrupt(r, "joint 0");
+  EXPECT_EQ(r.error_text,
+            "SET refused: joint 0 would accelerate at 300.000 rad/s^2, above its limit of 3.000 "
+            "rad/s^2 (from rest at 0.0000 to rest at 0.0300 rad in 10 steps of 2.0 ms; it needs "
+            "at least 100 steps); the robot holds");
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  expect_held(edp.servo_->trace(), from);
+  EXPECT_TRUE(edp.servo_->stopped());
+  // The same move in the steps the refusal names is accepted and ends at its target.
+  ASSERT_EQ(edp.set_joints(q, 100, 101).type, ReplyType::acknowledge);
+  const Reply ok = edp.query();
+  ASSERT_EQ(ok.type, ReplyType::data) << ok.error_text;
+  EXPECT_EQ(ok.desired_joints[0], q[0]);
+}
+
+TEST(EdpAcceleration, TheShortestRestToRestMoveKeepsEveryServoStepWithinTheLimits) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  const std::int64_t from = edp.servo_->latest().cycle;
+  // The column 0.5 rad (limited by its acceleration: 409 steps), then the wrist roll 1.2 rad
+  // (limited by its velocity: 400 steps), each in the fewest steps
+  // edp::shortest_rest_to_rest_steps allows.
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  for (const auto& [joint, distance] : {std::pair<std::size_t, double>{0, 0.5}, {4, 1.2}}) {
+    q[joint] += distance;
+    const int steps = shortest_rest_to_rest_steps(distance, edp.model_.max_velocity[joint],
+                                                  edp.model_.max_acceleration[joint], kPeriod);
+    const Reply accepted = edp.set_joints(q, steps, steps + 1);
+    ASSERT_EQ(accepted.type, ReplyType::acknowledge) << accepted.error_text;
+    const Reply r = edp.query();
+    ASSERT_EQ(r.type, ReplyType::data) << "joint " << joint << ": " << r.error_text;
+    for (std::size_t j = 0; j < q.size(); ++j)
+      EXPECT_EQ(r.desired_joints[j], q[j]) << "joint " << j << " did not end at its target";
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const Peaks p = check_trace_within_limits(edp.servo_->trace(), from, edp.model_);
+  std::printf("peaks: column %.4f rad/s^2 %.4f rad/s, wrist roll %.4f rad/s^2 %.4f rad/s\n",
+              p.acceleration[0], p.velocity[0], p.acceleration[4], p.velocity[4]);
+  // The limit that binds is reached (the motion is the shortest), not only respected.
+  EXPECT_GT(p.acceleration[0], 0.97 * edp.model_.max_acceleration[0]);
+  EXPECT_GT(p.velocity[4], 0.97 * edp.model_.max_velocity[4]);
+  EXPECT_EQ(edp.servo_->latest().desired[0], q[0]);
+  EXPECT_EQ(edp.servo_->latest().desired[4], q[4]);
+}
+
+TEST(EdpAcceleration, AReversalIsRefusedAndTheMovingRobotIsBroughtToRestWithinItsLimits) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  const std::int64_t from = edp.servo_->latest().cycle;
+  // The column from rest to +0.9 rad/s in one macro-step of 550 steps (it accelerates at
+  // 2.45 rad/s^2 to 1.35 rad/s half way and ends at its mean velocity, as it promises a
+  // successor), then a macro-step back at -0.9 rad/s: 2 * 1.8 / 0.02 = 180 rad/s^2.
+  std::vector<double> q = edp.model_.synchro_joint_positions;
+  const double start = q[0];
+  q[0] = start + 0.9 * 550 * kPeriod;
+  const double forward_end = q[0];
+  ASSERT_EQ(edp.set_joints(q, 550, 547).type, ReplyType::acknowledge);
+  const Reply moving = edp.query();
+  ASSERT_EQ(moving.type, ReplyType::data) << moving.error_text;
+  q[0] -= 0.9 * 10 * kPeriod;
+  ASSERT_EQ(edp.set_joints(q, 10, 7).type, ReplyType::acknowledge);
+  const Reply r = edp.query();
+  expect_too_abrupt(r, "joint 0");
+  EXPECT_NE(r.error_text.find("above its limit of 3.000 rad/s^2 (from 0.9000 rad/s to a mean of "
+                              "-0.9000 rad/s in 10 steps of 2.0 ms)"),
+            std::string::npos)
+      << r.error_text;
+  EXPECT_NE(r.error_text.find("; the robot is brought to rest within its acceleration limits"),
+            std::string::npos)
+      << r.error_text;
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_TRUE(edp.servo_->stopped());
+  EXPECT_EQ(edp.servo_->lost_successors(), 0);
+  const auto trace = edp.servo_->trace();
+  const Peaks p = check_trace_within_limits(trace, from, edp.model_);
+  EXPECT_GT(p.velocity[0], 1.3);
+  // It stopped on its way (never turned back), 0.9^2 / 6 = 0.135 rad past the forward target,
+  // and stands still.
+  double previous = start;
+  for (const auto& t : trace) {
+    if (t.cycle < from) continue;
+    EXPECT_GE(t.desired[0], previous) << "turned back at cycle " << t.cycle;
+    previous = t.desired[0];
+  }
+  EXPECT_NEAR(previous - forward_end, 0.9 * 0.9 / 6.0, 0.01);
+  // The column's velocity in the servo steps around the refusal.
+  for (std::size_t i = 1; i < trace.size(); ++i)
+    if (trace[i].cycle >= from && trace[i - 1].desired[0] < forward_end &&
+        trace[i].desired[0] >= forward_end)
+      for (std::size_t k = i - 1; k <= i + 3 && k < trace.size(); ++k)
+        std::printf("cycle %lld: column at %.6f rad, %.4f rad/s\n",
+                    static_cast<long long>(trace[k].cycle), trace[k].desired[0],
+                    (trace[k].desired[0] - trace[k - 1].desired[0]) / kPeriod);
+  const auto v = edp.velocities(trace.back().cycle - 20);
+  for (const auto& s : v) EXPECT_EQ(s[0], 0.0) << "not at rest";
+}
+
+TEST(EdpAcceleration, RelativeAndCartesianMovesFromStandstillAreRefusedTheSameWay) {
+  Edp edp("mujoco");
+  ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const std::int64_t from = edp.servo_->latest().cycle;
+  // RELATIVE: the column +0.03 rad in 10 steps from rest.
+  Reply r = edp.exec(test::set_joints_instruction({0.03, 0, 0, 0, 0}, 10, 11,
+                                                  MotionType::relative));
+  ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
+  r = edp.query();
+  expect_too_abrupt(r, "joint 0");
+  EXPECT_NE(r.error_text.find("(from rest at 0.0000 to rest at 0.0300 rad in 10 steps of 2.0 ms; "
+                              "it needs at least 100 steps); the robot holds"),
+            std::string::npos)
+      << r.error_text;
+  // XYZ_EULER_ZYZ: the tool 2 mm along x in 10 steps from rest.
+  Instruction get;
+  get.type = InstructionType::get;
+  get.get = item::arm;
+  get.get_arm_type = ArmRepresentation::xyz_euler_zyz;
+  ASSERT_EQ(edp.exec(get).type, ReplyType::acknowledge);
+  const Reply here = edp.query();
+  ASSERT_EQ(here.type, ReplyType::data) << here.error_text;
+  ASSERT_EQ(here.arm.size(), 6U);
+  Instruction cartesian = test::set_joints_instruction(here.arm, 10, 11);
+  cartesian.set_arm_type = ArmRepresentation::xyz_euler_zyz;
+  cartesian.arm[0] += 0.002;
+  r = edp.exec(cartesian);
+  ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
+  r = edp.query();
+  EXPECT_EQ(r.error_code, error_code::too_abrupt) << r.error_text;
+  EXPECT_NE(r.error_text.find(" would accelerate at "), std::string::npos) << r.error_text;
+  EXPECT_NE(r.error_text.find(" rad/s^2, above its limit of "), std::string::npos)
+      << r.error_text;
+  EXPECT_NE(r.error_text.find("; the robot holds"), std::string::npos) << r.error_text;
+  std::printf("refused: %s\n", r.error_text.c_str());
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  expect_held(edp.servo_->trace(), from);
+  // The same Cartesian move in enough steps is accepted.
+  cartesian.motion_steps = 200;
+  cartesian.value_in_step_no = 201;
+  ASSERT_EQ(edp.exec(cartesian).type, ReplyType::acknowledge);
+  r = edp.query();
+  EXPECT_EQ(r.type, ReplyType::data) << r.error_text;
 }

@@ -33,6 +33,34 @@ Reply CommandInterpreter::error(int code, const std::string& text) {
   return r;
 }
 
+Reply CommandInterpreter::execute(const Instruction& in, const std::string& client) {
+  owner_changed_ = false;
+  const auto now = std::chrono::steady_clock::now();
+  if (client != owner_) {
+    const bool at_rest = servo_.stopped();
+    const double silent_s = std::chrono::duration<double>(now - owner_seen_).count();
+    if (!owner_.empty() && !(at_rest && (in.take_over || silent_s >= owner_lease_s_))) {
+      return error(
+          error_code::not_owner,
+          fmt::format("{} refused: this EDP is driven by '{}' (its last instruction {:.1f} s ago); "
+                      "{}",
+                      to_string(in.type), owner_, silent_s,
+                      at_rest ? fmt::format("take it over (take_over) or wait until it has been "
+                                            "silent for {:.1f} s",
+                                            owner_lease_s_)
+                              : std::string("the robot is moving: wait until it is at rest")));
+    }
+    owner_changed_ = true;
+    owner_ = client;
+    due_ = Due::nothing;  // a QUERY due to the previous owner is forgotten
+  } else if (in.take_over && in.type != InstructionType::query && servo_.stopped()) {
+    // The owner itself after a timeout: whatever QUERY it left due is forgotten.
+    due_ = Due::nothing;
+  }
+  owner_seen_ = now;
+  return execute(in);
+}
+
 Reply CommandInterpreter::execute(const Instruction& in) {
   Reply reply;
   // Said of the macro-steps already queued, whatever becomes of this instruction.

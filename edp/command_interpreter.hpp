@@ -15,6 +15,9 @@
 ///   reading (docs/edp.md, "Lookahead").
 /// - Any other instruction while a QUERY is due is refused with "query expected"; a QUERY with
 ///   nothing due is refused with "query unexpected".
+/// - One owner at a time (execute with a client name): instructions of any other client are
+///   refused (`not_owner`) unless it takes over (`take_over`) while the robot is at rest, or the
+///   owner has been silent for the lease with the robot at rest.
 /// - Motion before SYNCHRO is refused ("not synchronised"); a second SYNCHRO is refused
 ///   ("already synchronised").
 /// - A SET applies MODEL first, then TOOL, then ARM (so an arm target in the same SET uses the new
@@ -25,6 +28,7 @@
 ///   is interpolated linearly in joint coordinates, and every interpolation step is checked
 ///   against the joint (and linkage) and motor limits before anything moves.
 
+#include <chrono>
 #include <optional>
 #include <string>
 
@@ -43,6 +47,16 @@ class CommandInterpreter {
   /// Executes one instruction and returns the reply to send. Blocks for a QUERY until its
   /// reading is ready. Never throws: refusals become ERROR replies.
   Reply execute(const Instruction& instruction);
+  /// The same, from client `client` (its endpoint name): only the EDP's owner is obeyed. The
+  /// first client becomes the owner; another one takes over with `take_over` while the robot is
+  /// at rest, or without it once the owner has been silent for `owner_lease_s` with the robot at
+  /// rest (a client that died or gave up). A change of owner forgets the QUERY due to the old one.
+  Reply execute(const Instruction& instruction, const std::string& client);
+  /// The client whose instructions are obeyed ("" before the first).
+  [[nodiscard]] const std::string& owner() const { return owner_; }
+  /// Set when the last execute() changed the owner (for the EDP's report).
+  [[nodiscard]] bool owner_changed() const { return owner_changed_; }
+  void set_owner_lease(double seconds) { owner_lease_s_ = seconds; }
 
  private:
   enum class Due { nothing, arm_reading, synchro, get };
@@ -67,6 +81,10 @@ class CommandInterpreter {
   ArmRepresentation due_arm_type_ = ArmRepresentation::joint;
   std::uint8_t due_get_ = 0;
   ArmRepresentation due_tool_type_ = ArmRepresentation::frame;
+  std::string owner_;
+  std::chrono::steady_clock::time_point owner_seen_{};
+  double owner_lease_s_ = 2.0;
+  bool owner_changed_ = false;
 };
 
 }  // namespace mrroc::edp

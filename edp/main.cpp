@@ -27,6 +27,8 @@ namespace {
 
 /// How often the EDP sends its servo timing statistics to the SRP.
 constexpr std::chrono::seconds kTimingReportPeriod{10};
+/// Requests older than this when they arrive are dropped (ServerOptions::max_request_age).
+constexpr std::chrono::milliseconds kRequestDeadline{1000};
 /// How often the EDP broadcasts its robot_state_t.
 constexpr std::chrono::milliseconds kStatePeriod{20};
 /// Longest a stop request waits for a moving robot to reach a standstill (below the launcher's
@@ -122,8 +124,12 @@ int run(const std::string& config_path, const std::string& robot_name) {
           reporter.report(Severity::warning, code, text);
         });
     edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
+    // A request that took longer than kRequestDeadline to arrive is dropped, not executed: its
+    // client has given up on it or re-sent it (every attempt carries its own send time).
+    comm::ServerOptions server_options;
+    server_options.max_request_age = kRequestDeadline;
     comm::EdpServer server(bus, process, channels::edp_command(robot.name),
-                           channels::edp_reply(robot.name));
+                           channels::edp_reply(robot.name), server_options);
 
     std::this_thread::sleep_for(std::chrono::milliseconds(20));  // let the loop settle its policy
     // The EDP starts stopped and waits (at most EstopListener::kStateWait) for the stop's state:
@@ -159,6 +165,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
     bool estop_reported = servo.emergency_stopped();  // the ready line said so
     std::int64_t lost_reported = 0;
     std::int64_t planned_reported = 0;
+    std::uint64_t expired_reported = 0;
     std::thread commands([&] {
       while (!stop_requested()) {
         auto in = server.wait_request(std::chrono::milliseconds(100));
@@ -201,7 +208,15 @@ int run(const std::string& config_path, const std::string& robot_name) {
           in->responder.reply(r);
           continue;
         }
-        const edp::Reply reply = interpreter.execute(*in->request);
+        const edp::Reply reply = interpreter.execute(*in->request, in->responder.client());
+        if (interpreter.owner_changed())
+          reporter.info(fmt::format("driven by '{}' from now on", interpreter.owner()));
+        if (const std::uint64_t expired = server.stats().expired; expired != expired_reported) {
+          reporter.warning(fmt::format("{} request(s) arrived more than {} ms after they were sent "
+                                       "and were dropped, not executed",
+                                       expired - expired_reported, kRequestDeadline.count()));
+          expired_reported = expired;
+        }
         if (reply.type == edp::ReplyType::error)
           reporter.report(Severity::warning, reply.error_code, reply.error_text);
         else if (in->request->type == edp::InstructionType::synchro)

@@ -365,8 +365,17 @@ void ServoLoop::start_next_macro_step() {
     refused_first_ = next.id;
     refused_last_ = queue_.back().id;
     drop_queue();
-    if (moving) mode_ = Mode::stopping;
     end_velocity_.fill(0.0);
+    if (moving) {
+      // The ramp's first step is taken in this cycle, from the velocity of the last one.
+      mode_ = Mode::stopping;
+      const RampStep r = stopping_ramp_step(
+          std::span<const double>(commanded_velocity_.data(), axes_),
+          std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_), model_, period_s_,
+          guard_);
+      if (r.at_limit) ++limit_stops_;
+      if (!r.moving) mode_ = Mode::hold;
+    }
   } else {
     current_ = queue_.pop();
     current_->start = desired_;

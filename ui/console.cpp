@@ -778,11 +778,17 @@ struct Console::Impl {
     if (!jog_lock.owns_lock())
       throw ApiError(409, fmt::format("jogging refused: a jog of {} is in progress", robot));
     const auto a = static_cast<std::size_t>(axis);
-    // One macro-step at a constant speed of a fraction of the axis' velocity limit.
-    const double speed = options.jog_velocity_fraction * view->model.max_velocity[a];
+    // One macro-step from rest to rest; the EDP accelerates uniformly over its first half and
+    // decelerates over its second (docs/edp.md, "Acceleration"), so the velocity peaks at 2 d / T
+    // and the acceleration is 4 d / T^2: T keeps both within jog_velocity_fraction of the axis'
+    // limits (and lasts at least 0.1 s).
+    const double fraction = options.jog_velocity_fraction;
+    const double speed = fraction * view->model.max_velocity[a];
+    const double acceleration = fraction * view->model.max_acceleration[a];
     const double period = view->servo_period_s;
-    const int steps =
-        std::max(static_cast<int>(std::ceil(std::max(step / speed, 0.1) / period)), 1);
+    const double duration =
+        std::max({2.0 * step / speed, 2.0 * std::sqrt(step / acceleration), 0.1});
+    const int steps = std::max(static_cast<int>(std::ceil(duration / period)), 1);
     ecp::Robot& edp = *view->jog;
     edp::Instruction& c = edp.image().command;
     c = edp::Instruction{};
@@ -797,6 +803,9 @@ struct Console::Impl {
     const std::string joint = view->model.joint_names[a];
     SteadyClock::time_point jog_done{};
     try {
+      // The console drives the EDP only after an explicit take-over, which the EDP accepts only
+      // while the robot is at rest (the MP was checked to be idle above).
+      edp.take_over_next();
       edp.execute();
       jog_done = SteadyClock::now();
     } catch (const ecp::EdpRefused& e) {

@@ -64,6 +64,7 @@ mrroc_lcm::edp_instruction_t encode(const edp::Instruction& in) {
   m.output_values = static_cast<std::int32_t>(in.output_values);
   m.with_query = in.with_query ? 1 : 0;
   m.no_successor = in.no_successor ? 1 : 0;
+  m.take_over = in.take_over ? 1 : 0;
   return m;
 }
 
@@ -96,6 +97,9 @@ edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   if (m.no_successor != 0 && m.no_successor != 1)
     throw DecodeError(fmt::format("field 'no_successor' = {} is not 0 or 1", m.no_successor));
   in.no_successor = m.no_successor == 1;
+  if (m.take_over != 0 && m.take_over != 1)
+    throw DecodeError(fmt::format("field 'take_over' = {} is not 0 or 1", m.take_over));
+  in.take_over = m.take_over == 1;
   return in;
 }
 

@@ -15,7 +15,21 @@ Robot::Robot(comm::Bus& bus, const std::string& process_name, const std::string&
               channels::edp_reply(robot_name), options) {}
 
 edp::Reply Robot::exchange(const edp::Instruction& instruction) {
-  const edp::Reply reply = client_.call(instruction);
+  edp::Reply reply;
+  try {
+    if (take_over_next_ && instruction.type != edp::InstructionType::query) {
+      edp::Instruction claiming = instruction;
+      claiming.take_over = true;
+      reply = client_.call(claiming);
+    } else {
+      reply = client_.call(instruction);
+    }
+  } catch (const TimeoutError&) {
+    take_over_next_ = true;  // whatever the EDP did with it, the next instruction starts afresh
+    throw;
+  }
+  if (!(reply.type == edp::ReplyType::error && reply.error_code == edp::error_code::not_owner))
+    take_over_next_ = false;
   if (reply.type == edp::ReplyType::error)
     throw EdpRefused(reply.error_code, fmt::format("EDP {} refused {}: {}", name_,
                                                    edp::to_string(instruction.type),

@@ -48,6 +48,10 @@ struct ClientOptions {
 
 struct ServerOptions {
   LinkFaults faults;  ///< injected on this server's outgoing replies
+  /// Requests sent longer ago than this (by their header.utime; 0: no limit) are dropped, not
+  /// executed: their client gave up or re-sent them since (each attempt carries a fresh time).
+  /// Across hosts this needs clocks synchronised well within it.
+  std::chrono::milliseconds max_request_age{0};
 };
 
 /// Counters of one endpoint (for tests, SRP and benchmarks).
@@ -57,6 +61,7 @@ struct LinkStats {
   std::uint64_t duplicates = 0;         ///< server: repeated sequences answered from the cache
   std::uint64_t in_progress = 0;        ///< server: IN_PROGRESS replies sent
   std::uint64_t stale = 0;              ///< dropped: old sequences / replies nobody waits for
+  std::uint64_t expired = 0;            ///< server: dropped, sent longer ago than max_request_age
   std::uint64_t malformed = 0;          ///< dropped: could not be decoded
   std::uint64_t unauthenticated = 0;    ///< dropped: no or wrong tag, or replayed (auth.hpp)
 };
@@ -317,6 +322,7 @@ class Server {
          Handler handler = {}, ServerOptions options = {})
       : bus_(bus),
         handler_(std::move(handler)),
+        max_request_age_us_(options.max_request_age.count() * 1000),
         state_(std::make_shared<State>(
             &bus, std::move(name), std::move(reply_channel),
             options.faults.active() ? options.faults : link_faults_from_environment())) {
@@ -372,6 +378,11 @@ class Server {
     const std::string& client = request->header.sender;
     const std::int64_t seq = request->header.seq;
     std::optional<Rep> resend;
+    if (max_request_age_us_ > 0 && now_utime() - request->header.utime > max_request_age_us_) {
+      std::lock_guard lock(state_->mutex);
+      ++state_->stats.expired;
+      return;
+    }
     {
       std::lock_guard lock(state_->mutex);
       auto& peer = state_->peers[client];
@@ -415,6 +426,7 @@ class Server {
 
   Bus& bus_;
   Handler handler_;
+  std::int64_t max_request_age_us_ = 0;
   std::shared_ptr<State> state_;
   lcm::Subscription* subscription_ = nullptr;
   std::mutex queue_mutex_;

@@ -80,6 +80,10 @@ class Robot {
   /// successor. The image is left as it is. Never throws: a failure only leaves the EDP to
   /// report a lost successor.
   void announce_no_successor() noexcept;
+  /// The next instruction takes the EDP over (edp_instruction_t.take_over; docs/edp.md, "One
+  /// owner at a time"): the EDP then obeys this client only, and forgets a QUERY that was due.
+  /// Set by the constructor and after a timeout; the console sets it before every jog.
+  void take_over_next() { take_over_next_ = true; }
   /// SYNCHRO + QUERY unless the EDP is already synchronised.
   void synchronise();
 
@@ -111,6 +115,7 @@ class Robot {
   std::condition_variable pause_cv_;
   bool paused_ = false;
   bool separate_query_ = false;
+  bool take_over_next_ = true;
 };
 
 }  // namespace mrroc::ecp

@@ -72,6 +72,9 @@ struct Instruction {
   /// No macro-step follows those already sent (the task pauses or stops on purpose): the
   /// stopping ramp at the end of the queue is a planned stop, not a lost successor.
   bool no_successor = false;
+  /// The sender takes the EDP over while the robot is at rest (docs/edp.md, "One owner at a
+  /// time").
+  bool take_over = false;
 };
 
 enum class ReplyType : std::int8_t { acknowledge = 1, data = 2, error = 3 };
@@ -93,6 +96,7 @@ inline constexpr int servo_overrun = 11;     ///< a servo cycle woke more than o
 inline constexpr int unauthenticated = 12;   ///< a message without a valid HMAC or replayed (SRP report)
 inline constexpr int too_fast = 13;          ///< a macro-step would exceed a joint's velocity limit
 inline constexpr int too_abrupt = 14;        ///< a macro-step would exceed a joint's acceleration limit
+inline constexpr int not_owner = 15;         ///< another client drives this EDP
 }  // namespace error_code
 
 struct Reply {

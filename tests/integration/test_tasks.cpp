@@ -39,7 +39,9 @@ class ThrowingGenerator : public ecp::Generator {
     c.motion_steps = 10;
     c.value_in_step_no = 9;
     c.arm = start_;
-    c.arm[0] += 0.002 * step_;  // 0.1 rad/s
+    // Up to 0.1 rad/s at 1 rad/s^2 (the EDP refuses a jump to 0.1 rad/s from rest), then on.
+    const double t = 0.02 * step_;
+    c.arm[0] += t < 0.1 ? 0.5 * t * t : 0.005 + 0.1 * (t - 0.1);
     return true;
   }
 
@@ -65,6 +67,10 @@ class Fail : public ecp::EcpTask {
     const int run = ++runs;
     if (run > times_) return;
     context_.robot.synchronise();
+    // A previous run ended mid-motion: the macro-steps its EDP had queued (up to 8 of 20 ms)
+    // and its stopping ramp (about 30 ms) end before this one starts from where the robot stands.
+    std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    context_.robot.read_state();
     ThrowingGenerator generator(class_, run);
     ecp::Move(context_.robot, {}, generator);
   }

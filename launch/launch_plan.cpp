@@ -105,8 +105,12 @@ std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const Plan
     add("emu", config.emulator->options, {exe("mrroc-axis-emu"), "--config", cfg});
   for (const auto& v : config.vsps)
     add("vsp/" + v.name, v.options, {exe("mrroc-vsp"), "--config", cfg, "--vsp", v.name});
-  for (const auto& r : config.robots)
+  for (const auto& r : config.robots) {
     add("edp/" + r.name, r.edp.options, {exe("mrroc-edp"), "--config", cfg, "--robot", r.name});
+    if (r.edp.plugin == "can")
+      plan.back().restart_needs_ack =
+          fmt::format("plugin 'can', drives on {}", r.edp.params.get_string("bus", "?"));
+  }
   for (const auto& r : config.robots)
     add("ecp/" + r.name, r.ecp.options, {exe("mrroc-ecp"), "--config", cfg, "--robot", r.name});
   if (config.ui.web) add("ui", config.ui.options, {exe("mrroc-ui"), "serve", "--config", cfg});

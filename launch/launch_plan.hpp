@@ -24,6 +24,10 @@ struct PlannedProcess {
   bool reports_ready = true;
   /// The process' own command line (before host templating).
   std::vector<std::string> command;
+  /// Not empty for an EDP on CiA 402 drives ([robot.edp] plugin = "can"): what drives it runs,
+  /// e.g. "plugin 'can', drives on socketcan:can0". Its restart policy then waits, after each
+  /// end, for an operator's acknowledgement (`mrroc-ui restart`) before the back-off starts.
+  std::string restart_needs_ack;
   /// What the supervisor runs: the command, for another host wrapped in its start command with
   /// the environment in front (`env NAME=value ... program args`); log file, stop signal and
   /// grace period filled in.

@@ -19,13 +19,20 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "estop_latch.hpp"
 #include "launch_plan.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "mrroc/core/time.hpp"
+#include "mrroc_lcm/launch_command_t.hpp"
+#include "mrroc_lcm/srp_message_t.hpp"
 #include "status_board.hpp"
 #include "supervisor.hpp"
 
@@ -47,6 +54,8 @@ constexpr int kExitInternal = 5;     // the launcher itself failed (e.g. LCM wou
 constexpr double kMaxBackoffS = 30.0;
 /// A process that reports no status counts as ready when it still runs after this.
 constexpr milliseconds kSilentReady{300};
+/// Operator commands to the launcher (launch_command_t; `mrroc-ui restart` sends them).
+constexpr const char* kCommandChannel = "mrroc/launch/command";
 
 fs::path own_directory() {
   std::error_code ec;
@@ -134,6 +143,49 @@ struct Runtime {
   std::optional<Clock::time_point> restart_at;      // in back-off until then
   std::optional<Clock::time_point> ready_deadline;  // restarted, waiting for ready
   bool ended = false;                               // ended and will not be restarted
+  bool held = false;  // its restart waits for an operator's acknowledgement (state "held")
+};
+
+/// Restart acknowledgements from `mrroc-ui restart` (bus thread in, main thread out).
+class AckInbox {
+ public:
+  struct Ack {
+    std::string process;
+    std::string sender;
+  };
+  AckInbox(comm::Bus& bus, std::string set_name) : bus_(bus), set_name_(std::move(set_name)) {
+    subscription_ = bus_.lcm().subscribeFunction<AckInbox*>(
+        kCommandChannel,
+        +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, AckInbox* self) {
+          mrroc_lcm::launch_command_t m;
+          if (!comm::detail::decode_received(buffer, m)) {
+            comm::detail::report_malformed(self->bus_, channel,
+                                           static_cast<int>(buffer->data_size));
+            return;
+          }
+          if (m.set_name != self->set_name_ || m.command != mrroc_lcm::launch_command_t::RESTART)
+            return;
+          if (!comm::detail::authentic(self->bus_, m, channel, self->dropped_)) return;
+          std::lock_guard lock(self->mutex_);
+          self->acks_.push_back({m.process, m.header.sender});
+        },
+        this);
+  }
+  ~AckInbox() { bus_.lcm().unsubscribe(subscription_); }
+  AckInbox(const AckInbox&) = delete;
+  AckInbox& operator=(const AckInbox&) = delete;
+  std::vector<Ack> take() {
+    std::lock_guard lock(mutex_);
+    return std::exchange(acks_, {});
+  }
+
+ private:
+  comm::Bus& bus_;
+  std::string set_name_;
+  lcm::Subscription* subscription_ = nullptr;
+  std::mutex mutex_;
+  std::vector<Ack> acks_;
+  std::uint64_t dropped_ = 0;
 };
 
 /// The plan; `detailed` adds a line per process with its group, host, restart policy, stop
@@ -149,8 +201,11 @@ void print_plan(const ProcessSetConfig& config, const std::vector<PlannedProcess
     if (!detailed) continue;
     std::string restart = to_string(p.options.restart);
     if (p.options.restart != RestartPolicy::never)
-      restart += fmt::format(" (at most {}, back-off from {:.1f} s)", p.options.max_restarts,
-                             p.options.restart_backoff_s);
+      restart += fmt::format(" (at most {}, back-off from {:.1f} s{})", p.options.max_restarts,
+                             p.options.restart_backoff_s,
+                             p.restart_needs_ack.empty()
+                                 ? ""
+                                 : ", each after an operator's acknowledgement");
     std::cout << fmt::format(
         "     group {}, host {}, restart {}, {}, stop {} then SIGKILL after {:.1f} s, log {}\n",
         p.group, p.host, p.name == "mp" ? "never (its end is the end of the task)" : restart,
@@ -233,6 +288,21 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   launch::EstopLatch estop_latch(bus, robot_names,
                                  [&](const std::string& line) { supervisor.log(line); });
   launch::StatusBoard board(bus, std::move(initial));
+  AckInbox acks(bus, config.name);
+  const std::string ui_config = fs::absolute(config.file).lexically_normal().string();
+  // A warning for the SRP (the operator's view), besides the launcher's own output.
+  auto srp_warning = [&](const std::string& robot, const std::string& text) {
+    mrroc_lcm::srp_message_t m{};
+    m.header.sender = comm::unique_endpoint_name("launch");
+    m.header.kind = mrroc_lcm::header_t::BROADCAST;
+    m.header.utime = now_utime();
+    m.utime = m.header.utime;
+    m.process = "launch";
+    m.robot = robot;
+    m.severity = mrroc_lcm::srp_message_t::WARNING;
+    m.text = text;
+    comm::publish(bus, channels::srp, m);
+  };
   std::size_t width = 0;
   for (const auto& p : plan) width = std::max(width, p.name.size());
   supervisor.reserve_name_width(width);
@@ -346,6 +416,19 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
         const RestartPolicy policy = p.options.restart;
         const bool wants_restart =
             policy == RestartPolicy::always || (policy == RestartPolicy::on_failure && code != 0);
+        if (wants_restart && rt[i].restarts < p.options.max_restarts &&
+            !p.restart_needs_ack.empty()) {
+          // Drives that a restarted EDP would enable again: only when an operator agrees.
+          rt[i].held = true;
+          board.update(p.name, [](launch::ProcessRow& r) { r.state = "held"; });
+          const std::string text = fmt::format(
+              "{} ({}) ended while the task was running (code {}); not restarted until an "
+              "operator acknowledges: mrroc-ui restart -c {} {}",
+              p.name, p.restart_needs_ack, code, ui_config, p.name);
+          supervisor.log("mrroc-launch: " + text);
+          srp_warning(p.name.substr(p.name.find('/') + 1), text);
+          continue;
+        }
         if (wants_restart && rt[i].restarts < p.options.max_restarts) {
           const double backoff =
               std::min(kMaxBackoffS, p.options.restart_backoff_s * std::pow(2.0, rt[i].restarts));
@@ -377,6 +460,25 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
         }
       }
       if (done) break;
+      for (const auto& ack : acks.take()) {
+        const auto found = index_of(ack.process);
+        if (!found || !rt[*found].held) {
+          supervisor.log(fmt::format(
+              "mrroc-launch: ignored a restart acknowledgement for '{}' from {}: {}", ack.process,
+              ack.sender, found ? "it is not waiting for one" : "no such process in this set"));
+          continue;
+        }
+        const std::size_t i = *found;
+        const PlannedProcess& p = plan[i];
+        rt[i].held = false;
+        const double backoff =
+            std::min(kMaxBackoffS, p.options.restart_backoff_s * std::pow(2.0, rt[i].restarts));
+        rt[i].restart_at = Clock::now() + milliseconds(std::lround(backoff * 1e3));
+        board.update(p.name, [](launch::ProcessRow& r) { r.state = "backoff"; });
+        supervisor.log(fmt::format(
+            "mrroc-launch: {}: restart acknowledged by {}; restart {} of {} in {} ms", p.name,
+            ack.sender, rt[i].restarts + 1, p.options.max_restarts, std::lround(backoff * 1e3)));
+      }
       const auto now = Clock::now();
       for (std::size_t i = 0; i < plan.size() && !done; ++i) {
         const PlannedProcess& p = plan[i];
@@ -431,7 +533,8 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   supervisor.stop_all();
   for (const auto& p : plan)
     board.update(p.name, [](launch::ProcessRow& r) {
-      if (r.pid != 0 || r.state == "running" || r.state == "backoff" || r.state == "starting")
+      if (r.pid != 0 || r.state == "running" || r.state == "backoff" || r.state == "starting" ||
+          r.state == "held")
         r.state = "stopped";
       r.pid = 0;
     });

@@ -1,10 +1,19 @@
 // mrroc-ui: operator commands for a running process set: the emergency stop (engage, release)
 // for every robot or one, task commands to the MP (start, pause, resume, stop, terminate,
-// status), and the web operator console (serve). docs/operating.md.
+// status), the acknowledgement of a held restart to the launcher (restart), and the web operator
+// console (serve). docs/operating.md.
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
 #include <cstdio>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include "console.hpp"
@@ -15,6 +24,9 @@
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/reporter.hpp"
+#include "mrroc/core/time.hpp"
+#include "mrroc_lcm/launch_command_t.hpp"
+#include "mrroc_lcm/launch_status_t.hpp"
 #include "operator.hpp"
 
 namespace {
@@ -26,6 +38,114 @@ constexpr int kExitRefused = 1;  // the MP answered and refused the command
 constexpr int kExitConfig = 2;   // bad command line or config
 constexpr int kExitNoMp = 3;     // no MP answered
 constexpr int kExitUnconfirmed = 4;  // estop / release: a robot did not confirm in time
+// restart: 1 the process is not held for an acknowledgement, 2 it is not in the set,
+// 3 no launcher of the set answered (or it did not confirm in time).
+constexpr int kExitNoLauncher = 3;
+/// Operator commands to the launcher (launch_command_t); launch/main.cpp serves them.
+constexpr const char* kLaunchCommandChannel = "mrroc/launch/command";
+
+/// Acknowledges the restart of `process`, which the launcher holds (state "held", an EDP on
+/// CiA 402 drives), and waits until the launcher's process table shows it released.
+int acknowledge_restart(const std::string& config_path, const std::string& process,
+                        double timeout_s) {
+  const ProcessSetConfig config = load_process_set(config_path);
+  comm::Bus bus(config.lcm_url);
+  comm::enable_auth_from_file(bus, config.auth_key_file);
+  struct Watch {
+    std::mutex mutex;
+    std::condition_variable cv;
+    std::string set_name;
+    std::optional<mrroc_lcm::launch_status_t> latest;
+    std::uint64_t received = 0;  // tables received so far
+  } watch;
+  watch.set_name = config.name;
+  lcm::Subscription* sub = bus.lcm().subscribeFunction<Watch*>(
+      channels::launch_status,
+      +[](const lcm::ReceiveBuffer* buffer, const std::string&, Watch* w) {
+        mrroc_lcm::launch_status_t m;
+        if (m.decode(buffer->data, 0, static_cast<int>(buffer->data_size)) < 0) return;
+        if (m.set_name != w->set_name) return;
+        std::lock_guard lock(w->mutex);
+        w->latest = std::move(m);
+        ++w->received;
+        w->cv.notify_all();
+      },
+      &watch);
+  bus.start();
+  using SteadyClock = std::chrono::steady_clock;
+  const auto deadline =
+      SteadyClock::now() + std::chrono::milliseconds(std::lround(timeout_s * 1e3));
+  struct Row {
+    bool found = false;
+    std::string state;
+  };
+  // `process` in the first table received after the `after`-th one, or nothing by `until`.
+  auto next_row = [&](std::uint64_t after, SteadyClock::time_point until) -> std::optional<Row> {
+    std::unique_lock lock(watch.mutex);
+    if (!watch.cv.wait_until(lock, until, [&] { return watch.received > after; }))
+      return std::nullopt;
+    for (const auto& r : watch.latest->processes)
+      if (r.name == process) return Row{true, r.state};
+    return Row{};
+  };
+  auto received = [&] {
+    std::lock_guard lock(watch.mutex);
+    return watch.received;
+  };
+  const std::string where = fmt::format("set '{}', {}, LCM {}", config.name, config.file.string(),
+                                        comm::resolve_lcm_url(config.lcm_url));
+  int code = 0;
+  const std::optional<Row> before = next_row(0, deadline);
+  if (!before) {
+    std::fprintf(stderr,
+                 "mrroc-ui: no launcher answers on '%s' (%s) within %.1f s: is the set "
+                 "running?\n",
+                 channels::launch_status, where.c_str(), timeout_s);
+    code = kExitNoLauncher;
+  } else if (!before->found) {
+    std::fprintf(stderr, "mrroc-ui: RESTART: '%s' is not a process of %s\n", process.c_str(),
+                 where.c_str());
+    code = kExitConfig;
+  } else if (before->state != "held") {
+    std::fprintf(stderr,
+                 "mrroc-ui: RESTART REFUSED: %s is not waiting for an acknowledgement (state "
+                 "%s); only a process in state 'held' is\n",
+                 process.c_str(), before->state.c_str());
+    code = kExitRefused;
+  } else {
+    mrroc_lcm::launch_command_t m{};
+    m.header.sender = comm::unique_endpoint_name("ui");
+    m.header.kind = mrroc_lcm::header_t::BROADCAST;
+    m.set_name = config.name;
+    m.command = mrroc_lcm::launch_command_t::RESTART;
+    m.process = process;
+    std::optional<Row> after;
+    // Sent again every 250 ms until a table shows the process released (the launcher acts on
+    // the first copy that arrives and ignores the others).
+    for (std::int64_t seq = 1; SteadyClock::now() < deadline; ++seq) {
+      m.header.seq = seq;
+      m.header.utime = now_utime();
+      const std::uint64_t seen = received();
+      comm::publish(bus, kLaunchCommandChannel, m);
+      const auto until = std::min(deadline, SteadyClock::now() + std::chrono::milliseconds(250));
+      for (std::uint64_t n = seen; (after = next_row(n, until)); n = received())
+        if (after->state != "held") break;
+      if (after && after->state != "held") break;
+    }
+    if (after && after->state != "held") {
+      std::printf("mrroc-ui: RESTART of %s acknowledged: the launcher restarts it (state %s)\n",
+                  process.c_str(), after->state.c_str());
+    } else {
+      std::fprintf(stderr,
+                   "mrroc-ui: RESTART of %s not confirmed: the launcher still holds it after "
+                   "%.1f s (%s)\n",
+                   process.c_str(), timeout_s, where.c_str());
+      code = kExitNoLauncher;
+    }
+  }
+  bus.lcm().unsubscribe(sub);
+  return code;
+}
 
 int send_emergency_stop(const std::string& config_path, bool engage, const std::string& robot,
                         const std::string& reason) {
@@ -115,6 +235,10 @@ int main(int argc, char** argv) {
       "                       robot did not confirm; the message names it)\n"
       "  start / pause / resume / stop / terminate / status\n"
       "                       task commands to the MP (exit 1: refused, 3: no MP answers)\n"
+      "  restart PROCESS      acknowledge the restart of a process that the launcher holds\n"
+      "                       for the operator (an EDP on CiA 402 drives, state 'held') and\n"
+      "                       confirm it from the launcher's process table (exit 1: not held,\n"
+      "                       2: no such process, 3: no launcher answers or confirms)\n"
       "  serve                the web operator console (docs/operating.md)"};
   app.require_subcommand(1);
   std::string config;
@@ -145,6 +269,17 @@ int main(int argc, char** argv) {
     sub->add_option("--timeout", timeout_s, "wait at most this long for the MP's answer [s]")
         ->check(CLI::Range(0.25, 60.0));
   }
+  std::string process;
+  CLI::App* restart_cmd = app.add_subcommand(
+      "restart",
+      "acknowledge the restart of PROCESS (e.g. edp/irb6), an EDP on CiA 402 drives that ended "
+      "and that the launcher holds until an operator agrees (state 'held' in 'mrroc-launch "
+      "status'); the launcher then restarts it after its back-off, within max_restarts");
+  restart_cmd->add_option("process", process, "the held process, e.g. edp/irb6")->required();
+  restart_cmd->add_option("-c,--config", config, "process-set config file (TOML)")->required();
+  restart_cmd
+      ->add_option("--timeout", timeout_s, "wait at most this long for the launcher's table [s]")
+      ->check(CLI::Range(0.25, 60.0));
   CLI::App* serve_cmd = app.add_subcommand(
       "serve",
       "web operator console on [ui] bind:port (default 127.0.0.1:8080); SIGINT or "
@@ -157,6 +292,7 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("estop") || app.got_subcommand("release"))
       return send_emergency_stop(config, app.got_subcommand("estop"), robot, reason);
+    if (app.got_subcommand("restart")) return acknowledge_restart(config, process, timeout_s);
     if (app.got_subcommand("serve")) {
       install_stop_handlers();
       return serve(config, bind, port);

@@ -1,5 +1,6 @@
 // Restart policies, required processes, the status table and log files on a real process set
-// (SRP, EDP with MuJoCo, ECP, MP of tests/operator/configs/long-irb6.toml).
+// (SRP, EDP with MuJoCo, ECP, MP of tests/operator/configs/long-irb6.toml); an EDP on emulated
+// CiA 402 drives (plugin "can", mrroc-axis-emu) restarted only after `mrroc-ui restart`.
 #include <signal.h>
 
 #include <regex>
@@ -201,6 +202,97 @@ TEST(LaunchRestart, BackoffDoublesAndUsedUpRestartsStopTheSet) {
           "srp ended while the task was running (code 137) and is not restarted (all 2 restarts "
           "(max_restarts) used); it is required: stopping the set"))
       << launch.output();
+  EXPECT_EQ(leftovers(), "");
+  fs::remove_all(dir);
+}
+
+TEST(LaunchRestart, AnEdpOnCanDrivesIsRestartedOnlyAfterTheOperatorAcknowledges) {
+  const fs::path dir = temp_dir("canack");
+  std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
+  auto replace = [&](const std::string& what, const std::string& with) {
+    const auto at = text.find(what);
+    ASSERT_NE(at, std::string::npos) << what;
+    text.replace(at, what.size(), with);
+  };
+  replace("\"../../../robots/irb6\"", "\"" + (kSource / "robots/irb6").string() + "\"");
+  replace("task = \"start_and_wait\"", "task = \"start_and_wait\"\nstart = \"operator\"");
+  replace("plugin = \"mujoco\"", "plugin = \"can\"");
+  // The drives of configs/demo-irb6-can.toml, emulated on its scene.
+  replace("servo_period_ms = 2.0",
+          "servo_period_ms = 2.0\nrestart = \"on-failure\"\nmax_restarts = 2\n"
+          "restart_backoff_s = 0.2\n\n[robot.edp.params]\nbus = \"virtual:irb6\"\n"
+          "nodes = [1, 2, 3, 4, 5]\ncounts_per_unit = 100000\nsilent_cycles = 25\n");
+  const fs::path config = dir / "can.toml";
+  std::ofstream(config) << "[emulator]\nscene = \""
+                        << (kSource / "configs/scenes/irb6.toml").string() << "\"\n\n"
+                        << text;
+  const std::string ui = (kBin / "mrroc-ui").string();
+
+  const auto [check_code, check] = run({launcher(), "--check", config.string()});
+  EXPECT_EQ(check_code, 0) << check;
+  EXPECT_TRUE(has(check, "back-off from 0.2 s, each after an operator's acknowledgement"))
+      << check;
+
+  Background launch({launcher(), config.string()});
+  ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
+  const pid_t old_pid = launch.pid_of("edp/irb6");
+  ASSERT_GT(old_pid, 0) << launch.output();
+  // Nothing is held yet: an acknowledgement is refused (exit 1), an unknown process is an error.
+  const auto [early_code, early] = run({ui, "restart", "-c", config.string(), "edp/irb6"});
+  EXPECT_EQ(early_code, 1) << early;
+  EXPECT_TRUE(has(early, "RESTART REFUSED: edp/irb6 is not waiting for an acknowledgement "
+                         "(state running)"))
+      << early;
+  const auto [unknown_code, unknown] = run({ui, "restart", "-c", config.string(), "edp/nope"});
+  EXPECT_EQ(unknown_code, 2) << unknown;
+  EXPECT_TRUE(has(unknown, "'edp/nope' is not a process of set 'long-irb6'")) << unknown;
+
+  ASSERT_EQ(::kill(old_pid, SIGKILL), 0);
+  const auto held = launch.wait_for(
+      "edp/irb6 (plugin 'can', drives on virtual:irb6) ended while the task was running (code "
+      "137); not restarted until an operator acknowledges: mrroc-ui restart -c " +
+          fs::absolute(config).lexically_normal().string() + " edp/irb6",
+      10s);
+  ASSERT_TRUE(held) << launch.output();
+  // Its policy would restart it after 0.2 s: it is still down 2 s later.
+  std::this_thread::sleep_for(2s);
+  EXPECT_FALSE(has(launch.output(), "restarting edp/irb6")) << launch.output();
+  EXPECT_EQ(launch.pid_of("edp/irb6"), old_pid) << launch.output();
+  const auto [code, table] = run({launcher(), "status", config.string()}, 20s);
+  EXPECT_EQ(code, 0) << table;
+  const auto edp = row_of(table, "edp/irb6");
+  ASSERT_EQ(edp.size(), 12u) << table;
+  EXPECT_EQ(edp[kState], "held") << table;
+  EXPECT_EQ(edp[kPid], "-") << table;
+  EXPECT_EQ(edp[kRestarts], "0") << table;
+  EXPECT_EQ(edp[kExit], "137") << table;
+  EXPECT_EQ(launch.wait(0ms), -1) << "the set must wait for the operator\n" << launch.output();
+
+  const std::size_t from = launch.line_count();
+  const auto acked = Clock::now();
+  const auto [ack_code, ack] = run({ui, "restart", "-c", config.string(), "edp/irb6"});
+  EXPECT_EQ(ack_code, 0) << ack;
+  EXPECT_TRUE(has(ack, "RESTART of edp/irb6 acknowledged: the launcher restarts it")) << ack;
+  ASSERT_TRUE(launch.wait_for("edp/irb6: restart acknowledged by ui", 10s, from))
+      << launch.output();
+  const auto restarting = launch.wait_for("restarting edp/irb6 (restart 1 of 2)", 10s, from);
+  ASSERT_TRUE(restarting) << launch.output();
+  // The back-off still applies after the acknowledgement.
+  EXPECT_GE(seconds(*restarting - acked), 0.2);
+  ASSERT_TRUE(launch.wait_for("edp/irb6 ready again", 30s, from)) << launch.output();
+  const pid_t new_pid = launch.pid_of("edp/irb6");
+  EXPECT_NE(new_pid, old_pid);
+  EXPECT_GT(new_pid, 0);
+
+  // The restarted EDP drives the emulated drives through the whole task.
+  const auto [start_code, start_out] = run({ui, "start", "-c", config.string()});
+  EXPECT_EQ(start_code, 0) << start_out;
+  EXPECT_TRUE(launch.wait_for("task 'start_and_wait' finished", 120s, from)) << launch.output();
+  // (With start = "operator" the MP waits for the next START: terminate ends the set.)
+  const auto [end_code, end_out] = run({ui, "terminate", "-c", config.string()});
+  EXPECT_EQ(end_code, 0) << end_out;
+  EXPECT_EQ(launch.wait(60s), 0) << launch.output();
+  EXPECT_TRUE(has(launch.output(), "task finished")) << launch.output();
   EXPECT_EQ(leftovers(), "");
   fs::remove_all(dir);
 }

@@ -192,3 +192,37 @@ TEST(Bus, BadUrlIsNamed) {
     EXPECT_NE(std::string(e.what()).find("nonsense://what"), std::string::npos);
   }
 }
+
+// A request that took longer than the server's max_request_age to arrive is dropped, not
+// executed (its client gave up or re-sent it); a fresh one with the next sequence is executed.
+TEST(RequestReply, RequestsOlderThanTheDeadlineAreDroppedNotExecuted) {
+  comm::Bus bus(test_url());
+  comm::ServerOptions options;
+  options.max_request_age = 200ms;
+  EchoServer echo(bus, options);
+  std::atomic<int> replies{0};
+  auto on_reply = +[](const lcm::ReceiveBuffer*, const std::string&, std::atomic<int>* n) {
+    ++*n;
+  };
+  lcm::Subscription* sub =
+      bus.lcm().subscribeFunction<std::atomic<int>*>("t/reply", on_reply, &replies);
+  bus.start();
+  Req old = request(7);
+  old.header.sender = "late-client";
+  old.header.seq = 1;
+  old.header.kind = mrroc_lcm::header_t::REQUEST;
+  old.header.utime = now_utime() - 1'000'000;  // sent 1 s ago
+  bus.lcm().publish("t/cmd", &old);
+  std::this_thread::sleep_for(100ms);
+  EXPECT_EQ(echo.executions, 0);
+  EXPECT_EQ(replies, 0);
+  EXPECT_EQ(echo.server->stats().expired, 1U);
+  Req fresh = old;
+  fresh.header.seq = 2;
+  fresh.header.utime = now_utime();
+  bus.lcm().publish("t/cmd", &fresh);
+  for (int i = 0; i < 100 && replies == 0; ++i) std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(echo.executions, 1);
+  EXPECT_EQ(replies, 1);
+  bus.lcm().unsubscribe(sub);
+}

@@ -1,8 +1,10 @@
 #pragma once
 /// @file
-/// The EDP's synchronisation (paper, section 5: SYNCHRO): every axis moves slowly towards its
-/// synchronisation switch; where the switch toggles, the offset between raw axis position and
-/// joint coordinate is known; then the arm approaches the synchronisation pose exactly.
+/// The EDP's synchronisation (paper, section 5: SYNCHRO): every axis speeds up to a slow search
+/// velocity towards its synchronisation switch; where the switch toggles, the offset between raw
+/// axis position and joint coordinate is known and the axis slows down to rest; then the arm
+/// approaches the synchronisation pose exactly, from rest to rest. Every velocity change stays
+/// within half the joint's acceleration limit.
 /// Driven one servo step at a time by the servo loop (under its mutex); allocation-free.
 
 #include <array>
@@ -41,8 +43,10 @@ class Synchroniser {
   std::array<bool, kMaxAxes> switch_initial_{};
   std::array<double, kMaxAxes> search_direction_{};
   AxisArray search_start_{};
-  int approach_steps_left_ = 0;
-  AxisArray approach_step_{};
+  AxisArray speed_{};  ///< search speed per axis [rad/s], >= 0
+  int approach_steps_ = 0;
+  int approach_step_no_ = 0;
+  AxisArray approach_start_{};
 };
 
 }  // namespace mrroc::edp

@@ -178,3 +178,37 @@ TEST(EdpAcceleration, StockProfilesPassEveryBoundary) {
       }
   EXPECT_EQ(chains, 4 * 30 * 5);
 }
+
+// Synchronisation is motion too: the search speeds up to its slow velocity, slows down to rest
+// after the switch, and the approach to the synchronisation pose goes from rest to rest, every
+// servo step within half the joint's acceleration limit (the EDP's own trace).
+TEST(EdpAcceleration, SynchronisationStaysWithinTheLimits) {
+  const RobotModel model = test::stock_model("irb6");
+  auto hardware = test::configured_hardware(model, "mujoco", kPeriod);
+  ServoLoop servo(*hardware, model, kPeriod);
+  servo.enable_trace(20000);
+  servo.start();
+  servo.begin_synchronisation();
+  ASSERT_TRUE(servo.wait_synchronised(30.0));
+  servo.stop();
+  const auto trace = servo.trace();
+  ASSERT_GT(trace.size(), 10U);
+  std::size_t checked = 0;
+  for (std::size_t k = 2; k + 1 < trace.size(); ++k) {
+    // Skip where the setpoints change from raw axis to joint coordinates (the flag of a sample is
+    // that of the start of its cycle).
+    if (trace[k + 1].synchronised != trace[k - 2].synchronised) continue;
+    for (std::size_t j = 0; j < model.axes(); ++j) {
+      const double a =
+          (trace[k].desired[j] - 2 * trace[k - 1].desired[j] + trace[k - 2].desired[j]) /
+          (kPeriod * kPeriod);
+      EXPECT_LE(std::abs(a), 0.5 * model.max_acceleration[j] * (1 + 1e-6))
+          << "cycle " << trace[k].cycle << " joint " << j;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 100U);
+  const auto last = servo.latest();
+  for (std::size_t j = 0; j < model.axes(); ++j)
+    EXPECT_NEAR(last.desired[j], model.synchro_joint_positions[j], 1e-12) << "joint " << j;
+}

@@ -33,6 +33,7 @@ class Owner : public ::testing::Test {
     s.type = InstructionType::synchro;
     s.with_query = true;
     ASSERT_EQ(interpreter_->execute(s, "ecp#1").type, ReplyType::data);
+    wait_at_rest();  // the approach's last step still moved the setpoint
   }
   void TearDown() override { servo_->stop(); }
 

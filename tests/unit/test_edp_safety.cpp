@@ -137,8 +137,12 @@ TEST(EdpSafety, EmergencyStopDeceleratesWithinLimitsAndHolds) {
   ASSERT_FALSE(v.empty());
   EXPECT_GT(v[0][0], 0.6) << "the column was not moving fast when stopped";
   const int cycles = check_stop(v, edp.model_);
-  // About 0.8 rad/s at 3 rad/s^2 needs about 135 cycles of 2 ms (it slows down from the stop on).
-  EXPECT_LT(cycles, static_cast<int>(v[0][0] / (3.0 * kPeriod)) + 10);
+  // About 0.8 rad/s at 3 rad/s^2 needs about 135 cycles of 2 ms, counted from the fastest cycle
+  // (the stop is acted on a few cycles after `at`, later on a busy host).
+  std::size_t peak = 0;
+  for (std::size_t k = 1; k < v.size(); ++k)
+    if (v[k][0] > v[peak][0]) peak = k;
+  EXPECT_LE(cycles - static_cast<int>(peak), static_cast<int>(v[peak][0] / (3.0 * kPeriod)) + 2);
   std::printf("standstill %d servo steps after the emergency stop\n", cycles);
   EXPECT_TRUE(edp.servo_->stopped());
   // The QUERY of the interrupted motion reports an error (its macro-step never ended), and

@@ -258,8 +258,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
     bool ramping = false;
     std::chrono::steady_clock::time_point ramp_start;
     std::int64_t ramp_first_step = 0;
+    bool last_state = false;
     for (;;) {
-      if (stop_requested()) {
+      if (stop_requested() && !last_state) {
         const auto t = std::chrono::steady_clock::now();
         if (!ramping) {
           if (!servo.synchronised() || servo.faulted() || servo.stopped()) break;
@@ -279,7 +280,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
                                          "ramping down; the servo loop stops holding its last "
                                          "setpoint",
                                          ms));
-          break;
+          last_state = true;  // one more broadcast shows where the ramp left the robot
         }
       }
       next_state += kStatePeriod;
@@ -305,6 +306,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
       ++state.header.seq;
       state.header.utime = now_utime();
       comm::publish(bus, state_channel, state);
+      if (last_state) break;
 
       overruns_unreported += window.overruns;
       worst_unreported_us = std::max(worst_unreported_us, window.worst_overrun_us);

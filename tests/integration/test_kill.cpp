@@ -22,6 +22,10 @@
 #include <cstdio>
 #include <regex>
 #include <string>
+#include <thread>
+#include <cstdlib>
+
+#include <sys/wait.h>
 
 #include "launch_helpers.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -150,4 +154,83 @@ TEST(Kill, MpKilledTheTaskFailsAndEverythingStops) {
   for (const char* p : {"emu", "edp/irb6", "ecp/irb6", "srp"})
     EXPECT_TRUE(has(r.output, std::string(p) + " exited with code 0")) << p << "\n" << r.output;
   expect_nothing_left();
+}
+
+namespace {
+pid_t parent_of(pid_t pid) {
+  std::FILE* f = std::fopen(("/proc/" + std::to_string(pid) + "/stat").c_str(), "r");
+  if (f == nullptr) return 0;
+  int self = 0;
+  char comm[256] = {};
+  char state = 0;
+  int ppid = 0;
+  const int n = std::fscanf(f, "%d %255s %c %d", &self, comm, &state, &ppid);
+  std::fclose(f);
+  return n == 4 ? ppid : 0;
+}
+}  // namespace
+
+// The launcher killed with SIGKILL mid-motion: its children get SIGTERM (PR_SET_PDEATHSIG), so
+// the EDP (here with the in-process MuJoCo arm) ramps the arm down within its acceleration limits
+// before it exits, seen in its robot_state_t broadcasts; every process of the set ends.
+TEST(Kill, LauncherKilledMidMotionTheEdpRampsDownAndEverythingEnds) {
+  const std::string config_path = std::string(MRROC_SOURCE_DIR) + "/configs/demo-irb6.toml";
+  const mrroc::ProcessSetConfig config = mrroc::load_process_set(config_path);
+  const mrroc::RobotModel model = mrroc::load_robot_model(config.robots[0].model_dir);
+  mrroc::comm::Bus bus(config.lcm_url);
+  StateWatch states(bus, "irb6");
+  bus.start();
+  pid_t launcher = 0;
+  const LaunchRun r = launch_and_act(config_path, "edp/irb6", "pose 1/3 reached",
+                                     std::chrono::milliseconds(300), [&](pid_t edp) {
+                                       launcher = parent_of(edp);
+                                       if (launcher > 1) kill(launcher, SIGKILL);
+                                     });
+  ASSERT_GT(launcher, 1) << r.output;
+  // The EDP ramps for at most 2 s (kShutdownRampLimit) and each child's stop guard ends what is
+  // left after its grace period.
+  for (int i = 0; i < 100; ++i) {
+    // The set's processes became children of this test (PID 1 of its namespace): reap them.
+    while (waitpid(-1, nullptr, WNOHANG) > 0) {
+    }
+    FILE* ps = popen("ps -eo comm= | grep -c '^mrroc-' || true", "r");
+    char buf[32] = {};
+    const bool none = std::fgets(buf, sizeof buf, ps) != nullptr && std::atoi(buf) == 0;
+    pclose(ps);
+    if (none) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  bus.stop();
+  expect_nothing_left();
+  const auto history = states.history();
+  ASSERT_NE(r.killed_at, Clock::time_point{}) << r.output;
+  // After the kill: the arm was moving, came to a standstill, and never changed its commanded
+  // velocity by more than a joint's acceleration limit allows between two broadcasts.
+  double speed_at_kill = -1;
+  bool still = false;
+  std::size_t after = 0;
+  for (std::size_t i = 1; i < history.size(); ++i) {
+    const auto& s = history[i];
+    const auto& p = history[i - 1];
+    if (s.at < r.killed_at || !s.synchronised || !p.synchronised) continue;
+    ++after;
+    if (speed_at_kill < 0) speed_at_kill = s.max_speed;
+    if (i >= 2 && history[i - 2].synchronised && s.servo_step > p.servo_step &&
+        p.servo_step > history[i - 2].servo_step) {
+      const double dt1 = static_cast<double>(s.servo_step - p.servo_step) * 0.002;
+      const double dt0 = static_cast<double>(p.servo_step - history[i - 2].servo_step) * 0.002;
+      for (std::size_t j = 0; j < model.axes(); ++j) {
+        const double v1 = (s.q_desired[j] - p.q_desired[j]) / dt1;
+        const double v0 = (p.q_desired[j] - history[i - 2].q_desired[j]) / dt0;
+        EXPECT_LE(std::abs(v1 - v0) / (0.5 * (dt0 + dt1)), model.max_acceleration[j] * 1.05)
+            << "joint " << j << " at servo step " << s.servo_step;
+      }
+    }
+    if (!s.moving && s.q_desired == p.q_desired) still = true;
+  }
+  ASSERT_GT(after, 2U) << "no robot state after the launcher was killed\n" << r.output;
+  EXPECT_GT(speed_at_kill, 0.05) << "the arm was not moving when the launcher was killed";
+  EXPECT_TRUE(still) << "the arm never came to a standstill after the launcher was killed";
+  std::printf("launcher killed at %.2f rad/s: %zu robot states after the kill, standstill %s\n",
+              speed_at_kill, after, still ? "reached" : "NOT reached");
 }

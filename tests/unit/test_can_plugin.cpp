@@ -14,6 +14,8 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <mutex>
+#include <regex>
 #include <thread>
 #include <vector>
 
@@ -34,16 +36,19 @@ std::string bus_url() {
 /// mrroc-axis-emu as a child process, killed at the end.
 class Emulator {
  public:
-  Emulator(const std::string& url, const std::vector<std::string>& extra = {}) {
+  Emulator(const std::string& url, const std::vector<std::string>& extra = {},
+           bool lock_step = true) {
     std::vector<std::string> args = {std::string(MRROC_BIN_DIR) + "/mrroc-axis-emu", "--scene",
                                      std::string(MRROC_SOURCE_DIR) + "/configs/scenes/irb6.toml",
-                                     "--bus", "irb6=" + url, "--lock-step"};
+                                     "--bus", "irb6=" + url};
+    if (lock_step) args.emplace_back("--lock-step");
     args.insert(args.end(), extra.begin(), extra.end());
     int out[2];
     if (pipe(out) != 0) throw std::runtime_error("pipe");
     pid_ = fork();
     if (pid_ == 0) {
       dup2(out[1], STDOUT_FILENO);
+      dup2(out[1], STDERR_FILENO);
       close(out[0]);
       close(out[1]);
       std::vector<char*> argv;
@@ -57,13 +62,24 @@ class Emulator {
     // the qemu test's software emulation.
     FILE* in = fdopen(out[0], "r");
     char line[512];
-    while (std::fgets(line, sizeof line, in) != nullptr)
-      if (std::strstr(line, "lock-step") != nullptr) break;
-    reader_ = std::thread([in] {
+    while (std::fgets(line, sizeof line, in) != nullptr) {
+      std::fputs(line, stdout);
+      if (std::strstr(line, lock_step ? "; lock-step" : "; real time") != nullptr) break;
+    }
+    reader_ = std::thread([this, in] {
       char rest[512];
-      while (std::fgets(rest, sizeof rest, in) != nullptr) std::fputs(rest, stdout);
+      while (std::fgets(rest, sizeof rest, in) != nullptr) {
+        std::fputs(rest, stdout);
+        std::lock_guard lock(mutex_);
+        output_ += rest;
+      }
       std::fclose(in);
     });
+  }
+  /// What it printed since it was ready.
+  std::string output() const {
+    std::lock_guard lock(mutex_);
+    return output_;
   }
   ~Emulator() {
     kill(pid_, SIGTERM);
@@ -75,6 +91,8 @@ class Emulator {
  private:
   pid_t pid_ = -1;
   std::thread reader_;
+  mutable std::mutex mutex_;
+  std::string output_;
 };
 
 std::unique_ptr<edp::Hardware> plugin(const std::string& url) {
@@ -150,6 +168,46 @@ TEST(CanPlugin, InjectedDriveFaultIsAPluginFaultNamingTheDrive) {
   hw->activate();
   ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
   hw->deactivate();
+}
+
+// What kill -9 of the EDP does to its drives: the master's SYNCs and heartbeats stop, and every
+// drive, configured at bring-up as a consumer of both (docs/hil.md, "Drive supervision"),
+// quick-stops on its own (EMCY 0x8130 heartbeat or 0x8100 SYNC). Over vcan0 in the qemu test too.
+TEST(CanPlugin, AMasterThatFallsSilentMakesEveryDriveQuickStop) {
+  const std::string url = bus_url();
+  Emulator emu(url, {}, /*lock_step=*/false);
+  auto hw = plugin(url);
+  hw->activate();
+  std::vector<edp::AxisFeedback> fb(5);
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  std::vector<double> target(5);
+  for (std::size_t i = 0; i < 5; ++i) target[i] = fb[i].position;
+  for (int k = 1; k <= 50; ++k) {
+    target[0] += 0.0002 * std::min(k, 25);  // the column speeds up to 0.05 rad per 4 ms cycle
+    ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  }
+  // The master falls silent here, as if its process were killed (no deactivate()).
+  const auto silent_at = std::chrono::steady_clock::now();
+  int reacted = 0;
+  std::string out;
+  while (std::chrono::steady_clock::now() - silent_at < 3s && reacted < 5) {
+    std::this_thread::sleep_for(10ms);
+    out = emu.output();
+    reacted = 0;
+    for (const char* axis : {"column", "lower_arm", "upper_arm", "wrist_pitch", "wrist_roll"})
+      if (out.find(std::string("'") + axis + "' (node") != std::string::npos &&
+          std::regex_search(out, std::regex(std::string("'") + axis + "' \\(node [0-9]+ on [^)]*\\): master lost")))
+        ++reacted;
+  }
+  EXPECT_EQ(reacted, 5) << out;
+  EXPECT_TRUE(out.find("EMCY 0x8130") != std::string::npos ||
+              out.find("EMCY 0x8100") != std::string::npos)
+      << out;
+  EXPECT_NE(out.find("quick stop"), std::string::npos) << out;
+  std::printf("master silent: %d drives reacted within %.0f ms\n", reacted,
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
+                                                         silent_at)
+                  .count());
 }
 
 TEST(CanPlugin, NoDrivesIsAClearError) {

@@ -782,13 +782,11 @@ struct Console::Impl {
     // decelerates over its second (docs/edp.md, "Acceleration"), so the velocity peaks at 2 d / T
     // and the acceleration is 4 d / T^2: T keeps both within jog_velocity_fraction of the axis'
     // limits (and lasts at least 0.1 s).
-    const double fraction = options.jog_velocity_fraction;
-    const double speed = fraction * view->model.max_velocity[a];
-    const double acceleration = fraction * view->model.max_acceleration[a];
     const double period = view->servo_period_s;
-    const double duration =
-        std::max({2.0 * step / speed, 2.0 * std::sqrt(step / acceleration), 0.1});
-    const int steps = std::max(static_cast<int>(std::ceil(duration / period)), 1);
+    std::vector<double> delta(view->model.axes(), 0.0);
+    delta[a] = step;
+    const int steps =
+        ecp::rest_to_rest_steps(view->model, delta, options.jog_velocity_fraction, period, 0.1);
     ecp::Robot& edp = *view->jog;
     edp::Instruction& c = edp.image().command;
     c = edp::Instruction{};

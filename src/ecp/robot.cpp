@@ -2,9 +2,23 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "mrroc/kinematics/pose.hpp"
 
 namespace mrroc::ecp {
+
+int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta,
+                       double fraction, double period_s, double min_s) {
+  double duration = min_s;
+  for (std::size_t j = 0; j < delta.size() && j < model.axes(); ++j) {
+    const double d = std::abs(delta[j]);
+    duration = std::max({duration, 2.0 * d / (fraction * model.max_velocity[j]),
+                         2.0 * std::sqrt(d / (fraction * model.max_acceleration[j]))});
+  }
+  return std::max(1, static_cast<int>(std::ceil(duration / period_s - 1e-9)));
+}
 
 Robot::Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
              RobotModel model, comm::ClientOptions options)

@@ -15,6 +15,7 @@
 #include "edp_parts.hpp"
 #include "motion_blend.hpp"
 #include "mrroc/ecp/generators/motion_profile.hpp"
+#include "mrroc/ecp/robot.hpp"
 #include "servo_loop.hpp"
 
 using namespace mrroc;
@@ -211,4 +212,56 @@ TEST(EdpAcceleration, SynchronisationStaysWithinTheLimits) {
   const auto last = servo.latest();
   for (std::size_t j = 0; j < model.axes(); ++j)
     EXPECT_NEAR(last.desired[j], model.synchro_joint_positions[j], 1e-12) << "joint " << j;
+}
+
+// A console jog (a RELATIVE rest-to-rest macro-step of ecp::rest_to_rest_steps, fraction 0.25,
+// the largest jog step 0.2 rad, and on the conveyor 0.2 m) through the command interpreter: the
+// EDP's own trace shows every servo step within that fraction of the velocity and acceleration
+// limits, and the joint ends exactly where the jog said.
+TEST(EdpAcceleration, AJogIsAProfileWithinTheLimits) {
+  for (const char* robot : {"irb6", "conveyor"}) {
+    const RobotModel model = test::stock_model(robot);
+    auto hardware = test::configured_hardware(model, "mujoco", kPeriod);
+    auto kinematics = make_arm_kinematics(model);
+    ServoLoop servo(*hardware, model, kPeriod);
+    servo.set_limit_guard(kinematics.get());
+    servo.enable_trace(60000);
+    servo.start();
+    CommandInterpreter interpreter(servo, model, *kinematics, kPeriod);
+    Instruction sync;
+    sync.type = InstructionType::synchro;
+    sync.with_query = true;
+    ASSERT_EQ(interpreter.execute(sync).type, ReplyType::data);
+    constexpr double kFraction = 0.25;
+    for (std::size_t axis = 0; axis < model.axes(); ++axis) {
+      std::vector<double> delta(model.axes(), 0.0);
+      delta[axis] = model.synchro_joint_positions[axis] + 0.2 < model.upper_limits[axis] ? 0.2 : -0.2;
+      const int steps = ecp::rest_to_rest_steps(model, delta, kFraction, kPeriod, 0.1);
+      const auto before = servo.planned_end();
+      const std::int64_t from = servo.latest().cycle;
+      Instruction jog = test::set_joints_instruction(delta, steps, steps + 1,
+                                                     MotionType::relative);
+      jog.with_query = true;
+      const Reply r = interpreter.execute(jog);
+      ASSERT_EQ(r.type, ReplyType::data) << robot << " axis " << axis << ": " << r.error_text;
+      EXPECT_NEAR(r.desired_joints[axis], before[axis] + delta[axis], 1e-12);
+      const auto trace = servo.trace();
+      double vmax = 0, amax = 0;
+      for (std::size_t k = 2; k < trace.size(); ++k) {
+        if (trace[k - 2].cycle < from) continue;
+        const double v = (trace[k].desired[axis] - trace[k - 1].desired[axis]) / kPeriod;
+        const double a = (trace[k].desired[axis] - 2 * trace[k - 1].desired[axis] +
+                          trace[k - 2].desired[axis]) / (kPeriod * kPeriod);
+        vmax = std::max(vmax, std::abs(v));
+        amax = std::max(amax, std::abs(a));
+      }
+      EXPECT_LE(vmax, kFraction * model.max_velocity[axis] * (1 + 1e-6)) << robot << " " << axis;
+      EXPECT_LE(amax, kFraction * model.max_acceleration[axis] * (1 + 1e-6)) << robot << " " << axis;
+      EXPECT_GT(amax, 0.0) << robot << " " << axis;
+      std::printf("%s axis %zu: jog of %+.1f %s in %d steps, peak %.3f %s/s, %.3f %s/s^2\n", robot,
+                  axis, delta[axis], model.unit(axis), steps, vmax, model.unit(axis), amax,
+                  model.unit(axis));
+    }
+    servo.stop();
+  }
 }

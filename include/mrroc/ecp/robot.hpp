@@ -16,6 +16,14 @@
 
 namespace mrroc::ecp {
 
+/// Servo steps of one macro-step that moves the joints by `delta` from rest to rest within
+/// `fraction` (0, 1] of each joint's velocity and acceleration limits, as the EDP moves it (it
+/// accelerates uniformly over the first half and decelerates over the second: peak velocity
+/// 2 d / T, acceleration 4 d / T^2; docs/edp.md, "Acceleration"), lasting at least `min_s`.
+/// The console's jogs use it.
+int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta,
+                       double fraction, double period_s, double min_s = 0.0);
+
 /// What generators see of a robot. Joint values in rad.
 struct RobotImage {
   bool synchronised = false;

@@ -24,7 +24,8 @@ struct ConsoleOptions {
   std::string token;
   std::filesystem::path teach_dir;      ///< where "Record pose" writes; empty: current folder
   double jog_max_step_rad = 0.2;        ///< largest jog step accepted [rad]
-  double jog_velocity_fraction = 0.25;  ///< jog speed as a fraction of the axis' max velocity
+  /// A jog stays within this fraction of the axis' velocity and acceleration limits.
+  double jog_velocity_fraction = 0.25;
 };
 
 /// Reads the token file: its first line without surrounding blanks, at least 16 characters.

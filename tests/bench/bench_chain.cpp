@@ -63,6 +63,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "bench_release.hpp"
 #include "bench_args.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/core/time.hpp"
@@ -402,19 +403,7 @@ ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double se
   for (const char* process : {"edp/irb6", "ecp/irb6"})
     if (!ready.wait_ready(process, 30))
       throw mrroc::Error(std::string(process) + " was not ready within 30 s\n" + children.logs());
-  // Without a launcher no latch announces the emergency stop's state: the EDPs start stopped
-  // (docs/operating.md, Emergency stop); release them as `mrroc-ui release` would.
-  {
-    mrroc_lcm::emergency_stop_t release{};
-    release.header.sender = "bench#" + std::to_string(::getpid());
-    release.header.kind = mrroc_lcm::header_t::BROADCAST;
-    release.action = mrroc_lcm::emergency_stop_t::RELEASE;
-    for (int i = 0; i < 3; ++i) {
-      release.header.utime = mrroc::now_utime();
-      mrroc::comm::publish(bus, mrroc::channels::emergency_stop, release);
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-  }
+  mrroc::bench::release_emergency_stops(bus);
 
   ChainFigures out;
   try {

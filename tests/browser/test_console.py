@@ -372,6 +372,10 @@ def main():
         press_step = int(re.search(r"servo step (\d+)", text or "servo step 0").group(1))
         wait_for("the estop flag shown", lambda: "on" in driver.find_element(
             By.CSS_SELECTOR, '.robot[data-robot="irb6"] .flag[data-flag="estop"]').get_attribute("class"), 5)
+        # The robot confirmed its stop from its state: no red "NOT CONFIRMED" banner.
+        check(not driver.find_element(By.ID, "estop-banner").is_displayed(),
+              "no 'NOT CONFIRMED' banner after a stop the robot confirmed: "
+              + driver.find_element(By.ID, "estop-banner").text)
         time.sleep(1.5)
         after = samples_after(press_step - 20)
         at_press = [s for s in after if s["step"] <= press_step]

@@ -9,6 +9,7 @@ namespace mrroc::edp {
 namespace {
 
 constexpr double kTolerance = 1e-6;  // relative: rounding of the client's targets
+constexpr std::size_t kHorizon = 8;  // queued macro-steps looked at when choosing an end velocity
 
 /// The limits of one joint through one macro-step, as half-planes in (x, y) = (start velocity,
 /// end velocity): A x + B y <= C.
@@ -163,9 +164,13 @@ BlendRefusal plan_blend(const BlendInput& in, const RobotModel& model, std::size
     if (promises) {
       // Backwards through the queue: the end velocities from which every queued macro-step can
       // still be joined, down to rest after the last one if it promises no successor.
+      // At most kHorizon of them: enough for the stock profiles (a lookahead of 8) and a bounded
+      // cost in the servo thread; beyond it any velocity is assumed reachable.
       Range reachable{-vmax, vmax, false};
-      std::size_t count = in.following.size();
-      if (count > 0 && !in.following[count - 1]->promises_successor()) reachable = {0, 0, false};
+      const std::size_t count = std::min(in.following.size(), kHorizon);
+      if (count == in.following.size() && count > 0 &&
+          !in.following[count - 1]->promises_successor())
+        reachable = {0, 0, false};
       for (std::size_t k = count; k-- > 0;) {
         const MacroStep& f = *in.following[k];
         const double from = k == 0 ? p1 : in.following[k - 1]->target[i];

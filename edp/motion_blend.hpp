@@ -10,11 +10,12 @@
 /// (v0 + 3 v1 - 4u) / T and the velocity at half time is 2u - (v0 + v1) / 2.
 ///
 /// v1 is 0 when the macro-step promises no successor (value_in_step_no >= steps): the robot comes
-/// to rest exactly at its target. Otherwise the EDP looks at every macro-step queued behind it (the
-/// lookahead), works out backwards which end velocities still let all of them, down to a final
-/// rest, stay within the limits, and picks the one nearest to the mean of this macro-step's and its
-/// successor's mean velocities (its own, when no successor is queued yet). No motion that starts at
-/// v0 and covers the macro-step's distance in T stays below 2 |u - v0| / T; a macro-step that
+/// to rest exactly at its target. Otherwise the EDP looks at the macro-steps queued behind it (the
+/// lookahead; at most 8 of them), works out backwards which end velocities still let all of them,
+/// down to a final rest, stay within the limits, and picks the one nearest to the mean of this
+/// macro-step's and its successor's mean velocities (its own, when no successor is queued yet).
+/// No motion that starts at v0 and covers the macro-step's distance in T stays below
+/// 2 |u - v0| / T; a macro-step that
 /// cannot be joined within a joint's acceleration and velocity limits (or would pass a joint limit
 /// between its ends) is refused before it starts.
 ///

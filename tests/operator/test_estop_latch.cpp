@@ -36,6 +36,10 @@ class States {
         this);
     bus_.start();
   }
+  // The bus thread delivers into all_: stop it before the members go.
+  ~States() { bus_.stop(); }
+  States(const States&) = delete;
+  States& operator=(const States&) = delete;
   std::vector<mrroc_lcm::robot_state_t> since(std::size_t from) {
     std::lock_guard lock(mutex_);
     return {all_.begin() + static_cast<std::ptrdiff_t>(std::min(from, all_.size())), all_.end()};

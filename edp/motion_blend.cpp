@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "mrroc/robot/rest_to_rest.hpp"
+
 namespace mrroc::edp {
 
 namespace {
@@ -217,8 +219,7 @@ BlendRefusal plan_blend(const BlendInput& in, const RobotModel& model, std::size
 
 int shortest_rest_to_rest_steps(double distance, double max_velocity, double max_acceleration,
                                 double period_s) {
-  const double d = std::abs(distance);
-  const double t = std::max(2.0 * std::sqrt(d / max_acceleration), 2.0 * d / max_velocity);
+  const double t = rest_to_rest_duration(distance, max_velocity, max_acceleration);
   return std::max(1, static_cast<int>(std::ceil(t / period_s - 1e-9)));
 }
 

@@ -6,17 +6,16 @@
 #include <cmath>
 
 #include "mrroc/kinematics/pose.hpp"
+#include "mrroc/robot/rest_to_rest.hpp"
 
 namespace mrroc::ecp {
 
 int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta,
                        double fraction, double period_s, double min_s) {
   double duration = min_s;
-  for (std::size_t j = 0; j < delta.size() && j < model.axes(); ++j) {
-    const double d = std::abs(delta[j]);
-    duration = std::max({duration, 2.0 * d / (fraction * model.max_velocity[j]),
-                         2.0 * std::sqrt(d / (fraction * model.max_acceleration[j]))});
-  }
+  for (std::size_t j = 0; j < delta.size() && j < model.axes(); ++j)
+    duration = std::max(duration, rest_to_rest_duration(delta[j], fraction * model.max_velocity[j],
+                                                        fraction * model.max_acceleration[j]));
   return std::max(1, static_cast<int>(std::ceil(duration / period_s - 1e-9)));
 }
 

@@ -278,14 +278,18 @@ class PluginFaults : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(PluginFaults, FaultHoldsRefusesAndSynchroResets) {
   Params params;
-  params.set("fault_after_cycles", std::int64_t{400}, {});
+  // The plugin counts its reads from activation; synchronisation takes 394 of them. The fault
+  // comes 1.2 s later, in the middle of a 5 s motion, however late the SET arrives within that.
+  params.set("fault_after_cycles", std::int64_t{1000}, {});
   params.set("fault", std::string(GetParam()), {});
   Edp edp("faulty", params);
   ASSERT_EQ(edp.synchronise().type, ReplyType::data);
+  ASSERT_LT(edp.servo_->latest().cycle, 900) << "synchronisation took longer than the test assumes";
   // A long motion, interrupted by the fault.
   std::vector<double> q = edp.model_.synchro_joint_positions;
   q[0] = 0.5;
-  ASSERT_EQ(edp.set_joints(q, 1000, 1001).type, ReplyType::acknowledge);
+  const Reply set = edp.set_joints(q, 2500, 2501);
+  ASSERT_EQ(set.type, ReplyType::acknowledge) << set.error_text;
   Reply r = edp.query();
   EXPECT_EQ(r.type, ReplyType::error);
   EXPECT_EQ(r.error_code, error_code::hardware_fault) << r.error_text;

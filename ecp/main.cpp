@@ -11,7 +11,7 @@
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "shell.hpp"
 
 namespace {

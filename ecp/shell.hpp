@@ -30,7 +30,7 @@
 
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/ecp/robot.hpp"
 #include "mrroc/ecp/task.hpp"
 

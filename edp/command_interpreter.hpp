@@ -33,7 +33,7 @@
 #include <string>
 
 #include "mrroc/edp/arm_kinematics.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "servo_loop.hpp"
 

@@ -17,7 +17,7 @@
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"

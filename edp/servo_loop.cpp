@@ -14,7 +14,7 @@
 #include <fmt/format.h>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "motion_blend.hpp"
 #include "stopping_ramp.hpp"
 

@@ -64,7 +64,7 @@
 
 #include "cell_world.hpp"
 #include "mrroc/config/params.hpp"
-#include "mrroc/vsp/reading.hpp"
+#include "mrroc/msg/sensor_reading.hpp"
 #include "mrroc_lcm/raw_sensor_t.hpp"
 
 namespace mrroc::emu {

@@ -18,7 +18,7 @@
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc/mp/task.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 
 namespace mrroc::srp {
 

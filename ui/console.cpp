@@ -23,7 +23,7 @@
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
 #include "mrroc/ecp/robot.hpp"

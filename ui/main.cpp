@@ -23,7 +23,7 @@
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/launch_command_t.hpp"
 #include "mrroc_lcm/launch_status_t.hpp"

@@ -12,7 +12,7 @@
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "shell.hpp"
 
 int main(int argc, char** argv) {

@@ -25,7 +25,7 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/vsp/sensor.hpp"
 
 namespace mrroc::vsp {

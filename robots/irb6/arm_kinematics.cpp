@@ -5,7 +5,7 @@
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/pose.hpp"
 

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 
 namespace mrroc::robots::irb6 {

@@ -5,7 +5,7 @@
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/kinematics/rnt.hpp"

@@ -4,11 +4,6 @@
 
 namespace mrroc {
 
-std::string SourceLocation::str() const {
-  if (file.empty()) return "<no file>";
-  return fmt::format("{}:{}", file, line);
-}
-
 void Params::set(const std::string& key, ParamValue value, SourceLocation where) {
   values_[key] = std::move(value);
   where_[key] = std::move(where);

@@ -90,7 +90,6 @@ const vsp::Reading& VirtualSensor::valid_image() const {
 }  // namespace mrroc::ecp
 
 #include "mrroc/ecp/task.hpp"
-#include "mrroc/mp/task.hpp"
 
 namespace mrroc::ecp {
 
@@ -100,12 +99,3 @@ std::unique_ptr<VirtualSensor> TaskContext::sensor(const std::string& vsp) const
 }
 
 }  // namespace mrroc::ecp
-
-namespace mrroc::mp {
-
-std::unique_ptr<ecp::VirtualSensor> TaskContext::sensor(const std::string& vsp) const {
-  if (bus == nullptr) throw Error("this task context has no LCM bus for virtual sensors");
-  return std::make_unique<ecp::VirtualSensor>(*bus, vsp, "mp");
-}
-
-}  // namespace mrroc::mp

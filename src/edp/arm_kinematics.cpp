@@ -5,7 +5,7 @@
 
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "../core/registry.hpp"
 
 namespace mrroc::edp {

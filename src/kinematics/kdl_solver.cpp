@@ -24,7 +24,7 @@
 #include <kdl_parser/kdl_parser.hpp>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::kinematics {
 

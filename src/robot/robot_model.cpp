@@ -7,7 +7,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc {
 

@@ -70,7 +70,7 @@
 #include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/core/error.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/mp/robot.hpp"
 
 extern char** environ;

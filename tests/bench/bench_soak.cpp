@@ -107,7 +107,7 @@
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 
 extern char** environ;

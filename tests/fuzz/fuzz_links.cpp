@@ -43,7 +43,7 @@
 #include "mrroc/comm/links.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
 

@@ -28,7 +28,7 @@
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
-#include "mrroc/vsp/reading.hpp"
+#include "mrroc/msg/sensor_reading.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc_lcm/launch_status_t.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"

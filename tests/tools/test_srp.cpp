@@ -14,7 +14,7 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 #include "mrroc_lcm/srp_history_reply_t.hpp"

@@ -12,7 +12,7 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "motion_blend.hpp"
 

@@ -26,7 +26,7 @@
 #include <kdl_parser/kdl_parser.hpp>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/pose.hpp"
 

@@ -22,7 +22,7 @@
 #include <unistd.h>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
 
 #ifndef MRROC_SOURCE_DIR

@@ -17,7 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/pose.hpp"
 
 namespace {

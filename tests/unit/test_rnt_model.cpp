@@ -27,7 +27,7 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/hardware.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
 #include "mrroc/kinematics/rnt.hpp"
 #include "mrroc/robot/robot_model.hpp"

@@ -15,7 +15,7 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "shell.hpp"
 

@@ -15,15 +15,6 @@
 
 namespace mrroc {
 
-/// Where a value was written: `file:line`. Empty file when the value did not come from a file.
-struct SourceLocation {
-  std::string file;
-  int line = 0;
-
-  /// "file:line" (or "<no file>" when unknown).
-  [[nodiscard]] std::string str() const;
-};
-
 /// One parameter value. Lists of numbers and lists of lists of numbers cover poses and pose lists.
 using ParamValue = std::variant<bool, std::int64_t, double, std::string, std::vector<double>,
                                 std::vector<std::vector<double>>, std::vector<std::string>>;

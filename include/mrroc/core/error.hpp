@@ -8,6 +8,15 @@
 
 namespace mrroc {
 
+/// Where a value was written: `file:line`. Empty file when the value did not come from a file.
+struct SourceLocation {
+  std::string file;
+  int line = 0;
+
+  /// "file:line" (or "<no file>" when unknown).
+  [[nodiscard]] std::string str() const;
+};
+
 /// Base of every mrroc error.
 class Error : public std::runtime_error {
  public:

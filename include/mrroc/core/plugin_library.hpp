@@ -6,7 +6,7 @@
 
 #include <filesystem>
 
-#include "mrroc/config/params.hpp"
+#include "mrroc/core/error.hpp"
 
 namespace mrroc {
 

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/ecp/mp_command.hpp"
+#include "mrroc/msg/mp_command.hpp"
 
 namespace mrroc::ecp {
 

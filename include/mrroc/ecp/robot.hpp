@@ -11,7 +11,7 @@
 
 #include "mrroc/comm/links.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::ecp {

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "mrroc/config/params.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/ecp/robot.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 

@@ -16,7 +16,7 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generator.hpp"
-#include "mrroc/vsp/reading.hpp"
+#include "mrroc/msg/sensor_reading.hpp"
 
 namespace mrroc::ecp {
 

@@ -29,7 +29,7 @@
 
 #include <Eigen/Geometry>
 
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::kinematics {
 

@@ -12,7 +12,7 @@
 
 #include "mrroc/comm/links.hpp"
 #include "mrroc/ecp/generator.hpp"
-#include "mrroc/ecp/mp_command.hpp"
+#include "mrroc/msg/mp_command.hpp"
 
 namespace mrroc::mp {
 

@@ -11,7 +11,7 @@
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/mp/robot.hpp"
 

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "mrroc/config/params.hpp"
-#include "mrroc/vsp/reading.hpp"
+#include "mrroc/msg/sensor_reading.hpp"
 
 namespace mrroc::vsp {
 

@@ -18,7 +18,7 @@
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/ecp/generators/motion_profile.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::ecp {

@@ -17,7 +17,7 @@
 #include <string_view>
 #include <vector>
 
-#include "mrroc/edp/instruction.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::ecp {
 

@@ -1,27 +1,18 @@
-// Name -> factory registries of ECP and MP tasks.
-#include "mrroc/ecp/task.hpp"
+// The name -> factory registry of MP tasks, and the robots and virtual sensors of an MP task.
+#include <fmt/format.h>
+
+#include "../core/registry.hpp"
+#include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/mp/task.hpp"
-#include "registry.hpp"
 
 namespace mrroc {
 
 namespace {
-detail::Registry<ecp::EcpTaskFactory>& ecp_registry() {
-  static detail::Registry<ecp::EcpTaskFactory> r("ECP task");
-  return r;
-}
 detail::Registry<mp::MpTaskFactory>& mp_registry() {
   static detail::Registry<mp::MpTaskFactory> r("MP task");
   return r;
 }
 }  // namespace
-
-void ecp::register_ecp_task(const std::string& name, EcpTaskFactory factory) {
-  ecp_registry().add(name, std::move(factory));
-}
-std::unique_ptr<ecp::EcpTask> ecp::make_ecp_task(const std::string& name, TaskContext& context) {
-  return ecp_registry().get(name)(context);
-}
 
 mp::Robot& mp::TaskContext::robot(const std::string& name) const {
   std::string known;
@@ -41,3 +32,12 @@ std::unique_ptr<mp::MpTask> mp::make_mp_task(const std::string& name, TaskContex
 }
 
 }  // namespace mrroc
+
+namespace mrroc::mp {
+
+std::unique_ptr<ecp::VirtualSensor> TaskContext::sensor(const std::string& vsp) const {
+  if (bus == nullptr) throw Error("this task context has no LCM bus for virtual sensors");
+  return std::make_unique<ecp::VirtualSensor>(*bus, vsp, "mp");
+}
+
+}  // namespace mrroc::mp

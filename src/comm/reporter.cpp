@@ -1,4 +1,4 @@
-#include "mrroc/core/reporter.hpp"
+#include "mrroc/comm/reporter.hpp"
 
 #include <unistd.h>
 

@@ -1,6 +1,6 @@
 /// @file
-/// Plain virtual-sensor values (see mrroc/vsp/reading.hpp).
-#include "mrroc/vsp/reading.hpp"
+/// Plain virtual-sensor values (see mrroc/msg/sensor_reading.hpp).
+#include "mrroc/msg/sensor_reading.hpp"
 
 #include <fmt/format.h>
 

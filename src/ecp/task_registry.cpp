@@ -1,0 +1,21 @@
+// The name -> factory registry of ECP tasks.
+#include "../core/registry.hpp"
+#include "mrroc/ecp/task.hpp"
+
+namespace mrroc {
+
+namespace {
+detail::Registry<ecp::EcpTaskFactory>& ecp_registry() {
+  static detail::Registry<ecp::EcpTaskFactory> r("ECP task");
+  return r;
+}
+}  // namespace
+
+void ecp::register_ecp_task(const std::string& name, EcpTaskFactory factory) {
+  ecp_registry().add(name, std::move(factory));
+}
+std::unique_ptr<ecp::EcpTask> ecp::make_ecp_task(const std::string& name, TaskContext& context) {
+  return ecp_registry().get(name)(context);
+}
+
+}  // namespace mrroc

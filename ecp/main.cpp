@@ -1,6 +1,6 @@
 // mrroc-ecp: the Effector Control Process of one robot. Runs the robot's task on START_TASK.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -8,10 +8,10 @@
 #include <thread>
 
 #include "mrroc/comm/auth.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "shell.hpp"
 
 namespace {

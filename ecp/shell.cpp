@@ -34,8 +34,8 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
       server_(bus, process_, channels::ecp_command(config.name), channels::ecp_reply(config.name),
               [this](comm::EcpServer::Incoming in) { serve(std::move(in)); }) {
   // Build the configured task once now, so that a wrong name or argument fails before "ready".
-  TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s, &bus_,
-                      process_};
+  TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s,
+                      &bus_,  process_};
   try {
     (void)make_ecp_task(config_.ecp.name, context);
   } catch (const ConfigError& e) {
@@ -81,9 +81,9 @@ bool EcpShell::start_activity(const std::string& what, std::function<EcpReply()>
         reply = body();
       } catch (const TaskError& e) {
         reply = error_reply(e.error_class(), e.code(), e.what());
-        reporter_.report(e.error_class() == ErrorClass::non_fatal ? Severity::warning
-                                                                  : Severity::error,
-                         e.code(), what + ": " + e.what());
+        reporter_.report(
+            e.error_class() == ErrorClass::non_fatal ? Severity::warning : Severity::error,
+            e.code(), what + ": " + e.what());
       } catch (const TaskStopped& e) {
         reply = error_reply(ErrorClass::non_fatal, error_code::stopped, e.what());
         reporter_.report(Severity::warning, error_code::stopped, what + ": " + e.what());
@@ -195,7 +195,8 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
       break;
     }
     case MpCommandType::next_pose:
-      if (!start_activity("NEXT_POSE", [this, command] { return next_pose(command); }, responder))
+      if (!start_activity(
+              "NEXT_POSE", [this, command] { return next_pose(command); }, responder))
         busy();
       break;
     case MpCommandType::end_motion:

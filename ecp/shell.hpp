@@ -2,20 +2,20 @@
 /// @file
 /// The ECP shell: serves the MP's commands for one robot (paper, section 4).
 ///
-/// | command     | what the ECP does                                   | reply (when)                      |
+/// | command     | what the ECP does                                   | reply (when) |
 /// |-------------|-----------------------------------------------------|-----------------------------------|
-/// | START_TASK  | runs the configured task                            | TASK_TERMINATED / ERROR (its end) |
-/// | NEXT_STATE  | runs the ECP task named `state_name` with the TOML  | TASK_TERMINATED / ERROR (its end) |
-/// |             | `arguments` (sporadic coordination)                 |                                   |
-/// | NEXT_POSE   | one macro-step to the MP's pose (continuous         | ACKNOWLEDGE + reading (in step    |
-/// |             | coordination)                                       | value_in_step_no)                 |
-/// | END_MOTION  | ends a series of NEXT_POSE (and a STOP that stopped | ACKNOWLEDGE + state               |
-/// |             | it): reads the robot's state (GET)                  |                                   |
-/// | STOP        | stops what runs (it ends with ERROR "stopped");     | ACKNOWLEDGE (at once)             |
-/// |             | NEXT_POSE stays refused until END_MOTION, START_TASK|                                   |
-/// |             | or NEXT_STATE                                       |                                   |
-/// | PAUSE       | holds before the next macro-step                    | ACKNOWLEDGE (at once)             |
-/// | RESUME      | goes on                                             | ACKNOWLEDGE (at once)             |
+/// | START_TASK  | runs the configured task                            | TASK_TERMINATED / ERROR
+/// (its end) | | NEXT_STATE  | runs the ECP task named `state_name` with the TOML  |
+/// TASK_TERMINATED / ERROR (its end) | |             | `arguments` (sporadic coordination) | | |
+/// NEXT_POSE   | one macro-step to the MP's pose (continuous         | ACKNOWLEDGE + reading (in
+/// step    | |             | coordination)                                       |
+/// value_in_step_no)                 | | END_MOTION  | ends a series of NEXT_POSE (and a STOP that
+/// stopped | ACKNOWLEDGE + state               | |             | it): reads the robot's state (GET)
+/// |                                   | | STOP        | stops what runs (it ends with ERROR
+/// "stopped");     | ACKNOWLEDGE (at once)             | |             | NEXT_POSE stays refused
+/// until END_MOTION, START_TASK|                                   | |             | or NEXT_STATE
+/// |                                   | | PAUSE       | holds before the next macro-step |
+/// ACKNOWLEDGE (at once)             | | RESUME      | goes on | ACKNOWLEDGE (at once) |
 ///
 /// One activity (task, sub-task, pose, end of motion) runs at a time on the worker thread; a
 /// second one is refused with `task_running`. STOP, PAUSE and RESUME act at once.
@@ -29,8 +29,8 @@
 #include <vector>
 
 #include "mrroc/comm/links.hpp"
-#include "mrroc/config/process_set.hpp"
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/config/process_set.hpp"
 #include "mrroc/ecp/robot.hpp"
 #include "mrroc/ecp/task.hpp"
 
@@ -76,7 +76,7 @@ class EcpShell {
   std::thread worker_;
 
   std::mutex serve_mutex_;
-  bool serving_ = false;  ///< between "ready" and the stop request
+  bool serving_ = false;                          ///< between "ready" and the stop request
   std::vector<comm::EcpServer::Incoming> early_;  ///< commands that came before "ready"
   /// Last: the bus thread calls into the members above as soon as it exists.
   comm::EcpServer server_;

@@ -175,9 +175,9 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     // client hears of it once, here or in the reply it waits for.
     if (const std::uint64_t refused = servo_.refused_upto(); refused > refusal_reported_) {
       refusal_reported_ = refused;
-      throw CommandError(servo_.refusal_code(refused),
-                         "SET refused: an earlier macro-step was refused: " +
-                             servo_.refusal(refused));
+      throw CommandError(
+          servo_.refusal_code(refused),
+          "SET refused: an earlier macro-step was refused: " + servo_.refusal(refused));
     }
     due_macro_step_ = servo_.submit(target, in.motion_steps, in.value_in_step_no);
     due_at_ = servo_.reply_due_at(due_macro_step_, in.value_in_step_no < in.motion_steps);
@@ -191,11 +191,11 @@ Reply CommandInterpreter::accept(const Instruction& in) {
 void CommandInterpreter::validate_servo(const Instruction& in) const {
   Hardware& hw = servo_.hardware();
   if (in.servo_algorithm.size() != model_.axes() || in.servo_parameters_no.size() != model_.axes())
-    throw CommandError(error_code::bad_argument,
-                       fmt::format("SET SERVO needs one algorithm and one parameter set per axis "
-                                   "({}), got {} and {}",
-                                   model_.axes(), in.servo_algorithm.size(),
-                                   in.servo_parameters_no.size()));
+    throw CommandError(
+        error_code::bad_argument,
+        fmt::format("SET SERVO needs one algorithm and one parameter set per axis "
+                    "({}), got {} and {}",
+                    model_.axes(), in.servo_algorithm.size(), in.servo_parameters_no.size()));
   for (std::size_t i = 0; i < model_.axes(); ++i) {
     const int algorithm = in.servo_algorithm[i];
     const int set = in.servo_parameters_no[i];
@@ -233,10 +233,10 @@ std::vector<double> CommandInterpreter::arm_target(const Instruction& in) const 
     case ArmRepresentation::motor: {
       const bool motor = in.set_arm_type == ArmRepresentation::motor;
       if (in.arm.size() != model_.axes())
-        throw CommandError(error_code::bad_argument,
-                           fmt::format("SET ARM {} has {} values, robot '{}' has {} axes",
-                                       to_string(in.set_arm_type), in.arm.size(), model_.name,
-                                       model_.axes()));
+        throw CommandError(
+            error_code::bad_argument,
+            fmt::format("SET ARM {} has {} values, robot '{}' has {} axes",
+                        to_string(in.set_arm_type), in.arm.size(), model_.name, model_.axes()));
       for (std::size_t i = 0; i < in.arm.size(); ++i)
         if (!std::isfinite(in.arm[i]))
           throw CommandError(error_code::bad_argument,
@@ -285,12 +285,9 @@ void CommandInterpreter::check_path(const std::vector<double>& start,
 std::vector<double> CommandInterpreter::arm_values(const std::vector<double>& joints,
                                                    ArmRepresentation type) const {
   switch (type) {
-    case ArmRepresentation::joint:
-      return joints;
-    case ArmRepresentation::motor:
-      return kinematics_.motors_from_joints(joints);
-    default:
-      return kinematics::to_vector(kinematics_.forward(joints), type);
+    case ArmRepresentation::joint: return joints;
+    case ArmRepresentation::motor: return kinematics_.motors_from_joints(joints);
+    default: return kinematics::to_vector(kinematics_.forward(joints), type);
   }
 }
 
@@ -304,11 +301,10 @@ Reply CommandInterpreter::query() {
     case Due::synchro:
       if (!servo_.wait_synchronised(kSynchroTimeout))
         return error(error_code::hardware_fault,
-                     "synchronisation failed: " + (servo_.faulted() ? servo_.fault_text()
-                                                                    : std::string("timed out")));
+                     "synchronisation failed: " +
+                         (servo_.faulted() ? servo_.fault_text() : std::string("timed out")));
       return reading_reply(servo_.latest());
-    case Due::get:
-      return reading_reply(servo_.latest());
+    case Due::get: return reading_reply(servo_.latest());
     case Due::arm_reading: {
       // Generous bound: every macro-step queued up to this one, a stopping ramp (when a
       // successor came late), plus 5 s: this only catches a stuck loop.
@@ -324,10 +320,9 @@ Reply CommandInterpreter::query() {
         }
       if (!reading)
         return error(error_code::hardware_fault,
-                     servo_.faulted()
-                         ? "hardware fault: " + servo_.fault_text()
-                         : fmt::format("no reading of macro-step {} within {:.3f} s",
-                                       due_macro_step_, timeout));
+                     servo_.faulted() ? "hardware fault: " + servo_.fault_text()
+                                      : fmt::format("no reading of macro-step {} within {:.3f} s",
+                                                    due_macro_step_, timeout));
       return reading_reply(*reading);
     }
   }

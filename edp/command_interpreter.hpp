@@ -76,7 +76,7 @@ class CommandInterpreter {
   double period_s_;
   Due due_ = Due::nothing;
   std::uint64_t due_macro_step_ = 0;
-  std::uint64_t due_at_ = 0;  ///< the macro-step whose reading answers due_macro_step_
+  std::uint64_t due_at_ = 0;            ///< the macro-step whose reading answers due_macro_step_
   std::uint64_t refusal_reported_ = 0;  ///< the newest refused macro-step a client was told of
   ArmRepresentation due_arm_type_ = ArmRepresentation::joint;
   std::uint8_t due_get_ = 0;

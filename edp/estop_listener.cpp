@@ -41,8 +41,7 @@ EstopListener::EstopListener(ServoLoop& servo, std::string robot, const std::str
       +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, EstopListener* self) {
         Stop m;
         if (!comm::detail::decode_received(buffer, m)) {
-          comm::detail::report_malformed(self->bus_, channel,
-                                         static_cast<int>(buffer->data_size));
+          comm::detail::report_malformed(self->bus_, channel, static_cast<int>(buffer->data_size));
           return;
         }
         self->on_message(m, channel);
@@ -121,8 +120,7 @@ void EstopListener::on_message(const Stop& m, const std::string& channel) {
       release();
       break;
     }
-    default:
-      return;  // another value: ignored (docs/messages.md)
+    default: return;  // another value: ignored (docs/messages.md)
   }
   heard_cv_.notify_all();
 }

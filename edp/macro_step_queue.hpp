@@ -43,9 +43,7 @@ class MacroStepQueue {
   /// The oldest macro-step (precondition: !empty()).
   [[nodiscard]] const MacroStep& front() const { return slots_[head_]; }
   /// The newest macro-step (precondition: !empty()).
-  [[nodiscard]] const MacroStep& back() const {
-    return slots_[(head_ + size_ - 1) % kCapacity];
-  }
+  [[nodiscard]] const MacroStep& back() const { return slots_[(head_ + size_ - 1) % kCapacity]; }
   /// The i-th oldest (precondition: i < size()).
   [[nodiscard]] const MacroStep& at(std::size_t i) const { return slots_[(head_ + i) % kCapacity]; }
   /// Appends (precondition: !full()).

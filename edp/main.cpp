@@ -1,26 +1,26 @@
 // mrroc-edp: the Effector Driver Process of one robot.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
-#include <mutex>
 #include <cstdio>
+#include <mutex>
 #include <thread>
 
 #include "command_interpreter.hpp"
 #include "estop_listener.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
-#include "mrroc_lcm/robot_state_t.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
+#include "mrroc_lcm/robot_state_t.hpp"
 #include "servo_loop.hpp"
 
 namespace {
@@ -117,12 +117,11 @@ int run(const std::string& config_path, const std::string& robot_name) {
     servo.set_lookahead(robot.edp.lookahead);
     servo.start();
     // Its own socket and thread; the robot is stopped from here until the stop's state is heard.
-    edp::EstopListener estop(
-        servo, robot.name, config.lcm_url, config.auth_key_file,
-        edp::EstopListener::priority_for(robot.edp.options.priority),
-        [&reporter](int code, const std::string& text) {
-          reporter.report(Severity::warning, code, text);
-        });
+    edp::EstopListener estop(servo, robot.name, config.lcm_url, config.auth_key_file,
+                             edp::EstopListener::priority_for(robot.edp.options.priority),
+                             [&reporter](int code, const std::string& text) {
+                               reporter.report(Severity::warning, code, text);
+                             });
     edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
     // A request that took longer than kRequestDeadline to arrive is dropped, not executed: its
     // client has given up on it or re-sent it (every attempt carries its own send time).
@@ -136,9 +135,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
     // the latch holder (mrroc-launch) announces it every 150 ms.
     const auto wait_start = std::chrono::steady_clock::now();
     const bool heard = estop.wait_state(edp::EstopListener::kStateWait);
-    const long waited_ms = std::lround(std::chrono::duration<double, std::milli>(
-                                           std::chrono::steady_clock::now() - wait_start)
-                                           .count());
+    const long waited_ms = std::lround(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wait_start)
+            .count());
     std::string estop_text;
     if (!heard)
       estop_text = fmt::format(
@@ -146,19 +145,20 @@ int run(const std::string& config_path, const std::string& robot_name) {
           "announces it): motion refused until an authentic release (mrroc-ui release)",
           edp::EstopListener::kStateWait.count());
     else if (servo.emergency_stopped())
-      estop_text = fmt::format("emergency stop ENGAGED ({}; heard after {} ms): motion refused "
-                               "until an authentic release",
-                               estop.reason(), waited_ms);
+      estop_text = fmt::format(
+          "emergency stop ENGAGED ({}; heard after {} ms): motion refused "
+          "until an authentic release",
+          estop.reason(), waited_ms);
     else
       estop_text = fmt::format("emergency stop released (heard after {} ms{})", waited_ms,
                                estop.announcer().empty() ? "" : " from " + estop.announcer());
-    reporter.info(fmt::format("ready: plugin '{}', {} axes, kinematics '{}', servo period {:.3f} "
-                              "ms, {}, lookahead {} macro-step{}, communication {}, emergency "
-                              "stop listener {}, {}; {}",
-                              hardware->name(), model.axes(), kinematics->name(),
-                              robot.edp.servo_period_s * 1e3, servo.timing().scheduling,
-                              robot.edp.lookahead, robot.edp.lookahead == 1 ? "" : "s",
-                              scheduling, estop.scheduling(), memory, estop_text));
+    reporter.info(fmt::format(
+        "ready: plugin '{}', {} axes, kinematics '{}', servo period {:.3f} "
+        "ms, {}, lookahead {} macro-step{}, communication {}, emergency "
+        "stop listener {}, {}; {}",
+        hardware->name(), model.axes(), kinematics->name(), robot.edp.servo_period_s * 1e3,
+        servo.timing().scheduling, robot.edp.lookahead, robot.edp.lookahead == 1 ? "" : "s",
+        scheduling, estop.scheduling(), memory, estop_text));
     reporter.set_state(ProcessState::ready);
 
     bool hardware_fault_reported = false;
@@ -188,15 +188,17 @@ int run(const std::string& config_path, const std::string& robot_name) {
         }
         if (const std::int64_t planned = servo.planned_stops(); planned != planned_reported) {
           planned_reported = planned;
-          reporter.info(fmt::format("the task paused or stopped mid-motion ({} so far): the robot "
-                                    "was brought to rest within its acceleration limits",
-                                    planned));
+          reporter.info(
+              fmt::format("the task paused or stopped mid-motion ({} so far): the robot "
+                          "was brought to rest within its acceleration limits",
+                          planned));
         }
         if (const std::int64_t lost = servo.lost_successors(); lost != lost_reported) {
           lost_reported = lost;
-          reporter.warning(fmt::format("no next macro-step from the ECP in time ({} so far): the "
-                                       "robot was brought to a standstill",
-                                       lost));
+          reporter.warning(
+              fmt::format("no next macro-step from the ECP in time ({} so far): the "
+                          "robot was brought to a standstill",
+                          lost));
         }
         if (!in) continue;
         if (!in->request) {
@@ -212,9 +214,10 @@ int run(const std::string& config_path, const std::string& robot_name) {
         if (interpreter.owner_changed())
           reporter.info(fmt::format("driven by '{}' from now on", interpreter.owner()));
         if (const std::uint64_t expired = server.stats().expired; expired != expired_reported) {
-          reporter.warning(fmt::format("{} request(s) arrived more than {} ms after they were sent "
-                                       "and were dropped, not executed",
-                                       expired - expired_reported, kRequestDeadline.count()));
+          reporter.warning(
+              fmt::format("{} request(s) arrived more than {} ms after they were sent "
+                          "and were dropped, not executed",
+                          expired - expired_reported, kRequestDeadline.count()));
           expired_reported = expired;
         }
         if (reply.type == edp::ReplyType::error)
@@ -268,18 +271,22 @@ int run(const std::string& config_path, const std::string& robot_name) {
           ramp_start = t;
           ramp_first_step = servo.latest().cycle;
           estop.hold_for_shutdown();  // no announcement may release it now
-        } else if (const bool still = servo.stopped(); still || t - ramp_start > kShutdownRampLimit) {
+        } else if (const bool still = servo.stopped();
+                   still || t - ramp_start > kShutdownRampLimit) {
           const std::int64_t steps = servo.latest().cycle - ramp_first_step;
-          const long ms = std::lround(std::chrono::duration<double, std::milli>(t - ramp_start).count());
+          const long ms =
+              std::lround(std::chrono::duration<double, std::milli>(t - ramp_start).count());
           if (still)
-            reporter.info(fmt::format("stopping: the robot was moving; brought to a standstill "
-                                      "within its acceleration limits in {} servo steps ({} ms)",
-                                      steps, ms));
+            reporter.info(
+                fmt::format("stopping: the robot was moving; brought to a standstill "
+                            "within its acceleration limits in {} servo steps ({} ms)",
+                            steps, ms));
           else
-            reporter.warning(fmt::format("stopping: the robot was still moving after {} ms of "
-                                         "ramping down; the servo loop stops holding its last "
-                                         "setpoint",
-                                         ms));
+            reporter.warning(
+                fmt::format("stopping: the robot was still moving after {} ms of "
+                            "ramping down; the servo loop stops holding its last "
+                            "setpoint",
+                            ms));
           last_state = true;  // one more broadcast shows where the ramp left the robot
         }
       }
@@ -311,12 +318,12 @@ int run(const std::string& config_path, const std::string& robot_name) {
       overruns_unreported += window.overruns;
       worst_unreported_us = std::max(worst_unreported_us, window.worst_overrun_us);
       if (overruns_unreported > 0 && now >= overrun_quiet_until) {
-        reporter.report(Severity::warning, edp::error_code::servo_overrun,
-                        fmt::format("servo loop overrun: {} cycle(s) woke more than one period "
-                                    "({:.0f} us) late, the worst {:.0f} us; missed periods were "
-                                    "skipped",
-                                    overruns_unreported, robot.edp.servo_period_s * 1e6,
-                                    worst_unreported_us));
+        reporter.report(
+            Severity::warning, edp::error_code::servo_overrun,
+            fmt::format("servo loop overrun: {} cycle(s) woke more than one period "
+                        "({:.0f} us) late, the worst {:.0f} us; missed periods were "
+                        "skipped",
+                        overruns_unreported, robot.edp.servo_period_s * 1e6, worst_unreported_us));
         overruns_unreported = 0;
         worst_unreported_us = 0;
         overrun_quiet_until = now + kOverrunReportPeriod;

@@ -159,8 +159,8 @@ BlendRefusal plan_blend(const BlendInput& in, const RobotModel& model, std::size
                     "within both its velocity limit of %.3f %s/s and its acceleration limit of "
                     "%.3f %s/s^2 (it would pass %.3f %s/s half way%s)",
                     i, v0, unit, promises ? "a mean velocity over" : "rest at", p1, unit, m.steps,
-                    in.period_s * 1e3, model.max_velocity[i], unit, model.max_acceleration[i],
-                    unit, std::abs(2 * u - 0.5 * v0), unit, where);
+                    in.period_s * 1e3, model.max_velocity[i], unit, model.max_acceleration[i], unit,
+                    std::abs(2 * u - 0.5 * v0), unit, where);
       return BlendRefusal::velocity;
     }
     if (promises) {

@@ -13,9 +13,9 @@
 
 #include <fmt/format.h>
 
+#include "motion_blend.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
-#include "motion_blend.hpp"
 #include "stopping_ramp.hpp"
 
 namespace mrroc::edp {
@@ -42,8 +42,8 @@ ServoLoop::ServoLoop(Hardware& hardware, const RobotModel& model, double period_
       period_s_(period_s),
       synchroniser_(model) {
   if (axes_ == 0 || axes_ > kMaxAxes)
-    throw HardwareError(fmt::format("robot '{}' has {} axes; the EDP supports 1..{}", model.name,
-                                    axes_, kMaxAxes));
+    throw HardwareError(
+        fmt::format("robot '{}' has {} axes; the EDP supports 1..{}", model.name, axes_, kMaxAxes));
   if (hardware_.axis_count() != axes_)
     throw HardwareError(fmt::format("hardware plugin '{}' has {} axes, robot model '{}' has {}",
                                     hardware_.name(), hardware_.axis_count(), model.name, axes_));
@@ -119,7 +119,8 @@ bool ServoLoop::awaiting_successor() const {
 bool ServoLoop::awaiting_lookahead() const {
   // At the start of macro-step k, its client may have sent up to k + lookahead - 2 (the reply to
   // k + lookahead - 1 is the reading taken in k): waiting for those cannot deadlock.
-  if (current_ || queue_.empty() || faulted_ || emergency_stop_ || mode_ != Mode::hold) return false;
+  if (current_ || queue_.empty() || faulted_ || emergency_stop_ || mode_ != Mode::hold)
+    return false;
   if (!queue_.back().promises_successor()) return false;  // the motion's end is queued
   const std::size_t known = queue_.size() - 1;
   return lookahead_ >= 3 && known < static_cast<std::size_t>(lookahead_ - 2);
@@ -137,8 +138,7 @@ void ServoLoop::run_lock_step() {
     // Likewise at the start of a macro-step for the successors its client may already send,
     // so that its end velocity is chosen knowing them (motion_blend.hpp), as in real time.
     wait_until_ready(mutex_, changed_, successor_wait, [&] {
-      return !running_.load() || (!awaiting_successor() && !awaiting_lookahead()) ||
-             reset_pending_;
+      return !running_.load() || (!awaiting_successor() && !awaiting_lookahead()) || reset_pending_;
     });
     if (!running_.load(std::memory_order_relaxed)) break;
     cycle(0, 1);
@@ -257,7 +257,8 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
   try {
     if (write_outputs) hardware_.write_outputs(outputs);
     if (switch_servo)
-      for (std::size_t i = 0; i < axes_; ++i) hardware_.set_servo(i, algorithm[i], parameter_set[i]);
+      for (std::size_t i = 0; i < axes_; ++i)
+        hardware_.set_servo(i, algorithm[i], parameter_set[i]);
     if (hardware_.write(std::span<const double>(raw_setpoints_.data(), axes_)) != CycleStatus::ok)
       std::snprintf(failure, sizeof failure, "%s", hardware_.fault_text().c_str());
   } catch (const std::exception& e) {
@@ -293,10 +294,10 @@ void ServoLoop::plan_cycle() {
     // Hold still where the axes are.
     for (std::size_t i = 0; i < axes_; ++i) desired_[i] = latest_.joints[i];
   } else if (mode_ == Mode::stopping) {
-    const RampStep r = stopping_ramp_step(
-        std::span<const double>(commanded_velocity_.data(), axes_),
-        std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_), model_, period_s_,
-        guard_);
+    const RampStep r =
+        stopping_ramp_step(std::span<const double>(commanded_velocity_.data(), axes_),
+                           std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_),
+                           model_, period_s_, guard_);
     if (r.at_limit) ++limit_stops_;
     if (!r.moving) {
       mode_ = Mode::hold;
@@ -369,10 +370,10 @@ void ServoLoop::start_next_macro_step() {
     if (moving) {
       // The ramp's first step is taken in this cycle, from the velocity of the last one.
       mode_ = Mode::stopping;
-      const RampStep r = stopping_ramp_step(
-          std::span<const double>(commanded_velocity_.data(), axes_),
-          std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_), model_, period_s_,
-          guard_);
+      const RampStep r =
+          stopping_ramp_step(std::span<const double>(commanded_velocity_.data(), axes_),
+                             std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_),
+                             model_, period_s_, guard_);
       if (r.at_limit) ++limit_stops_;
       if (!r.moving) mode_ = Mode::hold;
     }
@@ -404,8 +405,8 @@ void ServoLoop::motion_cycle() {
     const double s = static_cast<double>(m.step) / static_cast<double>(m.steps);
     const double duration = static_cast<double>(m.steps) * period_s_;
     for (std::size_t i = 0; i < axes_; ++i)
-      desired_[i] = blend_position(m.start[i], m.target[i], m.start_velocity[i],
-                                   m.end_velocity[i], duration, s);
+      desired_[i] = blend_position(m.start[i], m.target[i], m.start_velocity[i], m.end_velocity[i],
+                                   duration, s);
   }
   latest_.desired = desired_;
   if (m.step == m.value_in_step_no) store_reading(m.id, m.step);
@@ -631,7 +632,7 @@ void ServoLoop::request_outputs(std::uint32_t values) {
 }
 
 void ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
-                             const std::vector<std::int8_t>& parameter_set) {
+                              const std::vector<std::int8_t>& parameter_set) {
   {
     std::lock_guard lock(mutex_);
     for (std::size_t i = 0; i < axes_ && i < algorithm.size(); ++i) {

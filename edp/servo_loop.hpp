@@ -40,9 +40,9 @@ struct Reading {
   int step_no = 0;
   std::int64_t cycle = 0;  ///< servo cycle counter
   bool synchronised = false;
-  AxisArray joints{};      ///< measured [rad] (raw axis positions before synchronisation)
-  AxisArray desired{};     ///< commanded [rad]
-  AxisArray velocities{};  ///< [rad/s]
+  AxisArray joints{};         ///< measured [rad] (raw axis positions before synchronisation)
+  AxisArray desired{};        ///< commanded [rad]
+  AxisArray velocities{};     ///< [rad/s]
   std::uint32_t inputs = 0;   ///< binary inputs
   std::uint32_t outputs = 0;  ///< binary outputs as last written
   std::array<std::int8_t, kMaxAxes> servo_algorithm{};
@@ -55,8 +55,8 @@ struct Reading {
 struct TraceSample {
   std::int64_t cycle = 0;
   bool synchronised = false;  ///< false: positions are raw axis positions, not joint coordinates
-  AxisArray desired{};   ///< commanded joint position written in this cycle [rad]
-  AxisArray measured{};  ///< measured joint position read in this cycle [rad]
+  AxisArray desired{};        ///< commanded joint position written in this cycle [rad]
+  AxisArray measured{};       ///< measured joint position read in this cycle [rad]
 };
 
 class ServoLoop {
@@ -124,8 +124,9 @@ class ServoLoop {
   /// a holding cycle. A macro-step that promised a successor (value_in_step_no < steps) waits
   /// before its last step, with simulated time standing still, up to `successor_wait_s` of wall
   /// time for it (and before it starts, for the successors its client may already have sent, so
-  /// that it is joined to them as in real time); only then is the successor lost and the robot ramped to a standstill. Lateness
-  /// and overruns are not measured in lock-step (there are no deadlines).
+  /// that it is joined to them as in real time); only then is the successor lost and the robot
+  /// ramped to a standstill. Lateness and overruns are not measured in lock-step (there are no
+  /// deadlines).
   void set_lock_step(bool on, double successor_wait_s = 1.0) {
     lock_step_ = on;
     successor_wait_s_ = successor_wait_s;
@@ -205,9 +206,7 @@ class ServoLoop {
   /// Drops every queued macro-step; waiters for them are answered by their refusal or the
   /// emergency stop.
   void drop_queue();
-  [[nodiscard]] int queued() const {
-    return static_cast<int>(queue_.size()) + (current_ ? 1 : 0);
-  }
+  [[nodiscard]] int queued() const { return static_cast<int>(queue_.size()) + (current_ ? 1 : 0); }
 
   Hardware& hardware_;
   const RobotModel& model_;
@@ -223,23 +222,23 @@ class ServoLoop {
   double successor_wait_s_ = 1.0;
 
   mutable PiMutex mutex_;
-  Wakeup changed_;              ///< moved whenever a waiter's condition may have changed
+  Wakeup changed_;               ///< moved whenever a waiter's condition may have changed
   bool notify_pending_ = false;  ///< the servo thread notifies changed_ after unlocking
   Mode mode_ = Mode::hold;
   Synchroniser synchroniser_;
   std::optional<MacroStep> current_;
   MacroStepQueue queue_;
   std::uint64_t next_id_ = 1;
-  std::uint64_t reached_id_ = 0;  ///< the newest macro-step past its reading step (or dropped)
+  std::uint64_t reached_id_ = 0;     ///< the newest macro-step past its reading step (or dropped)
   std::uint64_t after_stop_id_ = 0;  ///< macro-step whose reading is due after it stopped
   int after_stop_step_ = 0;
   Reading latest_;
-  Reading delivered_;  ///< the last reading requested by a macro-step
-  AxisArray desired_{};  ///< joint coordinates (raw before synchronisation)
+  Reading delivered_;               ///< the last reading requested by a macro-step
+  AxisArray desired_{};             ///< joint coordinates (raw before synchronisation)
   AxisArray commanded_velocity_{};  ///< of desired_ over the last cycle [rad/s]
-  AxisArray end_velocity_{};  ///< the velocity the last macro-step ended with (0: at rest)
+  AxisArray end_velocity_{};        ///< the velocity the last macro-step ended with (0: at rest)
   std::array<const MacroStep*, MacroStepQueue::kCapacity> following_{};  ///< for plan_blend
-  AxisArray scratch_{};             ///< the stopping ramp's proposal
+  AxisArray scratch_{};  ///< the stopping ramp's proposal
   const ArmKinematics* guard_ = nullptr;
   std::int64_t limit_stops_ = 0;  ///< stopping ramps ended at a limit
   bool emergency_stop_ = false;
@@ -247,14 +246,14 @@ class ServoLoop {
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;
   std::int64_t planned_stops_ = 0;
-  std::uint64_t waived_upto_ = 0;  ///< macro-steps up to this id need no successor
+  std::uint64_t waived_upto_ = 0;    ///< macro-steps up to this id need no successor
   std::uint64_t refused_first_ = 0;  ///< the refused range: the macro-step refused at its start
   std::uint64_t refused_last_ = 0;   ///< ... and the newest one dropped with it
-  bool after_ramp_ = false;       ///< the robot stands where a lost successor's ramp left it
+  bool after_ramp_ = false;          ///< the robot stands where a lost successor's ramp left it
   char refused_text_[384] = {};
   int refused_code_ = 0;
-  AxisArray offset_{};   ///< joint = raw + offset (valid once synchronised)
-  std::array<AxisFeedback, kMaxAxes> sample_{};    ///< servo thread only
+  AxisArray offset_{};                           ///< joint = raw + offset (valid once synchronised)
+  std::array<AxisFeedback, kMaxAxes> sample_{};  ///< servo thread only
   std::array<AxisFeedback, kMaxAxes> feedback_{};  ///< under mutex_
   std::array<double, kMaxAxes> raw_setpoints_{};   ///< servo thread only (written outside mutex_)
   char fault_[256] = {};

@@ -18,7 +18,7 @@
 namespace mrroc::edp {
 
 struct RampStep {
-  bool moving = false;  ///< the step moves the robot (false: the ramp is over)
+  bool moving = false;    ///< the step moves the robot (false: the ramp is over)
   bool at_limit = false;  ///< the step would have left a limit and was not taken
 };
 

@@ -9,8 +9,8 @@
 namespace mrroc::edp {
 
 namespace {
-constexpr double kSynchroSpeed = 0.1;        // joint speed while searching a switch [rad/s]
-constexpr double kSynchroSearchRange = 0.4;  // farthest a switch may be from the start [rad]
+constexpr double kSynchroSpeed = 0.1;              // joint speed while searching a switch [rad/s]
+constexpr double kSynchroSearchRange = 0.4;        // farthest a switch may be from the start [rad]
 constexpr double kSynchroAccelerationShare = 0.5;  // of each joint's acceleration limit
 }  // namespace
 
@@ -57,11 +57,10 @@ Synchroniser::Result Synchroniser::step(std::span<const AxisFeedback> feedback, 
         desired[i] += offset[i];
         approach_start_[i] = desired[i];
         approach_steps_ = std::max(
-            approach_steps_,
-            shortest_rest_to_rest_steps(model_.synchro_joint_positions[i] - desired[i],
-                                        std::min(kSynchroSpeed, model_.max_velocity[i]),
-                                        kSynchroAccelerationShare * model_.max_acceleration[i],
-                                        period_s));
+            approach_steps_, shortest_rest_to_rest_steps(
+                                 model_.synchro_joint_positions[i] - desired[i],
+                                 std::min(kSynchroSpeed, model_.max_velocity[i]),
+                                 kSynchroAccelerationShare * model_.max_acceleration[i], period_s));
       }
       approach_step_no_ = 0;
       phase_ = Phase::approach;
@@ -75,8 +74,8 @@ Synchroniser::Result Synchroniser::step(std::span<const AxisFeedback> feedback, 
     for (std::size_t i = 0; i < axes_; ++i)
       desired[i] = approach_step_no_ >= approach_steps_
                        ? model_.synchro_joint_positions[i]
-                       : blend_position(approach_start_[i], model_.synchro_joint_positions[i],
-                                        0.0, 0.0, duration, s);
+                       : blend_position(approach_start_[i], model_.synchro_joint_positions[i], 0.0,
+                                        0.0, duration, s);
     if (approach_step_no_ >= approach_steps_) {
       phase_ = Phase::idle;
       return Result::done;

@@ -4,9 +4,9 @@
 
 #include <fmt/format.h>
 
+#include <toml++/toml.h>
 #include <cmath>
 #include <set>
-#include <toml++/toml.h>
 
 #include "mrroc/core/error.hpp"
 
@@ -19,11 +19,12 @@ std::vector<RobotDrives> read_drive_wiring(const std::filesystem::path& file,
   try {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line,
-                                  e.description()));
+    throw ConfigError(
+        fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
   }
   const auto fail = [&](const toml::node& node, const std::string& text) {
-    return ConfigError(fmt::format("{}:{}: error: {}", file.string(), node.source().begin.line, text));
+    return ConfigError(
+        fmt::format("{}:{}: error: {}", file.string(), node.source().begin.line, text));
   };
   const toml::array* robots = root["scene"]["robot"].as_array();
   std::vector<RobotDrives> out;
@@ -59,8 +60,7 @@ std::vector<RobotDrives> read_drive_wiring(const std::filesystem::path& file,
         d.nodes.clear();
         for (const auto& v : *list) {
           const auto id = v.value<std::int64_t>();
-          if (!id || *id < 1 || *id > 127)
-            throw fail(v, "node ids must be integers in 1..127");
+          if (!id || *id < 1 || *id > 127) throw fail(v, "node ids must be integers in 1..127");
           d.nodes.push_back(static_cast<int>(*id));
         }
       }
@@ -79,7 +79,8 @@ std::vector<RobotDrives> read_drive_wiring(const std::filesystem::path& file,
         }
         if (values.size() != n)
           throw fail(*limit, fmt::format("'current_limit' must be one number or {} numbers [N m "
-                                         "or N]", n));
+                                         "or N]",
+                                         n));
         for (const double v : values)
           if (!(v > 0.0)) throw fail(*limit, "'current_limit' values must be positive [N m or N]");
         d.current_limit = values;
@@ -94,8 +95,10 @@ std::vector<RobotDrives> read_drive_wiring(const std::filesystem::path& file,
   }
   for (const auto& [name, url] : overrides) {
     bool known = false;
-    for (std::size_t k = 0; k < world.robot_count(); ++k) known = known || world.robot(k).name == name;
-    if (!known) throw ConfigError("--bus " + name + "=" + url + ": the scene has no robot '" + name + "'");
+    for (std::size_t k = 0; k < world.robot_count(); ++k)
+      known = known || world.robot(k).name == name;
+    if (!known)
+      throw ConfigError("--bus " + name + "=" + url + ": the scene has no robot '" + name + "'");
   }
   return out;
 }

@@ -24,14 +24,14 @@ enum class FaultKind { drive, silent, drop, bus_off, sensor };
 
 struct FaultSpec {
   FaultKind kind = FaultKind::drive;
-  std::string robot;             ///< empty for sensor
-  std::string device;            ///< sensor
-  std::string axis;              ///< name or index; empty for drop and busoff
-  double at_s = 0.0;             ///< [s] after the robot's drives were first enabled
-  std::uint16_t code = 0x5000;   ///< EMCY code (drive)
-  double fraction = 0.0;         ///< drop
-  double duration_s = -1.0;      ///< busoff; negative: for ever
-  std::string text;              ///< the spec as written
+  std::string robot;            ///< empty for sensor
+  std::string device;           ///< sensor
+  std::string axis;             ///< name or index; empty for drop and busoff
+  double at_s = 0.0;            ///< [s] after the robot's drives were first enabled
+  std::uint16_t code = 0x5000;  ///< EMCY code (drive)
+  double fraction = 0.0;        ///< drop
+  double duration_s = -1.0;     ///< busoff; negative: for ever
+  std::string text;             ///< the spec as written
 };
 
 /// @throws mrroc::ConfigError naming the spec and what is wrong with it.

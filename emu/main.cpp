@@ -5,13 +5,13 @@
 // fast as they come). Faults can be injected (emu/faults.hpp). The scene's raw sensors (strain
 // gauges, range finders, encoders, an emulated camera: emu/sensors.hpp) are sampled from the
 // physics and published on LCM for the VSPs. docs/hil.md.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <linux/can/error.h>
 #include <pthread.h>
 #include <sched.h>
-#include <linux/can/error.h>
 #include <sys/prctl.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -34,10 +34,10 @@
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_drive.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "sensors.hpp"
 
@@ -143,9 +143,10 @@ class Emulator {
         run.drives.push_back(d.get());
         drives_.push_back(std::move(d));
       }
-      std::cout << fmt::format("mrroc-axis-emu: robot '{}': {} drives on {} (nodes {}), {} counts "
-                               "per unit\n",
-                               robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit);
+      std::cout << fmt::format(
+          "mrroc-axis-emu: robot '{}': {} drives on {} (nodes {}), {} counts "
+          "per unit\n",
+          robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit);
     }
     setup_sensors();
     for (const std::string& text : options_.faults) {
@@ -154,7 +155,8 @@ class Emulator {
       if (s.spec.kind == emu::FaultKind::sensor) {
         s.robot = 0;  // times count from the first robot's drives
         bool found = false;
-        for (std::size_t i = 0; i < sensors_->size(); ++i) found = found || sensors_->config(i).name == s.spec.device;
+        for (std::size_t i = 0; i < sensors_->size(); ++i)
+          found = found || sensors_->config(i).name == s.spec.device;
         if (!found)
           throw ConfigError(fmt::format("fault '{}': the scene has no raw sensor device '{}'", text,
                                         s.spec.device));
@@ -172,7 +174,8 @@ class Emulator {
           }
         if (!found)
           throw ConfigError(fmt::format("fault '{}': robot '{}' has no axis '{}' (axes: {})", text,
-                                        robot.name, s.spec.axis, fmt::join(robot.axis_names, ", ")));
+                                        robot.name, s.spec.axis,
+                                        fmt::join(robot.axis_names, ", ")));
       }
       schedule_.push_back(s);
     }
@@ -216,8 +219,8 @@ class Emulator {
     if (sensors_->size() == 0) return;
     const std::int64_t now = now_utime();
     for (const std::size_t i : sensors_->update(world_, now)) {
-      if (!silenced_.empty() &&
-          std::find(silenced_.begin(), silenced_.end(), sensors_->config(i).name) != silenced_.end())
+      if (!silenced_.empty() && std::find(silenced_.begin(), silenced_.end(),
+                                          sensors_->config(i).name) != silenced_.end())
         continue;
       if (publisher_ && !publisher_->publish(i, sensors_->sample(i), now) &&
           !publish_failure_reported_) {
@@ -277,8 +280,8 @@ class Emulator {
       RobotRun& r = robots_[k];
       if (r.off && r.off_until >= 0.0 && now >= r.off_until) {
         r.off = false;
-        report_warning(fmt::format("robot '{}': drives back on the bus after bus-off",
-                                   world_.robot(k).name));
+        report_warning(
+            fmt::format("robot '{}': drives back on the bus after bus-off", world_.robot(k).name));
       }
       bool all_enabled = true;
       for (Drive* d : r.drives) {
@@ -288,9 +291,10 @@ class Emulator {
       }
       if (all_enabled && r.enabled_at < 0.0) {
         r.enabled_at = now;
-        std::cout << fmt::format("mrroc-axis-emu: robot '{}': all drives operation enabled at "
-                                 "t = {:.3f} s\n",
-                                 world_.robot(k).name, now)
+        std::cout << fmt::format(
+                         "mrroc-axis-emu: robot '{}': all drives operation enabled at "
+                         "t = {:.3f} s\n",
+                         world_.robot(k).name, now)
                   << std::flush;
       }
     }
@@ -331,18 +335,10 @@ class Emulator {
       s.done = true;
       report_warning(fmt::format("injecting fault {}", s.spec.text));
       switch (s.spec.kind) {
-        case emu::FaultKind::drive:
-          r.drives[s.axis]->drive->inject_fault(s.spec.code, now);
-          break;
-        case emu::FaultKind::silent:
-          r.drives[s.axis]->drive->set_silent(true);
-          break;
-        case emu::FaultKind::sensor:
-          silenced_.push_back(s.spec.device);
-          break;
-        case emu::FaultKind::drop:
-          r.drop = s.spec.fraction;
-          break;
+        case emu::FaultKind::drive: r.drives[s.axis]->drive->inject_fault(s.spec.code, now); break;
+        case emu::FaultKind::silent: r.drives[s.axis]->drive->set_silent(true); break;
+        case emu::FaultKind::sensor: silenced_.push_back(s.spec.device); break;
+        case emu::FaultKind::drop: r.drop = s.spec.fraction; break;
         case emu::FaultKind::bus_off: {
           can_frame f{};
           f.can_id = CAN_ERR_FLAG | CAN_ERR_BUSOFF;
@@ -389,7 +385,8 @@ class Emulator {
         if (ports_.size() == 1) {
           if (ports_[0]->bus->receive(r, std::chrono::nanoseconds(left))) dispatch(*ports_[0], r);
         } else {
-          std::this_thread::sleep_for(std::chrono::nanoseconds(std::min<std::int64_t>(left, 200000)));
+          std::this_thread::sleep_for(
+              std::chrono::nanoseconds(std::min<std::int64_t>(left, 200000)));
         }
       }
       physics_step();
@@ -403,8 +400,8 @@ class Emulator {
     while (!done()) {
       bool got = false;
       for (auto& p : ports_) {
-        const auto wait = ports_.size() == 1 ? std::chrono::nanoseconds(100000000)
-                                             : std::chrono::nanoseconds(0);
+        const auto wait =
+            ports_.size() == 1 ? std::chrono::nanoseconds(100000000) : std::chrono::nanoseconds(0);
         while (p->bus->receive(r, wait)) {
           dispatch(*p, r);
           got = true;
@@ -465,10 +462,11 @@ int main(int argc, char** argv) {
   app.add_flag("--lock-step", options.lock_step,
                "advance the physics by the masters' SYNCs (as fast as they come) instead of in "
                "real time");
-  app.add_option("--fault", options.faults,
-                 "inject a fault (repeatable): drive:<robot>/<axis>@<s>[=<hex code>], "
-                 "silent:<robot>/<axis>@<s>, drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>]; "
-                 "sensor:<device>@<s>; <s> counts from the robot's drives being enabled");
+  app.add_option(
+      "--fault", options.faults,
+      "inject a fault (repeatable): drive:<robot>/<axis>@<s>[=<hex code>], "
+      "silent:<robot>/<axis>@<s>, drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>]; "
+      "sensor:<device>@<s>; <s> counts from the robot's drives being enabled");
   app.add_option("--bus", bus_overrides,
                  "put a robot's drives on another bus: <robot>=<url>, e.g. irb6=socketcan:vcan0 "
                  "(repeatable)");

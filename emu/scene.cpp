@@ -858,14 +858,10 @@ class SceneComposer {
 
 const char* shape_name(ObjectShape shape) noexcept {
   switch (shape) {
-    case ObjectShape::box:
-      return "box";
-    case ObjectShape::sphere:
-      return "sphere";
-    case ObjectShape::cylinder:
-      return "cylinder";
-    case ObjectShape::capsule:
-      return "capsule";
+    case ObjectShape::box: return "box";
+    case ObjectShape::sphere: return "sphere";
+    case ObjectShape::cylinder: return "cylinder";
+    case ObjectShape::capsule: return "capsule";
   }
   return "?";
 }

@@ -138,14 +138,10 @@ const std::vector<std::string>& known_keys(SensorType type) {
   static const std::vector<std::string> camera = {"name", "type",    "rate_hz", "noise",
                                                   "seed", "objects", "region",  "latency_ms"};
   switch (type) {
-    case SensorType::strain_gauges:
-      return gauges;
-    case SensorType::range:
-      return range;
-    case SensorType::encoder:
-      return encoder;
-    case SensorType::camera:
-      return camera;
+    case SensorType::strain_gauges: return gauges;
+    case SensorType::range: return range;
+    case SensorType::encoder: return encoder;
+    case SensorType::camera: return camera;
   }
   return gauges;
 }
@@ -304,12 +300,8 @@ SensorConfig read_sensor(const fs::path& file, const toml::table& table, const C
       read_mount(r, world, c);
       c.max_range = r.number("max_range", 1e-3, 100.0, "m").value_or(4.0);
       break;
-    case SensorType::encoder:
-      read_encoder(r, world, c);
-      break;
-    case SensorType::camera:
-      read_camera(r, world, c);
-      break;
+    case SensorType::encoder: read_encoder(r, world, c); break;
+    case SensorType::camera: read_camera(r, world, c); break;
   }
   return c;
 }
@@ -694,8 +686,7 @@ std::span<const std::size_t> SensorDevices::update(CellWorld& world,
         (void)world.actuator_positions(dev.robot, dev.positions);
         s.values[0] = dev.positions[c.axis] + dev.noise();
         break;
-      case SensorType::camera:
-        break;
+      case SensorType::camera: break;
     }
     ready_.push_back(i);
   }

@@ -27,8 +27,7 @@ EstopLatch::EstopLatch(comm::Bus& bus, std::vector<std::string> robots,
       +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, EstopLatch* self) {
         Stop m;
         if (!comm::detail::decode_received(buffer, m)) {
-          comm::detail::report_malformed(self->bus_, channel,
-                                         static_cast<int>(buffer->data_size));
+          comm::detail::report_malformed(self->bus_, channel, static_cast<int>(buffer->data_size));
           return;
         }
         if (m.action == Stop::RELEASE) {
@@ -58,9 +57,8 @@ bool EstopLatch::engaged(const std::string& robot) const {
   return it != robots_.end() && it->second.engaged;
 }
 
-void EstopLatch::on_command(std::int8_t action, const std::string& robot,
-                            const std::string& reason, const std::string& sender,
-                            std::int64_t utime) {
+void EstopLatch::on_command(std::int8_t action, const std::string& robot, const std::string& reason,
+                            const std::string& sender, std::int64_t utime) {
   const bool engage = action == Stop::ENGAGE;
   std::string line;
   {
@@ -76,10 +74,11 @@ void EstopLatch::on_command(std::int8_t action, const std::string& robot,
     if (flipped.empty()) return;  // a repeated copy, or a robot of another set
     std::string names;
     for (const auto& n : flipped) names += (names.empty() ? "" : ", ") + n;
-    line = fmt::format("mrroc-launch: emergency stop {} for {} ({}from {}): latched and announced "
-                       "every {} ms",
-                       engage ? "ENGAGED" : "released", names,
-                       engage && !reason.empty() ? reason + ", " : "", sender, kPeriod.count());
+    line = fmt::format(
+        "mrroc-launch: emergency stop {} for {} ({}from {}): latched and announced "
+        "every {} ms",
+        engage ? "ENGAGED" : "released", names, engage && !reason.empty() ? reason + ", " : "",
+        sender, kPeriod.count());
     changed_ = true;
   }
   cv_.notify_all();
@@ -125,8 +124,8 @@ std::string RunningSet::describe() const {
 std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::string>& robots) {
   struct Heard {
     std::mutex mutex;
-    std::string table;      // from launch_status_t
-    std::string announcer;  // sender of stop announcements
+    std::string table;                        // from launch_status_t
+    std::string announcer;                    // sender of stop announcements
     std::map<std::string, std::string> edps;  // robot -> sender
   } heard;
   std::vector<lcm::Subscription*> subs;
@@ -136,9 +135,9 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
         mrroc_lcm::launch_status_t m;
         if (!comm::detail::decode_received(b, m)) return;
         std::lock_guard lock(h->mutex);
-        h->table = fmt::format("a launcher (pid {}, '{}') runs set '{}' from {} (state {}, up {:.1f} s)",
-                               m.launcher_pid, m.header.sender, m.set_name, m.config_file,
-                               m.state, m.uptime_s);
+        h->table = fmt::format(
+            "a launcher (pid {}, '{}') runs set '{}' from {} (state {}, up {:.1f} s)",
+            m.launcher_pid, m.header.sender, m.set_name, m.config_file, m.state, m.uptime_s);
       },
       &heard));
   subs.push_back(bus.lcm().subscribeFunction<Heard*>(
@@ -183,13 +182,14 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
   std::lock_guard lock(heard.mutex);
   if (heard.table.empty() && heard.announcer.empty() && heard.edps.empty()) return std::nullopt;
   RunningSet out;
-  out.launcher = !heard.table.empty() ? heard.table
-                 : !heard.announcer.empty()
-                     ? fmt::format("a launcher ('{}') announces the emergency stop's state",
-                                   heard.announcer)
-                     : std::string{};
+  out.launcher =
+      !heard.table.empty() ? heard.table
+      : !heard.announcer.empty()
+          ? fmt::format("a launcher ('{}') announces the emergency stop's state", heard.announcer)
+          : std::string{};
   for (const auto& [robot, sender] : heard.edps)
-    out.edps.push_back(fmt::format("the EDP of robot {} ('{}') broadcasts its state", robot, sender));
+    out.edps.push_back(
+        fmt::format("the EDP of robot {} ('{}') broadcasts its state", robot, sender));
   return out;
 }
 

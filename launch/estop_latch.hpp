@@ -69,7 +69,7 @@ class EstopLatch {
 
 /// What runs on an LCM URL, as heard by running_set().
 struct RunningSet {
-  std::string launcher;     ///< e.g. "launcher pid 41 ('launch#41'), set 'demo-irb6' from F"
+  std::string launcher;           ///< e.g. "launcher pid 41 ('launch#41'), set 'demo-irb6' from F"
   std::vector<std::string> edps;  ///< e.g. "EDP of robot irb6 ('edp/irb6#57')"
   [[nodiscard]] std::string describe() const;
 };

@@ -27,9 +27,9 @@
 #include "launch_plan.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/launch_command_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
@@ -201,11 +201,10 @@ void print_plan(const ProcessSetConfig& config, const std::vector<PlannedProcess
     if (!detailed) continue;
     std::string restart = to_string(p.options.restart);
     if (p.options.restart != RestartPolicy::never)
-      restart += fmt::format(" (at most {}, back-off from {:.1f} s{})", p.options.max_restarts,
-                             p.options.restart_backoff_s,
-                             p.restart_needs_ack.empty()
-                                 ? ""
-                                 : ", each after an operator's acknowledgement");
+      restart += fmt::format(
+          " (at most {}, back-off from {:.1f} s{})", p.options.max_restarts,
+          p.options.restart_backoff_s,
+          p.restart_needs_ack.empty() ? "" : ", each after an operator's acknowledgement");
     std::cout << fmt::format(
         "     group {}, host {}, restart {}, {}, stop {} then SIGKILL after {:.1f} s, log {}\n",
         p.group, p.host, p.name == "mp" ? "never (its end is the end of the task)" : restart,

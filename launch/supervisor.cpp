@@ -211,7 +211,7 @@ void fork_stop_guard(const ExecPlan& p) {
   char c = 0;
   for (;;) {
     const ssize_t n = ::read(p.life_r, &c, 1);
-    if (n == 0) break;                       // the launcher is gone
+    if (n == 0) break;                        // the launcher is gone
     if (n < 0 && errno != EINTR) ::_exit(0);  // cannot watch
   }
   struct timespec left = p.escalate;

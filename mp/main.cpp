@@ -1,7 +1,7 @@
 // mrroc-mp: the Master Process. Runs the MP part of the task, coordinating the robots' ECPs, and
 // serves the operator's commands (START, PAUSE, RESUME, STOP, TERMINATE, STATUS from mrroc-ui).
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -14,11 +14,11 @@
 
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc/mp/task.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
@@ -101,8 +101,8 @@ class MpShell {
         }
       }
       std::lock_guard lock(mutex_);
-      const bool idle = state_ != Reply::RUNNING && state_ != Reply::PAUSED &&
-                        state_ != Reply::STOPPING;
+      const bool idle =
+          state_ != Reply::RUNNING && state_ != Reply::PAUSED && state_ != Reply::STOPPING;
       if (idle && (!operator_mode || terminate_ || stop_requested())) break;
     }
     std::lock_guard lock(mutex_);
@@ -184,9 +184,8 @@ class MpShell {
                                                         : ProcessState::finished);
     } else {
       reporter_.report(by_operator ? Severity::warning : Severity::fatal, 0, error);
-      reporter_.set_state(config_.mp_waits_for_operator ? ProcessState::ready
-                                                        : ProcessState::failed,
-                          error);
+      reporter_.set_state(
+          config_.mp_waits_for_operator ? ProcessState::ready : ProcessState::failed, error);
     }
   }
 
@@ -239,15 +238,13 @@ class MpShell {
       state = state_;
     }
     auto refuse = [&](const std::string& why) {
-      in.responder.reply(snapshot(false, fmt::format("{} refused: {} (state {})", name, why,
-                                                     state_name(state))));
+      in.responder.reply(
+          snapshot(false, fmt::format("{} refused: {} (state {})", name, why, state_name(state))));
     };
     const bool active =
         state == Reply::RUNNING || state == Reply::PAUSED || state == Reply::STOPPING;
     switch (command) {
-      case Command::STATUS:
-        in.responder.reply(snapshot(true, {}));
-        return;
+      case Command::STATUS: in.responder.reply(snapshot(true, {})); return;
       case Command::START:
         if (!config_.mp_waits_for_operator)
           return refuse("the task starts by itself ([mp] start = \"auto\")");
@@ -280,8 +277,7 @@ class MpShell {
         in.responder.reply(snapshot(true, "task resumed"));
         return;
       case Command::STOP:
-        if (state != Reply::RUNNING && state != Reply::PAUSED)
-          return refuse("no task is running");
+        if (state != Reply::RUNNING && state != Reply::PAUSED) return refuse("no task is running");
         stop_run("STOP from the operator");
         in.responder.reply(snapshot(true, "task stopping"));
         return;
@@ -297,8 +293,7 @@ class MpShell {
         in.responder.reply(r);
         return;
       }
-      default:
-        return;
+      default: return;
     }
   }
 
@@ -330,7 +325,8 @@ int run(const std::string& config_path) {
   bus.start();
   Reporter reporter(bus, "mp");
   // The MP has no ready line of its own: say so only when the system refused the priority.
-  if (scheduling.rfind("SCHED_OTHER (", 0) == 0) reporter.warning(fmt::format("runs {}", scheduling));
+  if (scheduling.rfind("SCHED_OTHER (", 0) == 0)
+    reporter.warning(fmt::format("runs {}", scheduling));
   try {
     if (!config.mp.library.empty()) load_plugin_library(config.mp.library, config.mp.where);
     MpShell shell(config, bus, reporter);

@@ -19,10 +19,10 @@
 #include "log_file.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 #include "mrroc_lcm/srp_history_reply_t.hpp"
@@ -39,16 +39,11 @@ constexpr auto kTimingInterval = std::chrono::seconds(10);
 
 const char* colour_of(Severity s) {
   switch (s) {
-    case Severity::debug:
-      return "\033[2m";
-    case Severity::info:
-      return "";
-    case Severity::warning:
-      return "\033[33m";
-    case Severity::error:
-      return "\033[31m";
-    case Severity::fatal:
-      return "\033[1;31m";
+    case Severity::debug: return "\033[2m";
+    case Severity::info: return "";
+    case Severity::warning: return "\033[33m";
+    case Severity::error: return "\033[31m";
+    case Severity::fatal: return "\033[1;31m";
   }
   return "";
 }

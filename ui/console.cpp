@@ -19,11 +19,11 @@
 
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
 #include "mrroc/ecp/robot.hpp"
@@ -706,8 +706,7 @@ struct Console::Impl {
     // Sent, then confirmed from every robot's robot_state_t within kEstopConfirmDeadline.
     std::vector<std::string> names;
     for (const RobotConfig& r : config.robots) names.push_back(r.name);
-    const EstopConfirmation c =
-        send_and_confirm_emergency_stop(bus, engage, names, robot, reason);
+    const EstopConfirmation c = send_and_confirm_emergency_stop(bus, engage, names, robot, reason);
     const std::string what =
         describe_emergency_stop(engage, robot, reason) + ": " + describe_confirmation(engage, c);
     if (engage || !c.all())

@@ -22,8 +22,8 @@ struct ConsoleOptions {
   int port = 8080;
   /// Every /api request must carry it (header `Authorization: Bearer TOKEN`); empty: none.
   std::string token;
-  std::filesystem::path teach_dir;      ///< where "Record pose" writes; empty: current folder
-  double jog_max_step_rad = 0.2;        ///< largest jog step accepted [rad]
+  std::filesystem::path teach_dir;  ///< where "Record pose" writes; empty: current folder
+  double jog_max_step_rad = 0.2;    ///< largest jog step accepted [rad]
   /// A jog stays within this fraction of the axis' velocity and acceleration limits.
   double jog_velocity_fraction = 0.25;
 };

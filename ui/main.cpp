@@ -19,11 +19,11 @@
 #include "console.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/launch_command_t.hpp"
 #include "mrroc_lcm/launch_status_t.hpp"
@@ -34,9 +34,9 @@ namespace {
 using namespace mrroc;
 
 // Exit codes of the task commands.
-constexpr int kExitRefused = 1;  // the MP answered and refused the command
-constexpr int kExitConfig = 2;   // bad command line or config
-constexpr int kExitNoMp = 3;     // no MP answered
+constexpr int kExitRefused = 1;      // the MP answered and refused the command
+constexpr int kExitConfig = 2;       // bad command line or config
+constexpr int kExitNoMp = 3;         // no MP answered
 constexpr int kExitUnconfirmed = 4;  // estop / release: a robot did not confirm in time
 // restart: 1 the process is not held for an acknowledgement, 2 it is not in the set,
 // 3 no launcher of the set answered (or it did not confirm in time).

@@ -46,22 +46,14 @@ const char* to_string(OperatorCommand command) {
 std::string mp_state_name(std::int8_t state) {
   using R = mrroc_lcm::operator_reply_t;
   switch (state) {
-    case R::IDLE:
-      return "IDLE";
-    case R::RUNNING:
-      return "RUNNING";
-    case R::PAUSED:
-      return "PAUSED";
-    case R::STOPPING:
-      return "STOPPING";
-    case R::FINISHED:
-      return "FINISHED";
-    case R::FAILED:
-      return "FAILED";
-    case R::TERMINATING:
-      return "TERMINATING";
-    default:
-      return fmt::format("UNKNOWN({})", state);
+    case R::IDLE: return "IDLE";
+    case R::RUNNING: return "RUNNING";
+    case R::PAUSED: return "PAUSED";
+    case R::STOPPING: return "STOPPING";
+    case R::FINISHED: return "FINISHED";
+    case R::FAILED: return "FAILED";
+    case R::TERMINATING: return "TERMINATING";
+    default: return fmt::format("UNKNOWN({})", state);
   }
 }
 

@@ -64,8 +64,8 @@ inline constexpr std::chrono::milliseconds kEstopConfirmDeadline{500};
 
 /// The answer of the robots to an emergency stop or release.
 struct EstopConfirmation {
-  std::vector<std::string> confirmed;    ///< robots whose robot_state_t showed the new state
-  std::vector<std::string> unconfirmed;  ///< robots that did not within the deadline
+  std::vector<std::string> confirmed;        ///< robots whose robot_state_t showed the new state
+  std::vector<std::string> unconfirmed;      ///< robots that did not within the deadline
   std::map<std::string, double> latency_ms;  ///< per confirmed robot: from sending to the state
   std::map<std::string, std::int64_t> servo_step;  ///< the step of the confirming state
   /// The latch holder that announced the new state ("launch#41"), empty when none did.

@@ -1,18 +1,18 @@
 // mrroc-vsp: a Virtual Sensor Process. Aggregates the raw samples of its sources (raw sensor
 // devices on mrroc/raw/<device>) into readings with a sensor plugin, and serves them to ECPs and
 // the MP: CONFIGURE, INITIATE_READING, GET_READING, TERMINATE on vsp/<name>/cmd (docs/sensors.md).
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <cstdio>
 
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "shell.hpp"
 
 int main(int argc, char** argv) {
@@ -55,12 +55,11 @@ int main(int argc, char** argv) {
       vsp::Shell shell(bus, reporter, *vsp, std::move(plugin));
       bus.start();
       reporter.set_state(ProcessState::ready);
-      reporter.info(fmt::format("ready: plugin '{}', sources {}, {}, {}", vsp->plugin,
-                                fmt::join(vsp->sources, ", "),
-                                vsp->periodic ? fmt::format("periodic every {:.0f} ms",
-                                                            vsp->period_s * 1000.0)
-                                              : std::string("on demand"),
-                                scheduling));
+      reporter.info(fmt::format(
+          "ready: plugin '{}', sources {}, {}, {}", vsp->plugin, fmt::join(vsp->sources, ", "),
+          vsp->periodic ? fmt::format("periodic every {:.0f} ms", vsp->period_s * 1000.0)
+                        : std::string("on demand"),
+          scheduling));
       shell.serve([] { return !stop_requested(); });
       reporter.set_state(ProcessState::finished);
       return 0;

@@ -91,9 +91,10 @@ void Shell::on_raw(const lcm::ReceiveBuffer* buffer, const std::string& channel,
     if (!self->malformed_reported_) {
       self->malformed_reported_ = true;
       lock.unlock();
-      self->reporter_.warning(fmt::format("malformed raw sample on {} dropped ({}); further ones "
-                                          "are only counted",
-                                          channel, error));
+      self->reporter_.warning(
+          fmt::format("malformed raw sample on {} dropped ({}); further ones "
+                      "are only counted",
+                      channel, error));
     }
     return;
   }
@@ -114,8 +115,8 @@ void Shell::make_reading(const Params& context) {
     } else {
       const double age = std::chrono::duration<double>(now - *last_rx_[i]).count();
       if (age > config_.stale_after_s)
-        stale = fmt::format("source '{}' stale for {:.0f} ms (limit {:.0f} ms)",
-                            config_.sources[i], age * 1000.0, config_.stale_after_s * 1000.0);
+        stale = fmt::format("source '{}' stale for {:.0f} ms (limit {:.0f} ms)", config_.sources[i],
+                            age * 1000.0, config_.stale_after_s * 1000.0);
     }
   }
   if (stale.empty()) {
@@ -132,7 +133,8 @@ void Shell::make_reading(const Params& context) {
   }
   std::int64_t oldest = 0;
   for (std::size_t i = 0; i < last_sample_utime_.size(); ++i)
-    if (last_rx_[i] && (oldest == 0 || last_sample_utime_[i] < oldest)) oldest = last_sample_utime_[i];
+    if (last_rx_[i] && (oldest == 0 || last_sample_utime_[i] < oldest))
+      oldest = last_sample_utime_[i];
   r.reading_utime = oldest;
   r.reading_no = ++reading_no_;
   reading_ = r;
@@ -186,8 +188,9 @@ Reply Shell::handle(const Request& request) {
     case Command::get_reading: {
       std::lock_guard lock(mutex_);
       if (terminated_)
-        return fail(error_code::terminated,
-                    fmt::format("VSP '{}' was terminated; CONFIGURE starts it again", config_.name));
+        return fail(
+            error_code::terminated,
+            fmt::format("VSP '{}' was terminated; CONFIGURE starts it again", config_.name));
       if (!reading_)
         return fail(error_code::not_configured,
                     fmt::format("VSP '{}' has no reading yet ({})", config_.name,
@@ -195,8 +198,9 @@ Reply Shell::handle(const Request& request) {
                                                  : "send INITIATE_READING first"));
       reply.kind = ReplyKind::reading;
       reply.reading = *reading_;
-      reply.reading.age_us =
-          reading_->reading_utime > 0 ? std::max<std::int64_t>(0, now_utime() - reading_->reading_utime) : 0;
+      reply.reading.age_us = reading_->reading_utime > 0
+                                 ? std::max<std::int64_t>(0, now_utime() - reading_->reading_utime)
+                                 : 0;
       return reply;
     }
     case Command::terminate: {

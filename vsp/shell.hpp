@@ -24,8 +24,8 @@
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/links.hpp"
-#include "mrroc/config/process_set.hpp"
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/config/process_set.hpp"
 #include "mrroc/vsp/sensor.hpp"
 
 namespace mrroc::vsp {

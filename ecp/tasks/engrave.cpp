@@ -36,8 +36,9 @@ std::vector<Stroke> arc_stroke(double from_deg, double to_deg, int pieces) {
 const std::map<char, std::vector<Stroke>>& font() {
   static const std::map<char, std::vector<Stroke>> f = {
       {'M', {{{0, 0}, {0, 1}, {0.5, 0.45}, {1, 1}, {1, 0}}}},
-      {'R', {{{0, 0}, {0, 1}, {0.7, 1}, {1, 0.85}, {1, 0.65}, {0.7, 0.5}, {0, 0.5}},
-             {{0.45, 0.5}, {1, 0}}}},
+      {'R',
+       {{{0, 0}, {0, 1}, {0.7, 1}, {1, 0.85}, {1, 0.65}, {0.7, 0.5}, {0, 0.5}},
+        {{0.45, 0.5}, {1, 0}}}},
       {'O', arc_stroke(0, 360, 12)},
       {'C', arc_stroke(45, 315, 9)},
   };
@@ -89,14 +90,15 @@ class Engrave : public EcpTask {
     servo_algorithm_ = a.get_int("servo_algorithm", 1);
     a.reject_unread("robot.ecp.args");
     if (origin.size() != 3)
-      throw ConfigError(fmt::format("{}: error: 'origin' must be [x, y, z] (m)",
-                                    a.location_of("origin").str()));
+      throw ConfigError(
+          fmt::format("{}: error: 'origin' must be [x, y, z] (m)", a.location_of("origin").str()));
     origin_ = Eigen::Vector3d(origin[0], origin[1], origin[2]);
     for (char c : text_)
       if (c != ' ' && font().count(c) == 0)
-        throw ConfigError(fmt::format("{}: error: letter '{}' is not in the stroke font (C, M, O, "
-                                      "R, space)",
-                                      a.location_of("text").str(), c));
+        throw ConfigError(
+            fmt::format("{}: error: letter '{}' is not in the stroke font (C, M, O, "
+                        "R, space)",
+                        a.location_of("text").str(), c));
   }
 
   void main_task() override {
@@ -178,9 +180,10 @@ class Engrave : public EcpTask {
         text_, cuts.size(), cutting, worst * 1e3, tolerance_ * 1e3));
     if (cutting == 0) throw FatalError("the cutter never reached the cutting depth");
     if (worst > tolerance_)
-      throw FatalError(fmt::format("the engraving left its strokes by {:.3f} mm (tolerance {:.3f} "
-                                   "mm)",
-                                   worst * 1e3, tolerance_ * 1e3));
+      throw FatalError(
+          fmt::format("the engraving left its strokes by {:.3f} mm (tolerance {:.3f} "
+                      "mm)",
+                      worst * 1e3, tolerance_ * 1e3));
   }
 
  private:

@@ -50,7 +50,8 @@ namespace {
 Eigen::Vector3d vector3(const Params& a, const char* key, std::vector<double> fallback) {
   const std::vector<double> v = a.get_doubles(key, fallback);
   if (v.size() != 3)
-    throw ConfigError(fmt::format("{}: error: '{}' must be [x, y, z] (m)", a.location_of(key).str(), key));
+    throw ConfigError(
+        fmt::format("{}: error: '{}' must be [x, y, z] (m)", a.location_of(key).str(), key));
   return {v[0], v[1], v[2]};
 }
 
@@ -135,9 +136,10 @@ class Touching : public EcpTask {
     wrist_->initiate_reading();
     wrist_->get_reading();
     vsp_->configure("zero = true");
-    context_.reporter.info(fmt::format("above the surface at [{:.4f}, {:.4f}, {:.4f}] m; wrist "
-                                       "sensor '{}' zeroed",
-                                       start_.x(), start_.y(), start_.z(), sensor_name_));
+    context_.reporter.info(
+        fmt::format("above the surface at [{:.4f}, {:.4f}, {:.4f}] m; wrist "
+                    "sensor '{}' zeroed",
+                    start_.x(), start_.y(), start_.z(), sensor_name_));
 
     std::optional<Eigen::Vector3d> first_contact;
     double last_force = 0.0;
@@ -163,9 +165,10 @@ class Touching : public EcpTask {
         "contact (limit {:.2f} mm), pressing {:.1f} N",
         first_contact->z(), stop.z(), travel * 1e3, stop_within_ * 1e3, last_force));
     if (travel > stop_within_)
-      throw FatalError(fmt::format("the guarded move stopped {:.2f} mm after first contact (limit "
-                                   "{:.2f} mm)",
-                                   travel * 1e3, stop_within_ * 1e3));
+      throw FatalError(
+          fmt::format("the guarded move stopped {:.2f} mm after first contact (limit "
+                      "{:.2f} mm)",
+                      travel * 1e3, stop_within_ * 1e3));
     return stop;
   }
 
@@ -195,8 +198,14 @@ class ForceFollowing : public Generator {
   ForceFollowing(const WristSensor& wrist, const Eigen::Isometry3d& start, Eigen::Vector3d step,
                  int macro_steps, double set_force, double gain, int motion_steps,
                  const Eigen::Isometry3d& tool)
-      : wrist_(wrist), pose_(start), step_(std::move(step)), left_(macro_steps),
-        set_force_(set_force), gain_(gain), motion_steps_(motion_steps), tool_(tool) {}
+      : wrist_(wrist),
+        pose_(start),
+        step_(std::move(step)),
+        left_(macro_steps),
+        set_force_(set_force),
+        gain_(gain),
+        motion_steps_(motion_steps),
+        tool_(tool) {}
 
   bool first_step(RobotImage& robot, const SensorList&) override {
     command(robot, 0.0);
@@ -337,9 +346,10 @@ class PickWhenSeen : public EcpTask {
     camera_name_ = a.get_string("camera", "camera");
     region_ = a.get_doubles("region");
     if (region_.size() != 4 || region_[0] >= region_[1] || region_[2] >= region_[3])
-      throw ConfigError(fmt::format("{}: error: 'region' must be [xmin, xmax, ymin, ymax] (m) "
-                                    "with min < max",
-                                    a.location_of("region").str()));
+      throw ConfigError(
+          fmt::format("{}: error: 'region' must be [xmin, xmax, ymin, ymax] (m) "
+                      "with min < max",
+                      a.location_of("region").str()));
     above_ = positive(a, "above", 0.1, "m");
     tool_length_ = positive(a, "tool", 0.15, "m");
     timeout_ = positive(a, "timeout", 30.0, "s");
@@ -353,16 +363,19 @@ class PickWhenSeen : public EcpTask {
     auto camera = context_.sensor(camera_name_);
     PartInRegion seen(*camera, region_);
     const auto t0 = std::chrono::steady_clock::now();
-    context_.reporter.info(fmt::format("waiting for the part in x {:.3f}..{:.3f}, y {:.3f}..{:.3f} m",
-                                       region_[0], region_[1], region_[2], region_[3]));
+    context_.reporter.info(
+        fmt::format("waiting for the part in x {:.3f}..{:.3f}, y {:.3f}..{:.3f} m", region_[0],
+                    region_[1], region_[2], region_[3]));
     WaitWithTimeout timed(seen, t0, timeout_);
     Wait(robot, {camera.get()}, timed, 0.02);
     const vsp::Reading& r = camera->valid_image();
     const Eigen::Vector3d part(r.value("x"), r.value("y"), r.value("z"));
-    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    context_.reporter.info(fmt::format("part seen at [{:.4f}, {:.4f}, {:.4f}] m (reading {} ms "
-                                       "old) after {:.2f} s: starting the pick",
-                                       part.x(), part.y(), part.z(), r.age_us / 1000, waited));
+    const double waited =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    context_.reporter.info(
+        fmt::format("part seen at [{:.4f}, {:.4f}, {:.4f}] m (reading {} ms "
+                    "old) after {:.2f} s: starting the pick",
+                    part.x(), part.y(), part.z(), r.age_us / 1000, waited));
     auto kinematics = edp::make_arm_kinematics(robot.model());
     Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
     tool.translation() = Eigen::Vector3d(0, 0, tool_length_);
@@ -390,8 +403,10 @@ class PickWhenSeen : public EcpTask {
         : inner_(inner), start_(start), timeout_(timeout) {}
     bool check(const SensorList& sensors) override {
       if (inner_.check(sensors)) return true;
-      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count() > timeout_)
-        throw NonFatalError(fmt::format("no part seen in the pick region within {:.0f} s", timeout_));
+      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count() >
+          timeout_)
+        throw NonFatalError(
+            fmt::format("no part seen in the pick region within {:.0f} s", timeout_));
       return false;
     }
 

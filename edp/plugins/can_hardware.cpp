@@ -58,16 +58,17 @@ class CanHardware final : public Hardware {
     if (params.has("nodes")) {
       for (const double n : params.get_doubles("nodes")) {
         if (n != std::floor(n) || n < 1 || n > canopen_max_node())
-          throw ConfigError(fmt::format("{}: error: node id {} in 'nodes' must be an integer in "
-                                        "1..127",
-                                        params.location_of("nodes").str(), n));
+          throw ConfigError(
+              fmt::format("{}: error: node id {} in 'nodes' must be an integer in "
+                          "1..127",
+                          params.location_of("nodes").str(), n));
         nodes.push_back(static_cast<std::int64_t>(n));
       }
       if (nodes.size() != axes_)
-        throw ConfigError(fmt::format("{}: error: 'nodes' lists {} node ids, robot '{}' has {} "
-                                      "axes",
-                                      params.location_of("nodes").str(), nodes.size(), model.name,
-                                      axes_));
+        throw ConfigError(
+            fmt::format("{}: error: 'nodes' lists {} node ids, robot '{}' has {} "
+                        "axes",
+                        params.location_of("nodes").str(), nodes.size(), model.name, axes_));
     } else {
       for (std::size_t i = 0; i < axes_; ++i) nodes.push_back(static_cast<std::int64_t>(i + 1));
     }
@@ -89,10 +90,10 @@ class CanHardware final : public Hardware {
     positive("following_error_window", window, "rad");
     positive("bring_up_timeout_s", timeout_s, "s");
     if (window_ms < 1 || window_ms > 65535)
-      throw ConfigError(fmt::format("{}: error: 'following_error_timeout_ms' = {} ms must be in "
-                                    "1..65535 ms",
-                                    params.location_of("following_error_timeout_ms").str(),
-                                    window_ms));
+      throw ConfigError(
+          fmt::format("{}: error: 'following_error_timeout_ms' = {} ms must be in "
+                      "1..65535 ms",
+                      params.location_of("following_error_timeout_ms").str(), window_ms));
     if (silent < 2 || silent > 1000)
       throw ConfigError(fmt::format("{}: error: 'silent_cycles' = {} must be in 2..1000",
                                     params.location_of("silent_cycles").str(), silent));
@@ -105,7 +106,8 @@ class CanHardware final : public Hardware {
     coupling_ = Eigen::MatrixXd::Identity(n, n);
     for (std::size_t r = 0; r < model.coupling.size(); ++r)
       for (std::size_t c = 0; c < model.coupling[r].size(); ++c)
-        coupling_(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = model.coupling[r][c];
+        coupling_(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) =
+            model.coupling[r][c];
     const Eigen::FullPivLU<Eigen::MatrixXd> lu(coupling_);
     if (!lu.isInvertible())
       throw ConfigError(setup.model_dir.string() +
@@ -130,8 +132,10 @@ class CanHardware final : public Hardware {
           params.location().str(), setup.robot, load.load_worst * 100.0, url, bitrate / 1000.0,
           setup.servo_period_s * 1000.0, can::canopen::kRecommendedMaxLoad * 100.0));
     if (load.load_worst > can::canopen::kRecommendedMaxLoad)
-      std::fprintf(stderr, "can: warning: worst-case bus load %.0f %% is above the recommended "
-                   "%.0f %%\n", load.load_worst * 100.0, can::canopen::kRecommendedMaxLoad * 100.0);
+      std::fprintf(stderr,
+                   "can: warning: worst-case bus load %.0f %% is above the recommended "
+                   "%.0f %%\n",
+                   load.load_worst * 100.0, can::canopen::kRecommendedMaxLoad * 100.0);
 
     std::vector<can::MasterAxis> axes;
     for (std::size_t i = 0; i < axes_; ++i) {
@@ -178,7 +182,8 @@ class CanHardware final : public Hardware {
 
   CycleStatus read(std::span<AxisFeedback> out) override {
     master_->receive();
-    for (std::size_t i = 0; i < axes_; ++i) a_(static_cast<Eigen::Index>(i)) = master_->status(i).position;
+    for (std::size_t i = 0; i < axes_; ++i)
+      a_(static_cast<Eigen::Index>(i)) = master_->status(i).position;
     q_.noalias() = inverse_ * a_;
     for (std::size_t i = 0; i < axes_; ++i) {
       const auto k = static_cast<Eigen::Index>(i);

@@ -31,8 +31,8 @@ class MockHardware : public Hardware {
     configure_params(params);
     params.reject_unread("robot.edp.params");
     if (setup.synchro_positions.empty())
-      throw HardwareError(fmt::format("{}: no synchronisation positions for robot '{}'", name(),
-                                      setup.robot));
+      throw HardwareError(
+          fmt::format("{}: no synchronisation positions for robot '{}'", name(), setup.robot));
     axes_ = setup.synchro_positions.size();
     synchro_ = setup.synchro_positions;
     power_on_.resize(axes_);
@@ -113,9 +113,9 @@ class FaultyHardware : public MockHardware {
     fault_after_ = params.get_int("fault_after_cycles", 100);
     const std::string kind = params.get_string("fault", "status");
     if (kind != "status" && kind != "throw" && kind != "stall")
-      throw ConfigError(fmt::format(
-          "{}: error: fault '{}' must be \"status\", \"throw\" or \"stall\"",
-          params.location_of("fault").str(), kind));
+      throw ConfigError(
+          fmt::format("{}: error: fault '{}' must be \"status\", \"throw\" or \"stall\"",
+                      params.location_of("fault").str(), kind));
     throw_ = kind == "throw";
     const std::int64_t stall = params.get_int("stall_ms", 50);
     if (stall < 1 || stall > 10000)

@@ -122,9 +122,9 @@ class BarCarryGenerator : public Generator {
     for (std::size_t i = 0; i < robots.size(); ++i) {
       if (robots[i]->arm_type != edp::ArmRepresentation::frame || robots[i]->arm.size() != 12)
         return;
-      grips.push_back(bases_[i] * kinematics::from_vector(robots[i]->arm,
-                                                          edp::ArmRepresentation::frame)
-                                      .translation());
+      grips.push_back(
+          bases_[i] *
+          kinematics::from_vector(robots[i]->arm, edp::ArmRepresentation::frame).translation());
     }
     const double distance = (grips[1] - grips[0]).norm();
     if (start_distance_ < 0.0) start_distance_ = distance;  // measured when the carry starts
@@ -192,9 +192,10 @@ class CarryBar : public MpTask {
         "start value (bar length {:.3f} m)",
         path_.size(), generator.macro_steps(), deviation * 1e3, bar_length_));
     if (deviation > tolerance_)
-      throw Error(fmt::format("the robots did not keep the bar rigid: grip distance deviated "
-                              "{:.3f} mm, tolerance {:.3f} mm",
-                              deviation * 1e3, tolerance_ * 1e3));
+      throw Error(
+          fmt::format("the robots did not keep the bar rigid: grip distance deviated "
+                      "{:.3f} mm, tolerance {:.3f} mm",
+                      deviation * 1e3, tolerance_ * 1e3));
   }
 
  private:

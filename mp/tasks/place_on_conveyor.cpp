@@ -16,7 +16,8 @@ namespace mrroc::mp {
 namespace {
 std::string poses_argument(const std::vector<std::vector<double>>& poses) {
   std::string rows;
-  for (const auto& p : poses) rows += fmt::format("{}[{}]", rows.empty() ? "" : ", ", fmt::join(p, ", "));
+  for (const auto& p : poses)
+    rows += fmt::format("{}[{}]", rows.empty() ? "" : ", ", fmt::join(p, ", "));
   return fmt::format("poses = [{}]\n", rows);
 }
 }  // namespace
@@ -57,9 +58,10 @@ class PlaceOnConveyor : public MpTask {
     });
     const double belt = conveyor_.image().joints.empty() ? 0.0 : conveyor_.image().joints[0];
     if (std::abs(belt - belt_target_) > kDeliveryTolerance)
-      throw Error(fmt::format("object not delivered: {} at {:.4f} m, target {:.4f} m (tolerance "
-                              "{:.4f} m)",
-                              conveyor_.name(), belt, belt_target_, kDeliveryTolerance));
+      throw Error(
+          fmt::format("object not delivered: {} at {:.4f} m, target {:.4f} m (tolerance "
+                      "{:.4f} m)",
+                      conveyor_.name(), belt, belt_target_, kDeliveryTolerance));
     log.info(fmt::format("object delivered: {} at {:.4f} m", conveyor_.name(), belt));
   }
 

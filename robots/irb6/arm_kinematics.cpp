@@ -5,9 +5,9 @@
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/pose.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::robots::irb6 {
 
@@ -15,9 +15,10 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
  public:
   explicit Irb6ArmKinematics(const RobotModel& model) : model_(model) {
     if (model.axes() != kAxes)
-      throw ConfigError(fmt::format("{}/parameters.toml: error: irb6 kinematics needs {} axes, "
-                                    "the model has {}",
-                                    model.folder.string(), kAxes, model.axes()));
+      throw ConfigError(
+          fmt::format("{}/parameters.toml: error: irb6 kinematics needs {} axes, "
+                      "the model has {}",
+                      model.folder.string(), kAxes, model.axes()));
   }
 
   std::string name() const override { return "irb6"; }
@@ -67,8 +68,7 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
       throw CommandError(edp::error_code::bad_argument,
                          fmt::format("corrector {} is outside 0..{} (0 = none; the others are "
                                      "listed in {}/parameters.toml)",
-                                     corrector_no, corrector_count() - 1,
-                                     model_.folder.string()));
+                                     corrector_no, corrector_count() - 1, model_.folder.string()));
     solver_.geometry = kinematic_model(model_no);  // throws for an unknown model
     solver_.corrector = Eigen::Isometry3d::Identity();
     if (corrector_no > 0) {

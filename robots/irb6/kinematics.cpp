@@ -7,8 +7,8 @@
 #include <string>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/irb6.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::robots::irb6 {
 
@@ -365,12 +365,9 @@ void check_motor_limits(const MotorPosition& m, const char* what) {
 
 Irb6Geometry kinematic_model(int model_no) {
   switch (model_no) {
-    case kNominalModel:
-      return Irb6Geometry::nominal();
-    case kCalibratedModel:
-      return Irb6Geometry::calibrated();
-    default:
-      break;
+    case kNominalModel: return Irb6Geometry::nominal();
+    case kCalibratedModel: return Irb6Geometry::calibrated();
+    default: break;
   }
   bad_argument(
       fmt::format("kinematic model {} does not exist for the IRb-6 (0 = nominal, "

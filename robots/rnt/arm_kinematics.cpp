@@ -5,10 +5,10 @@
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/kinematics/rnt.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::robots::rnt {
 
@@ -27,9 +27,10 @@ class RntArmKinematics : public edp::ArmKinematics {
  public:
   explicit RntArmKinematics(const RobotModel& model) : model_(model) {
     if (model.axes() != kAxes)
-      throw ConfigError(fmt::format("{}/parameters.toml: error: rnt kinematics needs {} axes, the "
-                                    "model has {}",
-                                    model.folder.string(), kAxes, model.axes()));
+      throw ConfigError(
+          fmt::format("{}/parameters.toml: error: rnt kinematics needs {} axes, the "
+                      "model has {}",
+                      model.folder.string(), kAxes, model.axes()));
     std::vector<std::filesystem::path> files = model.kinematic_models;
     if (files.empty()) files.push_back(model.urdf);
     for (const auto& f : files) solvers_.emplace_back(f, "base_link", "flange");
@@ -90,8 +91,9 @@ class RntArmKinematics : public edp::ArmKinematics {
                                      corrector_count() - 1, model_.name));
     corrector_ = Eigen::Isometry3d::Identity();
     if (corrector_no > 0)
-      corrector_ = kinematics::from_values(model_.correctors[static_cast<std::size_t>(corrector_no - 1)],
-                                           edp::ArmRepresentation::xyz_angle_axis);
+      corrector_ =
+          kinematics::from_values(model_.correctors[static_cast<std::size_t>(corrector_no - 1)],
+                                  edp::ArmRepresentation::xyz_angle_axis);
     model_no_ = model_no;
     corrector_no_ = corrector_no;
   }

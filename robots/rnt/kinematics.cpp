@@ -7,8 +7,8 @@
 #include <string>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/rnt.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::robots::rnt {
 

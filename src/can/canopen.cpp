@@ -117,8 +117,7 @@ std::optional<DriveState> transition(DriveState s, DriveCommand c) {
   using S = DriveState;
   using C = DriveCommand;
   switch (c) {
-    case C::none:
-      return std::nullopt;
+    case C::none: return std::nullopt;
     case C::fault_reset:  // 15
       return s == S::fault ? std::optional(S::switch_on_disabled) : std::nullopt;
     case C::disable_voltage:  // 7, 9, 10, 12
@@ -316,8 +315,8 @@ BusLoad cyclic_bus_load(std::size_t axes, double period_s, double bitrate_bps,
   load.frames_per_cycle = 1 + 2 * n;
   const double heartbeats_per_cycle =
       heartbeat_period_s > 0.0 ? static_cast<double>(n) * period_s / heartbeat_period_s : 0.0;
-  load.bits_per_cycle_nominal = sync.nominal + n * (rpdo.nominal + tpdo.nominal) +
-                                heartbeats_per_cycle * heartbeat.nominal;
+  load.bits_per_cycle_nominal =
+      sync.nominal + n * (rpdo.nominal + tpdo.nominal) + heartbeats_per_cycle * heartbeat.nominal;
   load.bits_per_cycle_worst =
       sync.worst + n * (rpdo.worst + tpdo.worst) + heartbeats_per_cycle * heartbeat.worst;
   const double capacity = bitrate_bps * period_s;

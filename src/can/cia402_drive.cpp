@@ -195,19 +195,13 @@ void Cia402Drive::on_nmt(const can_frame& frame, double now_s) {
   if (frame.len != 2) return;
   if (frame.data[1] != 0 && frame.data[1] != config_.node) return;
   switch (static_cast<canopen::NmtCommand>(frame.data[0])) {
-    case canopen::NmtCommand::start:
-      nmt_ = NmtState::operational;
-      break;
+    case canopen::NmtCommand::start: nmt_ = NmtState::operational; break;
     case canopen::NmtCommand::stop:
       nmt_ = NmtState::stopped;
       if (powered()) enter(DriveState::quick_stop_active, now_s);
       break;
-    case canopen::NmtCommand::enter_pre_operational:
-      nmt_ = NmtState::pre_operational;
-      break;
-    case canopen::NmtCommand::reset_node:
-      power_on(sample_, now_s);
-      break;
+    case canopen::NmtCommand::enter_pre_operational: nmt_ = NmtState::pre_operational; break;
+    case canopen::NmtCommand::reset_node: power_on(sample_, now_s); break;
     case canopen::NmtCommand::reset_communication:
       nmt_ = NmtState::pre_operational;
       reset_communication_objects();
@@ -255,8 +249,7 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
     case od::kDeviceType:
       return no_sub(0) ? fail(abort::kNoSubindex) : read(od::kServoDeviceType, 4);
     case od::kErrorRegister:
-      return no_sub(0) ? fail(abort::kNoSubindex)
-                       : read(state_ == DriveState::fault ? 1U : 0U, 1);
+      return no_sub(0) ? fail(abort::kNoSubindex) : read(state_ == DriveState::fault ? 1U : 0U, 1);
     case od::kCommunicationCyclePeriod:
       if (no_sub(0)) return fail(abort::kNoSubindex);
       return writable(4, cycle_period_us_, [&](std::uint32_t v) {
@@ -316,8 +309,7 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
       if (q.subindex == 0) return read(static_cast<std::uint32_t>(count), 1);
       return read(rx ? od::kRpdo1Entries[q.subindex - 1U] : od::kTpdo1Entries[q.subindex - 1U], 4);
     }
-    case od::kDigitalInputsLow:
-      return read(sample_.home_switch ? canopen::kHomeSwitchBit : 0U, 2);
+    case od::kDigitalInputsLow: return read(sample_.home_switch ? canopen::kHomeSwitchBit : 0U, 2);
     case od::kEncoderResolution:
       return read(static_cast<std::uint32_t>(std::lround(config_.counts_per_unit)), 4);
     case od::kControlword:
@@ -325,8 +317,7 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
         apply_controlword(static_cast<std::uint16_t>(v), now_s);
         return 0U;
       });
-    case od::kStatusword:
-      return read(statusword(), 2);
+    case od::kStatusword: return read(statusword(), 2);
     case od::kModesOfOperation:
       return writable(1, static_cast<std::uint8_t>(mode_), [&](std::uint32_t v) {
         const auto mode = static_cast<std::int8_t>(v);
@@ -335,10 +326,8 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
         mode_ = mode;
         return 0U;
       });
-    case od::kModesDisplay:
-      return read(static_cast<std::uint8_t>(mode_), 1);
-    case od::kPositionActual:
-      return read(static_cast<std::uint32_t>(counts(sample_.position)), 4);
+    case od::kModesDisplay: return read(static_cast<std::uint8_t>(mode_), 1);
+    case od::kPositionActual: return read(static_cast<std::uint32_t>(counts(sample_.position)), 4);
     case od::kFollowingErrorWindow:
       return writable(4, config_.following_error_window, [&](std::uint32_t v) {
         config_.following_error_window = v;
@@ -363,25 +352,23 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
         return 0U;
       });
     case od::kQuickStopDeceleration:
-      return writable(
-          4,
-          static_cast<std::uint32_t>(std::lround(config_.quick_stop_deceleration *
-                                                 config_.counts_per_unit)),
-          [&](std::uint32_t v) {
-            if (v == 0) return abort::kValueRange;
-            config_.quick_stop_deceleration = static_cast<double>(v) / config_.counts_per_unit;
-            return 0U;
-          });
-    case od::kDigitalInputs:
-      return read(sample_.home_switch ? canopen::kHomeSwitchBit : 0U, 4);
+      return writable(4,
+                      static_cast<std::uint32_t>(
+                          std::lround(config_.quick_stop_deceleration * config_.counts_per_unit)),
+                      [&](std::uint32_t v) {
+                        if (v == 0) return abort::kValueRange;
+                        config_.quick_stop_deceleration =
+                            static_cast<double>(v) / config_.counts_per_unit;
+                        return 0U;
+                      });
+    case od::kDigitalInputs: return read(sample_.home_switch ? canopen::kHomeSwitchBit : 0U, 4);
     case od::kInterpolationPeriod: {
       if (q.subindex == 0) return read(2, 1);
       if (q.subindex > 2) return fail(abort::kNoSubindex);
       // Kept as milliseconds (sub 1) with exponent -3 (sub 2); other exponents are refused.
       if (q.subindex == 2)
-        return writable(1, 0xFDU, [&](std::uint32_t v) {
-          return v == 0xFDU ? 0U : abort::kValueRange;
-        });
+        return writable(1, 0xFDU,
+                        [&](std::uint32_t v) { return v == 0xFDU ? 0U : abort::kValueRange; });
       return writable(
           1, static_cast<std::uint32_t>(std::lround(config_.interpolation_period_s * 1000.0)),
           [&](std::uint32_t v) {
@@ -391,8 +378,7 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
             return 0U;
           });
     }
-    default:
-      return fail(abort::kNoObject);
+    default: return fail(abort::kNoObject);
   }
 }
 

@@ -29,8 +29,12 @@ std::string hex(std::uint32_t value, int digits) {
 }  // namespace
 
 Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterOptions& options)
-    : bus_(bus), axes_(std::move(axes)), options_(options), status_(axes_.size()),
-      targets_(axes_.size(), 0), held_(axes_.size(), 0) {
+    : bus_(bus),
+      axes_(std::move(axes)),
+      options_(options),
+      status_(axes_.size()),
+      targets_(axes_.size(), 0),
+      held_(axes_.size(), 0) {
   if (axes_.empty()) throw HardwareError(bus_.url() + ": a CiA 402 master needs at least one axis");
   for (std::size_t i = 0; i < axes_.size(); ++i) {
     const MasterAxis& a = axes_[i];
@@ -54,8 +58,7 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
                         " outside 1..127");
   if (options_.master_heartbeat_ms < 1 || options_.master_heartbeat_ms > 1000)
     throw HardwareError(bus_.url() + ": master heartbeat " +
-                        std::to_string(options_.master_heartbeat_ms) +
-                        " ms outside 1..1000 ms");
+                        std::to_string(options_.master_heartbeat_ms) + " ms outside 1..1000 ms");
   if (options_.heartbeat_consumer_ms <= options_.master_heartbeat_ms)
     throw HardwareError(bus_.url() + ": drives' heartbeat consumer time " +
                         std::to_string(options_.heartbeat_consumer_ms) +
@@ -68,8 +71,8 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
 }
 
 std::string Cia402Master::who(std::size_t axis) const {
-  return bus_.url() + " node " + std::to_string(axes_[axis].node) + " (axis '" +
-         axes_[axis].name + "')";
+  return bus_.url() + " node " + std::to_string(axes_[axis].node) + " (axis '" + axes_[axis].name +
+         "')";
 }
 
 std::int32_t Cia402Master::counts(std::size_t axis, double position) const noexcept {
@@ -194,7 +197,8 @@ void Cia402Master::send(std::span<const double> targets, bool quick_stop) noexce
 
 canopen::SdoResponse Cia402Master::sdo_transfer(std::uint8_t node, const canopen::SdoRequest& q) {
   const auto what = [&] {
-    return std::string(q.write ? "an SDO write of " + std::to_string(q.value) + " to " : "an SDO read of ") +
+    return std::string(q.write ? "an SDO write of " + std::to_string(q.value) + " to "
+                               : "an SDO read of ") +
            hex(q.index, 4) + ":" + std::to_string(q.subindex);
   };
   for (int attempt = 0; attempt < options_.sdo_attempts; ++attempt) {
@@ -304,7 +308,9 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
     const auto period_us = static_cast<std::uint32_t>(std::lround(options_.period_s * 1e6));
     const std::uint32_t consumer =
         (static_cast<std::uint32_t>(options_.master_node) << 16U) | options_.heartbeat_consumer_ms;
-    const auto qs = [](std::int16_t v) { return static_cast<std::uint32_t>(static_cast<std::uint16_t>(v)); };
+    const auto qs = [](std::int16_t v) {
+      return static_cast<std::uint32_t>(static_cast<std::uint16_t>(v));
+    };
     const struct {
       std::uint16_t index;
       std::uint8_t sub;
@@ -349,7 +355,8 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
       if (std::chrono::steady_clock::now() > deadline) {
         for (std::size_t i = 0; i < axes_.size(); ++i) {
           if (status_[i].last_tpdo_cycle != cycle_)
-            throw HardwareError(who(i) + ": no TPDO after SYNC while enabling (NMT start sent; "
+            throw HardwareError(who(i) +
+                                ": no TPDO after SYNC while enabling (NMT start sent; "
                                 "is the node operational?)");
           if (status_[i].state != expected[step])
             throw HardwareError(who(i) + ": did not reach '" +

@@ -31,30 +31,18 @@ std::int64_t clock_ns(clockid_t clock) {
 
 const char* errno_name(int error) {
   switch (error) {
-    case EAFNOSUPPORT:
-      return "EAFNOSUPPORT";
-    case EPROTONOSUPPORT:
-      return "EPROTONOSUPPORT";
-    case ENODEV:
-      return "ENODEV";
-    case ENXIO:
-      return "ENXIO";
-    case ENETDOWN:
-      return "ENETDOWN";
-    case ENOBUFS:
-      return "ENOBUFS";
-    case EAGAIN:
-      return "EAGAIN";
-    case EINVAL:
-      return "EINVAL";
-    case EPERM:
-      return "EPERM";
-    case EACCES:
-      return "EACCES";
-    case EMSGSIZE:
-      return "EMSGSIZE";
-    default:
-      return "errno";
+    case EAFNOSUPPORT: return "EAFNOSUPPORT";
+    case EPROTONOSUPPORT: return "EPROTONOSUPPORT";
+    case ENODEV: return "ENODEV";
+    case ENXIO: return "ENXIO";
+    case ENETDOWN: return "ENETDOWN";
+    case ENOBUFS: return "ENOBUFS";
+    case EAGAIN: return "EAGAIN";
+    case EINVAL: return "EINVAL";
+    case EPERM: return "EPERM";
+    case EACCES: return "EACCES";
+    case EMSGSIZE: return "EMSGSIZE";
+    default: return "errno";
   }
 }
 

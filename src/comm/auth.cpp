@@ -30,9 +30,10 @@ std::vector<std::uint8_t> load_auth_key(const std::filesystem::path& file) {
     hex += c;
   }
   if (hex.size() % 2 != 0 || hex.size() < 64)
-    throw Error(fmt::format("authentication key file '{}' holds {} hexadecimal digits; it needs an "
-                            "even number, at least 64 (32 bytes; e.g. openssl rand -hex 32)",
-                            file.string(), hex.size()));
+    throw Error(
+        fmt::format("authentication key file '{}' holds {} hexadecimal digits; it needs an "
+                    "even number, at least 64 (32 bytes; e.g. openssl rand -hex 32)",
+                    file.string(), hex.size()));
   std::vector<std::uint8_t> key;
   for (std::size_t i = 0; i < hex.size(); i += 2)
     key.push_back(static_cast<std::uint8_t>(std::stoi(hex.substr(i, 2), nullptr, 16)));
@@ -46,8 +47,8 @@ void enable_auth_from_file(Bus& bus, const std::filesystem::path& key_file) {
 
 Authenticator::Authenticator(std::vector<std::uint8_t> key) : key_(std::move(key)) {
   if (key_.size() < 32)
-    throw Error(fmt::format("authentication key of {} bytes is too short (at least 32)",
-                            key_.size()));
+    throw Error(
+        fmt::format("authentication key of {} bytes is too short (at least 32)", key_.size()));
 }
 
 std::int64_t Authenticator::next_counter() {
@@ -72,8 +73,8 @@ Authenticator::Verdict Authenticator::accept_counter(const std::string& sender,
   std::lock_guard lock(mutex_);
   auto it = seen_.find(sender);
   if (it == seen_.end()) {
-    const std::int64_t oldest = now_utime() -
-        std::chrono::duration_cast<std::chrono::microseconds>(kFreshness).count();
+    const std::int64_t oldest =
+        now_utime() - std::chrono::duration_cast<std::chrono::microseconds>(kFreshness).count();
     if (counter < oldest) return Verdict::stale;
     it = seen_.emplace(sender, Seen{}).first;
   }

@@ -58,9 +58,9 @@ void Bus::report_drop(int code, const std::string& kind, const std::string& text
   const auto now = std::chrono::steady_clock::now();
   if (now < d.quiet_until || !drop_sink_) return;
   const std::string message =
-      d.unreported == 1 ? text
-                        : fmt::format("{} ({} such messages dropped since the last report)", text,
-                                      d.unreported);
+      d.unreported == 1
+          ? text
+          : fmt::format("{} ({} such messages dropped since the last report)", text, d.unreported);
   d.unreported = 0;
   d.quiet_until = now + kDropReportPeriod;
   drop_sink_(code, message);

@@ -18,9 +18,10 @@ E checked_enum(std::int8_t raw, std::int8_t lo, std::int8_t hi, const char* fiel
 template <class T>
 std::vector<T> checked_vector(const std::vector<T>& v, std::int32_t n, const char* field) {
   if (n < 0 || n > kMaxVector || static_cast<std::size_t>(n) != v.size())
-    throw DecodeError(fmt::format("field '{}' has {} elements but its length field says {} "
-                                  "(at most {} allowed)",
-                                  field, v.size(), n, kMaxVector));
+    throw DecodeError(
+        fmt::format("field '{}' has {} elements but its length field says {} "
+                    "(at most {} allowed)",
+                    field, v.size(), n, kMaxVector));
   return v;
 }
 
@@ -73,14 +74,14 @@ edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   in.type = checked_enum<edp::InstructionType>(m.instruction, L::SET, L::QUERY, "instruction");
   constexpr int all_items = 127;
   if ((m.set_mask & ~all_items) != 0 || (m.get_mask & ~all_items) != 0)
-    throw DecodeError(fmt::format("set_mask {} / get_mask {} has unknown bits", m.set_mask,
-                                  m.get_mask));
+    throw DecodeError(
+        fmt::format("set_mask {} / get_mask {} has unknown bits", m.set_mask, m.get_mask));
   in.set = static_cast<std::uint8_t>(m.set_mask);
   in.get = static_cast<std::uint8_t>(m.get_mask);
   in.set_arm_type = arm_of(m.set_arm_type, "set_arm_type");
   in.get_arm_type = arm_of(m.get_arm_type, "get_arm_type");
-  in.motion_type = checked_enum<edp::MotionType>(m.motion_type, L::ABSOLUTE, L::RELATIVE,
-                                                 "motion_type");
+  in.motion_type =
+      checked_enum<edp::MotionType>(m.motion_type, L::ABSOLUTE, L::RELATIVE, "motion_type");
   in.motion_steps = m.motion_steps;
   in.value_in_step_no = m.value_in_step_no;
   in.arm = checked_vector(m.arm, m.n_arm, "arm");
@@ -195,8 +196,8 @@ ecp::MpCommand decode(const mrroc_lcm::mp_ecp_command_t& m) {
   out.state_name = m.state_name;
   out.arguments = m.arguments;
   out.arm_type = arm_of(m.arm_type, "arm_type");
-  out.motion_type = checked_enum<edp::MotionType>(m.motion_type, L::ABSOLUTE, L::RELATIVE,
-                                                  "motion_type");
+  out.motion_type =
+      checked_enum<edp::MotionType>(m.motion_type, L::ABSOLUTE, L::RELATIVE, "motion_type");
   out.motion_steps = m.motion_steps;
   out.value_in_step_no = m.value_in_step_no;
   out.arm = checked_vector(m.arm, m.n_arm, "arm");

@@ -26,18 +26,19 @@ LinkFaults link_faults_from_environment() {
       throw Error(fmt::format("MRROC_LINK_FAULTS: '{}' needs a number (e.g. drop=0.1)", item));
     if (key == "drop" || key == "duplicate" || key == "delay") {
       if (!(number >= 0.0 && number < 1.0))
-        throw Error(fmt::format("MRROC_LINK_FAULTS: {} = {} is outside 0..1 (a probability)", key,
-                                number));
+        throw Error(
+            fmt::format("MRROC_LINK_FAULTS: {} = {} is outside 0..1 (a probability)", key, number));
       (key == "drop" ? faults.drop : key == "duplicate" ? faults.duplicate : faults.delay) = number;
     } else if (key == "delay_ms") {
       if (!(number >= 0.0 && number <= 10000.0))
-        throw Error(fmt::format("MRROC_LINK_FAULTS: delay_ms = {} ms is outside 0..10000 ms",
-                                number));
+        throw Error(
+            fmt::format("MRROC_LINK_FAULTS: delay_ms = {} ms is outside 0..10000 ms", number));
       faults.delay_ms = number;
     } else if (key == "seed") {
       faults.seed = static_cast<std::uint64_t>(number);
     } else {
-      throw Error(fmt::format("MRROC_LINK_FAULTS: unknown key '{}' (drop, duplicate, delay, delay_ms, seed)", key));
+      throw Error(fmt::format(
+          "MRROC_LINK_FAULTS: unknown key '{}' (drop, duplicate, delay, delay_ms, seed)", key));
     }
   }
   return faults;

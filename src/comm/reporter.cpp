@@ -173,8 +173,8 @@ SystemListener::SystemListener(comm::Bus& bus, MessageHandler on_message, Status
     : impl_(std::make_unique<Impl>(
           Impl{bus, std::move(on_message), std::move(on_status), &malformed_})) {
   impl_->srp_sub = bus.lcm().subscribeFunction<Impl*>(channels::srp, &Impl::on_srp, impl_.get());
-  impl_->status_sub = bus.lcm().subscribeFunction<Impl*>(channels::status, &Impl::on_status_message,
-                                                       impl_.get());
+  impl_->status_sub =
+      bus.lcm().subscribeFunction<Impl*>(channels::status, &Impl::on_status_message, impl_.get());
 }
 
 SystemListener::~SystemListener() {

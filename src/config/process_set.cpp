@@ -5,9 +5,9 @@
 
 #include <csignal>
 
+#include <toml++/toml.h>
 #include <regex>
 #include <set>
-#include <toml++/toml.h>
 
 namespace mrroc {
 
@@ -56,8 +56,8 @@ class Reader {
       if (!known) {
         std::string list;
         for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-        fail(node, fmt::format("unknown key '{}' in [{}] (allowed: {})", key.str(), table_name,
-                               list));
+        fail(node,
+             fmt::format("unknown key '{}' in [{}] (allowed: {})", key.str(), table_name, list));
       }
     }
   }
@@ -77,8 +77,8 @@ class Reader {
     const toml::node* node = t.get(key);
     if (node == nullptr) {
       if (fallback) return *fallback;
-      throw ConfigError(fmt::format("{}: error: missing key '{}' in [{}]", where(t).str(), key,
-                                    table_name));
+      throw ConfigError(
+          fmt::format("{}: error: missing key '{}' in [{}]", where(t).str(), key, table_name));
     }
     if (!node->is_string()) fail(*node, fmt::format("'{}' must be a string", key));
     return **node->as_string();
@@ -102,8 +102,8 @@ class Reader {
 
   /// `keys` plus the keys of ProcessOptions (every process' table accepts them).
   static std::vector<const char*> with_options(std::vector<const char*> keys) {
-    for (const char* k : {"cpus", "priority", "stop_grace_s", "stop_signal", "host", "group", "restart",
-                          "max_restarts", "restart_backoff_s", "required"})
+    for (const char* k : {"cpus", "priority", "stop_grace_s", "stop_signal", "host", "group",
+                          "restart", "max_restarts", "restart_backoff_s", "required"})
       keys.push_back(k);
     return keys;
   }
@@ -121,8 +121,8 @@ class Reader {
     o.stop_grace_s = number(t, "stop_grace_s", 3.0, 0.0, 60.0, "s");
     if (const toml::node* sig = t.get("stop_signal")) {
       static const std::pair<const char*, int> names[] = {
-          {"SIGTERM", SIGTERM}, {"SIGINT", SIGINT}, {"SIGHUP", SIGHUP},
-          {"SIGQUIT", SIGQUIT}, {"SIGUSR1", SIGUSR1}, {"SIGUSR2", SIGUSR2}, {"SIGKILL", SIGKILL}};
+          {"SIGTERM", SIGTERM}, {"SIGINT", SIGINT},   {"SIGHUP", SIGHUP},  {"SIGQUIT", SIGQUIT},
+          {"SIGUSR1", SIGUSR1}, {"SIGUSR2", SIGUSR2}, {"SIGKILL", SIGKILL}};
       const std::string text = string(t, "stop_signal", "", std::string{});
       bool found = false;
       for (const auto& [name, number] : names)
@@ -137,7 +137,8 @@ class Reader {
     }
     o.host = string(t, "host", "", std::string("local"));
     if (const toml::node* h = t.get("host")) o.host_where = where(*h);
-    if (o.host.empty()) fail(*t.get("host"), "'host' must not be empty (\"local\" or a [[launch.host]] name)");
+    if (o.host.empty())
+      fail(*t.get("host"), "'host' must not be empty (\"local\" or a [[launch.host]] name)");
     o.group = string(t, "group", "", default_group);
     const std::string restart = string(t, "restart", "", std::string("never"));
     if (restart == "never")
@@ -165,10 +166,10 @@ class Reader {
                                 "the normal scheduler)",
                                 kMaxProcessPriority));
       if (**prio->as_integer() < 0 || **prio->as_integer() > kMaxProcessPriority)
-        fail(*prio, fmt::format("'priority' = {} is outside 0..{} (SCHED_FIFO priority; 0: the "
-                                "normal scheduler; {} belongs to the EDP's servo thread)",
-                                **prio->as_integer(), kMaxProcessPriority,
-                                kMaxProcessPriority + 1));
+        fail(*prio,
+             fmt::format("'priority' = {} is outside 0..{} (SCHED_FIFO priority; 0: the "
+                         "normal scheduler; {} belongs to the EDP's servo thread)",
+                         **prio->as_integer(), kMaxProcessPriority, kMaxProcessPriority + 1));
       o.priority = static_cast<int>(**prio->as_integer());
     }
     if (const toml::node* cpus = t.get("cpus")) {
@@ -200,8 +201,8 @@ class Reader {
       } else if (node.is_array()) {
         p.set(k, array_value(*node.as_array(), k), at);
       } else {
-        fail(node, fmt::format("'{}' in [{}] must be a boolean, number, string or list", k,
-                               table_name));
+        fail(node,
+             fmt::format("'{}' in [{}] must be a boolean, number, string or list", k, table_name));
       }
     }
     return p;
@@ -238,8 +239,8 @@ class Reader {
     return out;
   }
 
-  TaskConfig task(const toml::table& t, const std::string& table_name,
-                  const std::string& group, std::vector<const char*> extra_keys = {}) const {
+  TaskConfig task(const toml::table& t, const std::string& table_name, const std::string& group,
+                  std::vector<const char*> extra_keys = {}) const {
     extra_keys.insert(extra_keys.end(), {"task", "library", "args"});
     only_keys(t, table_name, with_options(extra_keys));
     TaskConfig c;
@@ -319,16 +320,15 @@ void check_hosts(const ProcessSetConfig& config) {
     if (o.host == "local") return;
     for (const auto& h : config.launch.hosts)
       if (h.name == o.host) return;
-    throw ConfigError(fmt::format("{}: error: {} runs on host '{}', which is not a [[launch.host]] "
-                                  "(hosts: local{})",
-                                  o.host_where.file.empty() ? config.file.string()
-                                                            : o.host_where.str(),
-                                  process, o.host,
-                                  [&] {
-                                    std::string s;
-                                    for (const auto& h : config.launch.hosts) s += ", " + h.name;
-                                    return s;
-                                  }()));
+    throw ConfigError(
+        fmt::format("{}: error: {} runs on host '{}', which is not a [[launch.host]] "
+                    "(hosts: local{})",
+                    o.host_where.file.empty() ? config.file.string() : o.host_where.str(), process,
+                    o.host, [&] {
+                      std::string s;
+                      for (const auto& h : config.launch.hosts) s += ", " + h.name;
+                      return s;
+                    }()));
   };
   check(config.srp.options, "srp");
   check(config.ui.options, "ui");
@@ -345,7 +345,8 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
   ProcessSetConfig config;
   config.file = file;
   Reader r(config.file);
-  r.only_keys(root, "top level", {"system", "srp", "emulator", "vsp", "mp", "robot", "ui", "launch"});
+  r.only_keys(root, "top level",
+              {"system", "srp", "emulator", "vsp", "mp", "robot", "ui", "launch"});
 
   const toml::table& system = r.table(root, "system", "");
   r.only_keys(system, "system", {"name", "lcm_url", "ready_timeout_s", "auth_key_file"});
@@ -431,10 +432,10 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
         host.command = {"ssh", "-o", "BatchMode=yes", "{host}"};
         if (const toml::node* cmd = h.get("command")) {
           const toml::array* words = cmd->as_array();
-          if (words == nullptr || words->empty() ||
-              !words->is_homogeneous(toml::node_type::string))
-            r.fail(*cmd, "'command' must be a non-empty list of strings, e.g. [\"ip\", \"netns\", "
-                         "\"exec\", \"{host}\"]");
+          if (words == nullptr || words->empty() || !words->is_homogeneous(toml::node_type::string))
+            r.fail(*cmd,
+                   "'command' must be a non-empty list of strings, e.g. [\"ip\", \"netns\", "
+                   "\"exec\", \"{host}\"]");
           host.command.clear();
           for (const auto& w : *words) host.command.emplace_back(**w.as_string());
         }
@@ -474,8 +475,9 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     std::set<std::string> vsp_names;
     for (const auto& node : *list) {
       const toml::table& t = *node.as_table();
-      r.only_keys(t, "vsp", Reader::with_options({"name", "plugin", "library", "sources", "mode",
-                                                  "period_ms", "stale_after_ms", "params"}));
+      r.only_keys(t, "vsp",
+                  Reader::with_options({"name", "plugin", "library", "sources", "mode", "period_ms",
+                                        "stale_after_ms", "params"}));
       VspConfig v;
       v.where = r.where(t);
       v.name = r.string(t, "name", "vsp");
@@ -492,16 +494,18 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
       }
       const toml::node* sources = t.get("sources");
       if (sources == nullptr)
-        throw ConfigError(fmt::format("{}: error: missing key 'sources' in [[vsp]] '{}' (the raw "
-                                      "sensor devices that feed it)",
-                                      r.where(t).str(), v.name));
+        throw ConfigError(
+            fmt::format("{}: error: missing key 'sources' in [[vsp]] '{}' (the raw "
+                        "sensor devices that feed it)",
+                        r.where(t).str(), v.name));
       const toml::array* arr = sources->as_array();
       if (arr == nullptr || arr->empty() || !arr->is_homogeneous(toml::node_type::string))
         r.fail(*sources, "'sources' must be a non-empty list of raw sensor device names");
       for (const auto& s : *arr) v.sources.emplace_back(**s.as_string());
       const std::string mode = r.string(t, "mode", "vsp", std::string("on_demand"));
       if (mode != "on_demand" && mode != "periodic")
-        r.fail(*t.get("mode"), fmt::format("mode '{}' must be \"on_demand\" or \"periodic\"", mode));
+        r.fail(*t.get("mode"),
+               fmt::format("mode '{}' must be \"on_demand\" or \"periodic\"", mode));
       v.periodic = mode == "periodic";
       v.period_s = r.number(t, "period_ms", 10.0, 1.0, 10000.0, "ms") / 1000.0;
       v.stale_after_s = r.number(t, "stale_after_ms", 100.0, 1.0, 60000.0, "ms") / 1000.0;
@@ -521,9 +525,10 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
     config.mp = r.task(mp, "mp", "mp", {"start"});
     const std::string start = r.string(mp, "start", "mp", std::string("auto"));
     if (start != "auto" && start != "operator")
-      r.fail(*mp.get("start"),
-             fmt::format("start '{}' must be \"auto\" or \"operator\" (wait for START from mrroc-ui)",
-                         start));
+      r.fail(
+          *mp.get("start"),
+          fmt::format("start '{}' must be \"auto\" or \"operator\" (wait for START from mrroc-ui)",
+                      start));
     config.mp_waits_for_operator = start == "operator";
   }
 
@@ -563,7 +568,8 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
                     {"plugin", "library", "servo_period_ms", "lookahead", "lock_step", "params"}));
     robot.edp.where = r.where(edp);
     robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
-    if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{}); !lib.empty()) {
+    if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{});
+        !lib.empty()) {
       robot.edp.library = r.resolve(lib);
       r.require_path(*edp.get("library"), robot.edp.library, Reader::Kind::any,
                      "hardware plugin library");

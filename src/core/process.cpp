@@ -43,7 +43,8 @@ void apply_cpu_affinity(const std::vector<int>& cpus) {
 std::string apply_priority(int priority) {
   if (priority <= 0) {
     sched_param current{};
-    if ((sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) == SCHED_FIFO && sched_getparam(0, &current) == 0)
+    if ((sched_getscheduler(0) & ~SCHED_RESET_ON_FORK) == SCHED_FIFO &&
+        sched_getparam(0, &current) == 0)
       return fmt::format("SCHED_FIFO {} (inherited)", current.sched_priority);
     return "SCHED_OTHER";
   }

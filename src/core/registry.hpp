@@ -31,8 +31,8 @@ class Registry {
     if (it != factories_.end()) return it->second;
     std::string known;
     for (const auto& [n, f] : factories_) known += (known.empty() ? "" : ", ") + n;
-    throw ConfigError(fmt::format("unknown {} '{}' (known: {})", kind_, name,
-                                  known.empty() ? "none" : known));
+    throw ConfigError(
+        fmt::format("unknown {} '{}' (known: {})", kind_, name, known.empty() ? "none" : known));
   }
 
   [[nodiscard]] std::vector<std::string> names() const {

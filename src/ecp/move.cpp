@@ -46,8 +46,8 @@ void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
     } catch (const EdpRefused& e) {
       // A late macro-step made the EDP stop the robot off the planned path, and the planned
       // continuation would be too fast or too abrupt from there: re-plan from where it stands.
-      const bool replan = e.code() == edp::error_code::too_fast ||
-                          e.code() == edp::error_code::too_abrupt;
+      const bool replan =
+          e.code() == edp::error_code::too_fast || e.code() == edp::error_code::too_abrupt;
       if (!replan || ++refusals > kMaxRefusals) throw;
       robot.read_state();
       if (!generator.resume(robot.image(), sensors)) throw;

@@ -10,8 +10,8 @@
 
 namespace mrroc::ecp {
 
-int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta,
-                       double fraction, double period_s, double min_s) {
+int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta, double fraction,
+                       double period_s, double min_s) {
   double duration = min_s;
   for (std::size_t j = 0; j < delta.size() && j < model.axes(); ++j)
     duration = std::max(duration, rest_to_rest_duration(delta[j], fraction * model.max_velocity[j],
@@ -44,9 +44,9 @@ edp::Reply Robot::exchange(const edp::Instruction& instruction) {
   if (!(reply.type == edp::ReplyType::error && reply.error_code == edp::error_code::not_owner))
     take_over_next_ = false;
   if (reply.type == edp::ReplyType::error)
-    throw EdpRefused(reply.error_code, fmt::format("EDP {} refused {}: {}", name_,
-                                                   edp::to_string(instruction.type),
-                                                   reply.error_text));
+    throw EdpRefused(reply.error_code,
+                     fmt::format("EDP {} refused {}: {}", name_, edp::to_string(instruction.type),
+                                 reply.error_text));
   return reply;
 }
 
@@ -95,12 +95,9 @@ bool Robot::wait_while_paused() {
 std::vector<double> Robot::pose(edp::ArmRepresentation representation, bool desired) const {
   const std::vector<double>& q = desired ? image_.desired_joints : image_.joints;
   switch (representation) {
-    case edp::ArmRepresentation::joint:
-      return q;
-    case edp::ArmRepresentation::motor:
-      return kinematics_->motors_from_joints(q);
-    default:
-      return kinematics::to_vector(kinematics_->forward(q), representation);
+    case edp::ArmRepresentation::joint: return q;
+    case edp::ArmRepresentation::motor: return kinematics_->motors_from_joints(q);
+    default: return kinematics::to_vector(kinematics_->forward(q), representation);
   }
 }
 

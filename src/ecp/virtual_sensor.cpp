@@ -40,8 +40,8 @@ vsp::Reply call(comm::VspClient& client, const std::string& vsp, vsp::Command co
   try {
     return client.call(vsp::Request{command, arguments});
   } catch (const Error& e) {
-    throw SensorError(fmt::format("VSP '{}' did not answer {}: {}", vsp, vsp::to_string(command),
-                                  e.what()));
+    throw SensorError(
+        fmt::format("VSP '{}' did not answer {}: {}", vsp, vsp::to_string(command), e.what()));
   }
 }
 }  // namespace
@@ -74,7 +74,8 @@ void VirtualSensor::get_reading() {
       invalid("GET_READING refused: " + r.error_text);
     } else {
       image_ = r.reading;
-      if (!image_.valid) image_.invalid_reason = fmt::format("VSP '{}': {}", name_, image_.invalid_reason);
+      if (!image_.valid)
+        image_.invalid_reason = fmt::format("VSP '{}': {}", name_, image_.invalid_reason);
     }
   } catch (const SensorError& e) {
     image_ = vsp::Reading{};

@@ -3,10 +3,9 @@
 
 #include <fmt/format.h>
 
-
+#include "../core/registry.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
-#include "../core/registry.hpp"
 
 namespace mrroc::edp {
 

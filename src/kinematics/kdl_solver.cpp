@@ -215,9 +215,10 @@ KdlSolver::KdlSolver(const fs::path& urdf, const std::string& base, const std::s
   if (!tree.getChain(base, tip, s.chain) || s.chain.getNrOfSegments() == 0) {
     std::string links;
     for (const auto& [name, link] : model->links_) links += (links.empty() ? "" : ", ") + name;
-    throw ConfigError(fmt::format("{}: error: no kinematic chain from link '{}' to link '{}' "
-                                  "(links: {})",
-                                  urdf.string(), base, tip, links));
+    throw ConfigError(
+        fmt::format("{}: error: no kinematic chain from link '{}' to link '{}' "
+                    "(links: {})",
+                    urdf.string(), base, tip, links));
   }
   for (const KDL::Segment& segment : s.chain.segments) {
     const KDL::Joint& joint = segment.getJoint();
@@ -236,15 +237,16 @@ KdlSolver::KdlSolver(const fs::path& urdf, const std::string& base, const std::s
     s.kinds.push_back(uj->type == urdf::Joint::PRISMATIC ? JointKind::prismatic
                                                          : JointKind::revolute);
     if (!uj->limits)
-      throw ConfigError(fmt::format("{}: error: joint '{}' has no <limit>", urdf.string(),
-                                    joint.getName()));
+      throw ConfigError(
+          fmt::format("{}: error: joint '{}' has no <limit>", urdf.string(), joint.getName()));
     s.lower.push_back(uj->limits->lower);
     s.upper.push_back(uj->limits->upper);
   }
   if (s.names.empty())
-    throw ConfigError(fmt::format("{}: error: the chain from link '{}' to link '{}' has no "
-                                  "movable joint",
-                                  urdf.string(), base, tip));
+    throw ConfigError(
+        fmt::format("{}: error: the chain from link '{}' to link '{}' has no "
+                    "movable joint",
+                    urdf.string(), base, tip));
 
   // Restart seeds: uniformly spread over the joint ranges (unlimited: -pi .. pi), fixed sequence.
   std::mt19937 rng(20240607U);
@@ -285,8 +287,8 @@ std::vector<double> KdlSolver::inverse(const Eigen::Isometry3d& target,
   Eigen::Matrix<double, 6, 1> weights;
   weights << 1.0, 1.0, 1.0, o.orientation_weight, o.orientation_weight, o.orientation_weight;
   // LMA's own tolerance applies to the weighted error; the result is checked below anyway.
-  const double eps = 1e-3 * std::min(o.position_tolerance,
-                                     o.orientation_weight * o.orientation_tolerance);
+  const double eps =
+      1e-3 * std::min(o.position_tolerance, o.orientation_weight * o.orientation_tolerance);
   KDL::ChainIkSolverPos_LMA solver(s.chain, weights, eps, o.max_iterations);
   const KDL::Frame goal = to_kdl(target);
   const auto n = static_cast<unsigned int>(s.size());
@@ -325,15 +327,16 @@ std::vector<double> KdlSolver::inverse(const Eigen::Isometry3d& target,
       std::string violation = s.limit_violation(q);
       if (violation.empty()) return q;
       if (!first_limit_text) first_limit_text = std::move(violation);
-      for (std::size_t i = 0; i < s.size(); ++i) start[i] = std::clamp(q[i], s.lower[i], s.upper[i]);
+      for (std::size_t i = 0; i < s.size(); ++i)
+        start[i] = std::clamp(q[i], s.lower[i], s.upper[i]);
     }
   }
   if (first_limit_text)
     out_of_limits("inverse kinematics: solution outside the joint limits: " + *first_limit_text);
-  out_of_limits(fmt::format("inverse kinematics did not converge: residual {:.6f} m, {:.6f} rad "
-                            "(tolerance {:g} m, {:g} rad; {} attempts)",
-                            best_position, best_orientation, o.position_tolerance,
-                            o.orientation_tolerance, attempts));
+  out_of_limits(fmt::format(
+      "inverse kinematics did not converge: residual {:.6f} m, {:.6f} rad "
+      "(tolerance {:g} m, {:g} rad; {} attempts)",
+      best_position, best_orientation, o.position_tolerance, o.orientation_tolerance, attempts));
 }
 
 }  // namespace mrroc::kinematics

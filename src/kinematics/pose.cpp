@@ -165,15 +165,11 @@ double rotation_distance(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
 
 std::size_t representation_size(edp::ArmRepresentation representation) {
   switch (representation) {
-    case edp::ArmRepresentation::frame:
-      return kFrameValues;
-    case edp::ArmRepresentation::xyz_euler_zyz:
-      return kXyzEulerZyzValues;
-    case edp::ArmRepresentation::xyz_angle_axis:
-      return kXyzAngleAxisValues;
+    case edp::ArmRepresentation::frame: return kFrameValues;
+    case edp::ArmRepresentation::xyz_euler_zyz: return kXyzEulerZyzValues;
+    case edp::ArmRepresentation::xyz_angle_axis: return kXyzAngleAxisValues;
     case edp::ArmRepresentation::joint:
-    case edp::ArmRepresentation::motor:
-      break;
+    case edp::ArmRepresentation::motor: break;
   }
   bad_argument(
       fmt::format("{} is not a Cartesian representation (expected FRAME, "

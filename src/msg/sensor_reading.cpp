@@ -11,8 +11,8 @@ namespace mrroc::vsp {
 double Reading::value(const std::string& name) const {
   for (std::size_t i = 0; i < names.size() && i < values.size(); ++i)
     if (names[i] == name) return values[i];
-  throw Error(fmt::format("the reading has no value '{}' (it has: {})", name,
-                          fmt::join(names, ", ")));
+  throw Error(
+      fmt::format("the reading has no value '{}' (it has: {})", name, fmt::join(names, ", ")));
 }
 
 const char* to_string(Command c) {

@@ -2,9 +2,9 @@
 
 #include <fmt/format.h>
 
-#include <cmath>
 #include <toml++/toml.h>
 #include <urdf_parser/urdf_parser.h>
+#include <cmath>
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
@@ -16,13 +16,13 @@ namespace fs = std::filesystem;
 void RobotModel::check_joint_limits(const std::vector<double>& q, const char* what) const {
   if (q.size() != axes())
     throw CommandError(edp::error_code::bad_argument,
-                       fmt::format("{} has {} joint values, robot '{}' has {} axes", what,
-                                   q.size(), name, axes()));
+                       fmt::format("{} has {} joint values, robot '{}' has {} axes", what, q.size(),
+                                   name, axes()));
   for (std::size_t i = 0; i < q.size(); ++i) {
     if (!std::isfinite(q[i]))
-      throw CommandError(edp::error_code::bad_argument,
-                         fmt::format("joint {} ({}) {} {} is not a finite number", i,
-                                     joint_names[i], what, q[i]));
+      throw CommandError(
+          edp::error_code::bad_argument,
+          fmt::format("joint {} ({}) {} {} is not a finite number", i, joint_names[i], what, q[i]));
     if (q[i] > upper_limits[i])
       throw CommandError(edp::error_code::out_of_limits,
                          fmt::format("joint {} ({}) {} {:.6f} rad exceeds upper limit {:.6f} rad",
@@ -77,8 +77,8 @@ RobotModel load_robot_model(const fs::path& folder) {
   try {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line,
-                                  e.description()));
+    throw ConfigError(
+        fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
   }
   const toml::table* robot = root["robot"].as_table();
   if (robot == nullptr)
@@ -124,9 +124,10 @@ RobotModel load_robot_model(const fs::path& folder) {
         const toml::array* values = row.as_array();
         std::array<double, 6> c{};
         if (values == nullptr || values->size() != 6)
-          throw ConfigError(fmt::format("{}:{}: error: each corrector must be [x, y, z, rx, ry, rz] "
-                                        "(m, rad)",
-                                        file.string(), row.source().begin.line));
+          throw ConfigError(
+              fmt::format("{}:{}: error: each corrector must be [x, y, z, rx, ry, rz] "
+                          "(m, rad)",
+                          file.string(), row.source().begin.line));
         for (std::size_t i = 0; i < 6; ++i) {
           const auto v = (*values)[i].value<double>();
           if (!v)
@@ -163,8 +164,7 @@ RobotModel load_robot_model(const fs::path& folder) {
   if (std::string why; !exists(m.urdf, why))
     throw ConfigError(fmt::format("{}: error: URDF file not found{}", m.urdf.string(), why));
   urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDFFile(m.urdf.string());
-  if (!urdf)
-    throw ConfigError(fmt::format("{}: error: the URDF does not parse", m.urdf.string()));
+  if (!urdf) throw ConfigError(fmt::format("{}: error: the URDF does not parse", m.urdf.string()));
   for (const auto& jn : m.joint_names) {
     auto joint = urdf->getJoint(jn);
     if (!joint || !joint->limits)

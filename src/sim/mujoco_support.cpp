@@ -34,24 +34,15 @@ std::string joint_name(const mjModel* m, int joint) {
 
 const char* warning_text(int warning) noexcept {
   switch (warning) {
-    case mjWARN_INERTIA:
-      return "(near) singular inertia matrix";
-    case mjWARN_CONTACTFULL:
-      return "contact list full";
-    case mjWARN_CNSTRFULL:
-      return "constraint buffer full";
-    case mjWARN_VGEOMFULL:
-      return "visual geom buffer full";
-    case mjWARN_BADQPOS:
-      return "bad number in qpos (simulation reset)";
-    case mjWARN_BADQVEL:
-      return "bad number in qvel (simulation reset)";
-    case mjWARN_BADQACC:
-      return "bad number in qacc (simulation reset)";
-    case mjWARN_BADCTRL:
-      return "bad number in ctrl";
-    default:
-      return "unknown";
+    case mjWARN_INERTIA: return "(near) singular inertia matrix";
+    case mjWARN_CONTACTFULL: return "contact list full";
+    case mjWARN_CNSTRFULL: return "constraint buffer full";
+    case mjWARN_VGEOMFULL: return "visual geom buffer full";
+    case mjWARN_BADQPOS: return "bad number in qpos (simulation reset)";
+    case mjWARN_BADQVEL: return "bad number in qvel (simulation reset)";
+    case mjWARN_BADQACC: return "bad number in qacc (simulation reset)";
+    case mjWARN_BADCTRL: return "bad number in ctrl";
+    default: return "unknown";
   }
 }
 

@@ -15,7 +15,9 @@ void register_sensor(const std::string& name, SensorFactory factory) {
   registry().add(name, std::move(factory));
 }
 
-std::unique_ptr<SensorPlugin> make_sensor(const std::string& name) { return registry().get(name)(); }
+std::unique_ptr<SensorPlugin> make_sensor(const std::string& name) {
+  return registry().get(name)();
+}
 
 std::vector<std::string> sensor_names() { return registry().names(); }
 

@@ -20,8 +20,8 @@ inline bool help_requested(int argc, char** argv, const char* usage) {
 
 /// `text` as a whole number in lo..hi; otherwise prints why (naming the argument, its unit and
 /// limits) and exits with 2.
-inline long whole_number(const char* program, const char* name, const char* text, long lo,
-                         long hi, const char* unit) {
+inline long whole_number(const char* program, const char* name, const char* text, long lo, long hi,
+                         const char* unit) {
   errno = 0;
   char* end = nullptr;
   const long value = std::strtol(text, &end, 10);

@@ -314,10 +314,9 @@ int main(int argc, char** argv) {
           "8000, at least 100) paced round trips per transport, then 20000 unpaced.\n"
           "Prints RESULT B6 and NOTE lines.\n"))
     return 0;
-  const int samples =
-      argc > 1 ? static_cast<int>(mrroc::bench::whole_number("bench_can", "SAMPLES", argv[1], 100,
-                                                             10000000, "round trips"))
-               : 8000;
+  const int samples = argc > 1 ? static_cast<int>(mrroc::bench::whole_number(
+                                     "bench_can", "SAMPLES", argv[1], 100, 10000000, "round trips"))
+                               : 8000;
   const int unpaced = 20000;
   try {
     const std::string url = "virtual:bench-b6-" + std::to_string(getpid());

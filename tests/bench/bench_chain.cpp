@@ -63,15 +63,15 @@
 
 #include <lcm/lcm-cpp.hpp>
 
-#include "bench_release.hpp"
 #include "bench_args.hpp"
-#include "mrroc/comm/request_reply.hpp"
-#include "mrroc/core/time.hpp"
-#include "mrroc_lcm/emergency_stop_t.hpp"
+#include "bench_release.hpp"
 #include "mrroc/comm/bus.hpp"
-#include "mrroc/core/error.hpp"
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/time.hpp"
 #include "mrroc/mp/robot.hpp"
+#include "mrroc_lcm/emergency_stop_t.hpp"
 
 extern char** environ;
 
@@ -102,8 +102,8 @@ class Pacer {
   explicit Pacer(std::int64_t sweep_ns) : start_(now_ns() + kPacePeriodNs), sweep_(sweep_ns) {}
   void wait() {
     const double phase = std::fmod(static_cast<double>(k_) * 0.6180339887498949, 1.0);
-    const std::int64_t deadline =
-        start_ + k_ * kPacePeriodNs + static_cast<std::int64_t>(phase * static_cast<double>(sweep_));
+    const std::int64_t deadline = start_ + k_ * kPacePeriodNs +
+                                  static_cast<std::int64_t>(phase * static_cast<double>(sweep_));
     ++k_;
     timespec wake{};
     wake.tv_sec = static_cast<time_t>(deadline / 1'000'000'000LL);
@@ -261,7 +261,8 @@ class RawPinger {
   void wait_for_peer(double seconds) {
     const auto until = Clock::now() + std::chrono::duration<double>(seconds);
     while (!ping(100))
-      if (Clock::now() > until) throw mrroc::Error("bare LCM peer on '" + out_ + "' never answered");
+      if (Clock::now() > until)
+        throw mrroc::Error("bare LCM peer on '" + out_ + "' never answered");
     for (int i = 0; i < 50; ++i) (void)ping(100);  // warm-up
   }
 
@@ -281,8 +282,9 @@ struct Series {
   void add_cpu(const std::string& who, double ns) { cpu_ns_total[who] += ns; }
   [[nodiscard]] double cpu_us_per_sample(const std::string& who) const {
     auto it = cpu_ns_total.find(who);
-    return it == cpu_ns_total.end() || us.empty() ? 0.0
-                                                  : it->second / 1000.0 / static_cast<double>(us.size());
+    return it == cpu_ns_total.end() || us.empty()
+               ? 0.0
+               : it->second / 1000.0 / static_cast<double>(us.size());
   }
 };
 
@@ -291,13 +293,13 @@ struct Series {
 void run_bare(const std::string& self, const fs::path& dir, int paced, int unpaced,
               Series& two_process, Series& chain) {
   Children children;
-  children.add(spawn("echo", {self, "--forward", "BENCH_PING", "BENCH_PONG"},
-                     (dir / "echo.log").string()));
-  const pid_t relay = children
-                          .add(spawn("relay",
-                                     {self, "--forward", "BENCH_A", "BENCH_B", "BENCH_C", "BENCH_D"},
-                                     (dir / "relay.log").string()))
-                          .pid;
+  children.add(
+      spawn("echo", {self, "--forward", "BENCH_PING", "BENCH_PONG"}, (dir / "echo.log").string()));
+  const pid_t relay =
+      children
+          .add(spawn("relay", {self, "--forward", "BENCH_A", "BENCH_B", "BENCH_C", "BENCH_D"},
+                     (dir / "relay.log").string()))
+          .pid;
   const pid_t echo = children
                          .add(spawn("chain-echo", {self, "--forward", "BENCH_B", "BENCH_C"},
                                     (dir / "chain-echo.log").string()))
@@ -388,18 +390,18 @@ ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double se
                                  [&](const mrroc::ProcessStatus& s) { ready.on_status(s); });
   bus.start();
   Children children;
-  const pid_t edp = children
-                        .add(spawn("edp/irb6",
-                                   {(bin / "mrroc-edp").string(), "--config", config.string(),
-                                    "--robot", "irb6"},
-                                   (dir / "edp.log").string()))
-                        .pid;
-  const pid_t ecp = children
-                        .add(spawn("ecp/irb6",
-                                   {(bin / "mrroc-ecp").string(), "--config", config.string(),
-                                    "--robot", "irb6"},
-                                   (dir / "ecp.log").string()))
-                        .pid;
+  const pid_t edp =
+      children
+          .add(spawn("edp/irb6",
+                     {(bin / "mrroc-edp").string(), "--config", config.string(), "--robot", "irb6"},
+                     (dir / "edp.log").string()))
+          .pid;
+  const pid_t ecp =
+      children
+          .add(spawn("ecp/irb6",
+                     {(bin / "mrroc-ecp").string(), "--config", config.string(), "--robot", "irb6"},
+                     (dir / "ecp.log").string()))
+          .pid;
   for (const char* process : {"edp/irb6", "ecp/irb6"})
     if (!ready.wait_ready(process, 30))
       throw mrroc::Error(std::string(process) + " was not ready within 30 s\n" + children.logs());
@@ -461,8 +463,8 @@ ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double se
     out.unpaced.seconds = static_cast<double>(elapsed) / 1e9;
     out.unpaced.add_cpu("mp", cpu_ns(getpid()) - cpu0[0]);
     out.unpaced.add_cpu("ecp", cpu_ns(ecp) - cpu0[1]);
-    out.unpaced.add_cpu("edp", cpu_ns(edp) - cpu0[2] -
-                                   edp_idle_ns_per_ns * static_cast<double>(elapsed));
+    out.unpaced.add_cpu("edp",
+                        cpu_ns(edp) - cpu0[2] - edp_idle_ns_per_ns * static_cast<double>(elapsed));
     out.edp_idle_cpu_us_per_ms = edp_idle_ns_per_ns * 1000.0;
     robot.end_motion();
   } catch (const std::exception& e) {
@@ -489,25 +491,25 @@ int main(int argc, char** argv) {
           "two-process round trip; B4: unpaced macro-steps/s against a bare LCM chain.\n"
           "SAMPLES (default 2000) paced macro-steps; B1_STEPS/B1_VALUE (default 1 2) and\n"
           "B4_STEPS/B4_VALUE (default 2 1): motion_steps and value_in_step_no of each series.\n"
-          "Prints RESULT B1/B4 and NOTE lines (scripts/bench turns them into docs/benchmarks.md).\n"))
+          "Prints RESULT B1/B4 and NOTE lines (scripts/bench turns them into "
+          "docs/benchmarks.md).\n"))
     return 0;
   if (argc != 1 && argc != 2 && argc != 6) {
     std::fprintf(stderr, "bench_chain: expected 0, 1 or 5 arguments, got %d (see --help)\n",
                  argc - 1);
     return 2;
   }
-  const int samples =
-      argc > 1 ? static_cast<int>(whole_number("bench_chain", "SAMPLES", argv[1], 10, 1000000,
-                                               "macro-steps"))
-               : 2000;
+  const int samples = argc > 1 ? static_cast<int>(whole_number("bench_chain", "SAMPLES", argv[1],
+                                                               10, 1000000, "macro-steps"))
+                               : 2000;
   StepShape shape;
   if (argc > 5) {
-    shape.paced_steps = static_cast<int>(
-        whole_number("bench_chain", "B1_STEPS", argv[2], 1, 1000, "servo steps"));
-    shape.paced_value = static_cast<int>(whole_number("bench_chain", "B1_VALUE", argv[3], 1,
-                                                      shape.paced_steps + 1, "servo steps"));
-    shape.unpaced_steps = static_cast<int>(
-        whole_number("bench_chain", "B4_STEPS", argv[4], 1, 1000, "servo steps"));
+    shape.paced_steps =
+        static_cast<int>(whole_number("bench_chain", "B1_STEPS", argv[2], 1, 1000, "servo steps"));
+    shape.paced_value = static_cast<int>(
+        whole_number("bench_chain", "B1_VALUE", argv[3], 1, shape.paced_steps + 1, "servo steps"));
+    shape.unpaced_steps =
+        static_cast<int>(whole_number("bench_chain", "B4_STEPS", argv[4], 1, 1000, "servo steps"));
     shape.unpaced_value = static_cast<int>(whole_number("bench_chain", "B4_VALUE", argv[5], 1,
                                                         shape.unpaced_steps + 1, "servo steps"));
   }
@@ -515,14 +517,16 @@ int main(int argc, char** argv) {
   try {
     const fs::path bin = own_directory();
     const std::string self = (bin / "bench_chain").string();
-    const fs::path dir = fs::temp_directory_path() / ("mrroc-bench-chain-" + std::to_string(getpid()));
+    const fs::path dir =
+        fs::temp_directory_path() / ("mrroc-bench-chain-" + std::to_string(getpid()));
     fs::create_directories(dir);
 
     Series bare_two;
     Series bare_chain;
     run_bare(self, dir, samples / 2, chain_samples / 2, bare_two, bare_chain);
     const ChainFigures set = run_process_set(bin, dir, 2.0, false, samples, samples, shape);
-    const ChainFigures fast = run_process_set(bin, dir, 1.0, false, samples / 2, samples / 2, shape);
+    const ChainFigures fast =
+        run_process_set(bin, dir, 1.0, false, samples / 2, samples / 2, shape);
     // B4's own set-up: the simulation lock-step, as fast as possible.
     const ChainFigures lock = run_process_set(bin, dir, 2.0, true, samples, samples, shape);
     run_bare(self, dir, samples - samples / 2, chain_samples - chain_samples / 2, bare_two,
@@ -541,17 +545,18 @@ int main(int argc, char** argv) {
     const double fast_rate = static_cast<double>(fast.unpaced.us.size()) / fast.unpaced.seconds;
     const double lock_rate = static_cast<double>(lock.unpaced.us.size()) / lock.unpaced.seconds;
     std::printf("B1 macro-step round trip, %d samples each, paced at 200 Hz\n", samples);
-    std::printf("  bare LCM two-process round trip: p50 %.1f us, p99 %.1f us (%d lost)\n", b50,
-                b99, bare_two.lost);
+    std::printf("  bare LCM two-process round trip: p50 %.1f us, p99 %.1f us (%d lost)\n", b50, b99,
+                bare_two.lost);
     std::printf("  MP->ECP->EDP->ECP->MP, servo 2 ms: p50 %.1f us, p99 %.1f us\n", v50, v99);
     std::printf("  MP->ECP->EDP->ECP->MP, servo 1 ms: p50 %.1f us, p99 %.1f us (%zu samples)\n",
                 f50, percentile(fast.paced.us, 0.99), fast.paced.us.size());
     std::printf("  MP->ECP->EDP->ECP->MP, lock-step simulation: p50 %.1f us, p99 %.1f us\n",
                 percentile(lock.paced.us, 0.5), percentile(lock.paced.us, 0.99));
     std::printf("B4 unpaced\n");
-    std::printf("  bare LCM 3-process chain: %.0f round trips/s, p50 %.1f us, p99 %.1f us (%d "
-                "lost)\n",
-                bare_rate, chain50, chain99, bare_chain.lost);
+    std::printf(
+        "  bare LCM 3-process chain: %.0f round trips/s, p50 %.1f us, p99 %.1f us (%d "
+        "lost)\n",
+        bare_rate, chain50, chain99, bare_chain.lost);
     std::printf("  macro-steps, servo 2 ms: %.0f /s, p50 %.1f us, p99 %.1f us\n", set_rate,
                 percentile(set.unpaced.us, 0.5), percentile(set.unpaced.us, 0.99));
     std::printf("  macro-steps, servo 1 ms: %.0f /s, p50 %.1f us, p99 %.1f us\n", fast_rate,
@@ -561,10 +566,11 @@ int main(int argc, char** argv) {
     std::printf("  CPU per bare chain round trip: driver %.1f us, relay %.1f us, echo %.1f us\n",
                 bare_chain.cpu_us_per_sample("driver"), bare_chain.cpu_us_per_sample("relay"),
                 bare_chain.cpu_us_per_sample("echo"));
-    std::printf("  CPU per macro-step (servo 2 ms): MP %.1f us, ECP %.1f us, EDP %.1f us beyond "
-                "its idle servo loop (which takes %.1f us of CPU per ms)\n",
-                set.unpaced.cpu_us_per_sample("mp"), set.unpaced.cpu_us_per_sample("ecp"),
-                set.unpaced.cpu_us_per_sample("edp"), set.edp_idle_cpu_us_per_ms);
+    std::printf(
+        "  CPU per macro-step (servo 2 ms): MP %.1f us, ECP %.1f us, EDP %.1f us beyond "
+        "its idle servo loop (which takes %.1f us of CPU per ms)\n",
+        set.unpaced.cpu_us_per_sample("mp"), set.unpaced.cpu_us_per_sample("ecp"),
+        set.unpaced.cpu_us_per_sample("edp"), set.edp_idle_cpu_us_per_ms);
     // With the MP's phase against the servo clock swept evenly, the round trip is a fixed part
     // plus a wait for the servo cycle that grows with the period: fixed ~= 2 RT(1 ms) - RT(2 ms).
     std::printf("  fastest 1 %%: servo 2 ms %.1f us, servo 1 ms %.1f us\n",
@@ -574,53 +580,57 @@ int main(int argc, char** argv) {
     // that first cycle.
     const double wait2 = 2000.0 * (0.5 + (shape.paced_value - 1));
     const double wait1 = 1000.0 * (0.5 + (shape.paced_value - 1));
-    std::printf("NOTE B1 one NEXT_POSE = MP->ECP, ECP->EDP SET_GET (with_query), EDP->ECP "
-                "reading, ECP->MP: two LCM round trips, and the reading waits for the servo "
-                "loop. With motion_steps = %d and value_in_step_no = %d and the MP "
-                "paced independently of the servo clock that wait is %.1f servo periods on "
-                "average (%.0f us at 2 ms), against a bare round trip of %.0f us. p50 minus that "
-                "wait: %.0f us (2 ms servo) and %.0f us (1 ms servo, same run: p50 %.0f us, p99 "
-                "%.0f us), i.e. %.1f and %.1f x the bare round trip; fastest 1 %% at 2 ms: %.0f "
-                "us. With the simulation lock-step (no servo clock to wait for; [robot.edp] "
-                "lock_step = true) the same round trip is p50 %.0f us, p99 %.0f us, i.e. %.1f / "
-                "%.1f x the bare round trip. Bare LCM: %d lost of %d; 64-byte raw messages on %s, "
-                "the process set's URL.\n",
-                shape.paced_steps, shape.paced_value, wait2 / 2000.0, wait2, b50, v50 - wait2,
-                f50 - wait1, f50, percentile(fast.paced.us, 0.99), (v50 - wait2) / b50,
-                (f50 - wait1) / b50, percentile(set.paced.us, 0.01), percentile(lock.paced.us, 0.5),
-                percentile(lock.paced.us, 0.99), percentile(lock.paced.us, 0.5) / b50,
-                percentile(lock.paced.us, 0.99) / b99, bare_two.lost, samples, kUrl);
-    std::printf("RESULT B1 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
-                "samples=%d unit=us\n",
-                b50, b99, v50, v99, samples);
-    std::printf("NOTE B4 macro-steps/s of MP->ECP->EDP(MuJoCo, lock-step: [robot.edp] lock_step = "
-                "true, servo cycles back to back while there is motion, simulated time standing "
-                "still while the EDP waits for a promised successor) when the MP sends NEXT_POSE "
-                "back to back (a continuous motion, motion_steps = %d, value_in_step_no = %d) "
-                "against round trips/s of a bare LCM chain driver->relay->echo->relay->driver "
-                "sent back to back (%d samples, p50 %.0f us, p99 %.0f us). Before lock-step "
-                "existed the EDP ran its simulation in real time only, one MuJoCo step per servo "
-                "period, so a macro-step of %d servo steps could not take less than %d servo "
-                "periods; the same run measures that too: at most %.0f /s with a 2 ms servo "
-                "(measured %.0f /s), %.0f /s with 1 ms (measured %.0f /s). CPU time per "
-                "macro-step (real time, 2 ms): MP %.0f us, ECP %.0f us, EDP %.0f us beyond its "
-                "idle servo loop (%.1f us per ms); lock-step: MP %.0f us, ECP %.0f us, EDP %.0f "
-                "us; per bare chain round trip: driver %.0f us, relay %.0f us, echo %.0f us. "
-                "Macro-steps refused after a late successor (real time, the series went on from "
-                "where the robot stood): %d at 2 ms, %d at 1 ms; lock-step: %d.\n",
-                shape.unpaced_steps, shape.unpaced_value, chain_samples, chain50, chain99,
-                shape.unpaced_steps, shape.unpaced_steps, 500.0 / shape.unpaced_steps, set_rate,
-                1000.0 / shape.unpaced_steps, fast_rate, set.unpaced.cpu_us_per_sample("mp"),
-                set.unpaced.cpu_us_per_sample("ecp"), set.unpaced.cpu_us_per_sample("edp"),
-                set.edp_idle_cpu_us_per_ms, lock.unpaced.cpu_us_per_sample("mp"),
-                lock.unpaced.cpu_us_per_sample("ecp"), lock.unpaced.cpu_us_per_sample("edp"),
-                bare_chain.cpu_us_per_sample("driver"), bare_chain.cpu_us_per_sample("relay"),
-                bare_chain.cpu_us_per_sample("echo"), set.refused_after_late,
-                fast.refused_after_late, lock.refused_after_late);
-    std::printf("RESULT B4 baseline_rate=%.1f value_rate=%.1f baseline_p50=%.2f "
-                "baseline_p99=%.2f value_p50=%.2f value_p99=%.2f samples=%d unit=/s\n",
-                bare_rate, lock_rate, chain50, chain99, percentile(lock.unpaced.us, 0.5),
-                percentile(lock.unpaced.us, 0.99), samples);
+    std::printf(
+        "NOTE B1 one NEXT_POSE = MP->ECP, ECP->EDP SET_GET (with_query), EDP->ECP "
+        "reading, ECP->MP: two LCM round trips, and the reading waits for the servo "
+        "loop. With motion_steps = %d and value_in_step_no = %d and the MP "
+        "paced independently of the servo clock that wait is %.1f servo periods on "
+        "average (%.0f us at 2 ms), against a bare round trip of %.0f us. p50 minus that "
+        "wait: %.0f us (2 ms servo) and %.0f us (1 ms servo, same run: p50 %.0f us, p99 "
+        "%.0f us), i.e. %.1f and %.1f x the bare round trip; fastest 1 %% at 2 ms: %.0f "
+        "us. With the simulation lock-step (no servo clock to wait for; [robot.edp] "
+        "lock_step = true) the same round trip is p50 %.0f us, p99 %.0f us, i.e. %.1f / "
+        "%.1f x the bare round trip. Bare LCM: %d lost of %d; 64-byte raw messages on %s, "
+        "the process set's URL.\n",
+        shape.paced_steps, shape.paced_value, wait2 / 2000.0, wait2, b50, v50 - wait2, f50 - wait1,
+        f50, percentile(fast.paced.us, 0.99), (v50 - wait2) / b50, (f50 - wait1) / b50,
+        percentile(set.paced.us, 0.01), percentile(lock.paced.us, 0.5),
+        percentile(lock.paced.us, 0.99), percentile(lock.paced.us, 0.5) / b50,
+        percentile(lock.paced.us, 0.99) / b99, bare_two.lost, samples, kUrl);
+    std::printf(
+        "RESULT B1 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
+        "samples=%d unit=us\n",
+        b50, b99, v50, v99, samples);
+    std::printf(
+        "NOTE B4 macro-steps/s of MP->ECP->EDP(MuJoCo, lock-step: [robot.edp] lock_step = "
+        "true, servo cycles back to back while there is motion, simulated time standing "
+        "still while the EDP waits for a promised successor) when the MP sends NEXT_POSE "
+        "back to back (a continuous motion, motion_steps = %d, value_in_step_no = %d) "
+        "against round trips/s of a bare LCM chain driver->relay->echo->relay->driver "
+        "sent back to back (%d samples, p50 %.0f us, p99 %.0f us). Before lock-step "
+        "existed the EDP ran its simulation in real time only, one MuJoCo step per servo "
+        "period, so a macro-step of %d servo steps could not take less than %d servo "
+        "periods; the same run measures that too: at most %.0f /s with a 2 ms servo "
+        "(measured %.0f /s), %.0f /s with 1 ms (measured %.0f /s). CPU time per "
+        "macro-step (real time, 2 ms): MP %.0f us, ECP %.0f us, EDP %.0f us beyond its "
+        "idle servo loop (%.1f us per ms); lock-step: MP %.0f us, ECP %.0f us, EDP %.0f "
+        "us; per bare chain round trip: driver %.0f us, relay %.0f us, echo %.0f us. "
+        "Macro-steps refused after a late successor (real time, the series went on from "
+        "where the robot stood): %d at 2 ms, %d at 1 ms; lock-step: %d.\n",
+        shape.unpaced_steps, shape.unpaced_value, chain_samples, chain50, chain99,
+        shape.unpaced_steps, shape.unpaced_steps, 500.0 / shape.unpaced_steps, set_rate,
+        1000.0 / shape.unpaced_steps, fast_rate, set.unpaced.cpu_us_per_sample("mp"),
+        set.unpaced.cpu_us_per_sample("ecp"), set.unpaced.cpu_us_per_sample("edp"),
+        set.edp_idle_cpu_us_per_ms, lock.unpaced.cpu_us_per_sample("mp"),
+        lock.unpaced.cpu_us_per_sample("ecp"), lock.unpaced.cpu_us_per_sample("edp"),
+        bare_chain.cpu_us_per_sample("driver"), bare_chain.cpu_us_per_sample("relay"),
+        bare_chain.cpu_us_per_sample("echo"), set.refused_after_late, fast.refused_after_late,
+        lock.refused_after_late);
+    std::printf(
+        "RESULT B4 baseline_rate=%.1f value_rate=%.1f baseline_p50=%.2f "
+        "baseline_p99=%.2f value_p50=%.2f value_p99=%.2f samples=%d unit=/s\n",
+        bare_rate, lock_rate, chain50, chain99, percentile(lock.unpaced.us, 0.5),
+        percentile(lock.unpaced.us, 0.99), samples);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_chain: %s\n", e.what());

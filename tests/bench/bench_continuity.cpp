@@ -43,7 +43,6 @@ using mrroc::test::BusyLoops;
 
 const fs::path kSource = MRROC_SOURCE_DIR;
 
-
 struct Run {
   int exit_code = -1;
   int standstills = 0;
@@ -132,9 +131,9 @@ fs::path with_lookahead(const fs::path& config, int depth) {
     out += line + "\n";
     if (line == "[robot.edp]") out += "lookahead = " + std::to_string(depth) + "\n";
   }
-  const fs::path copy = config.parent_path() / (".b9-" + std::to_string(getpid()) + "-" +
-                                                config.stem().string() + "-" +
-                                                std::to_string(depth) + ".toml");
+  const fs::path copy =
+      config.parent_path() / (".b9-" + std::to_string(getpid()) + "-" + config.stem().string() +
+                              "-" + std::to_string(depth) + ".toml");
   std::ofstream(copy) << out;
   return copy;
 }
@@ -199,9 +198,10 @@ int main(int argc, char** argv) {
           add(s, launch(launcher, copy));
         }
         fs::remove(copy);
-        std::printf("SWEEP %s lookahead=%d runs=%d failed=%d standstills=%d worst_error_mm=%.3f "
-                    "loops=%d\n",
-                    set.stem().c_str(), depth, s.runs, s.failed, s.standstills, s.worst_mm, loops);
+        std::printf(
+            "SWEEP %s lookahead=%d runs=%d failed=%d standstills=%d worst_error_mm=%.3f "
+            "loops=%d\n",
+            set.stem().c_str(), depth, s.runs, s.failed, s.standstills, s.worst_mm, loops);
         std::fflush(stdout);
       }
     }
@@ -228,26 +228,28 @@ int main(int argc, char** argv) {
     if (!ecp.paused) ++stopped_ecp.failed;
     add(stopped_ecp, ecp);
   }
-  const int failed = bar_idle.failed + bar_load.failed + engrave_idle.failed +
-                     engrave_load.failed + stopped_mp.failed + stopped_ecp.failed;
-  std::printf("NOTE B9 %d runs of each: configs/tight-bar.toml (two IRb-6, MuJoCo, 327 macro-steps "
-              "of 10 servo steps) and configs/engrave-rnt.toml (RNT, MuJoCo), default lookahead, "
-              "real time, 2 ms servo; load: %d CPU-bound busy loops at nice 0 (one per core). "
-              "Standstills idle: bar %d, engraving %d; under load: bar %d, engraving %d. Grip-"
-              "distance error idle %.3f mm, loaded %.3f mm; cutter within %.3f mm of the strokes "
-              "idle, %.3f mm loaded. MP stopped 50 ms mid-carry: %d standstills, grip error %.3f "
-              "mm; ECP 'right' stopped 50 ms: %d standstills, grip error %.3f mm. Runs that did not "
-              "exit 0 (or were never stopped): %d.\n",
-              runs, loops, bar_idle.standstills, engrave_idle.standstills, bar_load.standstills,
-              engrave_load.standstills, bar_idle.worst_mm, bar_load.worst_mm, engrave_idle.worst_mm,
-              engrave_load.worst_mm, stopped_mp.standstills, stopped_mp.worst_mm,
-              stopped_ecp.standstills, stopped_ecp.worst_mm, failed);
-  std::printf("RESULT B9 baseline_stops=%d value_stops=%d stop_stops=%d baseline_grip_mm=%.3f "
-              "value_grip_mm=%.3f baseline_cut_mm=%.3f value_cut_mm=%.3f failed=%d runs=%d\n",
-              bar_idle.standstills + engrave_idle.standstills,
-              bar_load.standstills + engrave_load.standstills,
-              stopped_mp.standstills + stopped_ecp.standstills, bar_idle.worst_mm,
-              std::max({bar_load.worst_mm, stopped_mp.worst_mm, stopped_ecp.worst_mm}),
-              engrave_idle.worst_mm, engrave_load.worst_mm, failed, runs);
+  const int failed = bar_idle.failed + bar_load.failed + engrave_idle.failed + engrave_load.failed +
+                     stopped_mp.failed + stopped_ecp.failed;
+  std::printf(
+      "NOTE B9 %d runs of each: configs/tight-bar.toml (two IRb-6, MuJoCo, 327 macro-steps "
+      "of 10 servo steps) and configs/engrave-rnt.toml (RNT, MuJoCo), default lookahead, "
+      "real time, 2 ms servo; load: %d CPU-bound busy loops at nice 0 (one per core). "
+      "Standstills idle: bar %d, engraving %d; under load: bar %d, engraving %d. Grip-"
+      "distance error idle %.3f mm, loaded %.3f mm; cutter within %.3f mm of the strokes "
+      "idle, %.3f mm loaded. MP stopped 50 ms mid-carry: %d standstills, grip error %.3f "
+      "mm; ECP 'right' stopped 50 ms: %d standstills, grip error %.3f mm. Runs that did not "
+      "exit 0 (or were never stopped): %d.\n",
+      runs, loops, bar_idle.standstills, engrave_idle.standstills, bar_load.standstills,
+      engrave_load.standstills, bar_idle.worst_mm, bar_load.worst_mm, engrave_idle.worst_mm,
+      engrave_load.worst_mm, stopped_mp.standstills, stopped_mp.worst_mm, stopped_ecp.standstills,
+      stopped_ecp.worst_mm, failed);
+  std::printf(
+      "RESULT B9 baseline_stops=%d value_stops=%d stop_stops=%d baseline_grip_mm=%.3f "
+      "value_grip_mm=%.3f baseline_cut_mm=%.3f value_cut_mm=%.3f failed=%d runs=%d\n",
+      bar_idle.standstills + engrave_idle.standstills,
+      bar_load.standstills + engrave_load.standstills,
+      stopped_mp.standstills + stopped_ecp.standstills, bar_idle.worst_mm,
+      std::max({bar_load.worst_mm, stopped_mp.worst_mm, stopped_ecp.worst_mm}),
+      engrave_idle.worst_mm, engrave_load.worst_mm, failed, runs);
   return 0;
 }

@@ -99,10 +99,9 @@ int main(int argc, char** argv) {
   const int poses = argc > 1 ? static_cast<int>(mrroc::bench::whole_number(
                                    "bench_ik", "POSES", argv[1], 1, 100000000, "poses"))
                              : 20000;
-  const unsigned rng_seed =
-      argc > 2 ? static_cast<unsigned>(mrroc::bench::whole_number("bench_ik", "SEED", argv[2], 0,
-                                                                  4294967295L, "(seed)"))
-               : 1U;
+  const unsigned rng_seed = argc > 2 ? static_cast<unsigned>(mrroc::bench::whole_number(
+                                           "bench_ik", "SEED", argv[2], 0, 4294967295L, "(seed)"))
+                                     : 1U;
   const mrroc::kinematics::KdlSolver kdl(std::string(MRROC_SOURCE_DIR) + "/robots/irb6/irb6.urdf",
                                          "base_link", "flange");
   std::mt19937 rng(rng_seed);
@@ -133,8 +132,10 @@ int main(int argc, char** argv) {
         const irb6::JointPosition s = irb6::inverse_kinematics(target, seed);
         const auto t1 = Clock::now();
         analytic.times_us.push_back(elapsed_us(t0, t1));
-        if (reaches(s, target)) ++analytic.solved;
-        else if (analytic.first_failure.empty()) analytic.first_failure = "residual too large";
+        if (reaches(s, target))
+          ++analytic.solved;
+        else if (analytic.first_failure.empty())
+          analytic.first_failure = "residual too large";
       } catch (const mrroc::Error& e) {
         analytic.times_us.push_back(elapsed_us(t0, Clock::now()));
         if (analytic.first_failure.empty()) analytic.first_failure = e.what();
@@ -149,8 +150,10 @@ int main(int argc, char** argv) {
         lma.times_us.push_back(elapsed_us(t0, t1));
         irb6::JointPosition sq{};
         std::copy(s.begin(), s.end(), sq.begin());
-        if (reaches(sq, target)) ++lma.solved;
-        else if (lma.first_failure.empty()) lma.first_failure = "residual too large";
+        if (reaches(sq, target))
+          ++lma.solved;
+        else if (lma.first_failure.empty())
+          lma.first_failure = "residual too large";
       } catch (const mrroc::Error& e) {
         lma.times_us.push_back(elapsed_us(t0, Clock::now()));
         if (lma.first_failure.empty()) lma.first_failure = e.what();
@@ -197,44 +200,49 @@ int main(int argc, char** argv) {
   auto rate = [&](const SolverRun& r) {
     return 100.0 * r.solved / static_cast<double>(r.times_us.size());
   };
-  std::printf("B3 inverse kinematics, %d random reachable poses (rng seed %u), seed = pose +- 0.3 "
-              "rad\n",
-              poses, rng_seed);
-  std::printf("  KDL LMA (baseline): p50 %.2f us, p99 %.2f us, max %.1f us, %d solved "
-              "(%.3f %%)\n",
-              percentile(lma.times_us, 0.5), percentile(lma.times_us, 0.99),
-              percentile(lma.times_us, 1.0), lma.solved, rate(lma));
-  if (!lma.first_failure.empty()) std::printf("    first KDL failure: %s\n", lma.first_failure.c_str());
+  std::printf(
+      "B3 inverse kinematics, %d random reachable poses (rng seed %u), seed = pose +- 0.3 "
+      "rad\n",
+      poses, rng_seed);
+  std::printf(
+      "  KDL LMA (baseline): p50 %.2f us, p99 %.2f us, max %.1f us, %d solved "
+      "(%.3f %%)\n",
+      percentile(lma.times_us, 0.5), percentile(lma.times_us, 0.99), percentile(lma.times_us, 1.0),
+      lma.solved, rate(lma));
+  if (!lma.first_failure.empty())
+    std::printf("    first KDL failure: %s\n", lma.first_failure.c_str());
   std::printf("  IRb-6 analytic:     p50 %.2f us, p99 %.2f us, max %.1f us, %d solved (%.3f %%)\n",
               percentile(analytic.times_us, 0.5), percentile(analytic.times_us, 0.99),
               percentile(analytic.times_us, 1.0), analytic.solved, rate(analytic));
   if (!analytic.first_failure.empty())
     std::printf("    first analytic failure: %s\n", analytic.first_failure.c_str());
-  std::printf("  KDL LMA with the exact answer as seed (fixed cost of one call): p50 %.2f us, "
-              "p99 %.2f us\n",
-              percentile(lma_exact_seed.times_us, 0.5), percentile(lma_exact_seed.times_us, 0.99));
-  std::printf("  seed = synchronisation pose, %zu poses: KDL p50 %.2f us, p99 %.2f us, %.3f %% "
-              "solved; analytic p50 %.2f us, p99 %.2f us, %.3f %% solved\n",
-              far_lma.times_us.size(), percentile(far_lma.times_us, 0.5),
-              percentile(far_lma.times_us, 0.99), rate(far_lma),
-              percentile(far_analytic.times_us, 0.5), percentile(far_analytic.times_us, 0.99),
-              rate(far_analytic));
-  std::printf("NOTE B3 %d random reachable poses (joints uniform in the joint limits and linkage "
-              "ranges), the same seed for both solvers: the pose's joints +- 0.3 rad; success = "
-              "joints inside the limits reaching the frame within 1e-6 m and 1e-6 rad. KDL LMA "
-              "(KdlSolver defaults: 500 iterations, 32 restarts) solved %.3f %%, the analytic "
-              "solver %.3f %%. With the synchronisation pose as a far seed (%zu poses): KDL p50 "
-              "%.1f us, p99 %.1f us, %.3f %% solved; analytic p50 %.2f us, %.3f %% solved. KDL "
-              "with the exact answer as seed still costs p50 %.1f us per call (KdlSolver builds "
-              "its KDL solvers on every call).\n",
-              poses, rate(lma), rate(analytic), far_lma.times_us.size(),
-              percentile(far_lma.times_us, 0.5), percentile(far_lma.times_us, 0.99), rate(far_lma),
-              percentile(far_analytic.times_us, 0.5), rate(far_analytic),
-              percentile(lma_exact_seed.times_us, 0.5));
-  std::printf("RESULT B3 baseline_p50=%.3f baseline_p99=%.3f value_p50=%.3f value_p99=%.3f "
-              "baseline_success=%.3f value_success=%.3f samples=%d unit=us\n",
-              percentile(lma.times_us, 0.5), percentile(lma.times_us, 0.99),
-              percentile(analytic.times_us, 0.5), percentile(analytic.times_us, 0.99), rate(lma),
-              rate(analytic), poses);
+  std::printf(
+      "  KDL LMA with the exact answer as seed (fixed cost of one call): p50 %.2f us, "
+      "p99 %.2f us\n",
+      percentile(lma_exact_seed.times_us, 0.5), percentile(lma_exact_seed.times_us, 0.99));
+  std::printf(
+      "  seed = synchronisation pose, %zu poses: KDL p50 %.2f us, p99 %.2f us, %.3f %% "
+      "solved; analytic p50 %.2f us, p99 %.2f us, %.3f %% solved\n",
+      far_lma.times_us.size(), percentile(far_lma.times_us, 0.5),
+      percentile(far_lma.times_us, 0.99), rate(far_lma), percentile(far_analytic.times_us, 0.5),
+      percentile(far_analytic.times_us, 0.99), rate(far_analytic));
+  std::printf(
+      "NOTE B3 %d random reachable poses (joints uniform in the joint limits and linkage "
+      "ranges), the same seed for both solvers: the pose's joints +- 0.3 rad; success = "
+      "joints inside the limits reaching the frame within 1e-6 m and 1e-6 rad. KDL LMA "
+      "(KdlSolver defaults: 500 iterations, 32 restarts) solved %.3f %%, the analytic "
+      "solver %.3f %%. With the synchronisation pose as a far seed (%zu poses): KDL p50 "
+      "%.1f us, p99 %.1f us, %.3f %% solved; analytic p50 %.2f us, %.3f %% solved. KDL "
+      "with the exact answer as seed still costs p50 %.1f us per call (KdlSolver builds "
+      "its KDL solvers on every call).\n",
+      poses, rate(lma), rate(analytic), far_lma.times_us.size(), percentile(far_lma.times_us, 0.5),
+      percentile(far_lma.times_us, 0.99), rate(far_lma), percentile(far_analytic.times_us, 0.5),
+      rate(far_analytic), percentile(lma_exact_seed.times_us, 0.5));
+  std::printf(
+      "RESULT B3 baseline_p50=%.3f baseline_p99=%.3f value_p50=%.3f value_p99=%.3f "
+      "baseline_success=%.3f value_success=%.3f samples=%d unit=us\n",
+      percentile(lma.times_us, 0.5), percentile(lma.times_us, 0.99),
+      percentile(analytic.times_us, 0.5), percentile(analytic.times_us, 0.99), rate(lma),
+      rate(analytic), poses);
   return 0;
 }

@@ -3,9 +3,9 @@
 // Value: `mrroc-launch` on a generated config with two IRb-6 (MuJoCo plugin, ECP task "follow_mp",
 // MP task "start_and_wait"), a range VSP and the web console ([ui] web = true), timed from
 // spawning the launcher until it prints "all N processes ready in X ms" (the launcher starts the
-// processes one after the other and waits for each one's ready status). The launcher is then stopped with SIGTERM (it stops the set
-// in reverse order) before the next repetition. X, the launcher's own figure (from its first
-// start to the last ready), is reported beside the wall time.
+// processes one after the other and waits for each one's ready status). The launcher is then
+// stopped with SIGTERM (it stops the set in reverse order) before the next repetition. X, the
+// launcher's own figure (from its first start to the last ready), is reported beside the wall time.
 //
 // Baseline: the same number of trivial processes (/bin/true) started one after the other through
 // the launcher's own fork/exec path (mrroc::launch::Supervisor), each reaped before the next is
@@ -143,10 +143,10 @@ int main(int argc, char** argv) {
           "B8: a process set from launch to ready, REPETITIONS (default 10) launches, against as\n"
           "many /bin/true started through the launcher's supervisor. Prints RESULT B8 and NOTE.\n"))
     return 0;
-  const int repetitions =
-      argc > 1 ? static_cast<int>(mrroc::bench::whole_number("bench_launch", "REPETITIONS",
-                                                             argv[1], 1, 10000, "launches"))
-               : 10;
+  const int repetitions = argc > 1
+                              ? static_cast<int>(mrroc::bench::whole_number(
+                                    "bench_launch", "REPETITIONS", argv[1], 1, 10000, "launches"))
+                              : 10;
   try {
     const fs::path bin = fs::read_symlink("/proc/self/exe").parent_path();
     const fs::path dir =
@@ -196,24 +196,27 @@ int main(int argc, char** argv) {
                 processes, repetitions);
     std::printf("  %d x /bin/true through the supervisor: p50 %.1f ms, p99 %.1f ms\n", processes,
                 percentile(baseline, 0.5), percentile(baseline, 0.99));
-    std::printf("  launch -> all ready (wall): p50 %.1f ms, p99 %.1f ms; launcher's own figure "
-                "p50 %.1f ms, p99 %.1f ms\n",
-                percentile(wall, 0.5), percentile(wall, 0.99), percentile(launcher, 0.5),
-                percentile(launcher, 0.99));
+    std::printf(
+        "  launch -> all ready (wall): p50 %.1f ms, p99 %.1f ms; launcher's own figure "
+        "p50 %.1f ms, p99 %.1f ms\n",
+        percentile(wall, 0.5), percentile(wall, 0.99), percentile(launcher, 0.5),
+        percentile(launcher, 0.99));
     std::printf("  start to ready per process (p50): %s\n", stages.c_str());
-    std::printf("NOTE B8 %d launches of mrroc-launch on two IRb-6 (MuJoCo, follow_mp) with SRP, a "
-                "VSP, the UI (web console) and MP: %d processes started one after the other, each "
-                "waited for until it reports "
-                "ready; timed from spawning the launcher to its 'all %d processes ready' line "
-                "(the launcher's own figure, from its first start: p50 %.0f ms, p99 %.0f ms). "
-                "Baseline: %d x /bin/true started and reaped one after the other through the "
-                "launcher's Supervisor. Start to ready of each process (p50): %s.\n",
-                repetitions, processes, processes, percentile(launcher, 0.5),
-                percentile(launcher, 0.99), processes, stages.c_str());
-    std::printf("RESULT B8 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
-                "samples=%d unit=ms\n",
-                percentile(baseline, 0.5), percentile(baseline, 0.99), percentile(wall, 0.5),
-                percentile(wall, 0.99), repetitions);
+    std::printf(
+        "NOTE B8 %d launches of mrroc-launch on two IRb-6 (MuJoCo, follow_mp) with SRP, a "
+        "VSP, the UI (web console) and MP: %d processes started one after the other, each "
+        "waited for until it reports "
+        "ready; timed from spawning the launcher to its 'all %d processes ready' line "
+        "(the launcher's own figure, from its first start: p50 %.0f ms, p99 %.0f ms). "
+        "Baseline: %d x /bin/true started and reaped one after the other through the "
+        "launcher's Supervisor. Start to ready of each process (p50): %s.\n",
+        repetitions, processes, processes, percentile(launcher, 0.5), percentile(launcher, 0.99),
+        processes, stages.c_str());
+    std::printf(
+        "RESULT B8 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
+        "samples=%d unit=ms\n",
+        percentile(baseline, 0.5), percentile(baseline, 0.99), percentile(wall, 0.5),
+        percentile(wall, 0.99), repetitions);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_launch: %s\n", e.what());

@@ -172,10 +172,9 @@ int main(int argc, char** argv) {
           "beside it for SECONDS (default 30); B7: heap allocations on the servo thread.\n"
           "Prints RESULT B2/B7 and NOTE lines.\n"))
     return 0;
-  const double seconds =
-      argc > 1 ? static_cast<double>(mrroc::bench::whole_number("bench_servo", "SECONDS", argv[1],
-                                                                1, 86400, "s"))
-               : 30.0;
+  const double seconds = argc > 1 ? static_cast<double>(mrroc::bench::whole_number(
+                                        "bench_servo", "SECONDS", argv[1], 1, 86400, "s"))
+                                  : 30.0;
   // The counter must see an allocation made on the watched thread.
   g_watched = std::this_thread::get_id();
   {
@@ -210,9 +209,8 @@ int main(int argc, char** argv) {
     // period later, the control's a quarter period later.
     const std::int64_t servo_first = now_ns() + kPeriodNs;
     std::thread bare_thread([&bare, servo_first] { bare.run(servo_first + kPeriodNs / 2); });
-    std::thread control_thread([&control, servo_first] {
-      control.run(servo_first + kPeriodNs / 4);
-    });
+    std::thread control_thread(
+        [&control, servo_first] { control.run(servo_first + kPeriodNs / 4); });
     const auto t0 = std::chrono::steady_clock::now();
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     g_allocations = 0;
@@ -261,40 +259,48 @@ int main(int argc, char** argv) {
     const double b50 = percentile(samples, 0.5);
     const double b99 = percentile(samples, 0.99);
     const std::vector<float> control_samples(
-        control.lateness_us.begin(), control.lateness_us.begin() + static_cast<long>(control.count));
+        control.lateness_us.begin(),
+        control.lateness_us.begin() + static_cast<long>(control.count));
     const double c50 = percentile(control_samples, 0.5);
     const double c99 = percentile(control_samples, 0.99);
     std::printf("B2 servo-loop lateness, %.0f s at %.0f us (%s), %ld macro-steps executed\n",
                 seconds, kPeriod * 1e6, t.scheduling.c_str(), macro_steps);
-    std::printf("  bare clock_nanosleep loop (%s): %zu cycles, p50 %.1f us, p99 %.1f us, "
-                "max %.1f us, %lld overruns\n",
-                bare.scheduling.c_str(), bare.count, b50, b99, percentile(samples, 1.0),
-                static_cast<long long>(bare.overruns));
-    std::printf("  control (same bare loop):      %zu cycles, p50 %.1f us, p99 %.1f us, max %.1f "
-                "us\n",
-                control.count, c50, c99, percentile(control_samples, 1.0));
-    std::printf("  EDP servo loop:                %lld cycles, p50 %.1f us, p99 %.1f us, max %.1f "
-                "us, %lld overruns\n",
-                static_cast<long long>(t.cycles), t.lateness_p50_us, t.lateness_p99_us,
-                t.lateness_max_us, static_cast<long long>(t.overruns));
-    std::printf("B7 heap allocations on the servo thread: %ld in %lld cycles (SYNCHRO and %ld "
-                "macro-steps)\n",
-                allocations, static_cast<long long>(watched_cycles), macro_steps);
-    std::printf("NOTE B2 %.0f s, period 2 ms, policy %s for both loops (servo loop: %s), run "
-                "side by side half a period apart, unpinned; the servo loop executed SYNCHRO and "
-                "%ld back-to-back macro-steps meanwhile. Cycles woken more than a period late: "
-                "bare %lld, servo %lld. Noise floor: an identical second bare loop in the same "
-                "run had p50 %.1f us, p99 %.1f us (p99 ratio %.2f against the first).\n",
-                seconds, bare.scheduling.c_str(), t.scheduling.c_str(), macro_steps,
-                static_cast<long long>(bare.overruns), static_cast<long long>(t.overruns), c50, c99,
-                c99 / b99);
-    std::printf("RESULT B2 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
-                "samples=%lld unit=us\n",
-                b50, b99, t.lateness_p50_us, t.lateness_p99_us, static_cast<long long>(t.cycles));
-    std::printf("NOTE B7 malloc, calloc, realloc and the aligned allocators interposed and "
-                "counted on the servo thread over %lld cycles (SYNCHRO, then %ld macro-steps), "
-                "from 20 ms after the thread started (its one-time set-up) until stop.\n",
-                static_cast<long long>(watched_cycles), macro_steps);
+    std::printf(
+        "  bare clock_nanosleep loop (%s): %zu cycles, p50 %.1f us, p99 %.1f us, "
+        "max %.1f us, %lld overruns\n",
+        bare.scheduling.c_str(), bare.count, b50, b99, percentile(samples, 1.0),
+        static_cast<long long>(bare.overruns));
+    std::printf(
+        "  control (same bare loop):      %zu cycles, p50 %.1f us, p99 %.1f us, max %.1f "
+        "us\n",
+        control.count, c50, c99, percentile(control_samples, 1.0));
+    std::printf(
+        "  EDP servo loop:                %lld cycles, p50 %.1f us, p99 %.1f us, max %.1f "
+        "us, %lld overruns\n",
+        static_cast<long long>(t.cycles), t.lateness_p50_us, t.lateness_p99_us, t.lateness_max_us,
+        static_cast<long long>(t.overruns));
+    std::printf(
+        "B7 heap allocations on the servo thread: %ld in %lld cycles (SYNCHRO and %ld "
+        "macro-steps)\n",
+        allocations, static_cast<long long>(watched_cycles), macro_steps);
+    std::printf(
+        "NOTE B2 %.0f s, period 2 ms, policy %s for both loops (servo loop: %s), run "
+        "side by side half a period apart, unpinned; the servo loop executed SYNCHRO and "
+        "%ld back-to-back macro-steps meanwhile. Cycles woken more than a period late: "
+        "bare %lld, servo %lld. Noise floor: an identical second bare loop in the same "
+        "run had p50 %.1f us, p99 %.1f us (p99 ratio %.2f against the first).\n",
+        seconds, bare.scheduling.c_str(), t.scheduling.c_str(), macro_steps,
+        static_cast<long long>(bare.overruns), static_cast<long long>(t.overruns), c50, c99,
+        c99 / b99);
+    std::printf(
+        "RESULT B2 baseline_p50=%.2f baseline_p99=%.2f value_p50=%.2f value_p99=%.2f "
+        "samples=%lld unit=us\n",
+        b50, b99, t.lateness_p50_us, t.lateness_p99_us, static_cast<long long>(t.cycles));
+    std::printf(
+        "NOTE B7 malloc, calloc, realloc and the aligned allocators interposed and "
+        "counted on the servo thread over %lld cycles (SYNCHRO, then %ld macro-steps), "
+        "from 20 ms after the thread started (its one-time set-up) until stop.\n",
+        static_cast<long long>(watched_cycles), macro_steps);
     std::printf("RESULT B7 value=%ld samples=%lld unit=allocations\n", allocations,
                 static_cast<long long>(watched_cycles));
     return 0;

@@ -68,10 +68,10 @@
 // stall during the baseline too, when it ran nothing but the 1 kHz ping (a soak that starved the
 // CPUs could otherwise stall the probes by itself).
 #include <fcntl.h>
+#include <pthread.h>
 #include <sched.h>
 #include <signal.h>
 #include <spawn.h>
-#include <pthread.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -99,15 +99,15 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "bench_release.hpp"
-#include "mrroc/comm/request_reply.hpp"
-#include "mrroc/core/time.hpp"
-#include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/reporter.hpp"
+#include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
-#include "mrroc/comm/reporter.hpp"
+#include "mrroc/core/time.hpp"
+#include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 
 extern char** environ;
@@ -351,7 +351,7 @@ struct Counts {
   std::int64_t requests = 0;
   std::int64_t lost = 0;
   std::int64_t late = 0;
-  std::int64_t skipped = 0;  // 1 kHz slots not used because a reply came after them
+  std::int64_t skipped = 0;            // 1 kHz slots not used because a reply came after them
   std::vector<LateEvent> late_events;  // one per late reply (or stale reading), with its window
 };
 
@@ -821,7 +821,8 @@ fs::path own_directory() { return fs::read_symlink("/proc/self/exe").parent_path
 
 void usage(FILE* to) {
   std::fprintf(to,
-               "Usage: bench_soak [--rt] [--allow-late=N] [--excuse-host-stalls] [SECONDS [BASELINE_SECONDS [STEPS VALUE "
+               "Usage: bench_soak [--rt] [--allow-late=N] [--excuse-host-stalls] [SECONDS "
+               "[BASELINE_SECONDS [STEPS VALUE "
                "[VSP_DEADLINE_MS]]]]\n"
                "B5 soak: two IRb-6 EDPs (MuJoCo, 1 kHz servo), two ECPs (follow_mp) and two VSPs\n"
                "(force_torque, range; periodic 1 kHz) driven for SECONDS (default 600) by this\n"
@@ -878,8 +879,10 @@ int main(int argc, char** argv) {
       char* end = nullptr;
       allow_late = std::strtol(option + 13, &end, 10);
       if (end == option + 13 || *end != '\0' || allow_late < 0 || allow_late > 1000) {
-        std::fprintf(stderr, "bench_soak: --allow-late '%s' is not a whole number of replies in "
-                     "0..1000\n", option + 13);
+        std::fprintf(stderr,
+                     "bench_soak: --allow-late '%s' is not a whole number of replies in "
+                     "0..1000\n",
+                     option + 13);
         return 2;
       }
     } else {
@@ -965,8 +968,8 @@ int main(int argc, char** argv) {
     }
     probe.stop();
     const long cpus = std::max(1L, sysconf(_SC_NPROCESSORS_ONLN));
-    const double cpu_share = (cpu_seconds() - cpu0) /
-                             (static_cast<double>(now_ns() - wall0) / 1e9 * static_cast<double>(cpus));
+    const double cpu_share = (cpu_seconds() - cpu0) / (static_cast<double>(now_ns() - wall0) / 1e9 *
+                                                       static_cast<double>(cpus));
     fs::remove_all(dir);
 
     std::int64_t lost = 0;
@@ -1102,18 +1105,19 @@ int main(int argc, char** argv) {
     const std::int64_t counted = excuse_host_stalls && stalls_are_the_hosts ? late_own : late;
     const bool ok = lost == 0 && counted <= allow_late && set.errors.empty();
     if (ok && late > 0)
-      std::printf("bench_soak: %lld late repl%s tolerated (%lld inside host stalls%s, "
-                  "--allow-late=%ld); nothing lost\n",
-                  static_cast<long long>(late), late == 1 ? "y" : "ies",
-                  static_cast<long long>(late_in_stalls),
-                  excuse_host_stalls ? ", --excuse-host-stalls" : "", allow_late);
+      std::printf(
+          "bench_soak: %lld late repl%s tolerated (%lld inside host stalls%s, "
+          "--allow-late=%ld); nothing lost\n",
+          static_cast<long long>(late), late == 1 ? "y" : "ies",
+          static_cast<long long>(late_in_stalls),
+          excuse_host_stalls ? ", --excuse-host-stalls" : "", allow_late);
     if (!ok && lost == 0 && set.errors.empty())
-      std::printf("bench_soak: %lld late repl%s, %lld of them outside host stalls; %s allows "
-                  "%ld\n",
-                  static_cast<long long>(late), late == 1 ? "y" : "ies",
-                  static_cast<long long>(late_own),
-                  excuse_host_stalls ? "--excuse-host-stalls with --allow-late" : "--allow-late",
-                  allow_late);
+      std::printf(
+          "bench_soak: %lld late repl%s, %lld of them outside host stalls; %s allows "
+          "%ld\n",
+          static_cast<long long>(late), late == 1 ? "y" : "ies", static_cast<long long>(late_own),
+          excuse_host_stalls ? "--excuse-host-stalls with --allow-late" : "--allow-late",
+          allow_late);
     std::fflush(stdout);
     return ok ? 0 : 1;
   } catch (const std::exception& e) {

@@ -90,8 +90,8 @@ void check_decoders(const can_frame& f) {
     (void)canopen::decode_state(p->statusword);
   }
   if (const auto e = canopen::decode_emcy(f)) {
-    const auto again = canopen::decode_emcy(
-        canopen::encode_emcy(static_cast<std::uint8_t>(f.can_id & 0x7F), *e));
+    const auto again =
+        canopen::decode_emcy(canopen::encode_emcy(static_cast<std::uint8_t>(f.can_id & 0x7F), *e));
     fuzz::expect(again && again->code == e->code && again->error_register == e->error_register &&
                      again->manufacturer == e->manufacturer,
                  "EMCY round trip");
@@ -164,9 +164,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         sample.position = drive.demand();
         fuzz::no_throw("Cia402Drive::update", [&] { drive.update(sample, now_s); });
       }
-      fuzz::expect(std::isfinite(drive.demand()) && std::isfinite(drive.demand_velocity()),
-                   fmt::format("drive demand {} velocity {}", drive.demand(),
-                               drive.demand_velocity()));
+      fuzz::expect(
+          std::isfinite(drive.demand()) && std::isfinite(drive.demand_velocity()),
+          fmt::format("drive demand {} velocity {}", drive.demand(), drive.demand_velocity()));
       fuzz::expect(canopen::decode_state(drive.statusword()) == drive.state(),
                    fmt::format("statusword 0x{:04x} does not decode to the drive's state {}",
                                drive.statusword(), canopen::to_string(drive.state())));

@@ -41,9 +41,9 @@
 #include "fuzz_common.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
 
@@ -346,30 +346,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const std::string payload(reinterpret_cast<const char*>(data + pos), length);
     pos += length;
     switch (channel % 8U) {
-      case 0:
-        edp.receive(payload, flags);
-        break;
-      case 1:
-        edp_client.receive(payload, flags);
-        break;
-      case 2:
-        ecp.receive(payload, flags);
-        break;
-      case 3:
-        ecp_client.receive(payload, flags);
-        break;
-      case 4:
-        srp.receive(channels::srp, payload);
-        break;
-      case 5:
-        srp.receive(channels::status, payload);
-        break;
-      case 6:
-        vsp.receive(payload, flags);
-        break;
-      default:
-        vsp_client.receive(payload, flags);
-        break;
+      case 0: edp.receive(payload, flags); break;
+      case 1: edp_client.receive(payload, flags); break;
+      case 2: ecp.receive(payload, flags); break;
+      case 3: ecp_client.receive(payload, flags); break;
+      case 4: srp.receive(channels::srp, payload); break;
+      case 5: srp.receive(channels::status, payload); break;
+      case 6: vsp.receive(payload, flags); break;
+      default: vsp_client.receive(payload, flags); break;
     }
   }
   return 0;

@@ -168,12 +168,11 @@ std::string canonical(const mrroc::edp::Reply& v, bool wire) {
       "input_values={} servo_cycles={} servo_overruns={} servo_period_us={} lateness_p50_us={} "
       "lateness_p99_us={} lateness_max_us={}",
       code(v.type), v.error_code, str(v.error_text, wire), v.synchronised, v.step_no,
-      v.macro_steps_ahead, v.servo_cycle,
-      code(v.arm_type), doubles(v.arm), doubles(v.joints), doubles(v.desired_joints),
-      doubles(v.joint_velocities), code(v.tool_type), doubles(v.tool), v.kinematic_model_no,
-      v.corrector_no, bytes(v.servo_algorithm), bytes(v.servo_parameters_no), v.input_values,
-      v.servo_cycles, v.servo_overruns, bits(v.servo_period_us), bits(v.lateness_p50_us),
-      bits(v.lateness_p99_us), bits(v.lateness_max_us));
+      v.macro_steps_ahead, v.servo_cycle, code(v.arm_type), doubles(v.arm), doubles(v.joints),
+      doubles(v.desired_joints), doubles(v.joint_velocities), code(v.tool_type), doubles(v.tool),
+      v.kinematic_model_no, v.corrector_no, bytes(v.servo_algorithm), bytes(v.servo_parameters_no),
+      v.input_values, v.servo_cycles, v.servo_overruns, bits(v.servo_period_us),
+      bits(v.lateness_p50_us), bits(v.lateness_p99_us), bits(v.lateness_max_us));
 }
 std::string canonical(const mrroc::ecp::MpCommand& v, bool wire) {
   return fmt::format(

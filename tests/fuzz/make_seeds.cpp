@@ -13,9 +13,9 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
-#include <initializer_list>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <iterator>
 #include <string>
 #include <vector>
@@ -282,15 +282,11 @@ void message_seeds(const std::string& target, const std::vector<Plain>& values, 
   for (const Plain& v : values) {
     auto m = comm::encode(v);
     switch (kind) {
-      case mrroc_lcm::header_t::REQUEST:
-        header(m.header, "ecp/irb6#4242", i + 1, kind);
-        break;
+      case mrroc_lcm::header_t::REQUEST: header(m.header, "ecp/irb6#4242", i + 1, kind); break;
       case mrroc_lcm::header_t::REPLY:
         header(m.header, "edp/irb6", i + 1, kind, "ecp/irb6#4242");
         break;
-      default:
-        header(m.header, "mrroc-axis-emu#77", i + 1, kind);
-        break;
+      default: header(m.header, "mrroc-axis-emu#77", i + 1, kind); break;
     }
     write(target, fmt::format("{:02}", i++), bytes_of(m));
   }
@@ -844,7 +840,6 @@ void text_seeds(const fs::path& source) {
   write("trajectory_file", "xyz_angle_axis", axis.to_text());
 }
 
-
 // --- CAN (fuzz_can.cpp): records of can_id (4, little endian), dlc, 8 data bytes, op -----------
 std::string can_record(const can_frame& f, std::uint8_t op) {
   std::string r(14, '\0');
@@ -881,8 +876,8 @@ void can_seeds() {
     bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
   }
   for (int k = 1; k <= 20; ++k) {
-    bring_up += can_record(co::encode(1, co::Rpdo1{co::controlword::kEnableOperation, 100 * k}),
-                           kToDrive);
+    bring_up +=
+        can_record(co::encode(1, co::Rpdo1{co::controlword::kEnableOperation, 100 * k}), kToDrive);
     bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
   }
   bring_up += can_record(co::encode(1, co::Rpdo1{co::controlword::kQuickStop, 0}), kToDrive);
@@ -901,9 +896,8 @@ void can_seeds() {
   master += can_record(co::encode_emcy(2, {co::emcy::kFollowingError, 0x81, {}}), kCycle);
   master += can_record(co::encode_response(1, {0x6041, 0, false, 0, 0x0237, 2, false}), 0);
   master += can_record(co::encode_response(1, {0x6060, 0, false, 0, 0, 0, true}), 0);
-  master += can_record(co::encode_response(2, {0x6060, 0, true, co::sdo_abort::kNoObject, 0, 0,
-                                                false}),
-                       kCycle);
+  master += can_record(
+      co::encode_response(2, {0x6060, 0, true, co::sdo_abort::kNoObject, 0, 0, false}), kCycle);
   master += can_record(co::encode(1, co::Tpdo1{0x0218, 1010, 0}), kCycle | k2ms);  // fault
   write("can", "master_receives", master);
 

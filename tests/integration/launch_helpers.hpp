@@ -7,8 +7,8 @@
 #include <unistd.h>
 
 #include <chrono>
-#include <functional>
 #include <cstdio>
+#include <functional>
 #include <mutex>
 #include <regex>
 #include <string>
@@ -75,7 +75,8 @@ inline LaunchRun launch_and_act(const std::string& config, const std::string& vi
   reader.join();
   std::fclose(in);
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  if (!victim.empty() && !triggered) run.output += "\n[test] trigger '" + trigger + "' never came\n";
+  if (!victim.empty() && !triggered)
+    run.output += "\n[test] trigger '" + trigger + "' never came\n";
   return run;
 }
 

@@ -32,7 +32,7 @@ class StateWatch {
  public:
   explicit StateWatch(comm::Bus& bus, const std::string& robot = "irb6") : bus_(bus) {
     sub_ = bus_.lcm().subscribeFunction<StateWatch*>(channels::robot_state(robot),
-                                                      &StateWatch::on_state, this);
+                                                     &StateWatch::on_state, this);
   }
   ~StateWatch() { bus_.lcm().unsubscribe(sub_); }
   StateWatch(const StateWatch&) = delete;
@@ -90,8 +90,8 @@ class StateWatch {
           static_cast<double>(s.servo_step - self->last_.servo_step) * s.servo_period_s;
       self->max_rate_.resize(s.q_desired.size(), 0.0);
       for (std::size_t i = 0; i < s.q_desired.size(); ++i)
-        self->max_rate_[i] = std::max(self->max_rate_[i],
-                                      std::abs(s.q_desired[i] - self->last_.q_desired[i]) / dt);
+        self->max_rate_[i] =
+            std::max(self->max_rate_[i], std::abs(s.q_desired[i] - self->last_.q_desired[i]) / dt);
     }
     self->last_ = s;
     ++self->count_;

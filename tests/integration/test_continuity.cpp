@@ -25,15 +25,14 @@
 
 namespace fs = std::filesystem;
 using namespace mrroc;
+using mrroc::test::BusyLoops;
 using mrroc::test::Clock;
 using mrroc::test::LaunchRun;
-using mrroc::test::BusyLoops;
 using mrroc::test::StateWatch;
 
 namespace {
 
 const fs::path kSource = MRROC_SOURCE_DIR;
-
 
 int count_of(const std::string& text, const std::string& what) {
   int n = 0;
@@ -152,7 +151,8 @@ namespace {
 void expect_no_standstill_across_a_stop_of(const std::string& victim) {
   const CarryRun c = carry(false, victim);
   ASSERT_EQ(c.run.exit_code, 0) << c.run.output;
-  ASSERT_NE(c.run.killed_at, Clock::time_point{}) << victim << " was never stopped: " << c.run.output;
+  ASSERT_NE(c.run.killed_at, Clock::time_point{})
+      << victim << " was never stopped: " << c.run.output;
   EXPECT_EQ(c.standstills, 0) << c.run.output;
   EXPECT_LT(c.deviation_mm, 0.2);
 }

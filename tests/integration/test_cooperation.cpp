@@ -2,9 +2,9 @@
 // mrroc-launch, with checked outcomes read from the robots' own EDP replies and the MP's report.
 #include <gtest/gtest.h>
 
-#include "launch_helpers.hpp"
 #include <sys/wait.h>
 #include <unistd.h>
+#include "launch_helpers.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -102,7 +102,8 @@ TEST(Cooperation, LooseConveyorStartsOnlyAfterThePlacement) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   // Order of events: released on the belt, then (and only then) the belt moves.
   const auto placed = r.output.find("object placed on the conveyor by irb6");
-  const auto belt_task = r.output.find("[ecp/conveyor] ecp/conveyor: info: task 'visit_joint_poses' started");
+  const auto belt_task =
+      r.output.find("[ecp/conveyor] ecp/conveyor: info: task 'visit_joint_poses' started");
   const auto delivered = r.output.find("object delivered: conveyor at");
   ASSERT_NE(placed, std::string::npos) << r.output;
   ASSERT_NE(belt_task, std::string::npos) << r.output;

@@ -8,9 +8,9 @@
 //   dropped frames-> tolerated while no drive misses `silent_cycles` answers in a row.
 #include <gtest/gtest.h>
 
-#include "launch_helpers.hpp"
 #include <sys/wait.h>
 #include <unistd.h>
+#include "launch_helpers.hpp"
 
 #include <cstdio>
 #include <filesystem>
@@ -174,8 +174,9 @@ TEST_F(Hil, LosingEveryFrameIsASilentDrive) {
 TEST_F(Hil, BadFaultSpecIsAConfigErrorBeforeAnythingMoves) {
   const RunResult r = launch(demo("bad", "faults = [\"drive:irb6/elbow@1\"]"));
   EXPECT_EQ(r.exit_code, 3) << r.output;  // the emulator refused to start
-  EXPECT_TRUE(has(r.output, "robot 'irb6' has no axis 'elbow' (axes: column, lower_arm, "
-                            "upper_arm, wrist_pitch, wrist_roll)"))
+  EXPECT_TRUE(has(r.output,
+                  "robot 'irb6' has no axis 'elbow' (axes: column, lower_arm, "
+                  "upper_arm, wrist_pitch, wrist_roll)"))
       << r.output;
   EXPECT_FALSE(has(r.output, "synchronising")) << r.output;
 }

@@ -20,10 +20,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <regex>
 #include <string>
 #include <thread>
-#include <cstdlib>
 
 #include <sys/wait.h>
 
@@ -41,7 +41,8 @@ std::string demo() { return std::string(MRROC_SOURCE_DIR) + "/configs/demo-irb6-
 }  // namespace
 
 TEST(Kill, EdpKilledMidMotionDrivesQuickStopThroughTheirSupervision) {
-  const LaunchRun r = launch_and_kill(demo(), "edp/irb6", "pose 1/3 reached", std::chrono::milliseconds(300));
+  const LaunchRun r =
+      launch_and_kill(demo(), "edp/irb6", "pose 1/3 reached", std::chrono::milliseconds(300));
   // The kill on the wall clock (the emulator reports its drives' reactions on it).
   const double killed_wall =
       std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
@@ -52,7 +53,8 @@ TEST(Kill, EdpKilledMidMotionDrivesQuickStopThroughTheirSupervision) {
   // periods = 50 ms) and quick-stopped (0x6007 = 3) at its quick-stop deceleration.
   // Stated bound: 50 ms after the last heartbeat or SYNC, + 10 ms heartbeat period, + 40 ms
   // for a shared host holding the emulator back = 100 ms from the kill.
-  for (const char* axis : {"'column'", "'lower_arm'", "'upper_arm'", "'wrist_pitch'", "'wrist_roll'"}) {
+  for (const char* axis :
+       {"'column'", "'lower_arm'", "'upper_arm'", "'wrist_pitch'", "'wrist_roll'"}) {
     std::smatch m;
     const std::regex line(std::string("emu: error: robot 'irb6' axis [0-9] ") + axis +
                           ".*master lost, EMCY 0x(8130 heartbeat / life guard error|8100 "
@@ -87,7 +89,8 @@ TEST(Kill, EdpTerminatedMidMotionRampsDownBeforeItExits) {
 }
 
 TEST(Kill, EmulatorKilledMidMotionTheEdpHolds) {
-  const LaunchRun r = launch_and_kill(demo(), "emu", "pose 1/3 reached", std::chrono::milliseconds(300));
+  const LaunchRun r =
+      launch_and_kill(demo(), "emu", "pose 1/3 reached", std::chrono::milliseconds(300));
   EXPECT_TRUE(r.exit_code == 1 || r.exit_code == 4) << r.output;
   EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6.*silent: no TPDO for 25 cycles")))
       << r.output;
@@ -101,7 +104,8 @@ TEST(Kill, EcpKilledMidMotionTheEdpRampsDown) {
   mrroc::comm::Bus bus(config.lcm_url);
   StateWatch states(bus, "irb6");
   bus.start();
-  const LaunchRun r = launch_and_kill(demo(), "ecp/irb6", "pose 1/3 reached", std::chrono::milliseconds(300));
+  const LaunchRun r =
+      launch_and_kill(demo(), "ecp/irb6", "pose 1/3 reached", std::chrono::milliseconds(300));
   bus.stop();
   EXPECT_EQ(r.exit_code, 4) << r.output;
   EXPECT_TRUE(has(r.output, "ecp/irb6 ended while the task was running (code 137)")) << r.output;
@@ -117,8 +121,8 @@ TEST(Kill, EcpKilledMidMotionTheEdpRampsDown) {
   for (std::size_t j = 0; j < model.axes(); ++j)
     ramp_s = std::max(ramp_s, model.max_velocity[j] / model.max_acceleration[j]);
   const auto motion_steps = static_cast<double>(config.robots[0].ecp.args.get_int("motion_steps"));
-  const auto bound = static_cast<std::int64_t>(motion_steps + std::ceil(ramp_s / period) +
-                                               2 * 0.020 / period);
+  const auto bound =
+      static_cast<std::int64_t>(motion_steps + std::ceil(ramp_s / period) + 2 * 0.020 / period);
   const auto history = states.history();
   ASSERT_NE(r.killed_at, Clock::time_point{}) << r.output;
   std::int64_t killed_step = -1;
@@ -148,7 +152,8 @@ TEST(Kill, EcpKilledMidMotionTheEdpRampsDown) {
 }
 
 TEST(Kill, MpKilledTheTaskFailsAndEverythingStops) {
-  const LaunchRun r = launch_and_kill(demo(), "mp", "pose 1/3 reached", std::chrono::milliseconds(300));
+  const LaunchRun r =
+      launch_and_kill(demo(), "mp", "pose 1/3 reached", std::chrono::milliseconds(300));
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_TRUE(has(r.output, "task FAILED (mp exit code 137)")) << r.output;
   for (const char* p : {"emu", "edp/irb6", "ecp/irb6", "srp"})

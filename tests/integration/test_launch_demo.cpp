@@ -105,7 +105,7 @@ class EdpReplyRecorder {
  public:
   EdpReplyRecorder(comm::Bus& bus, const std::string& robot) {
     bus.lcm().subscribeFunction<EdpReplyRecorder*>(channels::edp_reply(robot),
-                                                  &EdpReplyRecorder::dispatch, this);
+                                                   &EdpReplyRecorder::dispatch, this);
   }
   static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string&,
                        EdpReplyRecorder* self) {
@@ -210,7 +210,8 @@ TEST(LaunchDemo, RunsToTheEndAndReachesTheTargets) {
   // SRP received messages from every process.
   const auto summary_at = r.output.find("srp summary:");
   ASSERT_NE(summary_at, std::string::npos) << r.output;
-  const std::string summary = r.output.substr(summary_at, r.output.find('\n', summary_at) - summary_at);
+  const std::string summary =
+      r.output.substr(summary_at, r.output.find('\n', summary_at) - summary_at);
   for (const char* process : {"mp (", "ecp/irb6 (", "edp/irb6 ("})
     EXPECT_NE(summary.find(process), std::string::npos) << summary;
 
@@ -234,7 +235,8 @@ TEST(LaunchDemo, SigintMidMotionStopsEverythingInReverseOrder) {
   if (mp != std::string::npos) {
     EXPECT_LT(mp, ecp);
   }
-  EXPECT_EQ(r.output.find("killed"), std::string::npos) << "a process needed SIGKILL:\n" << r.output;
+  EXPECT_EQ(r.output.find("killed"), std::string::npos) << "a process needed SIGKILL:\n"
+                                                        << r.output;
   // The arm was moving: the EDP brought it to rest within its acceleration limits before it
   // exited: a planned stop (the stopping task told it no macro-step follows), for want of a next
   // macro-step, or on its own stop request.
@@ -253,9 +255,9 @@ TEST(LaunchDemo, EmergencyStopFromTheUiStopsTheTask) {
   const RunResult r = run({launcher(), demo_config()}, 60.0, [&](const std::string& line) {
     if (sent || line.find("pose 1/3 reached") == std::string::npos) return false;
     sent = true;
-    const RunResult ui = run({(kBin / "mrroc-ui").string(), "estop", "--config", demo_config(),
-                              "--reason", "test"},
-                             10.0);
+    const RunResult ui =
+        run({(kBin / "mrroc-ui").string(), "estop", "--config", demo_config(), "--reason", "test"},
+            10.0);
     EXPECT_EQ(ui.exit_code, 0) << ui.output;
     return false;
   });
@@ -278,7 +280,8 @@ TEST(LaunchDemo, ConfigTypoStartsNothing) {
   std::string config = text.str();
   config.replace(config.find("servo_period_ms"), 15, "servo_period_sm");
   // Point the model folder at the real one from the temporary place.
-  config.replace(config.find("\"../robots/irb6\""), 16, "\"" + (kSource / "robots/irb6").string() + "\"");
+  config.replace(config.find("\"../robots/irb6\""), 16,
+                 "\"" + (kSource / "robots/irb6").string() + "\"");
   const fs::path file = dir / "typo.toml";
   std::ofstream(file) << config;
   const RunResult r = run({launcher(), file.string()}, 20.0);
@@ -317,7 +320,8 @@ TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {
   text << demo.rdbuf();
   std::string config = text.str();
   config.replace(config.find("\"mujoco\""), 8, "\"mujocoo\"");
-  config.replace(config.find("\"../robots/irb6\""), 16, "\"" + (kSource / "robots/irb6").string() + "\"");
+  config.replace(config.find("\"../robots/irb6\""), 16,
+                 "\"" + (kSource / "robots/irb6").string() + "\"");
   const fs::path file = dir / "plugin.toml";
   std::ofstream(file) << config;
   const RunResult r = run({launcher(), file.string()}, 30.0);
@@ -334,8 +338,9 @@ TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {
 /// The demo config with `extra` added to [robot.edp] and the model path made absolute, written
 /// to a temporary folder.
 static fs::path demo_variant(const std::string& tag, const std::string& edp_extra,
-                      const std::string& plugin = "mujoco") {
-  const fs::path dir = fs::temp_directory_path() / ("mrroc-" + tag + "-" + std::to_string(getpid()));
+                             const std::string& plugin = "mujoco") {
+  const fs::path dir =
+      fs::temp_directory_path() / ("mrroc-" + tag + "-" + std::to_string(getpid()));
   fs::create_directories(dir);
   std::ifstream demo(demo_config());
   std::stringstream text;
@@ -437,6 +442,6 @@ TEST(LaunchDemo, LossyAndDuplicatingLinksStillReachTheSameFinalPose) {
 TEST(LaunchDemo, DelayedAndReorderedLinksStillReachTheSameFinalPose) {
   // 20% of the copies held back up to 30 ms (so overtaken by later messages), besides 5% dropped
   // and 5% duplicated.
-  demo_reaches_final_pose_with_link_faults(
-      "drop=0.05,duplicate=0.05,delay=0.2,delay_ms=30,seed=13", "delayed");
+  demo_reaches_final_pose_with_link_faults("drop=0.05,duplicate=0.05,delay=0.2,delay_ms=30,seed=13",
+                                           "delayed");
 }

@@ -15,16 +15,16 @@
 #include <vector>
 
 #include "launch_helpers.hpp"
-#include "state_watch.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/robot/robot_model.hpp"
-#include "mrroc/comm/auth.hpp"
 #include "mrroc_lcm/edp_instruction_t.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
 #include "mrroc_lcm/operator_reply_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
+#include "state_watch.hpp"
 
 namespace fs = std::filesystem;
 using namespace mrroc;
@@ -44,9 +44,11 @@ std::string write_config(const std::string& name, const std::string& mp, const s
   const fs::path file = dir / (name + ".toml");
   std::ofstream(file) << "[system]\nname = \"" << name << "\"\nlcm_url = \"" << kUrl << "\"\n"
                       << system << "\n"
-                      << "[mp]\ntask = \"start_and_wait\"\n" << mp << "\n"
+                      << "[mp]\ntask = \"start_and_wait\"\n"
+                      << mp << "\n"
                       << "[[robot]]\nname = \"irb6\"\nmodel = \"" << MRROC_SOURCE_DIR
-                      << "/robots/irb6\"\n[robot.edp]\n" << edp << "\n"
+                      << "/robots/irb6\"\n[robot.edp]\n"
+                      << edp << "\n"
                       << "[robot.ecp]\ntask = \"visit_joint_poses\"\n[robot.ecp.args]\nposes = "
                       << poses << "\nvelocity_scale = 0.5\nacceleration_scale = 0.5\n";
   return file.string();
@@ -117,8 +119,11 @@ class Operator : public ::testing::Test {
   }
 
   comm::Bus bus_;
-  comm::Client<Command, Reply> client_{bus_, comm::unique_endpoint_name("test-ui"), "MP",
-                                       channels::mp_command, channels::mp_reply,
+  comm::Client<Command, Reply> client_{bus_,
+                                       comm::unique_endpoint_name("test-ui"),
+                                       "MP",
+                                       channels::mp_command,
+                                       channels::mp_reply,
                                        comm::ClientOptions{std::chrono::milliseconds(200), 5, {}}};
 };
 
@@ -129,8 +134,8 @@ const char* kPoses =
 }  // namespace
 
 TEST_F(Operator, StartPauseResumeStopAndTerminate) {
-  const std::string config = write_config("operator", "start = \"operator\"",
-                                          "plugin = \"mujoco\"", kPoses);
+  const std::string config =
+      write_config("operator", "start = \"operator\"", "plugin = \"mujoco\"", kPoses);
   StateWatch states(bus_);
   BackgroundLaunch launch(config);
   Reply r = wait_for_mp(std::chrono::seconds(60));
@@ -165,8 +170,8 @@ TEST_F(Operator, StartPauseResumeStopAndTerminate) {
   r = send(Command::PAUSE);
   EXPECT_TRUE(r.accepted) << r.text;
   EXPECT_EQ(r.state, +Reply::PAUSED);
-  const auto paused = states.wait_for([](const auto& s) { return max_speed(s) < 1e-3; },
-                                      std::chrono::seconds(5));
+  const auto paused =
+      states.wait_for([](const auto& s) { return max_speed(s) < 1e-3; }, std::chrono::seconds(5));
   ASSERT_TRUE(paused) << "still moving 5 s after PAUSE";
   const std::vector<double> held = paused->q;
   std::this_thread::sleep_for(std::chrono::seconds(1));
@@ -177,8 +182,8 @@ TEST_F(Operator, StartPauseResumeStopAndTerminate) {
   r = send(Command::RESUME);
   EXPECT_TRUE(r.accepted) << r.text;
   EXPECT_EQ(r.state, +Reply::RUNNING);
-  ASSERT_TRUE(states.wait_for([](const auto& s) { return max_speed(s) > 0.05; },
-                              std::chrono::seconds(10)))
+  ASSERT_TRUE(
+      states.wait_for([](const auto& s) { return max_speed(s) > 0.05; }, std::chrono::seconds(10)))
       << "the robot did not move again after RESUME";
 
   // The run finishes at the last pose.
@@ -194,7 +199,8 @@ TEST_F(Operator, StartPauseResumeStopAndTerminate) {
                 model.max_velocity[i]);
   }
   ASSERT_EQ(r.state, +Reply::FINISHED) << r.text;
-  const auto end = states.wait_for([](const auto& s) { return !s.moving; }, std::chrono::seconds(5));
+  const auto end =
+      states.wait_for([](const auto& s) { return !s.moving; }, std::chrono::seconds(5));
   ASSERT_TRUE(end);
   const std::vector<double> home{0.0, -1.5708, 0.0, 0.0, 0.0};
   for (std::size_t i = 0; i < home.size(); ++i) EXPECT_NEAR(end->q[i], home[i], 2e-3) << i;
@@ -203,8 +209,8 @@ TEST_F(Operator, StartPauseResumeStopAndTerminate) {
   r = send(Command::START);
   EXPECT_TRUE(r.accepted) << r.text;
   EXPECT_EQ(r.runs, 2);
-  ASSERT_TRUE(states.wait_for([](const auto& s) { return max_speed(s) > 0.05; },
-                              std::chrono::seconds(30)));
+  ASSERT_TRUE(
+      states.wait_for([](const auto& s) { return max_speed(s) > 0.05; }, std::chrono::seconds(30)));
   r = send(Command::STOP);
   EXPECT_TRUE(r.accepted) << r.text;
   r = wait_for_state(Reply::FAILED, std::chrono::seconds(20));
@@ -240,8 +246,7 @@ TEST_F(Operator, TerminateWhileIdleEndsTheSetCleanly) {
 }
 
 TEST_F(Operator, AutoStartRefusesStart) {
-  const std::string config =
-      write_config("auto", "", "plugin = \"mujoco\"", kPoses);
+  const std::string config = write_config("auto", "", "plugin = \"mujoco\"", kPoses);
   BackgroundLaunch launch(config);
   Reply r = wait_for_mp(std::chrono::seconds(60));
   if (r.state == Reply::RUNNING) {
@@ -258,8 +263,8 @@ TEST_F(Operator, RobotStateCarriesJointsVelocitiesAndTiming) {
   StateWatch states(bus_);
   BackgroundLaunch launch(config);
   // While moving: velocities agree with the change of position between two states.
-  const auto a = states.wait_for([](const auto& s) { return max_speed(s) > 0.2; },
-                                 std::chrono::seconds(60));
+  const auto a =
+      states.wait_for([](const auto& s) { return max_speed(s) > 0.2; }, std::chrono::seconds(60));
   ASSERT_TRUE(a);
   const auto b = states.wait_for([](const auto&) { return true; }, std::chrono::seconds(1));
   ASSERT_TRUE(b);
@@ -291,25 +296,28 @@ TEST_F(Operator, RobotStateCarriesJointsVelocitiesAndTiming) {
 // A servo cycle whose hardware read blocks for 80 ms: the loop notices the overrun, reports it to
 // the SRP at once, skips the missed periods instead of bursting, and the task still finishes.
 TEST_F(Operator, StalledServoLoopIsDetectedAndReported) {
-  const std::string config = write_config(
-      "stall", "", "plugin = \"faulty\"\n[robot.edp.params]\nfault = \"stall\"\nstall_ms = 80\n"
+  const std::string config =
+      write_config("stall", "",
+                   "plugin = \"faulty\"\n[robot.edp.params]\nfault = \"stall\"\nstall_ms = 80\n"
                    "fault_after_cycles = 1500",
-      kPoses);
+                   kPoses);
   StateWatch states(bus_);
   BackgroundLaunch launch(config);
-  const auto overrun = states.wait_for(
-      [](const auto& s) { return s.overruns > 0 && s.lateness_max_us >= 75000.0; },
-      std::chrono::seconds(60));
+  const auto overrun =
+      states.wait_for([](const auto& s) { return s.overruns > 0 && s.lateness_max_us >= 75000.0; },
+                      std::chrono::seconds(60));
   ASSERT_TRUE(overrun) << "no 80 ms overrun seen in the robot state";
   EXPECT_GE(overrun->overruns, 1);  // the stall; a slow (instrumented) build may add its own
   EXPECT_GE(overrun->lateness_max_us, 75000.0);
   const LaunchRun run = launch.wait();
   EXPECT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(std::regex_search(
-      run.output, std::regex("edp/irb6.*warning.*\\[11\\] servo loop overrun: [0-9]+ cycle\\(s\\) "
-                             "woke more than one period \\(2000 us\\) late, the worst [0-9]{5,} us")))
+      run.output,
+      std::regex("edp/irb6.*warning.*\\[11\\] servo loop overrun: [0-9]+ cycle\\(s\\) "
+                 "woke more than one period \\(2000 us\\) late, the worst [0-9]{5,} us")))
       << run.output;
-  EXPECT_TRUE(std::regex_search(run.output, std::regex("servo loop: [0-9]+ cycles .* [1-9][0-9]* overruns")))
+  EXPECT_TRUE(std::regex_search(run.output,
+                                std::regex("servo loop: [0-9]+ cycles .* [1-9][0-9]* overruns")))
       << run.output;
 }
 
@@ -317,7 +325,8 @@ TEST_F(Operator, StalledServoLoopIsDetectedAndReported) {
 // task nor move a robot (a foreign SYNCHRO straight to the EDP), and each attempt is reported to
 // the SRP; an operator tool with the key works as before.
 TEST(Authentication, AForeignPublisherCannotMoveARobot) {
-  const fs::path key = fs::temp_directory_path() / ("mrroc-operator-key-" + std::to_string(getpid()));
+  const fs::path key =
+      fs::temp_directory_path() / ("mrroc-operator-key-" + std::to_string(getpid()));
   std::ofstream(key) << "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n";
   const std::string config =
       write_config("auth", "start = \"operator\"", "plugin = \"mujoco\"",
@@ -393,9 +402,9 @@ TEST(Authentication, AForeignPublisherCannotMoveARobot) {
   operator_bus.stop();
   fs::remove(key);
   EXPECT_EQ(run.exit_code, 0) << run.output;
-  EXPECT_TRUE(std::regex_search(
-      run.output, std::regex("mp .*\\[12\\] dropped a message on 'mrroc/mp/cmd' from "
-                             "'intruder#[0-9]+': no authentication tag")))
+  EXPECT_TRUE(std::regex_search(run.output,
+                                std::regex("mp .*\\[12\\] dropped a message on 'mrroc/mp/cmd' from "
+                                           "'intruder#[0-9]+': no authentication tag")))
       << run.output;
   EXPECT_TRUE(std::regex_search(
       run.output, std::regex("edp/irb6 .*\\[12\\] dropped a message on 'irb6/edp/cmd' from "

@@ -39,11 +39,13 @@ std::string touch_with_faults(const std::string& faults) {
   s << in.rdbuf();
   std::string text = s.str();
   const std::string dir = std::string(MRROC_SOURCE_DIR);
-  text = std::regex_replace(text, std::regex("scene = \"scenes/sensing.toml\""),
-                            "scene = \"" + dir + "/configs/scenes/sensing.toml\"\nfaults = [" + faults + "]");
+  text = std::regex_replace(
+      text, std::regex("scene = \"scenes/sensing.toml\""),
+      "scene = \"" + dir + "/configs/scenes/sensing.toml\"\nfaults = [" + faults + "]");
   text = std::regex_replace(text, std::regex("model = \"\\.\\./robots/irb6\""),
                             "model = \"" + dir + "/robots/irb6\"");
-  const fs::path file = fs::temp_directory_path() / ("mrroc-sensing-" + std::to_string(getpid()) + ".toml");
+  const fs::path file =
+      fs::temp_directory_path() / ("mrroc-sensing-" + std::to_string(getpid()) + ".toml");
   std::ofstream(file) << text;
   return file.string();
 }

@@ -40,7 +40,8 @@ class TaskErrors : public ::testing::Test {
     const fs::path file = dir_ / (mp_task + ".toml");
     std::ofstream(file) << "[system]\nname = \"t\"\nlcm_url = \"udpm://239.255.76.67:7667?ttl=0\"\n"
                         << "[mp]\ntask = \"" << mp_task << "\"\nlibrary = \"" << MRROC_TEST_TASKS
-                        << "\"\n[mp.args]\n" << mp_args << "\n[[robot]]\nname = \"irb6\"\n"
+                        << "\"\n[mp.args]\n"
+                        << mp_args << "\n[[robot]]\nname = \"irb6\"\n"
                         << "model = \"" << MRROC_SOURCE_DIR << "/robots/irb6\"\n"
                         << "[robot.edp]\nplugin = \"mujoco\"\n[robot.ecp]\ntask = \"" << ecp_task
                         << "\"\nlibrary = \"" << MRROC_TEST_TASKS << "\"\n";

@@ -103,8 +103,8 @@ class Retry : public mp::MpTask {
           context_.reporter.error(e.code(), fmt::format("aborting: {}", e.what()));
           throw;
         }
-        context_.reporter.warning(fmt::format("non-fatal error (code {}), retrying: {}", e.code(),
-                                              e.what()));
+        context_.reporter.warning(
+            fmt::format("non-fatal error (code {}), retrying: {}", e.code(), e.what()));
       }
     }
   }
@@ -129,8 +129,9 @@ class PauseResume : public mp::MpTask {
     robot.start_task();  // follow_mp: synchronise
     const auto t0 = std::chrono::steady_clock::now();
     std::thread move([&] {
-      robot.next_state("visit_joint_poses", "poses = [[1.0, -1.5708, 0.0, 0.0, 0.0], "
-                                            "[0.0, -1.5708, 0.0, 0.0, 0.0]]\n");
+      robot.next_state("visit_joint_poses",
+                       "poses = [[1.0, -1.5708, 0.0, 0.0, 0.0], "
+                       "[0.0, -1.5708, 0.0, 0.0, 0.0]]\n");
     });
     std::this_thread::sleep_for(std::chrono::milliseconds(800));
     robot.pause();

@@ -176,9 +176,8 @@ TEST(OneSetPerUrl, ASecondLaunchAndASecondEdpRefuseAndTheFirstSetFinishes) {
   EXPECT_FALSE(has(out, "mrroc-launch: started")) << out;
 
   // An EDP of the same robot started by hand refuses too (before it says anything).
-  auto [edp_code, edp_out] = run({(kBin / "mrroc-edp").string(), "--config", config.string(),
-                                  "--robot", "irb6"},
-                                 30s);
+  auto [edp_code, edp_out] =
+      run({(kBin / "mrroc-edp").string(), "--config", config.string(), "--robot", "irb6"}, 30s);
   std::printf("second EDP: exit %d\n%s", edp_code, edp_out.c_str());
   EXPECT_EQ(edp_code, 2) << edp_out;
   EXPECT_TRUE(has(edp_out, "another EDP of robot 'irb6' is running on LCM")) << edp_out;

@@ -46,7 +46,8 @@ TEST(LaunchRestart, ABackOffBelowTheMinimumAndTooManyRestartsAreRefused) {
     EXPECT_TRUE(std::regex_search(out, std::regex("set\\.toml:[0-9]+: " + std::string(c.error))))
         << c.keys << out;
   }
-  const fs::path ok = write_config(dir, "long-irb6.toml", "restart = \"always\"\nrestart_backoff_s = 0.2\n");
+  const fs::path ok =
+      write_config(dir, "long-irb6.toml", "restart = \"always\"\nrestart_backoff_s = 0.2\n");
   const auto [code, out] = run({launcher(), "--check", ok.string()});
   EXPECT_EQ(code, 0) << out;
 }
@@ -230,8 +231,7 @@ TEST(LaunchRestart, AnEdpOnCanDrivesIsRestartedOnlyAfterTheOperatorAcknowledges)
 
   const auto [check_code, check] = run({launcher(), "--check", config.string()});
   EXPECT_EQ(check_code, 0) << check;
-  EXPECT_TRUE(has(check, "back-off from 0.2 s, each after an operator's acknowledgement"))
-      << check;
+  EXPECT_TRUE(has(check, "back-off from 0.2 s, each after an operator's acknowledgement")) << check;
 
   Background launch({launcher(), config.string()});
   ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
@@ -240,8 +240,9 @@ TEST(LaunchRestart, AnEdpOnCanDrivesIsRestartedOnlyAfterTheOperatorAcknowledges)
   // Nothing is held yet: an acknowledgement is refused (exit 1), an unknown process is an error.
   const auto [early_code, early] = run({ui, "restart", "-c", config.string(), "edp/irb6"});
   EXPECT_EQ(early_code, 1) << early;
-  EXPECT_TRUE(has(early, "RESTART REFUSED: edp/irb6 is not waiting for an acknowledgement "
-                         "(state running)"))
+  EXPECT_TRUE(has(early,
+                  "RESTART REFUSED: edp/irb6 is not waiting for an acknowledgement "
+                  "(state running)"))
       << early;
   const auto [unknown_code, unknown] = run({ui, "restart", "-c", config.string(), "edp/nope"});
   EXPECT_EQ(unknown_code, 2) << unknown;

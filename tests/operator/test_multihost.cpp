@@ -146,8 +146,8 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
   // The web console in "a" shows the robot whose EDP runs in "b": its state crossed the veth.
   std::string console;
   for (int attempt = 0; attempt < 20; ++attempt) {
-    const auto [ccode, body] = run({"ip", "netns", "exec", a_, "curl", "-s", "-w", "\\n", "--max-time", "5",
-                                    "http://127.0.0.1:8093/api/state"},
+    const auto [ccode, body] = run({"ip", "netns", "exec", a_, "curl", "-s", "-w", "\\n",
+                                    "--max-time", "5", "http://127.0.0.1:8093/api/state"},
                                    20s);
     console = "curl exit " + std::to_string(ccode) + ": " + body;  // for the failure message
     if (ccode == 0 && has(console, "\"synchronised\":true")) break;

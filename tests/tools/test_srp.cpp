@@ -12,9 +12,9 @@
 #include <vector>
 
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 #include "mrroc_lcm/srp_history_reply_t.hpp"

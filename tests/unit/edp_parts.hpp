@@ -9,12 +9,12 @@
 #include <utility>
 #include <vector>
 
+#include "motion_blend.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
-#include "motion_blend.hpp"
 
 namespace mrroc::test {
 
@@ -34,9 +34,9 @@ inline std::unique_ptr<edp::Hardware> configured_hardware(const RobotModel& mode
 }
 
 /// SET ARM JOINT to `q` in `steps` servo steps, read in step `value_in_step_no`.
-inline edp::Instruction set_joints_instruction(
-    std::vector<double> q, int steps, int value_in_step_no,
-    edp::MotionType motion = edp::MotionType::absolute) {
+inline edp::Instruction set_joints_instruction(std::vector<double> q, int steps,
+                                               int value_in_step_no,
+                                               edp::MotionType motion = edp::MotionType::absolute) {
   edp::Instruction in;
   in.type = edp::InstructionType::set;
   in.set = edp::item::arm;
@@ -51,14 +51,12 @@ inline edp::Instruction set_joints_instruction(
 /// Servo steps of the shortest macro-step from rest at `from` to rest at `to` within every joint's
 /// velocity and acceleration limit, both scaled by `share` (edp::shortest_rest_to_rest_steps).
 inline int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& from,
-                              const std::vector<double>& to, double period_s,
-                              double share = 1.0) {
+                              const std::vector<double>& to, double period_s, double share = 1.0) {
   int steps = 1;
   for (std::size_t j = 0; j < model.axes() && j < from.size() && j < to.size(); ++j)
-    steps = std::max(steps, edp::shortest_rest_to_rest_steps(to[j] - from[j],
-                                                             share * model.max_velocity[j],
-                                                             share * model.max_acceleration[j],
-                                                             period_s));
+    steps = std::max(
+        steps, edp::shortest_rest_to_rest_steps(to[j] - from[j], share * model.max_velocity[j],
+                                                share * model.max_acceleration[j], period_s));
   return steps;
 }
 

@@ -192,7 +192,8 @@ TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
   const auto seen = drops.get();
   ASSERT_EQ(seen.size(), 1U) << "reports are rate-limited: the first at once, then quiet";
   EXPECT_EQ(seen[0].first, comm::drop_code::unauthenticated);
-  EXPECT_EQ(seen[0].second, "dropped a message on 'a/cmd' from 'stranger': wrong authentication tag");
+  EXPECT_EQ(seen[0].second,
+            "dropped a message on 'a/cmd' from 'stranger': wrong authentication tag");
   // A message of the authentic client, recorded and sent again by somebody else: a replay.
   Req recorded = request(42);
   recorded.header.sender = "client";
@@ -236,8 +237,7 @@ TEST(Links, MalformedMessagesAreCountedDroppedAndReported) {
   const auto seen = drops.get();
   ASSERT_EQ(seen.size(), 1U);
   EXPECT_EQ(seen[0].first, comm::drop_code::malformed);
-  EXPECT_EQ(seen[0].second,
-            "dropped a malformed message on 'a/cmd' (9 bytes that do not decode)");
+  EXPECT_EQ(seen[0].second, "dropped a malformed message on 'a/cmd' (9 bytes that do not decode)");
 }
 
 TEST(Links, DelayedAndReorderedMessagesStillGiveEveryReplyOnce) {

@@ -1,7 +1,8 @@
 // The EDP's `can` plugin against the real cell emulator (mrroc-axis-emu, lock-step, scene
 // configs/scenes/irb6.toml): bring-up of five emulated drives, cyclic positions out and back,
 // quick stop on emergency stop, and a drive fault seen as a plugin fault. By default over a
-// virtual bus; with MRROC_CAN_IFACE=vcan0 (the qemu test tests/hil) over SocketCAN on a real kernel.
+// virtual bus; with MRROC_CAN_IFACE=vcan0 (the qemu test tests/hil) over SocketCAN on a real
+// kernel.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -12,10 +13,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <stdexcept>
-#include <string>
 #include <mutex>
 #include <regex>
+#include <stdexcept>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -141,10 +142,12 @@ TEST(CanPlugin, DrivesTheEmulatedIrb6AndReadsItBack) {
 
   // Emergency stop: the drives quick-stop and hold; release re-enables them.
   hw->emergency_stop(true);
-  for (int k = 0; k < 20; ++k) ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  for (int k = 0; k < 20; ++k)
+    ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
   hw->emergency_stop(false);
   for (std::size_t i = 0; i < 5; ++i) target[i] = fb[i].position;
-  for (int k = 0; k < 20; ++k) ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  for (int k = 0; k < 20; ++k)
+    ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
   hw->deactivate();
 }
 
@@ -196,7 +199,8 @@ TEST(CanPlugin, AMasterThatFallsSilentMakesEveryDriveQuickStop) {
     reacted = 0;
     for (const char* axis : {"column", "lower_arm", "upper_arm", "wrist_pitch", "wrist_roll"})
       if (out.find(std::string("'") + axis + "' (node") != std::string::npos &&
-          std::regex_search(out, std::regex(std::string("'") + axis + "' \\(node [0-9]+ on [^)]*\\): master lost")))
+          std::regex_search(out, std::regex(std::string("'") + axis +
+                                            "' \\(node [0-9]+ on [^)]*\\): master lost")))
         ++reacted;
   }
   EXPECT_EQ(reacted, 5) << out;
@@ -204,10 +208,10 @@ TEST(CanPlugin, AMasterThatFallsSilentMakesEveryDriveQuickStop) {
               out.find("EMCY 0x8100") != std::string::npos)
       << out;
   EXPECT_NE(out.find("quick stop"), std::string::npos) << out;
-  std::printf("master silent: %d drives reacted within %.0f ms\n", reacted,
-              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
-                                                         silent_at)
-                  .count());
+  std::printf(
+      "master silent: %d drives reacted within %.0f ms\n", reacted,
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - silent_at)
+          .count());
 }
 
 TEST(CanPlugin, NoDrivesIsAClearError) {
@@ -217,7 +221,8 @@ TEST(CanPlugin, NoDrivesIsAClearError) {
     hw->activate();
     FAIL() << "activate succeeded without drives";
   } catch (const HardwareError& e) {
-    EXPECT_NE(std::string(e.what()).find("axis 'column': " + url + " node 1: no answer to an SDO "
+    EXPECT_NE(std::string(e.what()).find("axis 'column': " + url +
+                                         " node 1: no answer to an SDO "
                                          "read of 0x1000"),
               std::string::npos)
         << e.what();

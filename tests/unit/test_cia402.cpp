@@ -6,8 +6,8 @@
 
 #include <atomic>
 #include <cmath>
-#include <cstdio>
 #include <condition_variable>
+#include <cstdio>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -40,9 +40,9 @@ TEST(Canopen, DeviceControlTransitionsFollowCia402) {
   using S = co::DriveState;
   using C = co::DriveCommand;
   EXPECT_EQ(co::transition(S::switch_on_disabled, C::shutdown), S::ready_to_switch_on);  // 2
-  EXPECT_EQ(co::transition(S::ready_to_switch_on, C::switch_on), S::switched_on);       // 3
-  EXPECT_EQ(co::transition(S::switched_on, C::enable_operation), S::operation_enabled); // 4
-  EXPECT_EQ(co::transition(S::operation_enabled, C::quick_stop), S::quick_stop_active); // 11
+  EXPECT_EQ(co::transition(S::ready_to_switch_on, C::switch_on), S::switched_on);        // 3
+  EXPECT_EQ(co::transition(S::switched_on, C::enable_operation), S::operation_enabled);  // 4
+  EXPECT_EQ(co::transition(S::operation_enabled, C::quick_stop), S::quick_stop_active);  // 11
   EXPECT_EQ(co::transition(S::quick_stop_active, C::enable_operation), S::operation_enabled);
   EXPECT_EQ(co::transition(S::fault, C::fault_reset), S::switch_on_disabled);  // 15
   EXPECT_EQ(co::transition(S::fault, C::enable_operation), std::nullopt);
@@ -177,9 +177,8 @@ class DriveRack {
     for (int i = 0; i < count; ++i) {
       DriveConfig c;
       c.node = static_cast<std::uint8_t>(i + 1);
-      drives_.push_back(std::make_unique<Cia402Drive>(c, [this](const can_frame& f) {
-        (void)bus_.send(f);
-      }));
+      drives_.push_back(
+          std::make_unique<Cia402Drive>(c, [this](const can_frame& f) { (void)bus_.send(f); }));
       positions_.push_back(0.3 * i);
     }
     start_ = std::chrono::steady_clock::now();
@@ -344,7 +343,8 @@ TEST(Cia402Master, QuickStopDeceleratesAndReleaseReenablesWhereTheAxisStands) {
     return std::vector<double>{target};
   });
   const double at_stop = master.status(0).position;
-  run_cycles(master, 400, [&](int) { return std::vector<double>{target}; }, true);
+  run_cycles(
+      master, 400, [&](int) { return std::vector<double>{target}; }, true);
   rack.with([](auto& drives, auto&) {
     EXPECT_EQ(drives[0]->state(), co::DriveState::quick_stop_active);
     return 0;
@@ -370,12 +370,13 @@ TEST(Cia402Master, StaleQuickStopTpdosAfterReleaseAreNoFaultButALaterOneIs) {
   Bus& late = hub.add();  // delivers TPDOs that were on their way (a slow bus or emulator)
   master.bring_up(2000ms);
   run_cycles(master, 10, [](int) { return std::vector<double>{0.0}; });
-  run_cycles(master, 20, [](int) { return std::vector<double>{0.0}; }, true);
+  run_cycles(
+      master, 20, [](int) { return std::vector<double>{0.0}; }, true);
   ASSERT_FALSE(master.faulted()) << master.fault_text();
-  const co::Tpdo1 stale{static_cast<std::uint16_t>(
-                            co::state_bits(co::DriveState::quick_stop_active) |
-                            co::statusword::kVoltageEnabled),
-                        0, 0};
+  const co::Tpdo1 stale{
+      static_cast<std::uint16_t>(co::state_bits(co::DriveState::quick_stop_active) |
+                                 co::statusword::kVoltageEnabled),
+      0, 0};
   // Release, then a TPDO the drive sent before it saw the re-enable: no fault.
   master.send(std::vector<double>{master.status(0).position}, false);
   (void)late.send(co::encode(1, stale));
@@ -429,8 +430,7 @@ class ClockedDrive {
   void cycle(bool heartbeat, bool sync, double target) {
     if (heartbeat) frame(co::heartbeat_frame(0x7F, co::NmtState::operational));
     if (sync) {
-      frame(co::encode(1, co::Rpdo1{co::controlword::kEnableOperation,
-                                    drive_->counts(target)}));
+      frame(co::encode(1, co::Rpdo1{co::controlword::kEnableOperation, drive_->counts(target)}));
       frame(co::sync_frame());
     }
     step();
@@ -606,7 +606,7 @@ TEST(Cia402Master, BringUpConfiguresTheSupervisionAndSendsItsHeartbeat) {
       EXPECT_EQ(r.frame.data[0], static_cast<std::uint8_t>(co::NmtState::operational));
     }
   }
-  EXPECT_GE(heartbeats, 9);   // 100 ms of cycles
+  EXPECT_GE(heartbeats, 9);  // 100 ms of cycles
   EXPECT_LE(heartbeats, 12);
   EXPECT_FALSE(master.faulted()) << master.fault_text();
   // The master stops (killed): every drive quick-stops within the consumer time.

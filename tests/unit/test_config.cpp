@@ -38,8 +38,7 @@ class ConfigTest : public ::testing::Test {
     return {};
   }
 
-  std::string valid(const std::string& extra_robot_edp = "",
-                    const std::string& extra_system = "") {
+  std::string valid(const std::string& extra_robot_edp = "", const std::string& extra_system = "") {
     return "[system]\nname = \"t\"\n" + extra_system + "\n[mp]\ntask = \"start_and_wait\"\n\n" +
            "[[robot]]\nname = \"irb6\"\nmodel = \"" + std::string(MRROC_SOURCE_DIR) +
            "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\n" + extra_robot_edp +
@@ -66,7 +65,8 @@ void expect_located(const std::string& message, const fs::path& file, int line,
 }  // namespace
 
 TEST_F(ConfigTest, DemoConfigLoads) {
-  const ProcessSetConfig c = load_process_set(fs::path(MRROC_SOURCE_DIR) / "configs/demo-irb6.toml");
+  const ProcessSetConfig c =
+      load_process_set(fs::path(MRROC_SOURCE_DIR) / "configs/demo-irb6.toml");
   EXPECT_EQ(c.name, "demo-irb6");
   ASSERT_EQ(c.robots.size(), 1U);
   EXPECT_EQ(c.robots[0].name, "irb6");

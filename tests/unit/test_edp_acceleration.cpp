@@ -81,9 +81,9 @@ ChainResult run_chain(const RobotModel& model, const std::vector<std::vector<dou
   samples.push_back(samples.back());  // at rest after the last macro-step
   for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
     out.max_velocity = std::max(out.max_velocity, std::abs(samples[k] - samples[k - 1]) / kPeriod);
-    out.max_acceleration = std::max(
-        out.max_acceleration,
-        std::abs(samples[k + 1] - 2 * samples[k] + samples[k - 1]) / (kPeriod * kPeriod));
+    out.max_acceleration =
+        std::max(out.max_acceleration,
+                 std::abs(samples[k + 1] - 2 * samples[k] + samples[k - 1]) / (kPeriod * kPeriod));
   }
   return out;
 }
@@ -111,15 +111,14 @@ TEST(EdpAcceleration, RestToRestNeedsTimeAndTheRefusalSaysHowMuch) {
   const RobotModel model = test::stock_model("irb6");
   std::vector<double> q = model.synchro_joint_positions;
   q[0] = 0.2;  // the column, 3 rad/s^2: as one macro-step from rest to rest
-  const int shortest = shortest_rest_to_rest_steps(0.2, model.max_velocity[0],
-                                                   model.max_acceleration[0], kPeriod);
+  const int shortest =
+      shortest_rest_to_rest_steps(0.2, model.max_velocity[0], model.max_acceleration[0], kPeriod);
   EXPECT_EQ(shortest, static_cast<int>(std::ceil(2 * std::sqrt(0.2 / 3.0) / kPeriod - 1e-9)));
   const ChainResult fast = run_chain(model, {q}, shortest - 1, true);
   ASSERT_TRUE(fast.refused);
   EXPECT_NE(fast.why.find("joint 0 would accelerate at"), std::string::npos) << fast.why;
   EXPECT_NE(fast.why.find("above its limit of 3.000 rad/s^2"), std::string::npos) << fast.why;
-  EXPECT_NE(fast.why.find(fmt::format("it needs at least {} steps", shortest)),
-            std::string::npos)
+  EXPECT_NE(fast.why.find(fmt::format("it needs at least {} steps", shortest)), std::string::npos)
       << fast.why;
   const ChainResult ok = run_chain(model, {q}, shortest, true);
   ASSERT_FALSE(ok.refused) << ok.why;
@@ -159,10 +158,10 @@ TEST(EdpAcceleration, StockProfilesPassEveryBoundary) {
     bool known;
   };
   int chains = 0;
-  for (const Case c : {Case{ecp::ProfileShape::trapezoidal, 0.8, true},
-                       Case{ecp::ProfileShape::trapezoidal, 0.3, false},
-                       Case{ecp::ProfileShape::quintic, 0.95, true},
-                       Case{ecp::ProfileShape::quintic, 0.4, false}})
+  for (const Case c :
+       {Case{ecp::ProfileShape::trapezoidal, 0.8, true},
+        Case{ecp::ProfileShape::trapezoidal, 0.3, false},
+        Case{ecp::ProfileShape::quintic, 0.95, true}, Case{ecp::ProfileShape::quintic, 0.4, false}})
     for (double distance = 0.001; distance < 2.5; distance *= 1.3)
       for (const int steps : {2, 5, 10, 20, 50}) {
         const auto targets = profile_targets(model, c.shape, distance, c.scale, steps);
@@ -172,7 +171,8 @@ TEST(EdpAcceleration, StockProfilesPassEveryBoundary) {
                                  c.known ? "known" : "unknown"));
         ASSERT_FALSE(r.refused) << r.why;
         EXPECT_LE(r.max_velocity, model.max_velocity[0] * (1 + 1e-6));
-        EXPECT_LE(r.max_acceleration, model.max_acceleration[0] * (1 + 2e-6))  // the EDP rounds by 1e-6
+        EXPECT_LE(r.max_acceleration,
+                  model.max_acceleration[0] * (1 + 2e-6))  // the EDP rounds by 1e-6
             << fmt::format("{:.9f}", r.max_acceleration);
         EXPECT_EQ(r.end_velocity, 0.0);
         ++chains;
@@ -235,12 +235,12 @@ TEST(EdpAcceleration, AJogIsAProfileWithinTheLimits) {
     constexpr double kFraction = 0.25;
     for (std::size_t axis = 0; axis < model.axes(); ++axis) {
       std::vector<double> delta(model.axes(), 0.0);
-      delta[axis] = model.synchro_joint_positions[axis] + 0.2 < model.upper_limits[axis] ? 0.2 : -0.2;
+      delta[axis] =
+          model.synchro_joint_positions[axis] + 0.2 < model.upper_limits[axis] ? 0.2 : -0.2;
       const int steps = ecp::rest_to_rest_steps(model, delta, kFraction, kPeriod, 0.1);
       const auto before = servo.planned_end();
       const std::int64_t from = servo.latest().cycle;
-      Instruction jog = test::set_joints_instruction(delta, steps, steps + 1,
-                                                     MotionType::relative);
+      Instruction jog = test::set_joints_instruction(delta, steps, steps + 1, MotionType::relative);
       jog.with_query = true;
       const Reply r = interpreter.execute(jog);
       ASSERT_EQ(r.type, ReplyType::data) << robot << " axis " << axis << ": " << r.error_text;
@@ -250,13 +250,15 @@ TEST(EdpAcceleration, AJogIsAProfileWithinTheLimits) {
       for (std::size_t k = 2; k < trace.size(); ++k) {
         if (trace[k - 2].cycle < from) continue;
         const double v = (trace[k].desired[axis] - trace[k - 1].desired[axis]) / kPeriod;
-        const double a = (trace[k].desired[axis] - 2 * trace[k - 1].desired[axis] +
-                          trace[k - 2].desired[axis]) / (kPeriod * kPeriod);
+        const double a =
+            (trace[k].desired[axis] - 2 * trace[k - 1].desired[axis] + trace[k - 2].desired[axis]) /
+            (kPeriod * kPeriod);
         vmax = std::max(vmax, std::abs(v));
         amax = std::max(amax, std::abs(a));
       }
       EXPECT_LE(vmax, kFraction * model.max_velocity[axis] * (1 + 1e-6)) << robot << " " << axis;
-      EXPECT_LE(amax, kFraction * model.max_acceleration[axis] * (1 + 1e-6)) << robot << " " << axis;
+      EXPECT_LE(amax, kFraction * model.max_acceleration[axis] * (1 + 1e-6))
+          << robot << " " << axis;
       EXPECT_GT(amax, 0.0) << robot << " " << axis;
       std::printf("%s axis %zu: jog of %+.1f %s in %d steps, peak %.3f %s/s, %.3f %s/s^2\n", robot,
                   axis, delta[axis], model.unit(axis), steps, vmax, model.unit(axis), amax,

@@ -88,14 +88,15 @@ class Lookahead : public ::testing::Test {
     const auto trace = servo_->trace();
     std::vector<double> v;
     for (std::size_t i = 1; i < trace.size(); ++i)
-      if (trace[i].cycle > from) v.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
+      if (trace[i].cycle > from)
+        v.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
     std::size_t first = 0;
     while (first < v.size() && v[first] == 0.0) ++first;
     return {v.begin() + static_cast<std::ptrdiff_t>(first), v.end()};
   }
 
   struct StallRun {
-    int off = -1;  ///< cruise servo steps commanded at a velocity other than 0.1 rad/s
+    int off = -1;         ///< cruise servo steps commanded at a velocity other than 0.1 rad/s
     int refused_at = -1;  ///< the first macro-step (0: the first ramp) whose reply was an error
     Reply refusal;        ///< that reply
   };
@@ -161,8 +162,7 @@ TEST_F(Lookahead, WithTheSingleSuccessorTheSameStallStopsTheRobot) {
   EXPECT_GE(run.refused_at, 20);
   if (run.refused_at >= 0) {
     EXPECT_EQ(run.refusal.error_code, error_code::too_abrupt) << run.refusal.error_text;
-    EXPECT_NE(run.refusal.error_text.find("rad/s^2"), std::string::npos)
-        << run.refusal.error_text;
+    EXPECT_NE(run.refusal.error_text.find("rad/s^2"), std::string::npos) << run.refusal.error_text;
   }
   EXPECT_TRUE(servo_->stopped());
 }
@@ -232,8 +232,7 @@ TEST_F(Lookahead, OneExchangeAnswersAsSetThenQuery) {
   ASSERT_EQ(two.type, ReplyType::data) << two.error_text;
   EXPECT_EQ(two.step_no, 5);
   EXPECT_NEAR(two.desired_joints[0],
-              blend_position(q0 + 0.02, q0 + 0.04, 0.125, 0.125, 80 * kPeriod, 5.0 / 80.0),
-              1e-12);
+              blend_position(q0 + 0.02, q0 + 0.04, 0.125, 0.125, 80 * kPeriod, 5.0 / 80.0), 1e-12);
   EXPECT_NEAR(two.desired_joints[0], q0 + 0.02 + 0.02 * 5.0 / 80.0, 1e-12);
   // with_query leaves no QUERY due: a QUERY now is unexpected (the last macro-step brings the
   // column to rest, 0.01 rad further).

@@ -98,9 +98,10 @@ TEST_F(RntEdpTest, CartesianMovesOverTheBoard) {
     const std::vector<double> from = servo_->planned_end();
     const int steps =
         test::rest_to_rest_steps(model_, from, kinematics_->inverse(goal, from), kPeriod) + 5;
-    const Reply r = move(ArmRepresentation::frame, kinematics::to_vector(goal, ArmRepresentation::frame), steps);
-    ASSERT_EQ(r.type, ReplyType::data) << "corner (" << x << ", " << y << ") in " << steps
-                                        << " steps: " << r.error_text;
+    const Reply r = move(ArmRepresentation::frame,
+                         kinematics::to_vector(goal, ArmRepresentation::frame), steps);
+    ASSERT_EQ(r.type, ReplyType::data)
+        << "corner (" << x << ", " << y << ") in " << steps << " steps: " << r.error_text;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     const Eigen::Isometry3d reached = tool_frame();
     EXPECT_LT((reached.translation() - goal.translation()).norm(), 1e-3)

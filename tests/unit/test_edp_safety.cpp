@@ -76,8 +76,7 @@ class Edp {
   /// mean velocity); never sends one and waits 0.5 s. Returns the commanded velocities from the
   /// macro-step's last step on (the stopping ramp and the hold after it); empty when the motion
   /// was refused or never ran.
-  std::vector<std::vector<double>> move_without_successor(const std::vector<double>& q,
-                                                          int steps) {
+  std::vector<std::vector<double>> move_without_successor(const std::vector<double>& q, int steps) {
     const std::int64_t at = servo_->latest().cycle;
     if (set_joints(q, steps, steps - 1).type != ReplyType::acknowledge) return {};
     const Reply r = query();
@@ -295,8 +294,9 @@ TEST_P(PluginFaults, FaultHoldsRefusesAndSynchroResets) {
   EXPECT_EQ(r.error_code, error_code::hardware_fault) << r.error_text;
   ASSERT_TRUE(edp.servo_->faulted());
   std::printf("fault (%s): %s\n", GetParam(), edp.servo_->fault_text().c_str());
-  const std::string expected =
-      std::string(GetParam()) == "throw" ? "plugin threw in read(): injected exception" : "injected drive fault";
+  const std::string expected = std::string(GetParam()) == "throw"
+                                   ? "plugin threw in read(): injected exception"
+                                   : "injected drive fault";
   EXPECT_NE(edp.servo_->fault_text().find(expected), std::string::npos);
   // Held and refusing motion.
   r = edp.set_joints(edp.model_.synchro_joint_positions, 100, 101);
@@ -417,10 +417,8 @@ void expect_held(const std::vector<TraceSample>& trace, std::int64_t from) {
 void expect_too_abrupt(const Reply& r, const std::string& joint) {
   EXPECT_EQ(r.type, ReplyType::error);
   EXPECT_EQ(r.error_code, error_code::too_abrupt) << r.error_text;
-  EXPECT_NE(r.error_text.find(joint + " would accelerate at "), std::string::npos)
-      << r.error_text;
-  EXPECT_NE(r.error_text.find(" rad/s^2, above its limit of "), std::string::npos)
-      << r.error_text;
+  EXPECT_NE(r.error_text.find(joint + " would accelerate at "), std::string::npos) << r.error_text;
+  EXPECT_NE(r.error_text.find(" rad/s^2, above its limit of "), std::string::npos) << r.error_text;
 }
 
 }  // namespace
@@ -542,8 +540,8 @@ TEST(EdpAcceleration, RelativeAndCartesianMovesFromStandstillAreRefusedTheSameWa
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const std::int64_t from = edp.servo_->latest().cycle;
   // RELATIVE: the column +0.03 rad in 10 steps from rest.
-  Reply r = edp.exec(test::set_joints_instruction({0.03, 0, 0, 0, 0}, 10, 11,
-                                                  MotionType::relative));
+  Reply r =
+      edp.exec(test::set_joints_instruction({0.03, 0, 0, 0, 0}, 10, 11, MotionType::relative));
   ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
   r = edp.query();
   expect_too_abrupt(r, "joint 0");
@@ -568,8 +566,7 @@ TEST(EdpAcceleration, RelativeAndCartesianMovesFromStandstillAreRefusedTheSameWa
   r = edp.query();
   EXPECT_EQ(r.error_code, error_code::too_abrupt) << r.error_text;
   EXPECT_NE(r.error_text.find(" would accelerate at "), std::string::npos) << r.error_text;
-  EXPECT_NE(r.error_text.find(" rad/s^2, above its limit of "), std::string::npos)
-      << r.error_text;
+  EXPECT_NE(r.error_text.find(" rad/s^2, above its limit of "), std::string::npos) << r.error_text;
   EXPECT_NE(r.error_text.find("; the robot holds"), std::string::npos) << r.error_text;
   std::printf("refused: %s\n", r.error_text.c_str());
   std::this_thread::sleep_for(std::chrono::milliseconds(50));

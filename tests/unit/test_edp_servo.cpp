@@ -208,8 +208,9 @@ TEST_F(EdpTest, LimitsAreRefusedBeforeAnythingMoves) {
   Reply r = exec(set_joints(q, 10, 11));
   EXPECT_EQ(r.type, ReplyType::error);
   EXPECT_EQ(r.error_code, error_code::out_of_limits);
-  EXPECT_NE(r.error_text.find("joint 2 (upper_arm) target 0.810000 rad exceeds upper limit 0.698132 rad"),
-            std::string::npos)
+  EXPECT_NE(
+      r.error_text.find("joint 2 (upper_arm) target 0.810000 rad exceeds upper limit 0.698132 rad"),
+      std::string::npos)
       << r.error_text;
   // Relative motion is checked on its absolute target too.
   r = exec(set_joints({0, -1.0, 0, 0, 0}, 10, 11, MotionType::relative));
@@ -435,9 +436,9 @@ TEST_F(EdpTest, EveryArmRepresentationReachesTheSamePose) {
   EXPECT_EQ(pose[ArmRepresentation::xyz_euler_zyz].size(), 6U);
   // Move away, then come back to the pose given in each representation: the desired joints must
   // equal the measured pose it was read from (to the servo's small tracking error).
-  for (ArmRepresentation rep : {ArmRepresentation::motor, ArmRepresentation::frame,
-                                ArmRepresentation::xyz_euler_zyz,
-                                ArmRepresentation::xyz_angle_axis}) {
+  for (ArmRepresentation rep :
+       {ArmRepresentation::motor, ArmRepresentation::frame, ArmRepresentation::xyz_euler_zyz,
+        ArmRepresentation::xyz_angle_axis}) {
     const std::vector<double> away = {0.0, -1.5, 0.0, 0.0, 0.0};
     const int out = steps_to(away, 300);
     ASSERT_EQ(exec(set_joints(away, out, out + 1)).type, ReplyType::acknowledge);
@@ -446,8 +447,8 @@ TEST_F(EdpTest, EveryArmRepresentationReachesTheSamePose) {
     Instruction back = set_joints(pose[rep], in, in + 1);
     back.set_arm_type = rep;
     const Reply accepted = exec(back);
-    ASSERT_EQ(accepted.type, ReplyType::acknowledge) << to_string(rep) << ": "
-                                                     << accepted.error_text;
+    ASSERT_EQ(accepted.type, ReplyType::acknowledge)
+        << to_string(rep) << ": " << accepted.error_text;
     const Reply r = query();
     ASSERT_EQ(r.type, ReplyType::data);
     for (std::size_t j = 0; j < q.size(); ++j)
@@ -475,9 +476,8 @@ TEST_F(EdpTest, RelativeCartesianMoveIsInTheToolFrame) {
   // 2 cm along the tool's own z axis (the approach direction).
   // (Within the joints' acceleration limits: the joint target the EDP will compute, from rest
   // to rest within 80 % of the limits.)
-  const Eigen::Isometry3d goal =
-      kinematics::from_vector(before, ArmRepresentation::frame) *
-      Eigen::Translation3d(0.0, 0.0, 0.02);
+  const Eigen::Isometry3d goal = kinematics::from_vector(before, ArmRepresentation::frame) *
+                                 Eigen::Translation3d(0.0, 0.0, 0.02);
   const int steps = steps_to(kinematics_->inverse(goal, servo_->planned_end()), 100);
   Instruction step = set_joints({0, 0, 0.02, 0, 0, 0}, steps, steps + 1, MotionType::relative);
   step.set_arm_type = ArmRepresentation::xyz_angle_axis;
@@ -517,7 +517,8 @@ TEST_F(EdpTest, UnreachableOrientationAndModelSelection) {
   yaw.arm[4] = 0.0;
   yaw.arm[5] = 0.0;
   Eigen::Isometry3d frame = kinematics::from_vector(here.arm, ArmRepresentation::xyz_angle_axis);
-  frame.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix() * frame.linear();
+  frame.linear() =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix() * frame.linear();
   yaw.arm = kinematics::to_vector(frame, ArmRepresentation::xyz_angle_axis);
   yaw.arm[0] = here.arm[0];
   yaw.arm[1] = here.arm[1];
@@ -580,17 +581,14 @@ TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
     EXPECT_EQ(query().type, ReplyType::data);
     // Alternate direction so each run moves the column 0.575 rad and back.
     const double sign = forward ? 1.0 : -1.0;
-    const auto plan =
-        test::cruise(servo_->planned_end()[0], sign * 0.5, 300, 200, 1, kPeriod);
+    const auto plan = test::cruise(servo_->planned_end()[0], sign * 0.5, 300, 200, 1, kPeriod);
     forward = !forward;
     std::vector<double> q = model_.synchro_joint_positions;
     q[0] = plan[0].first;
-    EXPECT_EQ(exec(set_joints(q, plan[0].second, plan[0].second - 3)).type,
-              ReplyType::acknowledge);
+    EXPECT_EQ(exec(set_joints(q, plan[0].second, plan[0].second - 3)).type, ReplyType::acknowledge);
     EXPECT_EQ(query().type, ReplyType::data);
     q[0] = plan[1].first;
-    EXPECT_EQ(exec(set_joints(q, plan[1].second, plan[1].second / 2)).type,
-              ReplyType::acknowledge);
+    EXPECT_EQ(exec(set_joints(q, plan[1].second, plan[1].second / 2)).type, ReplyType::acknowledge);
     const Reply mid = query();
     if (mid.type != ReplyType::data || mid.servo_parameters_no.empty()) {
       ADD_FAILURE() << "no reading at the constant velocity: " << mid.error_text;
@@ -610,9 +608,10 @@ TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
   const double stiff = lag_with(2);
   const double nominal = lag_with(0, 0);
   const double feed_forward = lag_with(0, 1);
-  std::printf("tracking lag at 0.5 rad/s: soft %.5f rad, stiff %.5f rad, nominal %.5f rad, "
-              "nominal with velocity feed-forward %.5f rad\n",
-              soft, stiff, nominal, feed_forward);
+  std::printf(
+      "tracking lag at 0.5 rad/s: soft %.5f rad, stiff %.5f rad, nominal %.5f rad, "
+      "nominal with velocity feed-forward %.5f rad\n",
+      soft, stiff, nominal, feed_forward);
   EXPECT_GT(soft, stiff * 1.5);
   EXPECT_LT(feed_forward, nominal * 0.5) << "velocity feed-forward must reduce the lag";
 }
@@ -639,7 +638,8 @@ TEST_F(EdpLockStepTest, SimulatedTimeWaitsForALateSuccessor) {
   });
   EXPECT_EQ(servo_->lost_successors(), 0);
   // Every servo step of the cruise at the commanded velocity: no idle step, no ramp.
-  EXPECT_EQ(steps_off_velocity(first_cycle, kSteps * kSegments, 0.1, kRamp), 0) << "servo steps with a velocity other than the commanded 0.1 rad/s";
+  EXPECT_EQ(steps_off_velocity(first_cycle, kSteps * kSegments, 0.1, kRamp), 0)
+      << "servo steps with a velocity other than the commanded 0.1 rad/s";
   // The robot followed in simulated time.
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_NEAR(servo_->latest().joints[0], servo_->planned_end()[0], 2e-3);

@@ -437,7 +437,7 @@ TEST(EmuSensors, PublishedSamplesCountAtTheirRatesWithoutAllocating) {
   ASSERT_TRUE(lcm.good());
   Received received;
   lcm.subscribeFunction<mrroc_lcm::raw_sensor_t, Received*>("mrroc/raw/.*", &Received::on,
-                                                              &received);
+                                                            &received);
   CellWorld world(sensing_scene(probe_pose(0.01)));
   SensorDevices sensors(scene_file("sensing.toml"), world);
   RawSamplePublisher publisher(lcm, sensors, "test#1");

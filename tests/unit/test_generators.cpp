@@ -63,9 +63,7 @@ class FakeEdp {
         if (c.motion_type == edp::MotionType::relative)
           for (std::size_t j = 0; j < q.size(); ++j) q[j] += image.desired_joints[j];
         break;
-      case ArmRepresentation::motor:
-        q = kinematics_->joints_from_motors(c.arm);
-        break;
+      case ArmRepresentation::motor: q = kinematics_->joints_from_motors(c.arm); break;
       default:
         q = kinematics_->inverse(kinematics::from_vector(c.arm, c.set_arm_type),
                                  image.desired_joints);

@@ -26,9 +26,9 @@
 #include <kdl_parser/kdl_parser.hpp>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/pose.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 #ifndef MRROC_SOURCE_DIR
 #error "MRROC_SOURCE_DIR must be defined (absolute path of the source tree)"

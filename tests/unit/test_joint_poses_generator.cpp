@@ -46,9 +46,8 @@ TEST(JointPosesGenerator, ReachesPosesWithinLimitsSmoothly) {
   options.velocity_scale = 0.6;
   options.acceleration_scale = 0.6;
   options.motion_steps = 10;
-  const std::vector<std::vector<double>> poses = {{0.6, -1.35, 0.15, 0.5, 1.0},
-                                                  {-0.5, -1.8, -0.2, -0.6, -1.2},
-                                                  m.synchro_joint_positions};
+  const std::vector<std::vector<double>> poses = {
+      {0.6, -1.35, 0.15, 0.5, 1.0}, {-0.5, -1.8, -0.2, -0.6, -1.2}, m.synchro_joint_positions};
   ecp::JointPosesGenerator g(m, poses, options);
   const Plan plan = run(g, m.synchro_joint_positions);
   ASSERT_GT(plan.targets.size(), 10U);
@@ -105,7 +104,8 @@ TEST(JointPosesGenerator, DurationFollowsTheLimits) {
   // A quintic move of 1 rad at 1 rad/s peak needs 1.875 s; with 100 rad/s^2 it is velocity-bound.
   EXPECT_NEAR(ecp::JointPosesGenerator::segment_duration(1.0, 1.0, 100.0), 1.875, 1e-12);
   // Acceleration-bound: sqrt(5.7735 * 1 / 1) s.
-  EXPECT_NEAR(ecp::JointPosesGenerator::segment_duration(1.0, 100.0, 1.0), std::sqrt(5.773502691896258), 1e-12);
+  EXPECT_NEAR(ecp::JointPosesGenerator::segment_duration(1.0, 100.0, 1.0),
+              std::sqrt(5.773502691896258), 1e-12);
   EXPECT_DOUBLE_EQ(ecp::JointPosesGenerator::scaling(0.0), 0.0);
   EXPECT_DOUBLE_EQ(ecp::JointPosesGenerator::scaling(1.0), 1.0);
   EXPECT_DOUBLE_EQ(ecp::JointPosesGenerator::scaling(0.5), 0.5);

@@ -22,8 +22,8 @@
 #include <unistd.h>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 #ifndef MRROC_SOURCE_DIR
 #error "MRROC_SOURCE_DIR must be defined (absolute path of the source tree)"
@@ -68,8 +68,8 @@ std::vector<double> random_joints(const KdlSolver& solver, std::mt19937& rng, do
 }
 
 /// A seed near `q`: each joint moved by up to `spread` [rad], kept inside the limits.
-std::vector<double> nearby(const KdlSolver& solver, const std::vector<double>& q,
-                           std::mt19937& rng, double spread) {
+std::vector<double> nearby(const KdlSolver& solver, const std::vector<double>& q, std::mt19937& rng,
+                           double spread) {
   std::vector<double> seed(q.size());
   for (std::size_t i = 0; i < q.size(); ++i) {
     seed[i] = std::clamp(q[i] + std::uniform_real_distribution<double>(-spread, spread)(rng),
@@ -129,8 +129,7 @@ RoundTripStats round_trip(const KdlSolver& solver, std::mt19937& rng, int count,
 
 void report(const char* robot, const char* seeds, const RoundTripStats& s) {
   std::printf("%s, %s: %d / %d solved (%.1f %%), worst residual %.3e m, %.3e rad\n", robot, seeds,
-              s.solved, s.poses, 100.0 * s.solved / s.poses, s.worst_position,
-              s.worst_orientation);
+              s.solved, s.poses, 100.0 * s.solved / s.poses, s.worst_position, s.worst_orientation);
 }
 
 // ---- IRb-6 (5 axes): position and reachable orientation. ----
@@ -159,9 +158,8 @@ TEST_F(Irb6Kdl, InverseOfForwardOnRandomPosesFromANearbySeed) {
   const std::uint32_t seed = test_seed();
   SCOPED_TRACE(seed_text(seed));
   std::mt19937 rng(seed);
-  const RoundTripStats stats = round_trip(solver_, rng, 600, 0.0, [&](const auto& q) {
-    return nearby(solver_, q, rng, 0.3);
-  });
+  const RoundTripStats stats = round_trip(
+      solver_, rng, 600, 0.0, [&](const auto& q) { return nearby(solver_, q, rng, 0.3); });
   report("irb6", "seed = q +- 0.3 rad", stats);
   EXPECT_EQ(stats.solved, stats.poses) << stats.first_failure;
   EXPECT_LE(stats.worst_position, 1e-6);
@@ -184,8 +182,8 @@ TEST_F(Irb6Kdl, UnreachableOrientationOfAFiveAxisArmIsRefused) {
   // the arm plane, which a 5-axis arm cannot follow.
   const std::vector<double> q = {0.2, -1.4, 0.3, 0.4, 0.5};
   Eigen::Isometry3d target = solver_.forward(q);
-  target.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                    target.linear();
+  target.linear() =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix() * target.linear();
   try {
     (void)solver_.inverse(target, q);
     FAIL() << "an orientation out of the arm plane was accepted";
@@ -221,9 +219,8 @@ TEST_F(RntKdl, InverseOfForwardOnRandomPosesFromANearbySeed) {
   const std::uint32_t seed = test_seed() + 2U;
   SCOPED_TRACE(seed_text(seed - 2U));
   std::mt19937 rng(seed);
-  const RoundTripStats stats = round_trip(solver_, rng, 600, 0.0, [&](const auto& q) {
-    return nearby(solver_, q, rng, 0.3);
-  });
+  const RoundTripStats stats = round_trip(
+      solver_, rng, 600, 0.0, [&](const auto& q) { return nearby(solver_, q, rng, 0.3); });
   report("rnt", "seed = q +- 0.3 rad", stats);
   EXPECT_EQ(stats.solved, stats.poses) << stats.first_failure;
   EXPECT_LE(stats.worst_position, 1e-6);

@@ -640,9 +640,9 @@ TEST(MujocoHardwareRnt, TracksAJointTrajectoryThroughTheParallelogram) {
     ASSERT_NEAR(fb[kShoulder].position, a1 - power_on[kShoulder], 1e-12);
     ASSERT_NEAR(fb[kElbow].position, (a2 - a1) - power_on[kElbow], 1e-12);
     // ... and agrees with the passive serial elbow joint while the loop stays closed.
-    max_elbow_mismatch = std::max(
-        max_elbow_mismatch,
-        std::abs(fb[kElbow].position + power_on[kElbow] - joint_qpos(m, d, "elbow")));
+    max_elbow_mismatch =
+        std::max(max_elbow_mismatch,
+                 std::abs(fb[kElbow].position + power_on[kElbow] - joint_qpos(m, d, "elbow")));
     max_violation = std::max(max_violation, probe.violation(d));
     for (std::size_t i = 0; i < kRntAxes; ++i) {
       max_error[i] = std::max(max_error[i], std::abs(reference(i, t) - fb[i].position));
@@ -666,16 +666,18 @@ TEST(MujocoHardwareRnt, TracksAJointTrajectoryThroughTheParallelogram) {
                                                    "wrist_pitch", "wrist_yaw", "wrist_roll"};
   for (std::size_t i = 0; i < kRntAxes; ++i) {
     const double final_error = std::abs(amplitude[i] - fb[i].position);
-    std::printf("rnt %-12s max tracking error %.3e rad, final error after %.1f s settling %.3e rad\n",
-                names[i], max_error[i], kSettleTime, final_error);
+    std::printf(
+        "rnt %-12s max tracking error %.3e rad, final error after %.1f s settling %.3e rad\n",
+        names[i], max_error[i], kSettleTime, final_error);
     // Velocity lag of the servo, d/kp ~ 0.0107 s times at most 0.75 rad/s (peak of the quintic
     // at 0.8 rad over 2 s).
     EXPECT_LT(max_error[i], 1e-2) << names[i];
     EXPECT_LT(final_error, 1e-3) << names[i];
   }
-  std::printf("rnt parallelogram: max loop violation %.3e m, max |elbow reading - serial elbow "
-              "joint| %.3e rad\n",
-              max_violation, max_elbow_mismatch);
+  std::printf(
+      "rnt parallelogram: max loop violation %.3e m, max |elbow reading - serial elbow "
+      "joint| %.3e rad\n",
+      max_violation, max_elbow_mismatch);
   EXPECT_LT(max_violation, 1e-4);
   EXPECT_LT(max_elbow_mismatch, 1e-3);
   EXPECT_LT(hw.equality_violation(), 1e-4);

@@ -17,8 +17,8 @@
 #include <gtest/gtest.h>
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/pose.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 
 namespace {
 

@@ -5,8 +5,8 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
-#include <string>
 #include <map>
+#include <string>
 #include <thread>
 
 #include "mrroc/comm/request_reply.hpp"
@@ -201,9 +201,7 @@ TEST(RequestReply, RequestsOlderThanTheDeadlineAreDroppedNotExecuted) {
   options.max_request_age = 200ms;
   EchoServer echo(bus, options);
   std::atomic<int> replies{0};
-  auto on_reply = +[](const lcm::ReceiveBuffer*, const std::string&, std::atomic<int>* n) {
-    ++*n;
-  };
+  auto on_reply = +[](const lcm::ReceiveBuffer*, const std::string&, std::atomic<int>* n) { ++*n; };
   lcm::Subscription* sub =
       bus.lcm().subscribeFunction<std::atomic<int>*>("t/reply", on_reply, &replies);
   bus.start();

@@ -27,9 +27,9 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/hardware.hpp"
-#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
 #include "mrroc/kinematics/rnt.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "plugins/mujoco_hardware.hpp"
 
@@ -184,9 +184,7 @@ TEST(RntUrdf, PosesByHand) {
       // Zero pose: upper arm up, forearm and wrist horizontal along +x.
       {{0, 0, 0, 0, 0, 0}, {r, 0, rnt::kD1 + rnt::kA2}, {1, 0, 0}},
       // Synchronisation pose: tool pointing down from the wrist centre (a3, 0, d1 + a2).
-      {rnt::kSynchroJointPositions,
-       {rnt::kA3, 0, rnt::kD1 + rnt::kA2 - rnt::kD6},
-       {0, 0, -1}},
+      {rnt::kSynchroJointPositions, {rnt::kA3, 0, rnt::kD1 + rnt::kA2 - rnt::kD6}, {0, 0, -1}},
       // Waist +90 deg: the arm along +y.
       {{kPi / 2, 0, 0, 0, 0, 0}, {0, r, rnt::kD1 + rnt::kA2}, {0, 1, 0}},
       // Shoulder +90 deg with elbow -90 deg: upper arm horizontal, forearm absolute pitch 0.
@@ -245,8 +243,7 @@ TEST(RntMjcfModel, JointsActuatorsAndLimitsMatchTheUrdf) {
   // The elbow drive's range is the elbow motor's range through its gear: the limit of q1 + q2.
   const int drive = mjcf.joint("elbow_drive");
   EXPECT_NEAR(m->jnt_range[2 * drive], rnt::kMotorLowerLimits[2] / rnt::kGearRatios[2], 1e-15);
-  EXPECT_NEAR(m->jnt_range[2 * drive + 1], rnt::kMotorUpperLimits[2] / rnt::kGearRatios[2],
-              1e-15);
+  EXPECT_NEAR(m->jnt_range[2 * drive + 1], rnt::kMotorUpperLimits[2] / rnt::kGearRatios[2], 1e-15);
   // The serial elbow and the coupler are passive: no actuator, no armature.
   for (const char* passive : {"elbow", "coupler"}) {
     const int j = mjcf.joint(passive);
@@ -297,9 +294,10 @@ TEST(RntMjcfModel, FlangeAndToolEqualKdlOnRandomPosesWithTheLoopClosed) {
     ASSERT_LT(df, 1e-9) << "flange, k = " << k;
     ASSERT_LT(dt, 1e-9) << "tool, k = " << k;
   }
-  std::printf("URDF (KDL) vs MJCF (MuJoCo), 2000 poses: largest difference %.3e (m or rotation "
-              "entry), largest loop violation %.3e m\n",
-              worst, worst_loop);
+  std::printf(
+      "URDF (KDL) vs MJCF (MuJoCo), 2000 poses: largest difference %.3e (m or rotation "
+      "entry), largest loop violation %.3e m\n",
+      worst, worst_loop);
 }
 
 TEST(RntMjcfModel, LoopClosedBySolvingGivesTheSameFrames) {

@@ -12,8 +12,8 @@
 
 #include <cerrno>
 #include <chrono>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -469,11 +469,11 @@ TEST(Supervisor, AKilledLauncherTermsItsChildrenAndTheirGuardsKillOnesThatStayTo
     Capture cap;
     Supervisor s(cap.stream());
     pid_t pids[2];
-    pids[0] = s.start(ChildSpec{
-        .name = "polite",
-        .argv = {"/bin/sh", "-c",
-                 "trap 'echo term > " + dir + "/polite; exit 0' TERM; while :; do sleep 0.02; done"},
-        .stop_grace = 1500ms});
+    pids[0] = s.start(ChildSpec{.name = "polite",
+                                .argv = {"/bin/sh", "-c",
+                                         "trap 'echo term > " + dir +
+                                             "/polite; exit 0' TERM; while :; do sleep 0.02; done"},
+                                .stop_grace = 1500ms});
     pids[1] = s.start(ChildSpec{
         .name = "stubborn",
         .argv = {"/bin/sh", "-c",
@@ -496,13 +496,17 @@ TEST(Supervisor, AKilledLauncherTermsItsChildrenAndTheirGuardsKillOnesThatStayTo
   while (std::chrono::steady_clock::now() < killed + 5000ms && (gone_ms[0] < 0 || gone_ms[1] < 0)) {
     for (int i = 0; i < 2; ++i)
       if (gone_ms[i] < 0 && dead_or_zombie(pids[i]))
-        gone_ms[i] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - killed).count();
+        gone_ms[i] =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - killed)
+                .count();
     std::this_thread::sleep_for(5ms);
   }
   for (const pid_t p : pids)
     if (!dead_or_zombie(p)) ::kill(-p, SIGKILL);
-  std::printf("launcher killed: polite child gone after %.0f ms, stubborn child (grace 500 ms) "
-              "after %.0f ms\n", gone_ms[0], gone_ms[1]);
+  std::printf(
+      "launcher killed: polite child gone after %.0f ms, stubborn child (grace 500 ms) "
+      "after %.0f ms\n",
+      gone_ms[0], gone_ms[1]);
   EXPECT_TRUE(std::filesystem::exists(dir + "/polite")) << "the child got no SIGTERM";
   EXPECT_TRUE(std::filesystem::exists(dir + "/stubborn")) << "the child got no SIGTERM";
   EXPECT_GE(gone_ms[0], 0.0);

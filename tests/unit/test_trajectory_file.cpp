@@ -215,9 +215,7 @@ TEST(TrajectoryFile, MutatedFilesNeverCrash) {
         case 0:
           if (at < text.size()) text[at] = c;
           break;
-        case 1:
-          text.insert(at, 1, c);
-          break;
+        case 1: text.insert(at, 1, c); break;
         case 2:
           if (at < text.size()) text.erase(at, 1 + random() % 8);
           break;

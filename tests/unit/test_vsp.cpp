@@ -14,8 +14,8 @@
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/codec.hpp"
-#include "mrroc/config/process_set.hpp"
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/config/process_set.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "shell.hpp"
 
@@ -32,10 +32,10 @@ std::string test_url() {
 
 /// A process set with the given [[vsp]] tables (and a minimal robot), loaded.
 ProcessSetConfig config_with(const std::string& vsps) {
-  const fs::path file = fs::temp_directory_path() /
-                        ("mrroc-vsp-test-" + std::to_string(::getpid()) + ".toml");
-  std::ofstream(file) << "[system]\nname = \"t\"\n" << vsps
-                      << "\n[mp]\ntask = \"start_and_wait\"\n[[robot]]\nname = \"irb6\"\n"
+  const fs::path file =
+      fs::temp_directory_path() / ("mrroc-vsp-test-" + std::to_string(::getpid()) + ".toml");
+  std::ofstream(file) << "[system]\nname = \"t\"\n"
+                      << vsps << "\n[mp]\ntask = \"start_and_wait\"\n[[robot]]\nname = \"irb6\"\n"
                       << "model = \"" << MRROC_SOURCE_DIR << "/robots/irb6\"\n"
                       << "[robot.edp]\nplugin = \"mock\"\n[robot.ecp]\ntask = \"follow_mp\"\n";
   ProcessSetConfig c = load_process_set(file);
@@ -122,7 +122,8 @@ TEST(VspConfig, ReadsVspTablesAndRefusesMistakes) {
     EXPECT_NE(std::string(e.what()).find("missing key 'sources'"), std::string::npos) << e.what();
   }
   try {
-    (void)config_with("[[vsp]]\nname = \"w\"\nplugin = \"range\"\nsources = [\"a\"]\nmode = \"fast\"\n");
+    (void)config_with(
+        "[[vsp]]\nname = \"w\"\nplugin = \"range\"\nsources = [\"a\"]\nmode = \"fast\"\n");
     FAIL();
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("mode 'fast' must be"), std::string::npos) << e.what();
@@ -135,7 +136,8 @@ TEST(Vsp, ForceTorqueCalibratesZeroesAndCompensatesTheToolsWeight) {
   const ProcessSetConfig c = config_with(
       "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"gauges\"]\n"
       "[vsp.params]\ncalibration = [[2,0,0,0,0,0],[0,2,0,0,0,0],[0,0,2,0,0,0],[0,0,0,1,0,0],"
-      "[0,0,0,0,1,0],[0,0,0,0,0,1]]\ntool_mass = 1.0\ntool_com = [0.0, 0.0, 0.1]\ngravity = 10.0\n");
+      "[0,0,0,0,1,0],[0,0,0,0,0,1]]\ntool_mass = 1.0\ntool_com = [0.0, 0.0, 0.1]\ngravity = "
+      "10.0\n");
   RunningVsp vsp(bus, reporter, c.vsp("wrist"));
   bus.start();
   Publisher gauges(bus, "gauges", {1.0, 0.0, -5.0, 0.0, 0.0, 0.0});
@@ -176,14 +178,16 @@ TEST(Vsp, StaleSourceMakesReadingsInvalidAndNamesIt) {
   std::mutex m;
   std::vector<std::string> srp;
   SystemListener listener(
-      bus, [&](const SrpMessage& msg) {
+      bus,
+      [&](const SrpMessage& msg) {
         std::lock_guard lock(m);
         srp.push_back(msg.text);
       },
       [](const ProcessStatus&) {});
   Reporter reporter(bus, "vsp/range");
   const ProcessSetConfig c = config_with(
-      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\nstale_after_ms = 40\n");
+      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\nstale_after_ms = "
+      "40\n");
   RunningVsp vsp(bus, reporter, c.vsp("range"));
   bus.start();
   ecp::VirtualSensor sensor(bus, "range", "test");
@@ -208,7 +212,9 @@ TEST(Vsp, StaleSourceMakesReadingsInvalidAndNamesIt) {
   std::this_thread::sleep_for(50ms);
   std::lock_guard lock(m);
   bool reported = false;
-  for (const auto& t : srp) reported = reported || t.find("VSP 'range': reading invalid: source 'sonar' stale") != std::string::npos;
+  for (const auto& t : srp)
+    reported = reported ||
+               t.find("VSP 'range': reading invalid: source 'sonar' stale") != std::string::npos;
   EXPECT_TRUE(reported);
 }
 
@@ -245,7 +251,8 @@ TEST(Vsp, PeriodicTerminateAndConfigure) {
   std::thread belt([&] {  // 0.1 m/s
     const auto start = std::chrono::steady_clock::now();
     while (!stop) {
-      const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const double t =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       publish(bus, "belt_encoder", {0.1 * t});
       std::this_thread::sleep_for(2ms);
     }
@@ -274,8 +281,8 @@ TEST(Vsp, PeriodicTerminateAndConfigure) {
 TEST(Vsp, ObjectPoseSaysWhetherTheObjectIsSeen) {
   comm::Bus bus(test_url());
   Reporter reporter(bus, "vsp/test");
-  const ProcessSetConfig c = config_with(
-      "[[vsp]]\nname = \"camera\"\nplugin = \"object_pose\"\nsources = [\"cam\"]\n");
+  const ProcessSetConfig c =
+      config_with("[[vsp]]\nname = \"camera\"\nplugin = \"object_pose\"\nsources = [\"cam\"]\n");
   RunningVsp vsp(bus, reporter, c.vsp("camera"));
   bus.start();
   ecp::VirtualSensor sensor(bus, "camera", "test");
@@ -294,8 +301,8 @@ TEST(Vsp, ObjectPoseSaysWhetherTheObjectIsSeen) {
 TEST(Vsp, DeadVspMakesTheImageInvalidQuickly) {
   comm::Bus bus(test_url());
   Reporter reporter(bus, "vsp/test");
-  const ProcessSetConfig c = config_with(
-      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\n");
+  const ProcessSetConfig c =
+      config_with("[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\n");
   bus.start();
   Publisher sonar(bus, "sonar", {1.0});
   ecp::VirtualSensor sensor(bus, "range", "test");
@@ -324,8 +331,8 @@ TEST(Vsp, DeadVspMakesTheImageInvalidQuickly) {
 TEST(Vsp, MalformedRawSamplesAreCountedAndDropped) {
   comm::Bus bus(test_url());
   Reporter reporter(bus, "vsp/test");
-  const ProcessSetConfig c = config_with(
-      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\n");
+  const ProcessSetConfig c =
+      config_with("[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\n");
   RunningVsp vsp(bus, reporter, c.vsp("range"));
   bus.start();
   const std::string junk = "not an LCM message";

@@ -5,8 +5,8 @@
 ///   range         ultrasonic / infrared range finders: median filter, the nearest of the sources;
 ///   conveyor      conveyor position and speed from its encoder;
 ///   object_pose   an object's pose from a camera (emulated: see mrroc-axis-emu's camera).
-#include <Eigen/Dense>
 #include <fmt/format.h>
+#include <Eigen/Dense>
 
 #include <algorithm>
 #include <cmath>
@@ -22,11 +22,11 @@ namespace {
 void require_sources(const SensorSetup& setup, std::size_t min, std::size_t max,
                      const char* plugin) {
   if (setup.sources.size() < min || setup.sources.size() > max)
-    throw ConfigError(fmt::format("{}: error: sensor plugin '{}' of VSP '{}' takes {} source(s), "
-                                  "got {}",
-                                  setup.params.location().str(), plugin, setup.name,
-                                  min == max ? std::to_string(min) : fmt::format("{}..{}", min, max),
-                                  setup.sources.size()));
+    throw ConfigError(fmt::format(
+        "{}: error: sensor plugin '{}' of VSP '{}' takes {} source(s), "
+        "got {}",
+        setup.params.location().str(), plugin, setup.name,
+        min == max ? std::to_string(min) : fmt::format("{}..{}", min, max), setup.sources.size()));
 }
 
 void require_values(const RawSample& s, std::size_t n, const char* plugin) {
@@ -57,9 +57,10 @@ class ForceTorque final : public SensorPlugin {
     if (p.has("calibration")) {
       const auto rows = p.get_double_rows("calibration");
       if (rows.size() != 6)
-        throw ConfigError(fmt::format("{}: error: 'calibration' must be 6 rows of 6 numbers "
-                                      "(gauge volts -> N, N m)",
-                                      p.location_of("calibration").str()));
+        throw ConfigError(
+            fmt::format("{}: error: 'calibration' must be 6 rows of 6 numbers "
+                        "(gauge volts -> N, N m)",
+                        p.location_of("calibration").str()));
       for (std::size_t r = 0; r < 6; ++r) {
         if (rows[r].size() != 6)
           throw ConfigError(fmt::format("{}: error: 'calibration' row {} has {} numbers, 6 needed",
@@ -95,7 +96,8 @@ class ForceTorque final : public SensorPlugin {
     for (int i = 0; i < 6; ++i) g(i) = s.values[static_cast<std::size_t>(i)];
     const Eigen::Matrix<double, 6, 1> w = calibration_ * g;
     const double dt = have_ ? seconds(s.sample_utime, last_utime_) : 0.0;
-    for (int i = 0; i < 6; ++i) filtered_(i) = have_ ? low_pass(filtered_(i), w(i), filter_hz_, dt) : w(i);
+    for (int i = 0; i < 6; ++i)
+      filtered_(i) = have_ ? low_pass(filtered_(i), w(i), filter_hz_, dt) : w(i);
     have_ = true;
     sample_valid_ = true;
     last_utime_ = s.sample_utime;
@@ -114,8 +116,9 @@ class ForceTorque final : public SensorPlugin {
     if (context.has("rotation")) {
       const std::vector<double> r = context.get_doubles("rotation");
       if (r.size() != 9)
-        throw ConfigError("INITIATE_READING: 'rotation' must be 9 numbers (sensor to world, row by "
-                          "row)");
+        throw ConfigError(
+            "INITIATE_READING: 'rotation' must be 9 numbers (sensor to world, row by "
+            "row)");
       for (int i = 0; i < 9; ++i) rotation_(i / 3, i % 3) = r[static_cast<std::size_t>(i)];
     }
     context.reject_unread("INITIATE_READING arguments of force_torque");
@@ -135,7 +138,8 @@ class ForceTorque final : public SensorPlugin {
  private:
   /// The tool's weight as the sensor feels it, in the sensor frame.
   [[nodiscard]] Eigen::Matrix<double, 6, 1> tool_load(const Eigen::Matrix3d& rotation) const {
-    const Eigen::Vector3d f = rotation.transpose() * Eigen::Vector3d(0.0, 0.0, -tool_mass_ * gravity_);
+    const Eigen::Vector3d f =
+        rotation.transpose() * Eigen::Vector3d(0.0, 0.0, -tool_mass_ * gravity_);
     Eigen::Matrix<double, 6, 1> w;
     w << f, tool_com_.cross(f);
     return w;
@@ -164,14 +168,16 @@ class Range final : public SensorPlugin {
     min_ = p.get_double("min_m", 0.02);
     max_ = p.get_double("max_m", 4.0);
     if (!(min_ >= 0.0 && max_ > min_))
-      throw ConfigError(fmt::format("{}: error: range limits min_m = {} m, max_m = {} m: need "
-                                    "0 <= min_m < max_m",
-                                    p.location().str(), min_, max_));
+      throw ConfigError(
+          fmt::format("{}: error: range limits min_m = {} m, max_m = {} m: need "
+                      "0 <= min_m < max_m",
+                      p.location().str(), min_, max_));
     const std::int64_t median = p.get_int("median", 1);
     if (median < 1 || median > 99 || median % 2 == 0)
-      throw ConfigError(fmt::format("{}: error: 'median' = {} must be an odd window of 1..99 "
-                                    "samples",
-                                    p.location_of("median").str(), median));
+      throw ConfigError(
+          fmt::format("{}: error: 'median' = {} must be an odd window of 1..99 "
+                      "samples",
+                      p.location_of("median").str(), median));
     window_ = static_cast<std::size_t>(median);
     p.reject_unread("vsp.params");
     history_.assign(setup.sources.size(), {});
@@ -205,10 +211,10 @@ class Range final : public SensorPlugin {
     out.names = {"distance"};
     out.units = {"m"};
     if (!(nearest >= min_ && nearest <= max_)) {
-      out.invalid_reason = std::isfinite(nearest)
-                               ? fmt::format("distance {:.3f} m outside {:.3f}..{:.3f} m", nearest,
-                                             min_, max_)
-                               : fmt::format("no echo within {:.3f} m", max_);
+      out.invalid_reason =
+          std::isfinite(nearest)
+              ? fmt::format("distance {:.3f} m outside {:.3f}..{:.3f} m", nearest, min_, max_)
+              : fmt::format("no echo within {:.3f} m", max_);
       return out;
     }
     out.values = {nearest};

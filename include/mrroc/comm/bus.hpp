@@ -2,8 +2,8 @@
 /// @file
 /// One LCM connection per process, with the thread that dispatches incoming messages.
 ///
-/// The comm layer (this folder) is the only code that sees LCM types. Handlers registered on the bus
-/// run on the bus thread and must return quickly (they hand work to other threads).
+/// The comm layer (this folder) is the only code that sees LCM types. Handlers registered on the
+/// bus run on the bus thread and must return quickly (they hand work to other threads).
 
 #include <atomic>
 #include <chrono>

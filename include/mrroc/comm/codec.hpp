@@ -5,8 +5,9 @@
 /// naming the field and value; a malformed message never reaches control code.
 
 #include "mrroc/core/error.hpp"
-#include "mrroc/msg/mp_command.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
+#include "mrroc/msg/mp_command.hpp"
+#include "mrroc/msg/sensor_reading.hpp"
 #include "mrroc_lcm/ecp_mp_reply_t.hpp"
 #include "mrroc_lcm/edp_instruction_t.hpp"
 #include "mrroc_lcm/edp_reply_t.hpp"
@@ -14,7 +15,6 @@
 #include "mrroc_lcm/raw_sensor_t.hpp"
 #include "mrroc_lcm/vsp_command_t.hpp"
 #include "mrroc_lcm/vsp_reply_t.hpp"
-#include "mrroc/msg/sensor_reading.hpp"
 
 namespace mrroc::comm {
 

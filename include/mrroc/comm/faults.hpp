@@ -21,7 +21,7 @@ struct LinkFaults {
 
 /// What happens to one published message.
 struct FaultPlan {
-  int copies = 1;                   ///< 0, 1 or 2
+  int copies = 1;                     ///< 0, 1 or 2
   std::int64_t delay_us[2] = {0, 0};  ///< per copy: 0 = at once
 };
 

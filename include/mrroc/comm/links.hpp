@@ -65,12 +65,12 @@ class PlainServer {
   using Handler = std::function<void(Incoming)>;
   PlainServer(Bus& bus, const std::string& name, const std::string& request_channel,
               const std::string& reply_channel, Handler handler, ServerOptions options = {})
-      : server_(bus, name, request_channel, reply_channel,
-                [handler = std::move(handler)](const LcmReq& raw,
-                                               typename Raw::Responder responder) {
-                  handler(convert(raw, std::move(responder)));
-                },
-                options) {}
+      : server_(
+            bus, name, request_channel, reply_channel,
+            [handler = std::move(handler)](const LcmReq& raw, typename Raw::Responder responder) {
+              handler(convert(raw, std::move(responder)));
+            },
+            options) {}
 
   /// Queue mode only: the next request, or nothing after `timeout`.
   std::optional<Incoming> wait_request(std::chrono::milliseconds timeout) {
@@ -95,19 +95,19 @@ class PlainServer {
   Raw server_;
 };
 
-using EdpClient = PlainClient<edp::Instruction, edp::Reply, mrroc_lcm::edp_instruction_t,
-                              mrroc_lcm::edp_reply_t>;
-using EdpServer = PlainServer<edp::Instruction, edp::Reply, mrroc_lcm::edp_instruction_t,
-                              mrroc_lcm::edp_reply_t>;
+using EdpClient =
+    PlainClient<edp::Instruction, edp::Reply, mrroc_lcm::edp_instruction_t, mrroc_lcm::edp_reply_t>;
+using EdpServer =
+    PlainServer<edp::Instruction, edp::Reply, mrroc_lcm::edp_instruction_t, mrroc_lcm::edp_reply_t>;
 using EcpClient = PlainClient<ecp::MpCommand, ecp::EcpReply, mrroc_lcm::mp_ecp_command_t,
                               mrroc_lcm::ecp_mp_reply_t>;
 using EcpServer = PlainServer<ecp::MpCommand, ecp::EcpReply, mrroc_lcm::mp_ecp_command_t,
                               mrroc_lcm::ecp_mp_reply_t>;
 
 /// ECP or MP (client) <-> VSP (server), channels vsp/<name>/cmd and vsp/<name>/reply.
-using VspClient = PlainClient<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t,
-                              mrroc_lcm::vsp_reply_t>;
-using VspServer = PlainServer<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t,
-                              mrroc_lcm::vsp_reply_t>;
+using VspClient =
+    PlainClient<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t, mrroc_lcm::vsp_reply_t>;
+using VspServer =
+    PlainServer<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t, mrroc_lcm::vsp_reply_t>;
 
 }  // namespace mrroc::comm

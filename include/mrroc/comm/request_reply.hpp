@@ -5,14 +5,16 @@
 /// Protocol (see docs/messages.md):
 /// - A request carries `header.sender` (a name unique to the client) and `header.seq`, increasing
 ///   by one per new request of that client.
-/// - The client waits `attempt_timeout` for the reply whose `header.recipient` is its name and whose
+/// - The client waits `attempt_timeout` for the reply whose `header.recipient` is its name and
+/// whose
 ///   `header.seq` equals the request's; otherwise it re-sends the *same* request (same seq). After
 ///   `max_attempts` silent attempts it throws `TimeoutError` naming the peer, the channel, the
 ///   sequence number and the time waited.
 /// - The server remembers, per client, the last sequence it accepted. A repeated sequence is never
 ///   executed twice: if its reply is ready, the cached reply is sent again; if it is still being
 ///   executed, an IN_PROGRESS reply tells the client to keep waiting (long requests such as
-///   START_TASK or SYNCHRO stay alive without an arbitrary time limit). Older sequences are dropped.
+///   START_TASK or SYNCHRO stay alive without an arbitrary time limit). Older sequences are
+///   dropped.
 ///
 /// Message types are LCM types with a `header` field of type `mrroc_lcm::header_t`.
 
@@ -56,14 +58,14 @@ struct ServerOptions {
 
 /// Counters of one endpoint (for tests, SRP and benchmarks).
 struct LinkStats {
-  std::uint64_t requests = 0;           ///< new requests (client: sent; server: accepted)
-  std::uint64_t resends = 0;            ///< client: re-sent requests
-  std::uint64_t duplicates = 0;         ///< server: repeated sequences answered from the cache
-  std::uint64_t in_progress = 0;        ///< server: IN_PROGRESS replies sent
-  std::uint64_t stale = 0;              ///< dropped: old sequences / replies nobody waits for
-  std::uint64_t expired = 0;            ///< server: dropped, sent longer ago than max_request_age
-  std::uint64_t malformed = 0;          ///< dropped: could not be decoded
-  std::uint64_t unauthenticated = 0;    ///< dropped: no or wrong tag, or replayed (auth.hpp)
+  std::uint64_t requests = 0;         ///< new requests (client: sent; server: accepted)
+  std::uint64_t resends = 0;          ///< client: re-sent requests
+  std::uint64_t duplicates = 0;       ///< server: repeated sequences answered from the cache
+  std::uint64_t in_progress = 0;      ///< server: IN_PROGRESS replies sent
+  std::uint64_t stale = 0;            ///< dropped: old sequences / replies nobody waits for
+  std::uint64_t expired = 0;          ///< server: dropped, sent longer ago than max_request_age
+  std::uint64_t malformed = 0;        ///< dropped: could not be decoded
+  std::uint64_t unauthenticated = 0;  ///< dropped: no or wrong tag, or replayed (auth.hpp)
 };
 
 /// Publishes `msg` on `channel`, signed when the bus has a key (for broadcasts: status, SRP
@@ -102,8 +104,8 @@ bool authentic(Bus& bus, const Msg& msg, const std::string& channel, std::uint64
   if (verdict == Authenticator::Verdict::ok) return true;
   ++dropped;
   bus.report_drop(drop_code::unauthenticated, "unauthenticated on " + channel,
-                  fmt::format("dropped a message on '{}' from '{}': {}", channel,
-                              msg.header.sender, to_string(verdict)));
+                  fmt::format("dropped a message on '{}' from '{}': {}", channel, msg.header.sender,
+                              to_string(verdict)));
   return false;
 }
 
@@ -174,11 +176,11 @@ class Client {
         waiting_seq_ = -1;
         const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(
             std::chrono::steady_clock::now() - started);
-        throw TimeoutError(fmt::format(
-            "no reply from {} on channel '{}' to request {} after {} attempts of {} ms "
-            "({} ms in all)",
-            peer_, request_channel_, seq, silent_attempts, options_.attempt_timeout.count(),
-            waited.count()));
+        throw TimeoutError(
+            fmt::format("no reply from {} on channel '{}' to request {} after {} attempts of {} ms "
+                        "({} ms in all)",
+                        peer_, request_channel_, seq, silent_attempts,
+                        options_.attempt_timeout.count(), waited.count()));
       }
       ++silent_attempts;
       ++stats_.resends;
@@ -201,8 +203,7 @@ class Client {
   }
 
   // LCM calls a plain function with the object as context (no pointer-to-member dispatch).
-  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel,
-                       Client* self) {
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel, Client* self) {
     Rep reply;
     if (!detail::decode_received(buffer, reply)) {
       {
@@ -354,8 +355,7 @@ class Server {
   }
 
  private:
-  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel,
-                       Server* self) {
+  static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string& channel, Server* self) {
     Req request;
     if (!detail::decode_received(buffer, request)) {
       {

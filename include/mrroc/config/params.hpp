@@ -3,7 +3,8 @@
 /// Plain key/value parameters handed from a config file to plugins and tasks.
 ///
 /// Plugins and tasks never see the config file's syntax: they read typed values from a `Params`
-/// and every error names the config file and line where the value was (or should have been) written.
+/// and every error names the config file and line where the value was (or should have been)
+/// written.
 
 #include <cstdint>
 #include <map>

@@ -32,19 +32,19 @@ enum class RestartPolicy {
 
 /// Options every process of the set accepts (the launcher's keys; docs/configs.md).
 struct ProcessOptions {
-  std::vector<int> cpus;      ///< CPU affinity (empty: any CPU)
+  std::vector<int> cpus;  ///< CPU affinity (empty: any CPU)
   /// SCHED_FIFO priority of the process' threads, 0..79 (default 0: the policy it was started
   /// with, normally SCHED_OTHER). The EDP's servo thread runs at 80 regardless.
   int priority = 0;
-  double stop_grace_s = 3.0;  ///< stop signal to SIGKILL grace period when stopping [s]
-  int stop_signal = 15;       ///< signal that asks the process to stop (`stop_signal = "SIGINT"`)
-  std::string host = "local"; ///< where it runs: "local" or the name of a [[launch.host]]
-  SourceLocation host_where;  ///< where `host` was given (for errors)
-  std::string group;          ///< group name (default: srp, emu, vsp, edp, ecp, mp, ui)
+  double stop_grace_s = 3.0;   ///< stop signal to SIGKILL grace period when stopping [s]
+  int stop_signal = 15;        ///< signal that asks the process to stop (`stop_signal = "SIGINT"`)
+  std::string host = "local";  ///< where it runs: "local" or the name of a [[launch.host]]
+  SourceLocation host_where;   ///< where `host` was given (for errors)
+  std::string group;           ///< group name (default: srp, emu, vsp, edp, ecp, mp, ui)
   RestartPolicy restart = RestartPolicy::never;
-  int max_restarts = 3;           ///< restarts allowed before the process counts as ended (≤ 20)
-  double restart_backoff_s = 0.5; ///< wait before the first restart (≥ 0.2 s); doubles, ≤ 30 s
-  bool required = true;  ///< its end (after its restarts) stops the whole set
+  int max_restarts = 3;            ///< restarts allowed before the process counts as ended (≤ 20)
+  double restart_backoff_s = 0.5;  ///< wait before the first restart (≥ 0.2 s); doubles, ≤ 30 s
+  bool required = true;            ///< its end (after its restarts) stops the whole set
 };
 
 /// A computer the launcher starts processes on ([[launch.host]]).
@@ -70,7 +70,7 @@ struct LaunchConfig {
 
 /// The operator console ([ui]): `mrroc-ui serve`, started by the launcher when `web = true`.
 struct UiConfig {
-  bool web = false;              ///< the launcher starts the web console
+  bool web = false;  ///< the launcher starts the web console
   std::string bind = "127.0.0.1";
   int port = 8080;
   std::filesystem::path token_file;  ///< required unless bound to a loopback address
@@ -84,7 +84,7 @@ struct SrpConfig {
   std::filesystem::path log;  ///< persistent log (JSON lines), rotated (empty: none)
   double log_max_kb = 4096.0;
   int log_keep = 5;
-  int history = 10000;        ///< messages kept in memory for the console's history
+  int history = 10000;  ///< messages kept in memory for the console's history
   ProcessOptions options;
 };
 
@@ -95,16 +95,16 @@ inline constexpr int kDefaultLookahead = 8;
 inline constexpr int kMaxLookahead = 64;
 
 struct EdpConfig {
-  std::string plugin;            ///< hardware plugin name, e.g. "mujoco"
-  std::filesystem::path library; ///< shared library registering the plugin (optional)
-  double servo_period_s = 0.002; ///< servo period [s]
+  std::string plugin;             ///< hardware plugin name, e.g. "mujoco"
+  std::filesystem::path library;  ///< shared library registering the plugin (optional)
+  double servo_period_s = 0.002;  ///< servo period [s]
   /// Macro-steps queued ahead of the servo loop (1..kMaxLookahead; 1: the paper's one successor,
   /// for sensor-driven generators that need the shortest reaction).
   int lookahead = kDefaultLookahead;
   /// Simulated hardware only: servo cycles run back to back while there is motion to execute
   /// (simulated time advances as fast as the machine allows) instead of one per period.
   bool lock_step = false;
-  Params params;                 ///< the plugin's own parameters ([robot.edp.params])
+  Params params;  ///< the plugin's own parameters ([robot.edp.params])
   ProcessOptions options;
   SourceLocation where;
 };
@@ -131,8 +131,8 @@ struct RobotConfig {
 /// The cell emulator (`mrroc-axis-emu`): one MuJoCo world whose axes are emulated CiA 402
 /// drives on CAN buses ([emulator] in the process set; docs/hil.md).
 struct EmulatorConfig {
-  std::filesystem::path scene;  ///< scene file (absolute path)
-  bool lock_step = false;       ///< physics advances by SYNC, not by the wall clock
+  std::filesystem::path scene;      ///< scene file (absolute path)
+  bool lock_step = false;           ///< physics advances by SYNC, not by the wall clock
   std::vector<std::string> faults;  ///< fault injections, as `mrroc-axis-emu --fault` takes them
   ProcessOptions options;
   SourceLocation where;
@@ -153,9 +153,9 @@ struct VspConfig {
 };
 
 struct ProcessSetConfig {
-  std::filesystem::path file;  ///< absolute path of the config file
-  std::string name;            ///< name of the set (for messages)
-  std::string lcm_url;         ///< empty: $LCM_DEFAULT_URL or the ttl=0 default
+  std::filesystem::path file;     ///< absolute path of the config file
+  std::string name;               ///< name of the set (for messages)
+  std::string lcm_url;            ///< empty: $LCM_DEFAULT_URL or the ttl=0 default
   double ready_timeout_s = 10.0;  ///< how long the launcher waits for each process to be ready [s]
   /// Shared key (file with at least 32 hex digits) for message authentication; empty: none.
   std::filesystem::path auth_key_file;

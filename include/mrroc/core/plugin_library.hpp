@@ -10,7 +10,8 @@
 
 namespace mrroc {
 
-/// Loads `library` (dlopen, RTLD_NOW | RTLD_GLOBAL) once; later calls with the same path do nothing.
+/// Loads `library` (dlopen, RTLD_NOW | RTLD_GLOBAL) once; later calls with the same path do
+/// nothing.
 /// @throws ConfigError "where: error: cannot load library 'path': <dlerror>".
 void load_plugin_library(const std::filesystem::path& library, const SourceLocation& where);
 

@@ -21,8 +21,8 @@ namespace mrroc::ecp {
 /// accelerates uniformly over the first half and decelerates over the second: peak velocity
 /// 2 d / T, acceleration 4 d / T^2; docs/edp.md, "Acceleration"), lasting at least `min_s`.
 /// The console's jogs use it.
-int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta,
-                       double fraction, double period_s, double min_s = 0.0);
+int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta, double fraction,
+                       double period_s, double min_s = 0.0);
 
 /// What generators see of a robot. Joint values in rad.
 struct RobotImage {

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "mrroc/config/params.hpp"
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/config/params.hpp"
 #include "mrroc/ecp/robot.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 
@@ -19,8 +19,8 @@ namespace mrroc::ecp {
 struct TaskContext {
   Robot& robot;
   Reporter& reporter;
-  const Params& args;     ///< [robot.ecp.args]
-  double servo_period_s;  ///< the EDP's servo period [s]
+  const Params& args;        ///< [robot.ecp.args]
+  double servo_period_s;     ///< the EDP's servo period [s]
   comm::Bus* bus = nullptr;  ///< the ECP's LCM connection (for virtual sensors)
   std::string process;       ///< the ECP's process name, e.g. "ecp/irb6"
 
@@ -50,8 +50,9 @@ struct EcpTaskRegistrar {
 }  // namespace mrroc::ecp
 
 /// Registers an ECP task class (constructor taking `TaskContext&`) under a name.
-#define MRROC_REGISTER_ECP_TASK(NAME, CLASS)                                              \
-  static const ::mrroc::ecp::detail::EcpTaskRegistrar mrroc_ecp_task_registrar_##CLASS{ \
-      NAME, [](::mrroc::ecp::TaskContext& c) {                                          \
-        return std::unique_ptr<::mrroc::ecp::EcpTask>(new CLASS(c));                    \
-      }}
+#define MRROC_REGISTER_ECP_TASK(NAME, CLASS)                                             \
+  static const ::mrroc::ecp::detail::EcpTaskRegistrar mrroc_ecp_task_registrar_##CLASS { \
+    NAME, [](::mrroc::ecp::TaskContext& c) {                                             \
+      return std::unique_ptr<::mrroc::ecp::EcpTask>(new CLASS(c));                       \
+    }                                                                                    \
+  }

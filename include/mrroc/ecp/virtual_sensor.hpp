@@ -58,7 +58,9 @@ class VirtualSensor : public Sensor {
   /// The last reading. @throws SensorError when it is not valid.
   [[nodiscard]] const vsp::Reading& valid_image() const;
   /// A value of the last valid reading by name. @throws SensorError, or Error for a bad name.
-  [[nodiscard]] double value(const std::string& value_name) const { return valid_image().value(value_name); }
+  [[nodiscard]] double value(const std::string& value_name) const {
+    return valid_image().value(value_name);
+  }
 
  private:
   void invalid(const std::string& reason);

@@ -80,8 +80,9 @@ struct ArmKinematicsRegistrar {
 
 /// Registers kinematics under a name: `MRROC_REGISTER_ARM_KINEMATICS("irb6", Irb6ArmKinematics)`;
 /// the class is constructed from a `const RobotModel&`.
-#define MRROC_REGISTER_ARM_KINEMATICS(NAME, CLASS)                                            \
-  static const ::mrroc::edp::detail::ArmKinematicsRegistrar mrroc_arm_kinematics_##CLASS{ \
-      NAME, [](const ::mrroc::RobotModel& m) {                                              \
-        return std::unique_ptr<::mrroc::edp::ArmKinematics>(new CLASS(m));                  \
-      }}
+#define MRROC_REGISTER_ARM_KINEMATICS(NAME, CLASS)                                         \
+  static const ::mrroc::edp::detail::ArmKinematicsRegistrar mrroc_arm_kinematics_##CLASS { \
+    NAME, [](const ::mrroc::RobotModel& m) {                                               \
+      return std::unique_ptr<::mrroc::edp::ArmKinematics>(new CLASS(m));                   \
+    }                                                                                      \
+  }

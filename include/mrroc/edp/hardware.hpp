@@ -5,12 +5,13 @@
 /// Units: joint positions in rad (revolute) or m (prismatic), velocities per second.
 /// Positions handed across this interface are *raw axis positions*: what incremental encoders
 /// report, with their zero wherever the axis was at power-on. The EDP learns the offset to joint
-/// coordinates during SYNCHRO from each axis' synchronisation switch (`AxisFeedback::synchro_switch`).
+/// coordinates during SYNCHRO from each axis' synchronisation switch
+/// (`AxisFeedback::synchro_switch`).
 ///
 /// Lifecycle (called by the EDP, never concurrently):
 ///   configure(params) -> activate() -> { read(); write(); }* -> deactivate()
-/// `read` and `write` are called once per servo cycle from the servo thread; they must not allocate,
-/// block on the network, or throw (they report through `CycleStatus`).
+/// `read` and `write` are called once per servo cycle from the servo thread; they must not
+/// allocate, block on the network, or throw (they report through `CycleStatus`).
 
 #include <cstddef>
 #include <cstdint>
@@ -37,11 +38,12 @@ struct AxisFeedback {
 
 /// What a plugin is given at configure time.
 struct HardwareSetup {
-  std::string robot;                      ///< robot name from the config, e.g. "irb6"
-  std::filesystem::path model_dir;        ///< robots/<name>/ folder (URDF, MJCF, parameters)
-  double servo_period_s = 0.002;          ///< servo period [s]
-  std::vector<double> synchro_positions;  ///< joint position at which each axis' switch toggles [rad]
-  Params params;                          ///< the plugin's own table from the config
+  std::string robot;                ///< robot name from the config, e.g. "irb6"
+  std::filesystem::path model_dir;  ///< robots/<name>/ folder (URDF, MJCF, parameters)
+  double servo_period_s = 0.002;    ///< servo period [s]
+  std::vector<double>
+      synchro_positions;  ///< joint position at which each axis' switch toggles [rad]
+  Params params;          ///< the plugin's own table from the config
 };
 
 /// Base class of every EDP hardware plugin.
@@ -119,7 +121,9 @@ struct HardwareRegistrar {
 
 }  // namespace mrroc::edp
 
-/// Registers a hardware plugin class under a name: `MRROC_REGISTER_HARDWARE("mujoco", MujocoHardware)`.
-#define MRROC_REGISTER_HARDWARE(NAME, CLASS)                                          \
-  static const ::mrroc::edp::detail::HardwareRegistrar mrroc_hardware_registrar_##CLASS{ \
-      NAME, [] { return std::unique_ptr<::mrroc::edp::Hardware>(new CLASS()); }}
+/// Registers a hardware plugin class under a name: `MRROC_REGISTER_HARDWARE("mujoco",
+/// MujocoHardware)`.
+#define MRROC_REGISTER_HARDWARE(NAME, CLASS)                                              \
+  static const ::mrroc::edp::detail::HardwareRegistrar mrroc_hardware_registrar_##CLASS { \
+    NAME, [] { return std::unique_ptr<::mrroc::edp::Hardware>(new CLASS()); }             \
+  }

@@ -41,11 +41,11 @@ constexpr double deg(double degrees) { return degrees * std::numbers::pi / 180.0
 }  // namespace detail
 
 /// Nominal lengths [m] (rnt.urdf, rnt.xml and parameters.toml [robot.kinematics]).
-inline constexpr double kD1 = 0.60;    ///< base to the shoulder axis
-inline constexpr double kA2 = 0.50;    ///< upper arm: shoulder axis to elbow axis
-inline constexpr double kA3 = 0.50;    ///< forearm: elbow axis to the wrist centre
-inline constexpr double kD6 = 0.10;    ///< wrist centre to the flange
-inline constexpr double kCrank = 0.15; ///< parallelogram crank = forearm lever behind the elbow
+inline constexpr double kD1 = 0.60;     ///< base to the shoulder axis
+inline constexpr double kA2 = 0.50;     ///< upper arm: shoulder axis to elbow axis
+inline constexpr double kA3 = 0.50;     ///< forearm: elbow axis to the wrist centre
+inline constexpr double kD6 = 0.10;     ///< wrist centre to the flange
+inline constexpr double kCrank = 0.15;  ///< parallelogram crank = forearm lever behind the elbow
 inline constexpr double kCutterLength = 0.15;  ///< flange to the cutter tip (tool frame), along z
 
 /// Joint limits [rad] (the same values as rnt.urdf: -160..160, -45..80, -70..70, -120..120,
@@ -80,8 +80,8 @@ inline constexpr MotorPosition kMotorUpperLimits = {450.0, 225.0, 305.0, 210.0, 
 /// pointing down; and the motor positions there [rad].
 inline constexpr JointPosition kSynchroJointPositions = {0.0, 0.0, 0.0, std::numbers::pi / 2,
                                                          0.0, 0.0};
-inline constexpr MotorPosition kSynchroMotorPositions = {0.0, 0.0, 0.0,
-                                                         -100.0 * std::numbers::pi / 2, 0.0, 0.0};
+inline constexpr MotorPosition kSynchroMotorPositions = {
+    0.0, 0.0, 0.0, -100.0 * std::numbers::pi / 2, 0.0, 0.0};
 
 /// a = C q.
 ActuatorPosition actuators_from_joints(const JointPosition& joints);

@@ -9,9 +9,9 @@
 #include <string>
 
 #include "mrroc/comm/links.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc/comm/reporter.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/mp/robot.hpp"
 
@@ -20,9 +20,9 @@ namespace mrroc::mp {
 struct TaskContext {
   RobotList robots;  ///< every robot of the process set, in config order
   Reporter& reporter;
-  const Params& args;               ///< [mp.args]
-  const ProcessSetConfig& config;   ///< the whole process set (robot models, servo periods, ...)
-  comm::Bus* bus = nullptr;         ///< the MP's LCM connection (for virtual sensors)
+  const Params& args;              ///< [mp.args]
+  const ProcessSetConfig& config;  ///< the whole process set (robot models, servo periods, ...)
+  comm::Bus* bus = nullptr;        ///< the MP's LCM connection (for virtual sensors)
 
   /// The image of the VSP named `vsp` in the MP: a client of it, for MP-level Move and Wait.
   /// @throws Error when the context has no bus.
@@ -59,8 +59,9 @@ struct MpTaskRegistrar {
 
 }  // namespace mrroc::mp
 
-#define MRROC_REGISTER_MP_TASK(NAME, CLASS)                                             \
-  static const ::mrroc::mp::detail::MpTaskRegistrar mrroc_mp_task_registrar_##CLASS{ \
-      NAME, [](::mrroc::mp::TaskContext& c) {                                         \
-        return std::unique_ptr<::mrroc::mp::MpTask>(new CLASS(c));                    \
-      }}
+#define MRROC_REGISTER_MP_TASK(NAME, CLASS)                                           \
+  static const ::mrroc::mp::detail::MpTaskRegistrar mrroc_mp_task_registrar_##CLASS { \
+    NAME, [](::mrroc::mp::TaskContext& c) {                                           \
+      return std::unique_ptr<::mrroc::mp::MpTask>(new CLASS(c));                      \
+    }                                                                                 \
+  }

@@ -15,11 +15,11 @@ enum class InstructionType : std::int8_t { set = 1, get = 2, set_get = 3, synchr
 namespace item {
 inline constexpr std::uint8_t arm = 1;
 inline constexpr std::uint8_t tool = 2;
-inline constexpr std::uint8_t model = 4;    ///< kinematic model and local corrector
-inline constexpr std::uint8_t servo = 8;    ///< servo algorithm and parameters
-inline constexpr std::uint8_t outputs = 16; ///< binary outputs (SET)
-inline constexpr std::uint8_t inputs = 32;  ///< binary inputs (GET)
-inline constexpr std::uint8_t timing = 64;  ///< servo-loop timing statistics (GET)
+inline constexpr std::uint8_t model = 4;     ///< kinematic model and local corrector
+inline constexpr std::uint8_t servo = 8;     ///< servo algorithm and parameters
+inline constexpr std::uint8_t outputs = 16;  ///< binary outputs (SET)
+inline constexpr std::uint8_t inputs = 32;   ///< binary inputs (GET)
+inline constexpr std::uint8_t timing = 64;   ///< servo-loop timing statistics (GET)
 }  // namespace item
 
 /// Arm and tool representations.
@@ -82,21 +82,22 @@ enum class ReplyType : std::int8_t { acknowledge = 1, data = 2, error = 3 };
 /// Error codes of EDP replies (docs/messages.md).
 namespace error_code {
 inline constexpr int none = 0;
-inline constexpr int malformed = 1;          ///< the instruction could not be decoded
-inline constexpr int query_expected = 2;     ///< a QUERY must follow every other instruction
-inline constexpr int query_unexpected = 3;   ///< QUERY without a preceding instruction
-inline constexpr int not_synchronised = 4;   ///< motion before SYNCHRO
+inline constexpr int malformed = 1;         ///< the instruction could not be decoded
+inline constexpr int query_expected = 2;    ///< a QUERY must follow every other instruction
+inline constexpr int query_unexpected = 3;  ///< QUERY without a preceding instruction
+inline constexpr int not_synchronised = 4;  ///< motion before SYNCHRO
 inline constexpr int already_synchronised = 5;
-inline constexpr int out_of_limits = 6;      ///< the path leaves a joint or motor limit
-inline constexpr int bad_argument = 7;       ///< wrong size, steps, representation not supported
-inline constexpr int hardware_fault = 8;     ///< the hardware plugin reported a fault
-inline constexpr int not_supported = 9;      ///< valid instruction that this EDP does not support
-inline constexpr int emergency_stop = 10;    ///< motion refused: emergency stop engaged
-inline constexpr int servo_overrun = 11;     ///< a servo cycle woke more than one period late
-inline constexpr int unauthenticated = 12;   ///< a message without a valid HMAC or replayed (SRP report)
-inline constexpr int too_fast = 13;          ///< a macro-step would exceed a joint's velocity limit
-inline constexpr int too_abrupt = 14;        ///< a macro-step would exceed a joint's acceleration limit
-inline constexpr int not_owner = 15;         ///< another client drives this EDP
+inline constexpr int out_of_limits = 6;    ///< the path leaves a joint or motor limit
+inline constexpr int bad_argument = 7;     ///< wrong size, steps, representation not supported
+inline constexpr int hardware_fault = 8;   ///< the hardware plugin reported a fault
+inline constexpr int not_supported = 9;    ///< valid instruction that this EDP does not support
+inline constexpr int emergency_stop = 10;  ///< motion refused: emergency stop engaged
+inline constexpr int servo_overrun = 11;   ///< a servo cycle woke more than one period late
+inline constexpr int unauthenticated =
+    12;                                ///< a message without a valid HMAC or replayed (SRP report)
+inline constexpr int too_fast = 13;    ///< a macro-step would exceed a joint's velocity limit
+inline constexpr int too_abrupt = 14;  ///< a macro-step would exceed a joint's acceleration limit
+inline constexpr int not_owner = 15;   ///< another client drives this EDP
 }  // namespace error_code
 
 struct Reply {

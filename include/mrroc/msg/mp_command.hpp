@@ -46,7 +46,8 @@ inline constexpr int stopped = 103;        ///< the task was stopped on request
 inline constexpr int timeout = 104;        ///< a link (EDP) did not answer
 inline constexpr int task_error = 105;     ///< any other error thrown by the task
 inline constexpr int not_supported = 106;  ///< a command this ECP shell does not handle
-inline constexpr int sensor_invalid = 107; ///< a virtual sensor gave no valid reading (stale, dead)
+inline constexpr int sensor_invalid =
+    107;  ///< a virtual sensor gave no valid reading (stale, dead)
 }  // namespace error_code
 
 struct EcpReply {

@@ -23,7 +23,7 @@ struct RawSample {
 /// A virtual sensor's reading.
 struct Reading {
   bool valid = false;
-  std::string invalid_reason;      ///< when not valid, e.g. "source left_wrist_gauges stale for 120 ms"
+  std::string invalid_reason;  ///< when not valid, e.g. "source left_wrist_gauges stale for 120 ms"
   std::int64_t reading_utime = 0;  ///< oldest raw sample the reading is built from [us]
   std::int64_t age_us = 0;         ///< age when the VSP replied [us]
   std::int64_t reading_no = 0;     ///< readings made since CONFIGURE
@@ -35,7 +35,12 @@ struct Reading {
   [[nodiscard]] double value(const std::string& name) const;
 };
 
-enum class Command : std::int8_t { configure = 1, initiate_reading = 2, get_reading = 3, terminate = 4 };
+enum class Command : std::int8_t {
+  configure = 1,
+  initiate_reading = 2,
+  get_reading = 3,
+  terminate = 4
+};
 const char* to_string(Command c);
 
 struct Request {

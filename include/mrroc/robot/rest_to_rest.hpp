@@ -10,8 +10,7 @@
 
 namespace mrroc {
 
-inline double rest_to_rest_duration(double distance, double max_velocity,
-                                    double max_acceleration) {
+inline double rest_to_rest_duration(double distance, double max_velocity, double max_acceleration) {
   const double d = std::abs(distance);
   return std::max(2.0 * d / max_velocity, 2.0 * std::sqrt(d / max_acceleration));
 }

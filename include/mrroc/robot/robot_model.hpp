@@ -16,11 +16,11 @@ struct RobotModel {
   std::filesystem::path urdf;  ///< absolute path
   std::filesystem::path mjcf;  ///< absolute path
   std::vector<std::string> joint_names;
-  std::vector<double> lower_limits;            ///< [rad]
-  std::vector<double> upper_limits;            ///< [rad]
-  std::vector<double> max_velocity;            ///< [rad/s]
-  std::vector<double> max_acceleration;        ///< [rad/s^2]
-  std::vector<double> synchro_joint_positions; ///< [rad]
+  std::vector<double> lower_limits;             ///< [rad]
+  std::vector<double> upper_limits;             ///< [rad]
+  std::vector<double> max_velocity;             ///< [rad/s]
+  std::vector<double> max_acceleration;         ///< [rad/s^2]
+  std::vector<double> synchro_joint_positions;  ///< [rad]
   /// Per joint: true for a prismatic joint (its values are in m, m/s, m/s^2 where the others are
   /// in rad), from the URDF's joint type.
   std::vector<bool> prismatic;

@@ -64,6 +64,7 @@ struct SensorRegistrar {
 }  // namespace mrroc::vsp
 
 /// Registers a sensor plugin class: `MRROC_REGISTER_SENSOR("force_torque", ForceTorque)`.
-#define MRROC_REGISTER_SENSOR(NAME, CLASS)                                           \
-  static const ::mrroc::vsp::detail::SensorRegistrar mrroc_sensor_registrar_##CLASS{ \
-      NAME, [] { return std::unique_ptr<::mrroc::vsp::SensorPlugin>(new CLASS()); }}
+#define MRROC_REGISTER_SENSOR(NAME, CLASS)                                            \
+  static const ::mrroc::vsp::detail::SensorRegistrar mrroc_sensor_registrar_##CLASS { \
+    NAME, [] { return std::unique_ptr<::mrroc::vsp::SensorPlugin>(new CLASS()); }     \
+  }

@@ -21,14 +21,10 @@ bool finite(const Eigen::Vector3d& v) { return v.allFinite(); }
 
 const char* kind_name(CartesianSegment::Kind kind) {
   switch (kind) {
-    case CartesianSegment::Kind::line:
-      return "line";
-    case CartesianSegment::Kind::line_by:
-      return "line by a displacement";
-    case CartesianSegment::Kind::arc_through:
-      return "three-point arc";
-    case CartesianSegment::Kind::arc_about:
-      return "arc about an axis";
+    case CartesianSegment::Kind::line: return "line";
+    case CartesianSegment::Kind::line_by: return "line by a displacement";
+    case CartesianSegment::Kind::arc_through: return "three-point arc";
+    case CartesianSegment::Kind::arc_about: return "arc about an axis";
   }
   return "?";
 }
@@ -62,12 +58,8 @@ struct ResolvedSegment {
     Eigen::Isometry3d f = Eigen::Isometry3d::Identity();
     f.translation() = arc ? circle.at(s) : Eigen::Vector3d(p0 + (p1 - p0) * s);
     switch (orientation) {
-      case Orientation::slerp:
-        f.linear() = q0.slerp(s, q1).normalized().toRotationMatrix();
-        break;
-      case Orientation::constant:
-        f.linear() = r0;
-        break;
+      case Orientation::slerp: f.linear() = q0.slerp(s, q1).normalized().toRotationMatrix(); break;
+      case Orientation::constant: f.linear() = r0; break;
       case Orientation::turn:
         f.linear() = Eigen::AngleAxisd(s * circle.angle, circle.normal).toRotationMatrix() * r0;
         break;

@@ -68,10 +68,10 @@ void JointPosesGenerator::begin_segment(const std::vector<double>& from) {
   const auto& to = poses_[pose_];
   double duration = 0.0;
   for (std::size_t j = 0; j < to.size(); ++j)
-    duration = std::max(duration, segment_duration(to[j] - from_[j],
-                                                   model_.max_velocity[j] * options_.velocity_scale,
-                                                   model_.max_acceleration[j] *
-                                                       options_.acceleration_scale));
+    duration = std::max(
+        duration,
+        segment_duration(to[j] - from_[j], model_.max_velocity[j] * options_.velocity_scale,
+                         model_.max_acceleration[j] * options_.acceleration_scale));
   const double macro_step_s = options_.motion_steps * options_.servo_period_s;
   segment_steps_ = std::max(1, static_cast<int>(std::ceil(duration / macro_step_s - 1e-9)));
   macro_step_ = 0;

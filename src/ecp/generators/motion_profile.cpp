@@ -29,10 +29,8 @@ double quintic_rate(double tau) { return 30.0 * tau * tau * (1.0 - tau) * (1.0 -
 
 const char* to_string(ProfileShape shape) {
   switch (shape) {
-    case ProfileShape::trapezoidal:
-      return "TRAPEZOIDAL";
-    case ProfileShape::quintic:
-      return "QUINTIC";
+    case ProfileShape::trapezoidal: return "TRAPEZOIDAL";
+    case ProfileShape::quintic: return "QUINTIC";
   }
   return "?";
 }

@@ -55,12 +55,8 @@ const TrajectoryPoint& TeachInRecorder::record(const RobotImage& image,
 
   TrajectoryPoint point;
   switch (trajectory_.representation) {
-    case edp::ArmRepresentation::joint:
-      point.values = q;
-      break;
-    case edp::ArmRepresentation::motor:
-      point.values = kinematics_->motors_from_joints(q);
-      break;
+    case edp::ArmRepresentation::joint: point.values = q; break;
+    case edp::ArmRepresentation::motor: point.values = kinematics_->motors_from_joints(q); break;
     default:
       point.values = kinematics::to_vector(kinematics_->forward(q), trajectory_.representation);
       break;

@@ -77,12 +77,9 @@ bool is_cartesian(edp::ArmRepresentation r) {
 
 const char* value_unit(edp::ArmRepresentation r) {
   switch (r) {
-    case edp::ArmRepresentation::joint:
-      return "joint values [rad]";
-    case edp::ArmRepresentation::motor:
-      return "motor shaft angles [rad]";
-    case edp::ArmRepresentation::frame:
-      return "values of the 3x4 matrix [R | p] row by row [-, m]";
+    case edp::ArmRepresentation::joint: return "joint values [rad]";
+    case edp::ArmRepresentation::motor: return "motor shaft angles [rad]";
+    case edp::ArmRepresentation::frame: return "values of the 3x4 matrix [R | p] row by row [-, m]";
     case edp::ArmRepresentation::xyz_euler_zyz:
       return "values x y z [m] and Euler Z-Y-Z angles [rad]";
     case edp::ArmRepresentation::xyz_angle_axis:

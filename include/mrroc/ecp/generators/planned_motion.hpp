@@ -6,8 +6,8 @@
 /// limits, and the generator then only sends the targets one by one.
 ///
 /// Macro-steps follow the paper's value_in_step_no pattern: every command but the last reads the
-/// arm in step early_reading_step(motion_steps) (seamless consecutive macro-steps), the last one after the stop
-/// (motion_steps + 1).
+/// arm in step early_reading_step(motion_steps) (seamless consecutive macro-steps), the last one
+/// after the stop (motion_steps + 1).
 
 #include <cstdint>
 #include <memory>

@@ -44,10 +44,10 @@ struct Received {
 
 /// Outcome of `Bus::send`.
 enum class SendResult {
-  sent,       ///< handed to the bus
-  busy,       ///< transmit queue full; try again next cycle
-  bus_off,    ///< the controller is bus-off (or the interface is down)
-  error,      ///< any other failure (see `Bus::last_error()`)
+  sent,     ///< handed to the bus
+  busy,     ///< transmit queue full; try again next cycle
+  bus_off,  ///< the controller is bus-off (or the interface is down)
+  error,    ///< any other failure (see `Bus::last_error()`)
 };
 
 /// Frame counters of one node.

@@ -64,15 +64,15 @@ std::string_view to_string(NmtState state);
 
 // --- Object dictionary indices used --------------------------------------------------------------
 namespace od {
-inline constexpr std::uint16_t kDeviceType = 0x1000;         ///< u32; CiA 402 servo: 0x00020192
-inline constexpr std::uint16_t kErrorRegister = 0x1001;      ///< u8
+inline constexpr std::uint16_t kDeviceType = 0x1000;     ///< u32; CiA 402 servo: 0x00020192
+inline constexpr std::uint16_t kErrorRegister = 0x1001;  ///< u8
 /// u32 communication cycle period [us]: the SYNC period; a drive supervises SYNC with it (0: off).
 inline constexpr std::uint16_t kCommunicationCyclePeriod = 0x1006;
 /// Consumer heartbeat time: sub 0 = entries (1), sub 1 = u32 (producer node << 16 | time [ms]);
 /// time 0 or node 0: not monitored.
 inline constexpr std::uint16_t kConsumerHeartbeatTime = 0x1016;
-inline constexpr std::uint16_t kHeartbeatTime = 0x1017;      ///< u16, producer heartbeat [ms]
-inline constexpr std::uint16_t kRpdo1Mapping = 0x1600;       ///< sub 0 = count, 1.. = entries
+inline constexpr std::uint16_t kHeartbeatTime = 0x1017;  ///< u16, producer heartbeat [ms]
+inline constexpr std::uint16_t kRpdo1Mapping = 0x1600;   ///< sub 0 = count, 1.. = entries
 inline constexpr std::uint16_t kTpdo1Mapping = 0x1A00;
 /// Error behaviour: sub 0 = 1, sub 1 = u8 NMT reaction to a communication error while
 /// operational: 0 enter pre-operational, 1 no change, 2 enter stopped.
@@ -82,20 +82,20 @@ inline constexpr std::uint16_t kEncoderResolution = 0x2002;  ///< u32, counts pe
 /// i16 abort connection option code (CiA 402): the device control reaction to a communication
 /// error (heartbeat or SYNC lost): 0 none, 1 fault, 2 disable voltage, 3 quick stop.
 inline constexpr std::uint16_t kAbortConnectionOption = 0x6007;
-inline constexpr std::uint16_t kControlword = 0x6040;        ///< u16
-inline constexpr std::uint16_t kStatusword = 0x6041;         ///< u16
-inline constexpr std::uint16_t kModesOfOperation = 0x6060;   ///< i8
-inline constexpr std::uint16_t kModesDisplay = 0x6061;       ///< i8
-inline constexpr std::uint16_t kPositionActual = 0x6064;     ///< i32 [counts]
+inline constexpr std::uint16_t kControlword = 0x6040;            ///< u16
+inline constexpr std::uint16_t kStatusword = 0x6041;             ///< u16
+inline constexpr std::uint16_t kModesOfOperation = 0x6060;       ///< i8
+inline constexpr std::uint16_t kModesDisplay = 0x6061;           ///< i8
+inline constexpr std::uint16_t kPositionActual = 0x6064;         ///< i32 [counts]
 inline constexpr std::uint16_t kFollowingErrorWindow = 0x6065;   ///< u32 [counts]
 inline constexpr std::uint16_t kFollowingErrorTimeout = 0x6066;  ///< u16 [ms]
-inline constexpr std::uint16_t kCurrentActual = 0x6078;      ///< i16 [per mille of rated]
-inline constexpr std::uint16_t kTargetPosition = 0x607A;     ///< i32 [counts]
+inline constexpr std::uint16_t kCurrentActual = 0x6078;          ///< i16 [per mille of rated]
+inline constexpr std::uint16_t kTargetPosition = 0x607A;         ///< i32 [counts]
 /// i16 quick stop option code: 2 ramp at 0x6085, then switch on disabled; 6 ramp at 0x6085,
 /// then stay in quick stop active (holding). Only these two are implemented.
 inline constexpr std::uint16_t kQuickStopOption = 0x605A;
 inline constexpr std::uint16_t kQuickStopDeceleration = 0x6085;  ///< u32 [counts/s^2]
-inline constexpr std::uint16_t kDigitalInputs = 0x60FD;      ///< u32, bit 2 home switch
+inline constexpr std::uint16_t kDigitalInputs = 0x60FD;          ///< u32, bit 2 home switch
 inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;    ///< sub 1: u8 value, sub 2: i8 exp
 inline constexpr std::uint32_t kServoDeviceType = 0x00020192;
 /// The fixed mapping entries (index << 16 | sub << 8 | bits).
@@ -160,14 +160,15 @@ std::uint16_t state_bits(DriveState state);
 
 /// Device control commands (controlword bits 0-3 and 7).
 enum class DriveCommand {
-  none,  ///< a pattern that is no command (e.g. 0x0000 is disable voltage: see below)
-  shutdown,          ///< 0bxxxx x110 -> ready to switch on
-  switch_on,         ///< 0bxxxx 0111 -> switched on
-  disable_voltage,   ///< 0bxxxx xx0x -> switch on disabled
-  quick_stop,        ///< 0bxxxx x01x -> quick stop active / switch on disabled
-  disable_operation, ///< 0bxxxx 0111 from operation enabled -> switched on (same bits as switch on)
-  enable_operation,  ///< 0bxxxx 1111 -> operation enabled
-  fault_reset,       ///< bit 7 (rising edge) -> switch on disabled
+  none,               ///< a pattern that is no command (e.g. 0x0000 is disable voltage: see below)
+  shutdown,           ///< 0bxxxx x110 -> ready to switch on
+  switch_on,          ///< 0bxxxx 0111 -> switched on
+  disable_voltage,    ///< 0bxxxx xx0x -> switch on disabled
+  quick_stop,         ///< 0bxxxx x01x -> quick stop active / switch on disabled
+  disable_operation,  ///< 0bxxxx 0111 from operation enabled -> switched on (same bits as switch
+                      ///< on)
+  enable_operation,   ///< 0bxxxx 1111 -> operation enabled
+  fault_reset,        ///< bit 7 (rising edge) -> switch on disabled
 };
 namespace controlword {
 inline constexpr std::uint16_t kShutdown = 0x0006;
@@ -206,9 +207,9 @@ namespace emcy {
 inline constexpr std::uint16_t kErrorReset = 0x0000;
 inline constexpr std::uint16_t kContinuousOverCurrent = 0x2310;
 inline constexpr std::uint16_t kDeviceHardware = 0x5000;
-inline constexpr std::uint16_t kPositionSensor = 0x7305;   ///< incremental sensor 1 fault
-inline constexpr std::uint16_t kCommunication = 0x8100;    ///< communication (SYNC lost)
-inline constexpr std::uint16_t kHeartbeatError = 0x8130;   ///< life guard / heartbeat error
+inline constexpr std::uint16_t kPositionSensor = 0x7305;  ///< incremental sensor 1 fault
+inline constexpr std::uint16_t kCommunication = 0x8100;   ///< communication (SYNC lost)
+inline constexpr std::uint16_t kHeartbeatError = 0x8130;  ///< life guard / heartbeat error
 inline constexpr std::uint16_t kRecoveredFromBusOff = 0x8140;
 inline constexpr std::uint16_t kFollowingError = 0x8611;
 }  // namespace emcy
@@ -259,7 +260,8 @@ can_frame encode_response(std::uint8_t node, const SdoResponse& response);
 std::optional<SdoRequest> decode_request(const can_frame& frame);
 std::optional<SdoResponse> decode_response(const can_frame& frame);
 
-// --- Bus load --------------------------------------------------------------------------------------
+// --- Bus load
+// --------------------------------------------------------------------------------------
 /// Bits on the wire of a classical base-format frame with `bytes` data bytes, including the
 /// 3-bit interframe space: nominal (no stuff bits) and worst case (every possible stuff bit).
 struct FrameBits {

@@ -46,13 +46,13 @@
 namespace mrroc::can {
 
 struct DriveConfig {
-  std::uint8_t node = 1;                ///< node id 1..127
-  double counts_per_unit = 100000.0;    ///< encoder counts per rad (or per m)
-  std::uint32_t following_error_window = 20000;  ///< [counts] (0x6065; 0 switches it off)
+  std::uint8_t node = 1;                          ///< node id 1..127
+  double counts_per_unit = 100000.0;              ///< encoder counts per rad (or per m)
+  std::uint32_t following_error_window = 20000;   ///< [counts] (0x6065; 0 switches it off)
   std::uint16_t following_error_timeout_ms = 10;  ///< 0x6066
   double current_limit = std::numeric_limits<double>::infinity();  ///< |force| limit [N m or N]
-  double over_current_time_s = 0.05;    ///< how long the limit may be exceeded
-  double quick_stop_deceleration = 5.0;  ///< [units/s^2] (0x6085 is in counts/s^2)
+  double over_current_time_s = 0.05;      ///< how long the limit may be exceeded
+  double quick_stop_deceleration = 5.0;   ///< [units/s^2] (0x6085 is in counts/s^2)
   double interpolation_period_s = 0.002;  ///< 0x60C2 (the master sets it to its cycle)
   /// SYNC supervision: no SYNC for this many 0x1006 periods is a communication error. A
   /// drive's own (manufacturer) setting; 25 periods (50 ms at 2 ms) tolerates a shared host
@@ -85,7 +85,9 @@ class Cia402Drive {
   /// Position the axis should be at now [units] (servo target, or the brake's hold position).
   [[nodiscard]] double demand() const noexcept { return demand_; }
   /// Velocity feed-forward for the demand [units/s] (0 when not powered).
-  [[nodiscard]] double demand_velocity() const noexcept { return powered() ? demand_velocity_ : 0.0; }
+  [[nodiscard]] double demand_velocity() const noexcept {
+    return powered() ? demand_velocity_ : 0.0;
+  }
   /// Motor torque on (operation enabled or quick stop active); otherwise the brake holds.
   [[nodiscard]] bool powered() const noexcept;
 
@@ -155,10 +157,10 @@ class Cia402Drive {
   std::uint16_t last_emcy_ = 0;
   std::uint64_t syncs_ = 0;
   // Supervision objects and state.
-  std::uint32_t consumer_heartbeat_ = 0;  ///< 0x1016 sub 1
-  std::uint32_t cycle_period_us_ = 0;     ///< 0x1006
-  std::uint8_t error_behaviour_ = canopen::error_behaviour::kPreOperational;  ///< 0x1029 sub 1
-  std::int16_t abort_connection_ = canopen::abort_connection::kFault;         ///< 0x6007
+  std::uint32_t consumer_heartbeat_ = 0;                                        ///< 0x1016 sub 1
+  std::uint32_t cycle_period_us_ = 0;                                           ///< 0x1006
+  std::uint8_t error_behaviour_ = canopen::error_behaviour::kPreOperational;    ///< 0x1029 sub 1
+  std::int16_t abort_connection_ = canopen::abort_connection::kFault;           ///< 0x6007
   std::int16_t quick_stop_option_ = canopen::quick_stop_option::kRampThenHold;  ///< 0x605A
   bool heartbeat_armed_ = false;
   double last_heartbeat_s_ = 0.0;

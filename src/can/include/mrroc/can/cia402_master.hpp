@@ -95,12 +95,14 @@ class Cia402Master {
   [[nodiscard]] const char* fault_text() const noexcept { return fault_; }
   [[nodiscard]] std::uint64_t cycle() const noexcept { return cycle_; }
   /// Drives' targets at the last `send` [counts]; for tests.
-  [[nodiscard]] std::int32_t target_counts(std::size_t axis) const noexcept { return targets_[axis]; }
+  [[nodiscard]] std::int32_t target_counts(std::size_t axis) const noexcept {
+    return targets_[axis];
+  }
 
   /// Expedited SDO transfers (blocking; for bring-up and tools). @throws mrroc::HardwareError.
   std::uint32_t sdo_read(std::uint8_t node, std::uint16_t index, std::uint8_t subindex);
-  void sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_t subindex,
-                 std::uint32_t value, std::uint8_t size);
+  void sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
+                 std::uint8_t size);
 
  private:
   void handle(const Received& frame) noexcept;

@@ -25,6 +25,7 @@
 #include <span>
 
 #include "macro_step_queue.hpp"
+#include "mrroc/core/time.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::edp {
@@ -36,7 +37,7 @@ struct BlendInput {
   const MacroStep* step = nullptr;      ///< target, steps, value_in_step_no
   /// The macro-steps queued behind it, oldest first (at most MacroStepQueue::kCapacity).
   std::span<const MacroStep* const> following;
-  double period_s = 0.002;
+  double period_s = kDefaultServoPeriodS;
   bool after_ramp = false;  ///< it starts where a stopping ramp left the robot (for the message)
 };
 

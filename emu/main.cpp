@@ -73,7 +73,7 @@ struct Port {
   std::unique_ptr<can::Bus> bus;
   std::vector<Drive*> drives;
   std::uint64_t syncs = 0;
-  double period_s = 0.002;
+  double period_s = kDefaultServoPeriodS;
 };
 
 struct RobotRun {

@@ -94,7 +94,7 @@ struct Sample {
 struct RobotView {
   std::string name;
   RobotModel model;
-  double servo_period_s = 0.002;
+  double servo_period_s = kDefaultServoPeriodS;
   std::optional<mrroc_lcm::robot_state_t> state;
   SteadyClock::time_point received{};
   std::deque<Sample> samples;

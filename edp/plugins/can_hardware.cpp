@@ -225,7 +225,7 @@ class CanHardware final : public Hardware {
   Eigen::VectorXd q_previous_;
   std::vector<double> target_a_;
   std::chrono::milliseconds timeout_{5000};
-  double period_s_ = 0.002;
+  double period_s_ = kDefaultServoPeriodS;
   bool active_ = false;
   bool first_read_ = true;
   std::atomic<bool> quick_stop_{false};

@@ -73,7 +73,7 @@ class MockHardware : public Hardware {
  private:
   std::size_t axes_ = 0;
   double offset_ = 0.05;
-  double period_ = 0.002;
+  double period_ = kDefaultServoPeriodS;
   bool active_ = false;
   std::vector<double> synchro_, power_on_, raw_, velocity_;
 };

@@ -6,6 +6,51 @@ namespace mrroc::comm {
 
 namespace {
 
+// The plain C++ types (include/mrroc/msg/) and the wire definitions (src/msg/*.lcm) name the same
+// numbers: a change on one side that the other does not follow stops the build here.
+template <class E>
+constexpr bool same(E cpp, std::int8_t wire) {
+  return static_cast<std::int8_t>(cpp) == wire;
+}
+using edp::ArmRepresentation;
+using edp::InstructionType;
+using edp::MotionType;
+using edp::ReplyType;
+using Ins = mrroc_lcm::edp_instruction_t;
+static_assert(same(InstructionType::set, Ins::SET) && same(InstructionType::get, Ins::GET) &&
+              same(InstructionType::set_get, Ins::SET_GET) &&
+              same(InstructionType::synchro, Ins::SYNCHRO) &&
+              same(InstructionType::query, Ins::QUERY));
+static_assert(edp::item::arm == Ins::ARM_BIT && edp::item::tool == Ins::TOOL_BIT &&
+              edp::item::model == Ins::MODEL_BIT && edp::item::servo == Ins::SERVO_BIT &&
+              edp::item::outputs == Ins::OUTPUTS_BIT && edp::item::inputs == Ins::INPUTS_BIT &&
+              edp::item::timing == Ins::TIMING_BIT);
+static_assert(same(ArmRepresentation::frame, Ins::FRAME) &&
+              same(ArmRepresentation::xyz_euler_zyz, Ins::XYZ_EULER_ZYZ) &&
+              same(ArmRepresentation::xyz_angle_axis, Ins::XYZ_ANGLE_AXIS) &&
+              same(ArmRepresentation::joint, Ins::JOINT) &&
+              same(ArmRepresentation::motor, Ins::MOTOR));
+static_assert(same(MotionType::absolute, Ins::ABSOLUTE) &&
+              same(MotionType::relative, Ins::RELATIVE));
+using Rep = mrroc_lcm::edp_reply_t;
+static_assert(same(ReplyType::acknowledge, Rep::ACKNOWLEDGE) && same(ReplyType::data, Rep::DATA) &&
+              same(ReplyType::error, Rep::ERROR));
+using Cmd = mrroc_lcm::mp_ecp_command_t;
+static_assert(same(ecp::MpCommandType::start_task, Cmd::START_TASK) &&
+              same(ecp::MpCommandType::next_pose, Cmd::NEXT_POSE) &&
+              same(ecp::MpCommandType::end_motion, Cmd::END_MOTION) &&
+              same(ecp::MpCommandType::next_state, Cmd::NEXT_STATE) &&
+              same(ecp::MpCommandType::stop, Cmd::STOP) &&
+              same(ecp::MpCommandType::pause, Cmd::PAUSE) &&
+              same(ecp::MpCommandType::resume, Cmd::RESUME));
+using EcpRep = mrroc_lcm::ecp_mp_reply_t;
+static_assert(same(ecp::EcpReplyType::acknowledge, EcpRep::ACKNOWLEDGE) &&
+              same(ecp::EcpReplyType::task_terminated, EcpRep::TASK_TERMINATED) &&
+              same(ecp::EcpReplyType::error, EcpRep::ERROR));
+static_assert(same(ecp::ErrorClass::non_fatal, EcpRep::NON_FATAL) &&
+              same(ecp::ErrorClass::fatal, EcpRep::FATAL) &&
+              same(ecp::ErrorClass::system, EcpRep::SYSTEM));
+
 using L = mrroc_lcm::edp_instruction_t;
 
 template <class E>

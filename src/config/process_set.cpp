@@ -574,7 +574,8 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
       r.require_path(*edp.get("library"), robot.edp.library, Reader::Kind::any,
                      "hardware plugin library");
     }
-    robot.edp.servo_period_s = r.number(edp, "servo_period_ms", 2.0, 0.1, 100.0, "ms") / 1000.0;
+    robot.edp.servo_period_s =
+        r.number(edp, "servo_period_ms", kDefaultServoPeriodS * 1000.0, 0.1, 100.0, "ms") / 1000.0;
     if (const toml::node* la = edp.get("lookahead")) {
       if (!la->is_integer())
         r.fail(*la, fmt::format("'lookahead' must be an integer (macro-steps queued ahead of the "

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "mrroc/config/params.hpp"
+#include "mrroc/core/time.hpp"
 
 namespace mrroc {
 
@@ -97,7 +98,7 @@ inline constexpr int kMaxLookahead = 64;
 struct EdpConfig {
   std::string plugin;             ///< hardware plugin name, e.g. "mujoco"
   std::filesystem::path library;  ///< shared library registering the plugin (optional)
-  double servo_period_s = 0.002;  ///< servo period [s]
+  double servo_period_s = kDefaultServoPeriodS;  ///< servo period [s]
   /// Macro-steps queued ahead of the servo loop (1..kMaxLookahead; 1: the paper's one successor,
   /// for sensor-driven generators that need the shortest reaction).
   int lookahead = kDefaultLookahead;

@@ -7,6 +7,10 @@
 
 namespace mrroc {
 
+/// The servo period of an EDP whose config does not say otherwise ([robot.edp] servo_period_ms),
+/// and the default of everything that must agree with it (generators, the CiA 402 cycle) [s].
+inline constexpr double kDefaultServoPeriodS = 0.002;
+
 /// Wall-clock time [us since the Unix epoch] (message stamps).
 std::int64_t now_utime();
 /// Monotonic time [ns] (timeouts, loops).

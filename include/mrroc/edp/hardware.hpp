@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "mrroc/config/params.hpp"
+#include "mrroc/core/time.hpp"
 
 namespace mrroc::edp {
 
@@ -38,9 +39,9 @@ struct AxisFeedback {
 
 /// What a plugin is given at configure time.
 struct HardwareSetup {
-  std::string robot;                ///< robot name from the config, e.g. "irb6"
-  std::filesystem::path model_dir;  ///< robots/<name>/ folder (URDF, MJCF, parameters)
-  double servo_period_s = 0.002;    ///< servo period [s]
+  std::string robot;                             ///< robot name from the config, e.g. "irb6"
+  std::filesystem::path model_dir;               ///< robots/<name>/ folder (URDF, MJCF, parameters)
+  double servo_period_s = kDefaultServoPeriodS;  ///< servo period [s]
   std::vector<double>
       synchro_positions;  ///< joint position at which each axis' switch toggles [rad]
   Params params;          ///< the plugin's own table from the config

@@ -18,6 +18,7 @@
 
 #include <Eigen/Geometry>
 
+#include "mrroc/core/time.hpp"
 #include "mrroc/ecp/generators/motion_profile.hpp"
 #include "mrroc/ecp/generators/planned_motion.hpp"
 
@@ -44,8 +45,8 @@ struct CartesianOptions {
   int kinematic_model_no = 0;
   int corrector_no = 0;
   bool set_tool_and_model = true;
-  int motion_steps = 10;          ///< servo steps per macro-step (2..1000)
-  double servo_period_s = 0.002;  ///< the EDP's servo period [s]
+  int motion_steps = 10;                         ///< servo steps per macro-step (2..1000)
+  double servo_period_s = kDefaultServoPeriodS;  ///< the EDP's servo period [s]
 };
 
 /// One piece of a Cartesian path, starting where the previous one ends (the first one at the

@@ -6,6 +6,7 @@
 
 #include <vector>
 
+#include "mrroc/core/time.hpp"
 #include "mrroc/ecp/generators/motion_profile.hpp"
 #include "mrroc/ecp/generators/planned_motion.hpp"
 
@@ -26,8 +27,8 @@ struct InterpolationOptions {
   /// ArmKinematics::motors_from_joints).
   std::vector<double> max_velocity;
   std::vector<double> max_acceleration;
-  int motion_steps = 10;          ///< servo steps per macro-step (2..1000)
-  double servo_period_s = 0.002;  ///< the EDP's servo period [s]
+  int motion_steps = 10;                         ///< servo steps per macro-step (2..1000)
+  double servo_period_s = kDefaultServoPeriodS;  ///< the EDP's servo period [s]
 };
 
 /// A pose to reach, and how.

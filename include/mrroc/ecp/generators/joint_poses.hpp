@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "mrroc/core/time.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 
 #include "mrroc/ecp/generator.hpp"
@@ -17,7 +18,7 @@ struct JointPosesOptions {
   double velocity_scale = 0.5;      ///< fraction of the model's max joint velocity (0..1]
   double acceleration_scale = 0.5;  ///< fraction of the model's max joint acceleration (0..1]
   int motion_steps = 10;            ///< servo steps per macro-step (>= 2)
-  double servo_period_s = 0.002;    ///< EDP servo period [s]
+  double servo_period_s = kDefaultServoPeriodS;  ///< EDP servo period [s]
 };
 
 class JointPosesGenerator : public Generator {

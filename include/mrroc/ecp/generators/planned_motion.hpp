@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "mrroc/core/time.hpp"
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/ecp/generators/motion_profile.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
@@ -33,12 +34,12 @@ struct PlannedSegment {
 /// Every macro-step of a motion, computed before its first command.
 struct MotionPlan {
   edp::ArmRepresentation representation = edp::ArmRepresentation::joint;
-  int motion_steps = 10;                     ///< servo steps per macro-step
-  double servo_period_s = 0.002;             ///< [s]
-  std::vector<double> start_joints;          ///< where the plan starts [rad]
-  std::vector<double> start;                 ///< the same, in `representation`
-  std::vector<std::vector<double>> targets;  ///< SET ARM values of each macro-step (absolute)
-  std::vector<std::vector<double>> joints;   ///< joints of each macro-step target [rad]
+  int motion_steps = 10;                         ///< servo steps per macro-step
+  double servo_period_s = kDefaultServoPeriodS;  ///< [s]
+  std::vector<double> start_joints;              ///< where the plan starts [rad]
+  std::vector<double> start;                     ///< the same, in `representation`
+  std::vector<std::vector<double>> targets;      ///< SET ARM values of each macro-step (absolute)
+  std::vector<std::vector<double>> joints;       ///< joints of each macro-step target [rad]
   std::vector<PlannedSegment> segments;
 
   /// Settings the first command also SETs (Cartesian plans: the tool and kinematic model the

@@ -42,6 +42,7 @@
 #include <limits>
 
 #include "mrroc/can/canopen.hpp"
+#include "mrroc/core/time.hpp"
 
 namespace mrroc::can {
 
@@ -51,9 +52,10 @@ struct DriveConfig {
   std::uint32_t following_error_window = 20000;   ///< [counts] (0x6065; 0 switches it off)
   std::uint16_t following_error_timeout_ms = 10;  ///< 0x6066
   double current_limit = std::numeric_limits<double>::infinity();  ///< |force| limit [N m or N]
-  double over_current_time_s = 0.05;      ///< how long the limit may be exceeded
-  double quick_stop_deceleration = 5.0;   ///< [units/s^2] (0x6085 is in counts/s^2)
-  double interpolation_period_s = 0.002;  ///< 0x60C2 (the master sets it to its cycle)
+  double over_current_time_s = 0.05;     ///< how long the limit may be exceeded
+  double quick_stop_deceleration = 5.0;  ///< [units/s^2] (0x6085 is in counts/s^2)
+  /// 0x60C2 (the master sets it to its cycle)
+  double interpolation_period_s = kDefaultServoPeriodS;
   /// SYNC supervision: no SYNC for this many 0x1006 periods is a communication error. A
   /// drive's own (manufacturer) setting; 25 periods (50 ms at 2 ms) tolerates a shared host
   /// holding the emulator or the EDP back for 20 ms or more (a CI run saw 22 ms).

@@ -37,6 +37,7 @@
 
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
+#include "mrroc/core/time.hpp"
 
 namespace mrroc::can {
 
@@ -51,8 +52,9 @@ struct MasterAxis {
 };
 
 struct MasterOptions {
-  double period_s = 0.002;  ///< cycle; must be a whole number of milliseconds (0x60C2)
-  int silent_cycles = 10;   ///< cycles without a TPDO before a drive counts as silent
+  /// cycle; must be a whole number of milliseconds (0x60C2)
+  double period_s = kDefaultServoPeriodS;
+  int silent_cycles = 10;  ///< cycles without a TPDO before a drive counts as silent
   std::chrono::milliseconds sdo_timeout{100};
   int sdo_attempts = 3;
   std::uint16_t heartbeat_ms = 100;  ///< producer heartbeat the drives are told to send

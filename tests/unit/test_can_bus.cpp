@@ -36,22 +36,8 @@
 #include "mrroc/can/bus.hpp"
 #include "mrroc/core/error.hpp"
 
-// ---- Allocation counting (operator new on threads that ask for it) ----
-
-namespace {
-thread_local bool t_count_allocations = false;
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-// The replacements pair malloc with free; gcc cannot see that they match.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t size) {
-  if (t_count_allocations) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+// Allocation counting (operator new on threads that ask for it).
+#include "heap_counter.hpp"
 
 namespace {
 
@@ -528,8 +514,8 @@ TEST(VirtualBus, SendAndReceiveDoNotAllocate) {
     (void)a->send(make_frame(0x100));
     (void)b->receive(r, 1ms);
   }
-  g_allocations = 0;
-  t_count_allocations = true;
+  g_heap.allocations = 0;
+  t_heap_counting = true;
   int got = 0;
   for (int i = 0; i < 1000; ++i) {
     (void)a->send(make_frame(static_cast<canid_t>(i % 2 == 0 ? 0x101 : 0x301),
@@ -540,8 +526,8 @@ TEST(VirtualBus, SendAndReceiveDoNotAllocate) {
     (void)a->stats();
   }
   (void)a->send(make_frame(0x100, 0, 9));  // the error path formats last_error without allocating
-  t_count_allocations = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  t_heap_counting = false;
+  EXPECT_EQ(g_heap.allocations.load(), 0);
   EXPECT_EQ(got, 1500);
 }
 
@@ -902,15 +888,15 @@ TEST(SocketCan, SendAndReceiveDoNotAllocate) {
   can::Received r;
   (void)a->send(make_frame(0x10));
   (void)b->receive(r, 100ms);
-  g_allocations = 0;
-  t_count_allocations = true;
+  g_heap.allocations = 0;
+  t_heap_counting = true;
   int got = 0;
   for (int i = 0; i < 200; ++i) {
     (void)a->send(make_frame(0x10, static_cast<std::uint64_t>(i)));
     if (b->receive(r, 100ms)) ++got;
   }
-  t_count_allocations = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  t_heap_counting = false;
+  EXPECT_EQ(g_heap.allocations.load(), 0);
   EXPECT_EQ(got, 200);
 }
 

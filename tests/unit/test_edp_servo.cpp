@@ -21,20 +21,7 @@
 #include "servo_loop.hpp"
 
 // Allocation counting: every operator new on the watched thread is counted.
-namespace {
-std::atomic<long> g_allocations{0};
-std::atomic<std::thread::id> g_watched{};
-}  // namespace
-
-// The replacements pair malloc with free; gcc cannot see that they match.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t size) {
-  if (g_watched.load(std::memory_order_relaxed) == std::this_thread::get_id()) ++g_allocations;
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "heap_counter.hpp"
 
 using namespace mrroc;
 using namespace mrroc::edp;
@@ -58,7 +45,7 @@ class EdpTest : public ::testing::Test {
     interpreter_ = std::make_unique<CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
   }
   void TearDown() override {
-    g_watched = std::thread::id{};
+    g_heap.watched = std::thread::id{};
     servo_->stop();
   }
 
@@ -295,15 +282,15 @@ TEST_F(EdpDefaultLookaheadTest, ConsecutiveMacroStepsHaveNoIdleServoStep) {
 
 TEST_F(EdpDefaultLookaheadTest, ServoCycleDoesNotAllocate) {
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  g_watched = servo_->servo_thread_id();
-  g_allocations = 0;
+  g_heap.watched = servo_->servo_thread_id();
+  g_heap.allocations = 0;
   ASSERT_EQ(synchronise().type, ReplyType::data);  // synchronisation runs in the servo cycle
   // 20 macro-steps of the shoulder at 0.05 rad/s, each read one step early, between a
   // macro-step that accelerates to it and one that brings it to rest.
   run_cruise(1, 0.05, 60, 10, 20, 1, [](std::size_t) {});
   const std::int64_t cycles = servo_->latest().cycle;
-  g_watched = std::thread::id{};
-  EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in the servo thread";
+  g_heap.watched = std::thread::id{};
+  EXPECT_EQ(g_heap.allocations.load(), 0) << "heap allocations in the servo thread";
   EXPECT_GT(cycles, 200);
   const TimingStats t = servo_->timing();
   std::printf("servo: %lld cycles, lateness p50 %.1f us p99 %.1f us, %lld overruns (%s)\n",

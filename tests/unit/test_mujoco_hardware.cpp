@@ -30,25 +30,8 @@
 #error "MRROC_SOURCE_DIR must be defined (absolute path of the source tree)"
 #endif
 
-// ---- Heap allocation counter: read() and write() must not allocate. ----
-namespace {
-std::atomic<bool> g_count_allocations{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-// Replacements of the global allocation functions (kept out of line so that the compiler does not
-// pair an inlined free() with operator new at call sites).
-[[gnu::noinline]] void* operator new(std::size_t size) {
-  if (g_count_allocations.load(std::memory_order_relaxed)) {
-    g_allocations.fetch_add(1, std::memory_order_relaxed);
-  }
-  if (void* p = std::malloc(size == 0 ? 1 : size)) {
-    return p;
-  }
-  throw std::bad_alloc();
-}
-[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
-[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+// Heap allocation counter: read() and write() must not allocate.
+#include "heap_counter.hpp"
 
 namespace {
 
@@ -180,19 +163,19 @@ TEST(MujocoHardware, TracksASmoothTrajectoryAndSwitchesAtTheSynchroPosition) {
   }
 
   // The counter works.
-  g_allocations = 0;
-  g_count_allocations = true;
+  g_heap.allocations = 0;
+  g_heap.counting = true;
   ::operator delete(::operator new(16));
-  g_count_allocations = false;
-  ASSERT_EQ(g_allocations.load(), 1);
+  g_heap.counting = false;
+  ASSERT_EQ(g_heap.allocations.load(), 1);
 
   const auto started = std::chrono::steady_clock::now();
-  g_allocations = 0;
+  g_heap.allocations = 0;
   for (int k = 0; k <= total_cycles; ++k) {
     const double t = k * kPeriod;
-    g_count_allocations = true;
+    g_heap.counting = true;
     const CycleStatus read_status = hw.read(fb);
-    g_count_allocations = false;
+    g_heap.counting = false;
     ASSERT_EQ(read_status, CycleStatus::ok) << hw.fault_text();
     ASSERT_NEAR(d->time, t, 1e-9) << "one write() = one servo period";
 
@@ -217,14 +200,14 @@ TEST(MujocoHardware, TracksASmoothTrajectoryAndSwitchesAtTheSynchroPosition) {
     for (std::size_t i = 0; i < kAxes; ++i) {
       setpoint[i] = reference((k + 1) * kPeriod);
     }
-    g_count_allocations = true;
+    g_heap.counting = true;
     const CycleStatus write_status = hw.write(setpoint);
-    g_count_allocations = false;
+    g_heap.counting = false;
     ASSERT_EQ(write_status, CycleStatus::ok) << hw.fault_text();
   }
   const double elapsed =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  EXPECT_EQ(g_allocations.load(), 0) << "read()/write() allocated on the heap";
+  EXPECT_EQ(g_heap.allocations.load(), 0) << "read()/write() allocated on the heap";
 
   ASSERT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
   const std::array<const char*, kAxes> names = {"column", "lower_arm", "upper_arm", "wrist_pitch",
@@ -627,12 +610,12 @@ TEST(MujocoHardwareRnt, TracksAJointTrajectoryThroughTheParallelogram) {
   std::array<double, kRntAxes> max_error{};
   double max_violation = 0.0;
   double max_elbow_mismatch = 0.0;
-  g_allocations = 0;
+  g_heap.allocations = 0;
   for (int k = 0; k <= total_cycles; ++k) {
     const double t = k * kPeriod;
-    g_count_allocations = true;
+    g_heap.counting = true;
     const CycleStatus read_status = hw.read(fb);
-    g_count_allocations = false;
+    g_heap.counting = false;
     ASSERT_EQ(read_status, CycleStatus::ok) << hw.fault_text();
     // The reading is in joint coordinates: q2 = elbow_drive - shoulder.
     const double a1 = joint_qpos(m, d, "shoulder");
@@ -650,16 +633,16 @@ TEST(MujocoHardwareRnt, TracksAJointTrajectoryThroughTheParallelogram) {
     for (std::size_t i = 0; i < kRntAxes; ++i) {
       setpoint[i] = reference(i, (k + 1) * kPeriod);
     }
-    g_count_allocations = true;
+    g_heap.counting = true;
     const CycleStatus write_status = hw.write(setpoint);
-    g_count_allocations = false;
+    g_heap.counting = false;
     ASSERT_EQ(write_status, CycleStatus::ok) << hw.fault_text();
     // The elbow drive is commanded with the absolute forearm pitch q1 + q2.
     ASSERT_NEAR(d->ctrl[kElbow],
                 setpoint[kShoulder] + power_on[kShoulder] + setpoint[kElbow] + power_on[kElbow],
                 1e-12);
   }
-  EXPECT_EQ(g_allocations.load(), 0) << "read()/write() allocated on the heap";
+  EXPECT_EQ(g_heap.allocations.load(), 0) << "read()/write() allocated on the heap";
 
   ASSERT_EQ(hw.read(fb), CycleStatus::ok) << hw.fault_text();
   const std::array<const char*, kRntAxes> names = {"waist",       "shoulder",  "elbow",

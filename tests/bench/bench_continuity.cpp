@@ -33,7 +33,7 @@
 #include <thread>
 #include <vector>
 
-#include "../integration/busy_loops.hpp"
+#include "busy_loops.hpp"
 
 namespace {
 

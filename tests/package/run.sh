@@ -11,7 +11,7 @@ trap 'rm -rf "$WORK"' EXIT
 cmake --install "$BUILD" --prefix "$WORK/prefix" >/dev/null
 cmake -S "$SOURCE" -B "$WORK/build" -DCMAKE_PREFIX_PATH="$WORK/prefix" | grep "headers compiled"
 cmake --build "$WORK/build" -j2 >/dev/null
-echo "every installed header compiled alone"
+echo "every installed header compiled alone; the extension points without LCM and TOML"
 "$WORK/build/consumer" "$WORK/prefix/share/mrroc/robots/irb6"
 cat > "$WORK/wave.toml" <<TOML
 [system]

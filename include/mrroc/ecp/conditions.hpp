@@ -13,7 +13,6 @@
 #include <optional>
 
 #include "mrroc/ecp/generator.hpp"
-#include "mrroc/ecp/robot.hpp"
 
 namespace mrroc::ecp {
 

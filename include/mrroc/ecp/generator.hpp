@@ -11,7 +11,7 @@
 
 #include <vector>
 
-#include "mrroc/ecp/robot.hpp"
+#include "mrroc/ecp/robot_image.hpp"
 
 namespace mrroc::ecp {
 

@@ -15,7 +15,7 @@
 #include "mrroc/ecp/generators/interpolation.hpp"
 #include "mrroc/ecp/generators/planned_motion.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
-#include "mrroc/ecp/robot.hpp"
+#include "mrroc/ecp/robot_image.hpp"
 
 namespace mrroc::ecp {
 

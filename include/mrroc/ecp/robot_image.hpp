@@ -1,0 +1,57 @@
+#pragma once
+/// @file
+/// What generators and conditions see of a robot: its image (paper, section 3), and the errors a
+/// motion ends with. No LCM, no config reader: a user's generator compiles against this alone
+/// (the EDP client that fills the image in is ecp::Robot, mrroc/ecp/robot.hpp).
+
+#include <cstdint>
+#include <vector>
+
+#include "mrroc/core/error.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
+#include "mrroc/robot/robot_model.hpp"
+
+namespace mrroc::ecp {
+
+class Robot;
+
+/// Servo steps of one macro-step that moves the joints by `delta` from rest to rest within
+/// `fraction` (0, 1] of each joint's velocity and acceleration limits, as the EDP moves it (it
+/// accelerates uniformly over the first half and decelerates over the second: peak velocity
+/// 2 d / T, acceleration 4 d / T^2; docs/edp.md, "Acceleration"), lasting at least `min_s`.
+/// The console's jogs use it.
+int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta, double fraction,
+                       double period_s, double min_s = 0.0);
+
+/// What generators see of a robot. Joint values in rad.
+struct RobotImage {
+  bool synchronised = false;
+  std::vector<double> joints;            ///< measured (from the EDP's last reply)
+  std::vector<double> desired_joints;    ///< commanded (from the EDP's last reply)
+  std::vector<double> joint_velocities;  ///< measured [rad/s]
+  int step_no = 0;                       ///< step of the macro-step the reading was taken in
+  /// Macro-steps queued in the EDP when the reading was taken (the running one included): with
+  /// a lookahead above 1 the reading is older than the command just sent (docs/edp.md).
+  int macro_steps_ahead = 0;
+  std::int64_t servo_cycle = 0;
+  /// The last reading in the representation the command asked for (GET ARM), e.g. a frame.
+  edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
+  std::vector<double> arm;
+
+  /// The instruction the next exchange sends (a generator fills it in each step).
+  edp::Instruction command;
+};
+
+/// Thrown when the EDP refuses an instruction (code and text are the EDP's).
+class EdpRefused : public RemoteError {
+ public:
+  using RemoteError::RemoteError;
+};
+
+/// Thrown inside Move/Wait when the task is asked to stop.
+class TaskStopped : public Error {
+ public:
+  using Error::Error;
+};
+
+}  // namespace mrroc::ecp

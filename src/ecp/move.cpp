@@ -3,6 +3,7 @@
 
 #include "mrroc/core/process.hpp"
 #include "mrroc/ecp/generator.hpp"
+#include "mrroc/ecp/robot.hpp"
 
 namespace mrroc::ecp {
 

@@ -174,9 +174,15 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
   switch (command.type) {
     case MpCommandType::start_task:
       robot_.clear_stop();  // a STOP ends one run, not the next one
+      // A run drives the robot from its first instruction, whoever drove it last (the console's
+      // jogs between runs, which it makes only while the MP is idle; docs/edp.md, "One owner").
       if (!start_activity(
               fmt::format("task '{}'", config_.ecp.name),
-              [this] { return run_task(config_.ecp.name, config_.ecp.args); }, responder))
+              [this] {
+                robot_.take_over_next();
+                return run_task(config_.ecp.name, config_.ecp.args);
+              },
+              responder))
         busy();
       break;
     case MpCommandType::next_state: {
@@ -187,6 +193,7 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
       if (!start_activity(
               fmt::format("sub-task '{}'", state),
               [this, state, arguments, origin] {
+                robot_.take_over_next();
                 const Params args = params_from_toml(arguments, origin);
                 return run_task(state, args);
               },

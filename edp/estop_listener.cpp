@@ -36,7 +36,7 @@ EstopListener::EstopListener(ServoLoop& servo, std::string robot, const std::str
   bus_.set_drop_sink(std::move(drop_sink));
   reason_ = "the EDP starts stopped until it hears the emergency stop's state";
   servo_.emergency_stop();  // before anything can move
-  bus_.lcm().subscribeFunction<EstopListener*>(
+  bus_.subscribe<EstopListener*>(
       channels::emergency_stop,
       +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, EstopListener* self) {
         Stop m;

@@ -49,7 +49,7 @@ void refuse_if_another_edp(mrroc::comm::Bus& bus, const std::string& robot,
     std::int64_t servo_step = 0;
   } seen;
   const std::string channel = mrroc::channels::robot_state(robot);
-  lcm::Subscription* sub = bus.lcm().subscribeFunction<Seen*>(
+  mrroc::comm::Subscription* sub = bus.subscribe<Seen*>(
       channel,
       +[](const lcm::ReceiveBuffer* buffer, const std::string&, Seen* s) {
         mrroc_lcm::robot_state_t m;
@@ -60,7 +60,7 @@ void refuse_if_another_edp(mrroc::comm::Bus& bus, const std::string& robot,
       },
       &seen);
   std::this_thread::sleep_for(kOtherEdpListen);
-  bus.lcm().unsubscribe(sub);
+  bus.unsubscribe(sub);
   std::lock_guard lock(seen.mutex);
   if (!seen.sender.empty())
     throw mrroc::Error(fmt::format(

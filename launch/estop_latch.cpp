@@ -22,7 +22,7 @@ EstopLatch::EstopLatch(comm::Bus& bus, std::vector<std::string> robots,
                        std::function<void(const std::string&)> log)
     : bus_(bus), sender_(comm::unique_endpoint_name("launch")), log_(std::move(log)) {
   for (auto& r : robots) robots_[std::move(r)] = Latched{};
-  subscription_ = bus_.lcm().subscribeFunction<EstopLatch*>(
+  subscription_ = bus_.subscribe<EstopLatch*>(
       channels::emergency_stop,
       +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, EstopLatch* self) {
         Stop m;
@@ -42,7 +42,7 @@ EstopLatch::EstopLatch(comm::Bus& bus, std::vector<std::string> robots,
 }
 
 EstopLatch::~EstopLatch() {
-  bus_.lcm().unsubscribe(subscription_);
+  bus_.unsubscribe(subscription_);
   {
     std::lock_guard lock(mutex_);
     stop_ = true;
@@ -128,8 +128,8 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
     std::string announcer;                    // sender of stop announcements
     std::map<std::string, std::string> edps;  // robot -> sender
   } heard;
-  std::vector<lcm::Subscription*> subs;
-  subs.push_back(bus.lcm().subscribeFunction<Heard*>(
+  std::vector<mrroc::comm::Subscription*> subs;
+  subs.push_back(bus.subscribe<Heard*>(
       channels::launch_status,
       +[](const lcm::ReceiveBuffer* b, const std::string&, Heard* h) {
         mrroc_lcm::launch_status_t m;
@@ -140,7 +140,7 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
             m.launcher_pid, m.header.sender, m.set_name, m.config_file, m.state, m.uptime_s);
       },
       &heard));
-  subs.push_back(bus.lcm().subscribeFunction<Heard*>(
+  subs.push_back(bus.subscribe<Heard*>(
       channels::emergency_stop,
       +[](const lcm::ReceiveBuffer* b, const std::string&, Heard* h) {
         Stop m;
@@ -151,7 +151,7 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
       },
       &heard));
   for (const std::string& robot : robots)
-    subs.push_back(bus.lcm().subscribeFunction<Heard*>(
+    subs.push_back(bus.subscribe<Heard*>(
         channels::robot_state(robot),
         +[](const lcm::ReceiveBuffer* b, const std::string&, Heard* h) {
           mrroc_lcm::robot_state_t m;
@@ -178,7 +178,7 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
   }
-  for (lcm::Subscription* s : subs) bus.lcm().unsubscribe(s);
+  for (mrroc::comm::Subscription* s : subs) bus.unsubscribe(s);
   std::lock_guard lock(heard.mutex);
   if (heard.table.empty() && heard.announcer.empty() && heard.edps.empty()) return std::nullopt;
   RunningSet out;

@@ -57,7 +57,7 @@ class EstopLatch {
   comm::Bus& bus_;
   const std::string sender_;
   std::function<void(const std::string&)> log_;
-  lcm::Subscription* subscription_ = nullptr;
+  mrroc::comm::Subscription* subscription_ = nullptr;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   std::map<std::string, Latched> robots_;

@@ -154,7 +154,7 @@ class AckInbox {
     std::string sender;
   };
   AckInbox(comm::Bus& bus, std::string set_name) : bus_(bus), set_name_(std::move(set_name)) {
-    subscription_ = bus_.lcm().subscribeFunction<AckInbox*>(
+    subscription_ = bus_.subscribe<AckInbox*>(
         kCommandChannel,
         +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, AckInbox* self) {
           mrroc_lcm::launch_command_t m;
@@ -171,7 +171,7 @@ class AckInbox {
         },
         this);
   }
-  ~AckInbox() { bus_.lcm().unsubscribe(subscription_); }
+  ~AckInbox() { bus_.unsubscribe(subscription_); }
   AckInbox(const AckInbox&) = delete;
   AckInbox& operator=(const AckInbox&) = delete;
   std::vector<Ack> take() {
@@ -182,7 +182,7 @@ class AckInbox {
  private:
   comm::Bus& bus_;
   std::string set_name_;
-  lcm::Subscription* subscription_ = nullptr;
+  mrroc::comm::Subscription* subscription_ = nullptr;
   std::mutex mutex_;
   std::vector<Ack> acks_;
   std::uint64_t dropped_ = 0;

@@ -271,7 +271,7 @@ std::optional<LaunchStatus> receive_status(comm::Bus& bus, const std::string& se
     in->status = std::move(s);
     in->cv.notify_all();
   };
-  lcm::Subscription* sub = bus.lcm().subscribeFunction<Inbox*>(
+  mrroc::comm::Subscription* sub = bus.subscribe<Inbox*>(
       channels::launch_status,
       static_cast<void (*)(const lcm::ReceiveBuffer*, const std::string&, Inbox*)>(handler),
       &inbox);
@@ -283,7 +283,7 @@ std::optional<LaunchStatus> receive_status(comm::Bus& bus, const std::string& se
     result = inbox.status;
   }
   bus.stop();
-  bus.lcm().unsubscribe(sub);
+  bus.unsubscribe(sub);
   return result;
 }
 

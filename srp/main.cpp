@@ -218,10 +218,10 @@ int run(const Options& options) {
         responder.reply(std::move(reply));
       });
   std::vector<std::unique_ptr<StateContext>> state_contexts;
-  std::vector<lcm::Subscription*> state_subscriptions;
+  std::vector<mrroc::comm::Subscription*> state_subscriptions;
   for (const RobotConfig& robot : config.robots) {
     state_contexts.push_back(std::make_unique<StateContext>(StateContext{&srp, robot.name}));
-    state_subscriptions.push_back(bus.lcm().subscribeFunction<StateContext*>(
+    state_subscriptions.push_back(bus.subscribe<StateContext*>(
         channels::robot_state(robot.name), &on_robot_state, state_contexts.back().get()));
   }
   bus.start();
@@ -239,7 +239,7 @@ int run(const Options& options) {
   reporter.set_state(ProcessState::stopping);
   std::this_thread::sleep_for(std::chrono::milliseconds(100));  // late messages of the others
   bus.stop();
-  for (lcm::Subscription* s : state_subscriptions) bus.lcm().unsubscribe(s);
+  for (mrroc::comm::Subscription* s : state_subscriptions) bus.unsubscribe(s);
 
   std::lock_guard lock(srp.mutex);
   std::string summary;

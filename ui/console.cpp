@@ -202,7 +202,7 @@ struct Console::Impl {
   comm::Bus bus;
   Shared shared;
   std::vector<std::unique_ptr<RobotSubscription>> contexts;
-  std::vector<lcm::Subscription*> subscriptions;
+  std::vector<mrroc::comm::Subscription*> subscriptions;
   std::unique_ptr<SystemListener> listener;
   std::unique_ptr<Reporter> reporter;
   std::unique_ptr<MpClient> status_client;
@@ -231,12 +231,12 @@ struct Console::Impl {
     }
     for (std::size_t i = 0; i < shared.robots.size(); ++i) {
       contexts.push_back(std::make_unique<RobotSubscription>(RobotSubscription{&shared, i}));
-      subscriptions.push_back(bus.lcm().subscribeFunction<RobotSubscription*>(
-          channels::robot_state(shared.robots[i]->name), &Impl::on_robot_state,
-          contexts.back().get()));
+      subscriptions.push_back(
+          bus.subscribe<RobotSubscription*>(channels::robot_state(shared.robots[i]->name),
+                                            &Impl::on_robot_state, contexts.back().get()));
     }
-    subscriptions.push_back(bus.lcm().subscribeFunction<Shared*>(channels::launch_status,
-                                                                 &Impl::on_launch_status, &shared));
+    subscriptions.push_back(
+        bus.subscribe<Shared*>(channels::launch_status, &Impl::on_launch_status, &shared));
     listener = std::make_unique<SystemListener>(
         bus,
         [this](const SrpMessage& m) {
@@ -278,7 +278,7 @@ struct Console::Impl {
     }
     if (poller.joinable()) poller.join();
     bus.stop();
-    for (lcm::Subscription* s : subscriptions) bus.lcm().unsubscribe(s);
+    for (mrroc::comm::Subscription* s : subscriptions) bus.unsubscribe(s);
   }
 
   // --- bus thread -----------------------------------------------------------------------------

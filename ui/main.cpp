@@ -59,7 +59,7 @@ int acknowledge_restart(const std::string& config_path, const std::string& proce
     std::uint64_t received = 0;  // tables received so far
   } watch;
   watch.set_name = config.name;
-  lcm::Subscription* sub = bus.lcm().subscribeFunction<Watch*>(
+  mrroc::comm::Subscription* sub = bus.subscribe<Watch*>(
       channels::launch_status,
       +[](const lcm::ReceiveBuffer* buffer, const std::string&, Watch* w) {
         mrroc_lcm::launch_status_t m;
@@ -143,7 +143,7 @@ int acknowledge_restart(const std::string& config_path, const std::string& proce
       code = kExitNoLauncher;
     }
   }
-  bus.lcm().unsubscribe(sub);
+  bus.unsubscribe(sub);
   return code;
 }
 

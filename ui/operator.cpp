@@ -107,10 +107,10 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
     std::string latched_by;
   } w;
   w.engage = engage;
-  std::vector<lcm::Subscription*> subs;
+  std::vector<mrroc::comm::Subscription*> subs;
   for (const std::string& r : robots) {
     if (!robot.empty() && r != robot) continue;
-    subs.push_back(bus.lcm().subscribeFunction<Watch*>(
+    subs.push_back(bus.subscribe<Watch*>(
         channels::robot_state(r),
         +[](const lcm::ReceiveBuffer* b, const std::string&, Watch* c) {
           mrroc_lcm::robot_state_t s;
@@ -124,7 +124,7 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
         },
         &w));
   }
-  subs.push_back(bus.lcm().subscribeFunction<Watch*>(
+  subs.push_back(bus.subscribe<Watch*>(
       channels::emergency_stop,
       +[](const lcm::ReceiveBuffer* b, const std::string&, Watch* c) {
         mrroc_lcm::emergency_stop_t m;
@@ -157,7 +157,7 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
-  for (lcm::Subscription* s : subs) bus.lcm().unsubscribe(s);
+  for (mrroc::comm::Subscription* s : subs) bus.unsubscribe(s);
   std::lock_guard lock(w.mutex);
   for (const std::string& r : robots) {
     if (!robot.empty() && r != robot) continue;

@@ -33,7 +33,7 @@ Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
     if (!source_of_channel_.emplace(channel, i).second)
       throw ConfigError(fmt::format("{}: error: VSP '{}' lists source '{}' twice",
                                     config.where.str(), config.name, config.sources[i]));
-    subscriptions_.push_back(bus_.lcm().subscribeFunction<Shell*>(channel, &Shell::on_raw, this));
+    subscriptions_.push_back(bus_.subscribe<Shell*>(channel, &Shell::on_raw, this));
   }
   if (config_.periodic) {
     periodic_ = std::thread([this] {
@@ -62,7 +62,7 @@ Shell::~Shell() {
   }
   cv_.notify_all();
   if (periodic_.joinable()) periodic_.join();
-  for (lcm::Subscription* s : subscriptions_) bus_.lcm().unsubscribe(s);
+  for (mrroc::comm::Subscription* s : subscriptions_) bus_.unsubscribe(s);
 }
 
 std::uint64_t Shell::malformed() const {

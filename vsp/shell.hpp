@@ -54,7 +54,7 @@ class Shell {
   VspConfig config_;
   std::unique_ptr<SensorPlugin> plugin_;
   comm::VspServer server_;
-  std::vector<lcm::Subscription*> subscriptions_;
+  std::vector<mrroc::comm::Subscription*> subscriptions_;
   std::map<std::string, std::size_t> source_of_channel_;
 
   mutable std::mutex mutex_;

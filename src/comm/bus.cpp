@@ -7,14 +7,72 @@
 #include <cstdlib>
 
 #include "mrroc/comm/auth.hpp"
-
 #include "mrroc/comm/request_reply.hpp"
+#include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/core/error.hpp"
 
 namespace mrroc::comm {
 
+class Subscription {
+ public:
+  explicit Subscription(Bus::Handler h) : handler(std::move(h)) {}
+  /// LCM's C callback: the handler was stored before lcm_subscribe (see subscribe_function).
+  static void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+    auto* self = static_cast<Subscription*>(user);
+#if defined(__SANITIZE_THREAD__)
+    __tsan_acquire(self);
+#endif
+    const lcm::ReceiveBuffer buffer{rbuf->data, rbuf->data_size, rbuf->recv_utime};
+    self->handler(&buffer, std::string(channel));
+#if defined(__SANITIZE_THREAD__)
+    __tsan_release(self);  // LCM holds its handler lock until here; see Bus::unsubscribe
+#endif
+  }
+  Bus::Handler handler;
+  lcm_subscription_t* c_subscription = nullptr;
+};
+
 namespace {
 thread_local bool t_on_bus_thread = false;
+}
+
+Subscription* Bus::subscribe_function(const std::string& channel, Handler handler) {
+  auto owned = std::make_unique<Subscription>(std::move(handler));
+  Subscription* s = owned.get();
+  // LCM keeps its handlers behind GLib locks that ThreadSanitizer cannot see: what was stored
+  // above happens-before the callback. No lock of ours is held while LCM takes its own (a handler
+  // runs under LCM's lock and may subscribe).
+#if defined(__SANITIZE_THREAD__)
+  __tsan_release(s);
+#endif
+  s->c_subscription =
+      lcm_subscribe(lcm_->getUnderlyingLCM(), channel.c_str(), &Subscription::on_message, s);
+  if (s->c_subscription == nullptr)
+    throw Error("cannot subscribe to LCM channel '" + channel + "'");
+  std::lock_guard lock(subscriptions_mutex_);
+  subscriptions_.push_back(std::move(owned));
+  return s;
+}
+
+void Bus::unsubscribe(Subscription* subscription) {
+  if (subscription == nullptr) return;
+  std::unique_ptr<Subscription> owned;
+  {
+    std::lock_guard lock(subscriptions_mutex_);
+    for (auto it = subscriptions_.begin(); it != subscriptions_.end(); ++it) {
+      if (it->get() != subscription) continue;
+      owned = std::move(*it);
+      subscriptions_.erase(it);
+      break;
+    }
+  }
+  if (!owned) return;
+  // LCM dispatches under its handler lock, which lcm_unsubscribe takes: a callback in progress
+  // on the bus thread has ended when it returns (ThreadSanitizer cannot see that lock).
+  lcm_unsubscribe(lcm_->getUnderlyingLCM(), owned->c_subscription);
+#if defined(__SANITIZE_THREAD__)
+  __tsan_acquire(owned.get());
+#endif
 }
 
 std::string resolve_lcm_url(const std::string& url) {
@@ -32,6 +90,12 @@ Bus::Bus(const std::string& url) : url_(resolve_lcm_url(url)) {
 
 Bus::~Bus() {
   stop();
+  std::vector<std::unique_ptr<Subscription>> left;
+  {
+    std::lock_guard lock(subscriptions_mutex_);
+    left.swap(subscriptions_);
+  }
+  for (const auto& sub : left) lcm_unsubscribe(lcm_->getUnderlyingLCM(), sub->c_subscription);
   {
     std::lock_guard lock(delay_mutex_);
     delayer_stop_ = true;

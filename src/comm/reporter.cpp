@@ -127,8 +127,8 @@ struct SystemListener::Impl {
   MessageHandler on_message;
   StatusHandler on_status;
   std::atomic<std::uint64_t>* malformed;
-  lcm::Subscription* srp_sub = nullptr;
-  lcm::Subscription* status_sub = nullptr;
+  mrroc::comm::Subscription* srp_sub = nullptr;
+  mrroc::comm::Subscription* status_sub = nullptr;
 
   static void on_srp(const lcm::ReceiveBuffer* buffer, const std::string& channel, Impl* self) {
     mrroc_lcm::srp_message_t m;
@@ -172,14 +172,13 @@ struct SystemListener::Impl {
 SystemListener::SystemListener(comm::Bus& bus, MessageHandler on_message, StatusHandler on_status)
     : impl_(std::make_unique<Impl>(
           Impl{bus, std::move(on_message), std::move(on_status), &malformed_})) {
-  impl_->srp_sub = bus.lcm().subscribeFunction<Impl*>(channels::srp, &Impl::on_srp, impl_.get());
-  impl_->status_sub =
-      bus.lcm().subscribeFunction<Impl*>(channels::status, &Impl::on_status_message, impl_.get());
+  impl_->srp_sub = bus.subscribe<Impl*>(channels::srp, &Impl::on_srp, impl_.get());
+  impl_->status_sub = bus.subscribe<Impl*>(channels::status, &Impl::on_status_message, impl_.get());
 }
 
 SystemListener::~SystemListener() {
-  impl_->bus.lcm().unsubscribe(impl_->srp_sub);
-  impl_->bus.lcm().unsubscribe(impl_->status_sub);
+  impl_->bus.unsubscribe(impl_->srp_sub);
+  impl_->bus.unsubscribe(impl_->status_sub);
 }
 
 }  // namespace mrroc

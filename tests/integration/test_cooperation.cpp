@@ -39,7 +39,7 @@ class FinalJoints {
     for (const auto& robot : robots) {
       auto* slot = &slots_[robot];
       slot->owner = this;
-      bus.lcm().subscribeFunction<Slot*>(channels::edp_reply(robot), &FinalJoints::on_reply, slot);
+      bus.subscribe<Slot*>(channels::edp_reply(robot), &FinalJoints::on_reply, slot);
     }
   }
   std::vector<double> of(const std::string& robot) {

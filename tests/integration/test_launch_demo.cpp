@@ -104,8 +104,7 @@ std::vector<std::string> mrroc_processes() {
 class EdpReplyRecorder {
  public:
   EdpReplyRecorder(comm::Bus& bus, const std::string& robot) {
-    bus.lcm().subscribeFunction<EdpReplyRecorder*>(channels::edp_reply(robot),
-                                                   &EdpReplyRecorder::dispatch, this);
+    bus.subscribe<EdpReplyRecorder*>(channels::edp_reply(robot), &EdpReplyRecorder::dispatch, this);
   }
   static void dispatch(const lcm::ReceiveBuffer* buffer, const std::string&,
                        EdpReplyRecorder* self) {

@@ -92,7 +92,7 @@ namespace {
 class ReplyTimes {
  public:
   explicit ReplyTimes(comm::Bus& bus) {
-    bus.lcm().subscribeFunction<ReplyTimes*>(channels::edp_reply("irb6"), &ReplyTimes::on, this);
+    bus.subscribe<ReplyTimes*>(channels::edp_reply("irb6"), &ReplyTimes::on, this);
   }
   static void on(const lcm::ReceiveBuffer*, const std::string&, ReplyTimes* self) {
     std::lock_guard lock(self->mutex_);

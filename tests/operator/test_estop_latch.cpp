@@ -25,7 +25,7 @@ std::string ui() { return (kBin / "mrroc-ui").string(); }
 class States {
  public:
   States() : bus_(kUrl) {
-    bus_.lcm().subscribeFunction<States*>(
+    bus_.subscribe<States*>(
         mrroc::channels::robot_state("irb6"),
         +[](const lcm::ReceiveBuffer* b, const std::string&, States* self) {
           mrroc_lcm::robot_state_t s;

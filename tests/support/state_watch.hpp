@@ -31,10 +31,9 @@ inline double max_speed(const mrroc_lcm::robot_state_t& s) {
 class StateWatch {
  public:
   explicit StateWatch(comm::Bus& bus, const std::string& robot = "irb6") : bus_(bus) {
-    sub_ = bus_.lcm().subscribeFunction<StateWatch*>(channels::robot_state(robot),
-                                                     &StateWatch::on_state, this);
+    sub_ = bus_.subscribe<StateWatch*>(channels::robot_state(robot), &StateWatch::on_state, this);
   }
-  ~StateWatch() { bus_.lcm().unsubscribe(sub_); }
+  ~StateWatch() { bus_.unsubscribe(sub_); }
   StateWatch(const StateWatch&) = delete;
   StateWatch& operator=(const StateWatch&) = delete;
 
@@ -99,7 +98,7 @@ class StateWatch {
                               max_speed(s), s.q_desired});
   }
   comm::Bus& bus_;
-  lcm::Subscription* sub_ = nullptr;
+  mrroc::comm::Subscription* sub_ = nullptr;
   mutable std::mutex mutex_;
   mrroc_lcm::robot_state_t last_{};
   int count_ = 0;

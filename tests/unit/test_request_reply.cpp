@@ -202,8 +202,7 @@ TEST(RequestReply, RequestsOlderThanTheDeadlineAreDroppedNotExecuted) {
   EchoServer echo(bus, options);
   std::atomic<int> replies{0};
   auto on_reply = +[](const lcm::ReceiveBuffer*, const std::string&, std::atomic<int>* n) { ++*n; };
-  lcm::Subscription* sub =
-      bus.lcm().subscribeFunction<std::atomic<int>*>("t/reply", on_reply, &replies);
+  mrroc::comm::Subscription* sub = bus.subscribe<std::atomic<int>*>("t/reply", on_reply, &replies);
   bus.start();
   Req old = request(7);
   old.header.sender = "late-client";
@@ -222,5 +221,5 @@ TEST(RequestReply, RequestsOlderThanTheDeadlineAreDroppedNotExecuted) {
   for (int i = 0; i < 100 && replies == 0; ++i) std::this_thread::sleep_for(10ms);
   EXPECT_EQ(echo.executions, 1);
   EXPECT_EQ(replies, 1);
-  bus.lcm().unsubscribe(sub);
+  bus.unsubscribe(sub);
 }

@@ -23,6 +23,9 @@ namespace mrroc::comm {
 
 class Authenticator;
 
+/// A subscription made with Bus::subscribe (opaque; ended with Bus::unsubscribe).
+class Subscription;
+
 /// SRP codes of messages a process dropped (reported through the bus' drop sink).
 namespace drop_code {
 inline constexpr int malformed = 1;         ///< could not be decoded
@@ -46,6 +49,26 @@ class Bus {
   void start();
   /// Stops and joins the dispatch thread (idempotent).
   void stop();
+
+  /// Calls `handler(buffer, channel, context)` on the bus thread for every message on `channel`
+  /// (an LCM regular expression). Safe from any thread, also while the bus runs: unlike LCM's
+  /// C++ subscribeFunction, which registers its callback before it stores the handler the
+  /// callback reads and keeps its subscriptions in a vector it does not guard, the handler is in
+  /// place before LCM can call it and the bus' own list is locked.
+  template <class Context>
+  Subscription* subscribe(const std::string& channel,
+                          void (*handler)(const lcm::ReceiveBuffer*, const std::string&, Context),
+                          Context context) {
+    return subscribe_function(
+        channel, [handler, context](const lcm::ReceiveBuffer* buffer, const std::string& ch) {
+          handler(buffer, ch, context);
+        });
+  }
+  using Handler = std::function<void(const lcm::ReceiveBuffer*, const std::string&)>;
+  Subscription* subscribe_function(const std::string& channel, Handler handler);
+  /// Ends a subscription made with subscribe (null: nothing). Safe from any thread but a handler
+  /// of the same subscription.
+  void unsubscribe(Subscription* subscription);
 
   [[nodiscard]] lcm::LCM& lcm() { return *lcm_; }
   [[nodiscard]] const std::string& url() const { return url_; }
@@ -99,6 +122,8 @@ class Bus {
   std::multimap<std::chrono::steady_clock::time_point, Delayed> delayed_;
   std::thread delayer_;
   bool delayer_stop_ = false;
+  std::mutex subscriptions_mutex_;
+  std::vector<std::unique_ptr<Subscription>> subscriptions_;
 };
 
 /// Resolves the URL the way Bus does (empty -> $LCM_DEFAULT_URL -> kDefaultLcmUrl).

@@ -132,9 +132,9 @@ class Client {
         reply_channel_(std::move(reply_channel)),
         options_(options),
         dice_(options.faults.active() ? options.faults : link_faults_from_environment()) {
-    subscription_ = bus_.lcm().subscribeFunction<Client*>(reply_channel_, &Client::dispatch, this);
+    subscription_ = bus_.subscribe<Client*>(reply_channel_, &Client::dispatch, this);
   }
-  ~Client() { bus_.lcm().unsubscribe(subscription_); }
+  ~Client() { bus_.unsubscribe(subscription_); }
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
 
@@ -244,7 +244,7 @@ class Client {
   std::string reply_channel_;
   ClientOptions options_;
   FaultDice dice_;
-  lcm::Subscription* subscription_ = nullptr;
+  mrroc::comm::Subscription* subscription_ = nullptr;
 
   std::mutex call_mutex_;
   mutable std::mutex mutex_;
@@ -327,10 +327,10 @@ class Server {
         state_(std::make_shared<State>(
             &bus, std::move(name), std::move(reply_channel),
             options.faults.active() ? options.faults : link_faults_from_environment())) {
-    subscription_ = bus_.lcm().subscribeFunction<Server*>(request_channel, &Server::dispatch, this);
+    subscription_ = bus_.subscribe<Server*>(request_channel, &Server::dispatch, this);
   }
   ~Server() {
-    bus_.lcm().unsubscribe(subscription_);
+    bus_.unsubscribe(subscription_);
     std::lock_guard lock(queue_mutex_);
     closed_ = true;
     queue_cv_.notify_all();
@@ -428,7 +428,7 @@ class Server {
   Handler handler_;
   std::int64_t max_request_age_us_ = 0;
   std::shared_ptr<State> state_;
-  lcm::Subscription* subscription_ = nullptr;
+  mrroc::comm::Subscription* subscription_ = nullptr;
   std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
   std::deque<Incoming> queue_;

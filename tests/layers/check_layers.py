@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Checks that every #include in the library and process folders points down the layers.
 
-The layers are the folders of the libraries (src/CMakeLists.txt, docs/architecture.md "Layers"):
+The layers are the folders of the libraries (src/CMakeLists.txt, docs/architecture.md "Libraries"):
 a file of one area may include the public headers (include/mrroc/<area>/) of the areas listed
 for it below, and its own; LCM and MuJoCo headers only where listed. Prints one
 `file:line: error: ...` per include that points up or sideways and exits 1 when there is any.
@@ -164,7 +164,7 @@ def main(argv):
     for e in errors:
         print(e)
     if errors:
-        print(f"layers: {len(errors)} include(s) point up or sideways (docs/architecture.md, Layers)")
+        print(f"layers: {len(errors)} include(s) point up or sideways (docs/architecture.md, Libraries)")
         return 1
     print("layers: every include points down")
     return 0

@@ -133,6 +133,9 @@ EcpReply EcpShell::state_reply(EcpReplyType type) const {
 }
 
 EcpReply EcpShell::run_task(const std::string& name, const Params& args) {
+  // A run (task or sub-task) drives the robot from its first instruction, whoever drove it last
+  // (the console's jogs between runs, which it makes only while the MP is idle; docs/edp.md).
+  robot_.take_over_next();
   TaskContext context{robot_, reporter_, args, config_.edp.servo_period_s, &bus_, process_};
   std::unique_ptr<EcpTask> task = make_ecp_task(name, context);
   reporter_.info(fmt::format("task '{}' started", name));
@@ -174,15 +177,9 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
   switch (command.type) {
     case MpCommandType::start_task:
       robot_.clear_stop();  // a STOP ends one run, not the next one
-      // A run drives the robot from its first instruction, whoever drove it last (the console's
-      // jogs between runs, which it makes only while the MP is idle; docs/edp.md, "One owner").
       if (!start_activity(
               fmt::format("task '{}'", config_.ecp.name),
-              [this] {
-                robot_.take_over_next();
-                return run_task(config_.ecp.name, config_.ecp.args);
-              },
-              responder))
+              [this] { return run_task(config_.ecp.name, config_.ecp.args); }, responder))
         busy();
       break;
     case MpCommandType::next_state: {
@@ -193,7 +190,6 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
       if (!start_activity(
               fmt::format("sub-task '{}'", state),
               [this, state, arguments, origin] {
-                robot_.take_over_next();
                 const Params args = params_from_toml(arguments, origin);
                 return run_task(state, args);
               },

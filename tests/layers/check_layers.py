@@ -63,8 +63,6 @@ def area_of(rel):
     if parts[0] == "include" and len(parts) > 3 and parts[1] == "mrroc":
         return ("library", parts[2])
     if parts[0] == "src" and len(parts) > 2:
-        if parts[1] in ("can", "sim"):
-            return ("library", parts[1])
         return ("library", parts[1])
     if parts[0] == "robots" and len(parts) > 2:
         return ("library", "robots")
@@ -130,7 +128,6 @@ def check(root):
 
 
 def self_test():
-    here = os.path.dirname(os.path.abspath(__file__))
     with tempfile.TemporaryDirectory() as tmp:
         os.makedirs(os.path.join(tmp, "include/mrroc/core"))
         os.makedirs(os.path.join(tmp, "include/mrroc/comm"))
@@ -138,8 +135,9 @@ def self_test():
             f.write('#include "mrroc/core/error.hpp"\n#include <lcm/lcm-cpp.hpp>\n')
         with open(os.path.join(tmp, "include/mrroc/core/error.hpp"), "w") as f:
             f.write("#pragma once\n")
-        if check(tmp):
-            print("self-test: a tree that points down was reported:", check(tmp))
+        found = check(tmp)
+        if found:
+            print("self-test: a tree that points down was reported:", found)
             return 1
         with open(os.path.join(tmp, "include/mrroc/core/error.hpp"), "a") as f:
             f.write('#include "mrroc/comm/bus.hpp"\n#include <mujoco/mujoco.h>\n')
@@ -148,7 +146,6 @@ def self_test():
             print("self-test: the planted upward includes were not both reported:", found)
             return 1
         print("self-test: passed (" + "; ".join(found) + ")")
-    _ = here
     return 0
 
 

@@ -88,15 +88,21 @@ class EdpTest : public ::testing::Test {
     }
   }
 
-  /// Of the `steps` servo steps of the column's motion after `first_cycle` (from the first step
-  /// that moves, `skip` steps later), how many were commanded at a velocity other than `velocity`
-  /// [rad/s]; all of them when the trace holds fewer.
-  int steps_off_velocity(std::int64_t first_cycle, int steps, double velocity, int skip = 0) const {
+  /// The column's commanded velocity in every servo step of the trace after `first_cycle` [rad/s].
+  std::vector<double> column_velocities(std::int64_t first_cycle) const {
     const auto trace = servo_->trace();
     std::vector<double> v;
     for (std::size_t i = 1; i < trace.size(); ++i)
       if (trace[i].cycle > first_cycle)
         v.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
+    return v;
+  }
+
+  /// Of the `steps` servo steps of the column's motion after `first_cycle` (from the first step
+  /// that moves, `skip` steps later), how many were commanded at a velocity other than `velocity`
+  /// [rad/s]; all of them when the trace holds fewer.
+  int steps_off_velocity(std::int64_t first_cycle, int steps, double velocity, int skip = 0) const {
+    const std::vector<double> v = column_velocities(first_cycle);
     std::size_t start = 0;
     while (start < v.size() && v[start] == 0.0) ++start;
     start += static_cast<std::size_t>(skip);
@@ -266,11 +272,7 @@ TEST_F(EdpDefaultLookaheadTest, ConsecutiveMacroStepsHaveNoIdleServoStep) {
   const int off = steps_off_velocity(first_cycle, kSteps * (kSegments - 1), 0.1, kRamp);
   EXPECT_EQ(off, 0) << "servo steps with a velocity other than the commanded 0.1 rad/s";
   // And no idle servo step anywhere between the first step that moves and the last.
-  const auto trace = servo_->trace();
-  std::vector<double> v;
-  for (std::size_t i = 1; i < trace.size(); ++i)
-    if (trace[i].cycle > first_cycle)
-      v.push_back((trace[i].desired[0] - trace[i - 1].desired[0]) / kPeriod);
+  const std::vector<double> v = column_velocities(first_cycle);
   const auto first = std::find_if(v.begin(), v.end(), [](double x) { return x != 0.0; });
   const auto last = std::find_if(v.rbegin(), v.rend(), [](double x) { return x != 0.0; }).base();
   ASSERT_LT(first, last);

@@ -5,6 +5,8 @@
 #include <charconv>
 #include <cmath>
 
+#include <fmt/format.h>
+
 #include "mrroc/core/error.hpp"
 
 namespace mrroc::emu {
@@ -72,10 +74,10 @@ FaultSpec parse_fault(std::string_view spec) {
     const char c = tail[sep];
     if ((c == '=' && f.kind != FaultKind::drive && f.kind != FaultKind::drop) ||
         (c == '+' && f.kind != FaultKind::bus_off))
-      bad(spec, std::string("'") + c + "' does not apply to " + std::string(kind));
+      bad(spec, fmt::format("'{}' does not apply to {}", c, kind));
   }
   f.at_s = number(spec, time, "time");
-  if (f.at_s < 0.0) bad(spec, "time " + std::string(time) + " s must be >= 0 s");
+  if (f.at_s < 0.0) bad(spec, fmt::format("time {} s must be >= 0 s", time));
   if (f.kind == FaultKind::drive && !value.empty()) {
     std::string_view hex = value;
     if (hex.substr(0, 2) == "0x" || hex.substr(0, 2) == "0X") hex.remove_prefix(2);

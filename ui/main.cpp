@@ -16,7 +16,8 @@
 #include <thread>
 #include <vector>
 
-#include "console.hpp"
+#include "console/console.hpp"
+#include "console/http_api.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/reporter.hpp"

@@ -1,21 +1,17 @@
 #pragma once
 // The web operator console (`mrroc-ui serve`): an HTTP server with a JSON API and the page of
-// ui/web/ (docs/operating.md). It listens to the set's status, SRP messages, robot states and
-// the launcher's process table, polls the MP's state, and sends operator commands, emergency
-// stops, jog motions (to the EDP) and records taught poses.
+// ui/web/ (docs/operating.md). It composes the parts of ui/console/: the state (state.hpp) fed
+// from the bus (bus_feed.hpp), the HTTP API (http_api.hpp), jogging (jog.hpp, through
+// edp_jog_link.hpp) and teach-in (teach_in.hpp); itself it sends the operator commands and the
+// emergency stops and reports to the SRP as process "ui".
 
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <string>
-#include <string_view>
 
 #include "mrroc/config/process_set.hpp"
 
 namespace mrroc::ui {
-
-/// The page's files (ui/web/), embedded at build time (generated web_assets.cpp).
-const std::map<std::string, std::string_view>& web_assets();
 
 struct ConsoleOptions {
   std::string bind = "127.0.0.1";
@@ -27,10 +23,6 @@ struct ConsoleOptions {
   /// A jog stays within this fraction of the axis' velocity and acceleration limits.
   double jog_velocity_fraction = 0.25;
 };
-
-/// Reads the token file: its first line without surrounding blanks, at least 16 characters.
-/// @throws Error naming the file when it cannot be read or the token is too short.
-std::string read_token_file(const std::filesystem::path& file);
 
 class Console {
  public:

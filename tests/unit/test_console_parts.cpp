@@ -1,0 +1,876 @@
+// The web console's parts, each alone and without a bus: the state (fed plain values), jogging
+// (its checks, the rest-to-rest profile, the EDP's refusal, one jog at a time; through a link
+// that records what it is asked to do), teach-in (the file it writes, in a temporary folder)
+// and the HTTP API (an in-process server on a loopback port: JSON shapes, error codes for
+// malformed bodies, the token and cross-site checks).
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <tuple>
+#include <vector>
+
+#include "console/http_api.hpp"
+#include "console/jog.hpp"
+#include "console/state.hpp"
+#include "console/teach_in.hpp"
+#include "mrroc/ecp/generators/trajectory_file.hpp"
+#include "mrroc/ecp/robot_image.hpp"
+
+// Last: <resolv.h>, which it includes, defines `_res`, a name Eigen's headers use.
+#include <httplib.h>
+
+using namespace mrroc;
+using namespace mrroc::ui;
+using json = nlohmann::json;
+using namespace std::chrono_literals;
+
+namespace {
+
+const RobotModel& irb6() {
+  static const RobotModel m = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+  return m;
+}
+
+std::vector<ConsoleRobot> one_robot() { return {ConsoleRobot{"irb6", irb6(), 0.002}}; }
+
+/// A robot_state_t of the irb6 at rest, synchronised, released, without fault.
+mrroc_lcm::robot_state_t robot_state(std::int64_t step, std::vector<double> q = {}) {
+  mrroc_lcm::robot_state_t s{};
+  s.robot = "irb6";
+  s.synchronised = true;
+  s.servo_step = step;
+  s.servo_period_s = 0.002;
+  s.n_joints = static_cast<std::int32_t>(irb6().axes());
+  s.q = q.empty() ? std::vector<double>(irb6().axes(), 0.1) : q;
+  s.dq.assign(irb6().axes(), 0.0);
+  s.q_desired = s.q;
+  s.header.utime = 1'700'000'000'000'000 + step * 2000;
+  return s;
+}
+
+SrpMessage message(std::int64_t utime, const std::string& text,
+                   Severity severity = Severity::info) {
+  SrpMessage m;
+  m.utime = utime;
+  m.process = "edp/irb6";
+  m.robot = "irb6";
+  m.severity = severity;
+  m.text = text;
+  return m;
+}
+
+/// The HTTP status and text of the ApiError `f` throws (status 0: it threw none).
+template <class F>
+std::pair<int, std::string> api_error(F&& f) {
+  try {
+    f();
+  } catch (const ApiError& e) {
+    return {e.status, e.what()};
+  }
+  return {0, ""};
+}
+
+bool has(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+/// Reports sent to the SRP, kept for the assertions.
+struct Reports {
+  std::mutex mutex;
+  std::vector<std::pair<Severity, std::string>> sent;
+  ReportFn fn() {
+    return [this](Severity s, const std::string& t) {
+      std::lock_guard lock(mutex);
+      sent.emplace_back(s, t);
+    };
+  }
+};
+
+/// A jog link that records what it was asked and answers as told; it can hold the motion until
+/// released, to test one jog at a time.
+struct RecordingLink : JogLink {
+  struct Shared {
+    std::mutex mutex;
+    std::condition_variable cv;
+    std::vector<std::pair<std::vector<double>, int>> calls;
+    std::vector<double> joints_after;
+    std::string refuse;  // non-empty: throw JogRefused with it
+    bool timeout = false;
+    bool hold = false;  // block until `hold` is false again
+    bool entered = false;
+  };
+  std::shared_ptr<Shared> shared = std::make_shared<Shared>();
+  std::vector<double> move_joints_relative(const std::vector<double>& delta,
+                                           int motion_steps) override {
+    std::unique_lock lock(shared->mutex);
+    shared->calls.emplace_back(delta, motion_steps);
+    shared->entered = true;
+    shared->cv.notify_all();
+    shared->cv.wait(lock, [&] { return !shared->hold; });
+    if (!shared->refuse.empty()) throw JogRefused(shared->refuse);
+    if (shared->timeout) throw TimeoutError("no EDP irb6 answers");
+    return shared->joints_after;
+  }
+};
+
+/// A state with one robot, a jogger on a recording link, and a teach-in.
+struct Parts {
+  ConsoleState state{"demo", one_robot()};
+  Reports reports;
+  std::shared_ptr<RecordingLink::Shared> link;
+  std::unique_ptr<Jogger> jogger;
+  Parts() {
+    auto l = std::make_unique<RecordingLink>();
+    link = l->shared;
+    std::map<std::string, std::unique_ptr<JogLink>> links;
+    links["irb6"] = std::move(l);
+    jogger = std::make_unique<Jogger>(state, JogOptions{}, std::move(links), reports.fn());
+  }
+};
+
+/// A fresh folder per test under the system's temporary folder.
+class TempDir {
+ public:
+  TempDir() {
+    path_ = std::filesystem::temp_directory_path() /
+            ("mrroc-console-" + std::to_string(::getpid()) + "-" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+std::string read_file(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+// --- state -----------------------------------------------------------------------------------
+
+TEST(ConsoleState, KeepsTheLatestRobotStateAndItsSamples) {
+  ConsoleState state("demo", one_robot());
+  EXPECT_FALSE(state.reading(0).has_value());
+  state.on_robot_state(0, robot_state(10));
+  state.on_robot_state(0, robot_state(20, {0.5, -1.0, 0.2, 0.0, 0.3}));
+  const auto r = state.reading(0);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->state.servo_step, 20);
+  EXPECT_DOUBLE_EQ(r->state.q[1], -1.0);
+  EXPECT_TRUE(r->fresh());
+  const auto samples = state.samples_after(0, 10);
+  ASSERT_EQ(samples.size(), 1u);
+  EXPECT_EQ(samples[0].step, 20);
+  EXPECT_EQ(state.samples_after(0, 0).size(), 2u);
+  // A state with another number of joints than the model's is not this robot's: ignored.
+  auto wrong = robot_state(30);
+  wrong.n_joints = 3;
+  state.on_robot_state(0, wrong);
+  EXPECT_EQ(state.reading(0)->state.servo_step, 20);
+  // A step not above the last one: the EDP started again; the old samples go.
+  state.on_robot_state(0, robot_state(5));
+  const auto after_restart = state.samples_after(0, -1);
+  ASSERT_EQ(after_restart.size(), 1u);
+  EXPECT_EQ(after_restart[0].step, 5);
+}
+
+TEST(ConsoleState, KeepsAtMostThirtySecondsOfSamples) {
+  ConsoleState state("demo", one_robot());
+  for (std::int64_t step = 1; step <= static_cast<std::int64_t>(kMaxSamples) + 100; ++step)
+    state.on_robot_state(0, robot_state(step));
+  const auto samples = state.samples_after(0, 0);
+  ASSERT_EQ(samples.size(), kMaxSamples);
+  EXPECT_EQ(samples.front().step, 101);
+}
+
+TEST(ConsoleState, StaleStatesAndLauncherTables) {
+  ConsoleState state("demo", one_robot());
+  state.on_robot_state(0, robot_state(1), SteadyClock::now() - 2s);
+  EXPECT_FALSE(state.reading(0)->fresh());
+  mrroc_lcm::launch_status_t launch{};
+  launch.set_name = "demo";
+  launch.state = "running";
+  state.on_launch_status(launch, SteadyClock::now() - 5s);
+  EXPECT_FALSE(state.snapshot().launch.has_value()) << "a table older than 3 s is not shown";
+  state.on_launch_status(launch);
+  ASSERT_TRUE(state.snapshot().launch.has_value());
+  EXPECT_EQ(state.snapshot().launch->state, "running");
+  ProcessStatus p;
+  p.process = "mp";
+  p.state = ProcessState::ready;
+  state.on_process_status(p, SteadyClock::now() - 2s);
+  const auto snap = state.snapshot();
+  ASSERT_EQ(snap.processes.count("mp"), 1u);
+  EXPECT_NEAR(snap.processes.at("mp").silent_s, 2.0, 0.5);
+  ASSERT_EQ(snap.robots.size(), 1u);
+  EXPECT_NEAR(snap.robots[0].age_s, 2.0, 0.5);
+}
+
+TEST(ConsoleState, MpStatusAndSilence) {
+  ConsoleState state("demo", one_robot());
+  MpStatus s;
+  s.accepted = true;
+  s.state = "RUNNING";
+  state.on_mp_status(s);
+  EXPECT_EQ(state.mp()->state, "RUNNING");
+  state.on_mp_silent("no MP answers on 'mrroc/mp/cmd'");
+  EXPECT_FALSE(state.mp().has_value());
+  EXPECT_EQ(state.snapshot().mp_error, "no MP answers on 'mrroc/mp/cmd'");
+  state.on_mp_status(s);
+  EXPECT_EQ(state.snapshot().mp_error, "");
+}
+
+TEST(ConsoleState, NumbersFiltersAndMergesTheSrpLog) {
+  ConsoleState state("demo", one_robot());
+  state.on_message(message(100, "live one"));
+  state.on_message(message(200, "live two", Severity::error));
+  state.on_message(message(300, "live three"));
+  auto log = state.messages(0, 0, 1000);
+  ASSERT_EQ(log.entries.size(), 3u);
+  EXPECT_EQ(log.entries[2].number, 3);
+  EXPECT_EQ(log.last, 3);
+  EXPECT_EQ(log.epoch, 1);
+  EXPECT_FALSE(log.history_loaded);
+  EXPECT_EQ(state.messages(1, 0, 1000).entries.size(), 2u);
+  const auto errors = state.messages(0, static_cast<int>(Severity::error), 1000);
+  ASSERT_EQ(errors.entries.size(), 1u);
+  EXPECT_EQ(errors.entries[0].message.text, "live two");
+  const auto newest = state.messages(0, 0, 2);
+  ASSERT_EQ(newest.entries.size(), 2u);
+  EXPECT_EQ(newest.entries[0].message.text, "live two");
+  // The SRP's history holds older messages and one that also came live: one copy each,
+  // history first, numbered again, and the epoch changes.
+  state.merge_history({message(10, "before the console"), message(200, "live two")}, 77);
+  EXPECT_TRUE(state.history_loaded());
+  log = state.messages(0, 0, 1000);
+  ASSERT_EQ(log.entries.size(), 4u);
+  EXPECT_EQ(log.entries[0].message.text, "before the console");
+  EXPECT_EQ(log.entries[1].message.text, "live two");
+  EXPECT_EQ(log.entries[2].message.text, "live one");
+  EXPECT_EQ(log.entries[3].number, 4);
+  EXPECT_EQ(log.epoch, 2);
+  EXPECT_EQ(log.srp_last, 77);
+  state.on_message(message(400, "after"));
+  EXPECT_EQ(state.messages(4, 0, 1000).entries.at(0).number, 5);
+}
+
+TEST(ConsoleState, KeepsAtMostFiveThousandMessages) {
+  ConsoleState state("demo", one_robot());
+  for (std::int64_t i = 1; i <= static_cast<std::int64_t>(kMaxLog) + 10; ++i)
+    state.on_message(message(i, "m"));
+  const auto log = state.messages(0, 0, 100000);
+  ASSERT_EQ(log.entries.size(), kMaxLog);
+  EXPECT_EQ(log.entries.front().number, 11);
+}
+
+TEST(ConsoleState, UnknownRobotNamesTheSetsRobots) {
+  ConsoleState state("demo", one_robot());
+  const auto [status, text] = api_error([&] { (void)state.robot("nope"); });
+  EXPECT_EQ(status, 404);
+  EXPECT_EQ(text, "no robot 'nope' in set 'demo' (robots: irb6)");
+  EXPECT_EQ(state.robot_index("irb6"), 0u);
+}
+
+TEST(ConsoleState, EstimatesTheServoStepNow) {
+  ConsoleState state("demo", one_robot());
+  EXPECT_TRUE(state.estimated_servo_steps("").empty()) << "no state: no estimate";
+  state.on_robot_state(0, robot_state(1000), SteadyClock::now() - 1s);
+  const auto steps = state.estimated_servo_steps("");
+  ASSERT_EQ(steps.count("irb6"), 1u);
+  // 1 s at 2 ms per step after step 1000 (the test may be slow: allow 0.2 s more).
+  EXPECT_GE(steps.at("irb6"), 1500);
+  EXPECT_LE(steps.at("irb6"), 1600);
+  EXPECT_TRUE(state.estimated_servo_steps("other").empty());
+}
+
+TEST(ConsoleState, AtRestOnlyFromAStateAfterTheGivenTime) {
+  ConsoleState state("demo", one_robot());
+  const auto t0 = SteadyClock::now();
+  state.on_robot_state(0, robot_state(1), t0 - 10ms);
+  EXPECT_FALSE(state.at_rest_since(0, t0));
+  auto moving = robot_state(2);
+  moving.moving = true;
+  state.on_robot_state(0, moving, t0 + 10ms);
+  EXPECT_FALSE(state.at_rest_since(0, t0));
+  state.on_robot_state(0, robot_state(3), t0 + 20ms);
+  EXPECT_TRUE(state.at_rest_since(0, t0));
+}
+
+TEST(ConsoleState, WritersAndReadersOnOtherThreads) {
+  ConsoleState state("demo", one_robot());
+  std::atomic<bool> done{false};
+  std::thread writer([&] {
+    for (std::int64_t step = 1; step <= 3000; ++step) {
+      state.on_robot_state(0, robot_state(step, std::vector<double>(5, static_cast<double>(step))));
+      state.on_message(message(step, "m"));
+    }
+    done.store(true);
+  });
+  std::size_t reads = 0;
+  while (!done.load()) {
+    // Every sample is whole: its positions are its step, written together.
+    for (const Sample& s : state.samples_after(0, 0))
+      ASSERT_EQ(s.q[4], static_cast<double>(s.step));
+    const auto snap = state.snapshot();
+    if (snap.robots[0].state) {
+      ASSERT_EQ(snap.robots[0].state->q[0], static_cast<double>(snap.robots[0].state->servo_step));
+    }
+    ++reads;
+  }
+  writer.join();
+  EXPECT_EQ(state.reading(0)->state.servo_step, 3000);
+  EXPECT_EQ(state.messages(0, 0, 10).last, 3000);
+  EXPECT_GT(reads, 0u);
+}
+
+// --- jog ---------------------------------------------------------------------------------------
+
+TEST(Jog, MovesOneAxisFromRestToRestWithinAQuarterOfItsLimits) {
+  Parts p;
+  p.state.on_robot_state(0, robot_state(100));
+  p.link->joints_after = {0.1, 0.1, 0.0, 0.1, 0.1};
+  // The EDP's broadcast shows the robot at rest after the motion (else the jog waits 100 ms).
+  std::thread broadcaster([&] {
+    std::this_thread::sleep_for(20ms);
+    p.state.on_robot_state(0, robot_state(700, {0.1, 0.1, 0.0, 0.1, 0.1}));
+  });
+  const JogResult r = p.jogger->jog(JogRequest{"irb6", 2, 0.1, -1});
+  broadcaster.join();
+  ASSERT_EQ(p.link->calls.size(), 1u);
+  const auto& [delta, steps] = p.link->calls[0];
+  EXPECT_EQ(delta, (std::vector<double>{0.0, 0.0, -0.1, 0.0, 0.0}));
+  std::vector<double> magnitude(5, 0.0);
+  magnitude[2] = 0.1;
+  EXPECT_EQ(steps, ecp::rest_to_rest_steps(irb6(), magnitude, 0.25, 0.002, 0.1));
+  // Peak velocity 2 d / T and acceleration 4 d / T^2 within a quarter of the axis' limits.
+  const double t = steps * 0.002;
+  EXPECT_LE(2 * 0.1 / t, 0.25 * irb6().max_velocity[2] + 1e-9);
+  EXPECT_LE(4 * 0.1 / (t * t), 0.25 * irb6().max_acceleration[2] + 1e-9);
+  EXPECT_GE(t, 0.1);
+  EXPECT_EQ(r.motion_steps, steps);
+  EXPECT_EQ(r.q_before, std::vector<double>(5, 0.1));
+  EXPECT_EQ(r.q, p.link->joints_after);
+  EXPECT_TRUE(has(r.text, "irb6 axis 2 (" + irb6().joint_names[2] + ") moved -0.1000 rad in " +
+                              std::to_string(steps) + " servo steps"))
+      << r.text;
+  EXPECT_TRUE(has(r.text, ": 0.0000 rad")) << r.text;
+  ASSERT_EQ(p.reports.sent.size(), 1u);
+  EXPECT_EQ(p.reports.sent[0].first, Severity::info);
+  EXPECT_EQ(p.reports.sent[0].second, "operator jog: " + r.text);
+}
+
+TEST(Jog, RefusesBadInputNamingValueUnitAndLimit) {
+  Parts p;
+  p.state.on_robot_state(0, robot_state(100));
+  const std::vector<std::tuple<JogRequest, int, std::string>> cases = {
+      {{"irb6", 99, 0.01, 1}, 400, "axis 99 is out of range: robot irb6 has axes 0..4"},
+      {{"irb6", -1, 0.01, 1}, 400, "axis -1 is out of range: robot irb6 has axes 0..4"},
+      {{"irb6", 0, 0.5, 1}, 400, "jog step 0.5 rad is outside (0, 0.2] rad"},
+      {{"irb6", 0, 0.0, 1}, 400, "jog step 0 rad is outside (0, 0.2] rad"},
+      {{"irb6", 0, -0.01, 1}, 400, "jog step -0.01 rad is outside (0, 0.2] rad"},
+      {{"irb6", 0, std::numeric_limits<double>::quiet_NaN(), 1}, 400, "rad is outside (0, 0.2]"},
+      {{"irb6", 0, 1e308, 1}, 400, "jog step 1e+308 rad is outside (0, 0.2] rad"},
+      {{"nope", 0, 0.01, 1}, 404, "no robot 'nope' in set 'demo' (robots: irb6)"},
+  };
+  for (const auto& [request, status, text] : cases) {
+    const auto [got_status, got_text] = api_error([&] { (void)p.jogger->jog(request); });
+    EXPECT_EQ(got_status, status) << text;
+    EXPECT_TRUE(has(got_text, text)) << got_text;
+  }
+  EXPECT_TRUE(p.link->calls.empty()) << "nothing was sent to the EDP";
+}
+
+TEST(Jog, RefusesWhatTheStateForbids) {
+  Parts p;
+  const JogRequest request{"irb6", 0, 0.05, 1};
+  auto refusal = [&] { return api_error([&] { (void)p.jogger->jog(request); }); };
+  EXPECT_EQ(refusal(), std::make_pair(409, std::string("jogging refused: no robot_state_t from "
+                                                       "EDP irb6 in the last 1 s")));
+  p.state.on_robot_state(0, robot_state(1), SteadyClock::now() - 1500ms);
+  EXPECT_EQ(refusal().first, 409) << "a state older than 1 s is stale";
+  auto s = robot_state(2);
+  s.estop = true;
+  p.state.on_robot_state(0, s);
+  EXPECT_EQ(refusal(), std::make_pair(409, std::string("jogging refused: the emergency stop of "
+                                                       "irb6 is engaged; release it first")));
+  s = robot_state(3);
+  s.fault = true;
+  s.error = "drive 2 over temperature";
+  p.state.on_robot_state(0, s);
+  EXPECT_EQ(refusal().second,
+            "jogging refused: irb6 has a hardware fault: drive 2 over temperature");
+  s = robot_state(4);
+  s.synchronised = false;
+  p.state.on_robot_state(0, s);
+  EXPECT_TRUE(has(refusal().second, "jogging refused: irb6 is not synchronised"))
+      << refusal().second;
+  s = robot_state(5);
+  s.moving = true;
+  p.state.on_robot_state(0, s);
+  EXPECT_EQ(refusal().second, "jogging refused: irb6 is moving");
+  p.state.on_robot_state(0, robot_state(6));
+  for (const char* running : {"RUNNING", "PAUSED", "STOPPING"}) {
+    MpStatus mp;
+    mp.state = running;
+    p.state.on_mp_status(mp);
+    EXPECT_EQ(refusal(), std::make_pair(409, "jogging refused: the MP task is " +
+                                                 std::string(running) + "; stop it first"));
+  }
+  EXPECT_TRUE(p.link->calls.empty());
+  MpStatus idle;
+  idle.state = "IDLE";
+  p.state.on_mp_status(idle);
+  EXPECT_EQ(p.jogger->check(request), std::vector<double>(5, 0.1));
+}
+
+TEST(Jog, TheEdpsRefusalAndSilence) {
+  Parts p;
+  p.state.on_robot_state(0, robot_state(1));
+  p.link->refuse = "EDP irb6 refused SET: joint 0 target 3.2 rad exceeds upper limit 2.9 rad";
+  const auto [status, text] = api_error([&] { (void)p.jogger->jog({"irb6", 0, 0.1, 1}); });
+  EXPECT_EQ(status, 409);
+  EXPECT_EQ(text, p.link->refuse);
+  ASSERT_EQ(p.reports.sent.size(), 1u);
+  EXPECT_EQ(p.reports.sent[0].first, Severity::warning);
+  EXPECT_TRUE(has(p.reports.sent[0].second, "operator jog of irb6 axis 0 (" +
+                                                irb6().joint_names[0] +
+                                                ") by +0.1000 rad refused: EDP irb6 refused"))
+      << p.reports.sent[0].second;
+  p.link->refuse.clear();
+  p.link->timeout = true;
+  EXPECT_EQ(api_error([&] { (void)p.jogger->jog({"irb6", 0, 0.1, 1}); }).first, 504);
+}
+
+TEST(Jog, OneJogOfARobotAtATime) {
+  Parts p;
+  p.state.on_robot_state(0, robot_state(1));
+  p.link->hold = true;
+  p.link->joints_after.assign(5, 0.1);
+  auto first = std::async(std::launch::async, [&] { return p.jogger->jog({"irb6", 0, 0.1, 1}); });
+  {
+    std::unique_lock lock(p.link->mutex);
+    ASSERT_TRUE(p.link->cv.wait_for(lock, 5s, [&] { return p.link->entered; }));
+  }
+  EXPECT_EQ(api_error([&] {
+              (void)p.jogger->jog({"irb6", 1, 0.1, 1});
+            }),
+            std::make_pair(409, std::string("jogging refused: a jog of irb6 is in progress")));
+  {
+    std::lock_guard lock(p.link->mutex);
+    p.link->hold = false;
+    p.link->cv.notify_all();
+  }
+  EXPECT_EQ(first.get().motion_steps, p.link->calls.at(0).second);
+  EXPECT_EQ(p.link->calls.size(), 1u);
+}
+
+// --- teach-in ----------------------------------------------------------------------------------
+
+TEST(TeachIn, AppendsJointPosesToATrajectoryFile) {
+  TempDir dir;
+  Parts p;
+  TeachIn teach(p.state, dir.path() / "taught", p.reports.fn());
+  p.state.on_robot_state(0, robot_state(1, {0.5, -1.5, 0.25, 0.0, 0.125}));
+  const TeachResult first = teach.record("irb6", "irb6.traj");
+  EXPECT_EQ(first.points, 1u);
+  EXPECT_EQ(first.file, dir.path() / "taught" / "irb6.traj");
+  EXPECT_EQ(first.text, "pose 1 of irb6 recorded in " + first.file.string());
+  p.state.on_robot_state(0, robot_state(2, {0.75, -1.25, 0.0, 0.5, -0.25}));
+  const TeachResult second = teach.record("irb6", "irb6.traj");
+  EXPECT_EQ(second.points, 2u);
+  EXPECT_EQ(second.pose, (std::vector<double>{0.75, -1.25, 0.0, 0.5, -0.25}));
+  const std::string text = read_file(first.file);
+  EXPECT_TRUE(has(text, "# mrroc trajectory v1 representation=JOINT axes=5 robot=irb6")) << text;
+  EXPECT_TRUE(has(text, "0.5 -1.5 0.25 0 0.125\n")) << text;
+  EXPECT_TRUE(has(text, "0.75 -1.25 0 0.5 -0.25\n")) << text;
+  const auto loaded = ecp::TrajectoryFile::load(first.file);
+  EXPECT_EQ(loaded.robot, "irb6");
+  EXPECT_EQ(loaded.axes, 5u);
+  ASSERT_EQ(loaded.points.size(), 2u);
+  EXPECT_EQ(loaded.points[1].values, second.pose);
+  ASSERT_EQ(p.reports.sent.size(), 2u);
+  EXPECT_EQ(p.reports.sent[1].second, "teach-in: " + second.text);
+}
+
+TEST(TeachIn, Refusals) {
+  TempDir dir;
+  Parts p;
+  TeachIn teach(p.state, dir.path(), p.reports.fn());
+  for (const char* bad : {"../escape.traj", "", ".hidden", "a/b", "-x"}) {
+    const auto [status, text] = api_error([&] { (void)teach.record("irb6", bad); });
+    EXPECT_EQ(status, 400) << bad;
+    EXPECT_EQ(text, "trajectory file name '" + std::string(bad) +
+                        "' is not a plain file name (letters, digits, '_', '.', '-'; at most 100)");
+  }
+  EXPECT_EQ(api_error([&] { (void)teach.record("nope", "x.traj"); }).first, 404);
+  EXPECT_EQ(api_error([&] { (void)teach.record("irb6", "x.traj"); }),
+            std::make_pair(409, std::string("no robot_state_t from EDP irb6 in the last 1 s")));
+  auto s = robot_state(1);
+  s.synchronised = false;
+  p.state.on_robot_state(0, s);
+  EXPECT_EQ(api_error([&] { (void)teach.record("irb6", "x.traj"); }),
+            std::make_pair(409, std::string("irb6 is not synchronised: its joint positions are "
+                                            "not known yet")));
+  // A file of another robot is left as it is.
+  std::filesystem::create_directories(dir.path());
+  const auto other = dir.path() / "other.traj";
+  {
+    std::ofstream out(other);
+    out << "# mrroc trajectory v1 representation=JOINT axes=3 robot=rnt\n0 0 0\n";
+  }
+  const std::string before = read_file(other);
+  p.state.on_robot_state(0, robot_state(2));
+  const auto [status, text] = api_error([&] { (void)teach.record("irb6", "other.traj"); });
+  EXPECT_EQ(status, 409);
+  EXPECT_TRUE(has(text,
+                  "holds a JOINT trajectory of 3 axes for robot 'rnt', not JOINT poses of "
+                  "irb6 (5 axes)"))
+      << text;
+  EXPECT_EQ(read_file(other), before);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "x.traj"));
+}
+
+// --- HTTP API ----------------------------------------------------------------------------------
+
+namespace {
+
+/// The console's actions on the parts above, with the emergency stop and the MP's answers
+/// recorded instead of sent.
+struct PartsActions : ConsoleActions {
+  Parts& parts;
+  TeachIn& teach_in;
+  std::vector<std::tuple<bool, std::string, std::string>> stops;
+  std::vector<OperatorCommand> commands;
+  MpStatus answer;
+  bool mp_silent = false;
+  PartsActions(Parts& p, TeachIn& t) : parts(p), teach_in(t) {}
+  MpStatus command(OperatorCommand c) override {
+    if (mp_silent) throw ApiError(504, "no MP answers on 'mrroc/mp/cmd'");
+    commands.push_back(c);
+    return answer;
+  }
+  EstopResult emergency_stop(bool engage, const std::string& robot,
+                             const std::string& reason) override {
+    stops.emplace_back(engage, robot, reason);
+    EstopResult r;
+    r.text = describe_emergency_stop(engage, robot, reason);
+    r.servo_step_at_send = parts.state.estimated_servo_steps(robot);
+    r.confirmation.confirmed = {"irb6"};
+    r.confirmation.latency_ms["irb6"] = 12.5;
+    return r;
+  }
+  JogResult jog(const JogRequest& request) override { return parts.jogger->jog(request); }
+  TeachResult teach(const std::string& robot, const std::string& file) override {
+    return teach_in.record(robot, file);
+  }
+};
+
+/// The API on an in-process server at 127.0.0.1:<any free port>.
+class ApiTest : public ::testing::Test {
+ protected:
+  void start(const std::string& token = {}) {
+    ApiSettings settings;
+    settings.set_name = "demo";
+    settings.config_file = "/configs/demo.toml";
+    settings.operator_start = true;
+    settings.teach_dir = dir_.path();
+    settings.jog_max_step_rad = 0.2;
+    settings.token = token;
+    api_ = std::make_unique<HttpApi>(parts_.state, settings, actions_);
+    api_->install(server_);
+    port_ = server_.bind_to_any_port("127.0.0.1");
+    ASSERT_GT(port_, 0);
+    thread_ = std::thread([this] { server_.listen_after_bind(); });
+    for (int i = 0; i < 500 && !server_.is_running(); ++i) std::this_thread::sleep_for(2ms);
+    ASSERT_TRUE(server_.is_running());
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+  }
+  void TearDown() override {
+    server_.stop();
+    if (thread_.joinable()) thread_.join();
+  }
+  /// POST with the cross-site header; {status, body as JSON (null if not JSON)}.
+  std::pair<int, json> post(const std::string& path, const std::string& body) {
+    auto res = client_->Post(path.c_str(), {{"X-Mrroc-Request", "1"}}, body, "application/json");
+    if (!res) return {0, json()};
+    return {res->status, json::parse(res->body, nullptr, false)};
+  }
+  std::pair<int, json> get(const std::string& path, const httplib::Headers& headers = {}) {
+    auto res = client_->Get(path.c_str(), headers);
+    if (!res) return {0, json()};
+    return {res->status, json::parse(res->body, nullptr, false)};
+  }
+
+  TempDir dir_;
+  Parts parts_;
+  TeachIn teach_{parts_.state, dir_.path(), parts_.reports.fn()};
+  PartsActions actions_{parts_, teach_};
+  std::unique_ptr<HttpApi> api_;
+  httplib::Server server_;
+  std::thread thread_;
+  int port_ = 0;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+}  // namespace
+
+TEST_F(ApiTest, StateHasEveryFieldThePageReads) {
+  start();
+  auto [status, state] = get("/api/state");
+  ASSERT_EQ(status, 200);
+  for (const char* key : {"set", "config", "utime", "operator_start", "mp", "launch", "processes",
+                          "robots", "srp", "teach_dir", "jog_max_step_rad"})
+    EXPECT_TRUE(state.contains(key)) << key << " in " << state.dump();
+  EXPECT_EQ(state["set"], "demo");
+  EXPECT_EQ(state["mp"]["state"], "NO MP");
+  EXPECT_EQ(state["mp"]["available"], false);
+  EXPECT_TRUE(state["launch"].is_null());
+  ASSERT_EQ(state["robots"].size(), 1u);
+  EXPECT_EQ(state["robots"][0]["name"], "irb6");
+  EXPECT_EQ(state["robots"][0]["joint_names"].size(), 5u);
+  EXPECT_TRUE(state["robots"][0]["state"].is_null());
+  EXPECT_EQ(state["teach_dir"], dir_.path().string());
+
+  parts_.state.on_robot_state(0, robot_state(42));
+  MpStatus mp;
+  mp.accepted = true;
+  mp.state = "IDLE";
+  mp.task = "joint_poses";
+  parts_.state.on_mp_status(mp);
+  ProcessStatus p;
+  p.process = "edp/irb6";
+  p.robot = "irb6";
+  p.state = ProcessState::ready;
+  p.uptime_us = 2'500'000;
+  parts_.state.on_process_status(p);
+  std::tie(status, state) = get("/api/state");
+  const json& s = state["robots"][0]["state"];
+  for (const char* key :
+       {"synchronised", "moving", "estop", "fault", "error", "servo_step", "servo_period_s", "q",
+        "dq", "q_desired", "lateness_mean_us", "lateness_max_us", "overruns", "utime", "age_s"})
+    EXPECT_TRUE(s.contains(key)) << key << " in " << s.dump();
+  EXPECT_EQ(s["servo_step"], 42);
+  EXPECT_EQ(s["synchronised"], true);
+  EXPECT_EQ(state["mp"]["task"], "joint_poses");
+  EXPECT_EQ(state["mp"]["available"], true);
+  ASSERT_EQ(state["processes"].size(), 1u);
+  EXPECT_EQ(state["processes"][0]["name"], "edp/irb6");
+  EXPECT_EQ(state["processes"][0]["state"], "ready");
+  EXPECT_DOUBLE_EQ(state["processes"][0]["uptime_s"].get<double>(), 2.5);
+}
+
+TEST_F(ApiTest, SamplesAndSrpMessages) {
+  start();
+  for (std::int64_t step = 1; step <= 5; ++step) parts_.state.on_robot_state(0, robot_state(step));
+  auto [status, samples] = get("/api/robots/irb6/samples?after=3");
+  ASSERT_EQ(status, 200);
+  EXPECT_EQ(samples["robot"], "irb6");
+  ASSERT_EQ(samples["samples"].size(), 2u);
+  EXPECT_EQ(samples["samples"][0]["step"], 4);
+  EXPECT_EQ(samples["samples"][0]["q"].size(), 5u);
+  EXPECT_EQ(get("/api/robots/nope/samples").first, 404);
+  EXPECT_EQ(get("/api/robots/irb6/samples?after=x").first, 400);
+
+  parts_.state.on_message(message(1'700'000'000'000'000, "hello", Severity::warning));
+  auto [srp_status, srp] = get("/api/srp?after=0&min_severity=2");
+  ASSERT_EQ(srp_status, 200);
+  ASSERT_EQ(srp["messages"].size(), 1u);
+  const json& m = srp["messages"][0];
+  EXPECT_EQ(m["n"], 1);
+  EXPECT_EQ(m["text"], "hello");
+  EXPECT_EQ(m["severity"], 2);
+  EXPECT_EQ(m["severity_name"], "warning");
+  EXPECT_EQ(m["process"], "edp/irb6");
+  EXPECT_TRUE(m.contains("time"));
+  EXPECT_EQ(get("/api/srp?min_severity=3").second["messages"].size(), 0u);
+  auto [bad_status, bad] = get("/api/srp?min_severity=9");
+  EXPECT_EQ(bad_status, 400);
+  EXPECT_EQ(bad["error"], "min_severity 9 is not a severity 0 (DEBUG) .. 4 (FATAL)");
+  EXPECT_EQ(get("/api/srp?max=0").second["error"], "max 0 is out of range 1..5000");
+  EXPECT_EQ(get("/api/srp?after=1x").second["error"],
+            "query parameter 'after' is '1x', expected an integer");
+}
+
+TEST_F(ApiTest, MalformedBodiesAreRefusedWithTheirReason) {
+  start();
+  parts_.state.on_robot_state(0, robot_state(1));
+  const std::vector<std::tuple<std::string, std::string, int, std::string>> cases = {
+      {"/api/jog", "{", 400, "request body is not a JSON object"},
+      {"/api/jog", "[1, 2]", 400, "request body is not a JSON object"},
+      {"/api/jog", std::string("\xff\xfe\x00garbage", 10), 400, "not a JSON object"},
+      {"/api/jog", R"({"robot": 5, "axis": 0, "step_rad": 0.01})", 400, "request body: "},
+      {"/api/jog", R"({"robot": "irb6", "axis": "0", "step_rad": 0.01})", 400,
+       "jog needs an integer 'axis'"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 0})", 400, "jog needs a number 'step_rad' [rad]"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 0, "step_rad": 0.01, "direction": 2})", 400,
+       "jog direction 2 is neither +1 nor -1"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 0, "step_rad": 0.01, "direction": 1.5})", 400,
+       "jog 'direction' must be +1 or -1"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 99, "step_rad": 0.01})", 400,
+       "axis 99 is out of range: robot irb6 has axes 0..4"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 0, "step_rad": 1e308})", 400, "rad is outside"},
+      {"/api/jog", R"({"robot": "nope", "axis": 0, "step_rad": 0.01})", 404, "no robot 'nope'"},
+      {"/api/teach", R"({"robot": "irb6", "file": "../escape.traj"})", 400,
+       "not a plain file name"},
+      {"/api/teach", R"({"robot": "irb6", "file": 7})", 400, "request body: "},
+      {"/api/release", "not json", 400, "not a JSON object"},
+      {"/api/release", R"({"robot": "nope"})", 404, "no robot 'nope'"},
+      {"/api/command/launch", "{}", 404, "unknown command 'launch'"},
+  };
+  for (const auto& [path, body, status, text] : cases) {
+    const auto [got_status, answer] = post(path, body);
+    EXPECT_EQ(got_status, status) << path << " " << body;
+    ASSERT_TRUE(answer.is_object()) << path << " " << body;
+    EXPECT_TRUE(has(answer.value("error", std::string()), text))
+        << path << " " << body << ": " << answer.dump();
+  }
+  EXPECT_TRUE(parts_.link->calls.empty()) << "nothing moved";
+  EXPECT_TRUE(actions_.stops.empty()) << "nothing released";
+  EXPECT_TRUE(actions_.commands.empty());
+  EXPECT_FALSE(std::filesystem::exists(dir_.path() / "irb6.traj"));
+}
+
+TEST_F(ApiTest, AnEstopNotUnderstoodStopsEveryRobot) {
+  start();
+  for (const std::string body :
+       {"not json", R"({"robot": 5})", R"({"robot": "nope"})", R"({"reason": []})"}) {
+    actions_.stops.clear();
+    const auto [status, answer] = post("/api/estop", body);
+    EXPECT_EQ(status, 400) << body;
+    EXPECT_EQ(answer["ok"], true) << body;
+    EXPECT_TRUE(has(answer["error"].get<std::string>(), "every robot was stopped")) << body;
+    ASSERT_EQ(actions_.stops.size(), 1u) << body;
+    EXPECT_TRUE(std::get<0>(actions_.stops[0]));
+    EXPECT_EQ(std::get<1>(actions_.stops[0]), "") << "every robot";
+    EXPECT_TRUE(has(std::get<2>(actions_.stops[0]), "request not understood")) << body;
+  }
+  parts_.state.on_robot_state(0, robot_state(100));
+  const auto [status, answer] = post("/api/estop", R"({"robot": "irb6", "reason": "test"})");
+  ASSERT_EQ(status, 200);
+  for (const char* key : {"ok", "text", "servo_step_at_send", "confirmed", "unconfirmed",
+                          "confirm_ms", "deadline_ms", "latched_by"})
+    EXPECT_TRUE(answer.contains(key)) << key << " in " << answer.dump();
+  EXPECT_FALSE(answer.contains("error"));
+  EXPECT_EQ(answer["deadline_ms"], 500);
+  EXPECT_EQ(answer["confirm_ms"]["irb6"], 12.5);
+  EXPECT_GE(answer["servo_step_at_send"]["irb6"].get<std::int64_t>(), 100);
+  EXPECT_EQ(actions_.stops.back(), std::make_tuple(true, std::string("irb6"), std::string("test")));
+  const auto [release_status, release] = post("/api/release", "");
+  EXPECT_EQ(release_status, 200);
+  EXPECT_EQ(actions_.stops.back(),
+            std::make_tuple(false, std::string(), std::string("operator console")));
+  EXPECT_TRUE(has(release["text"].get<std::string>(), "for every robot")) << release.dump();
+}
+
+TEST_F(ApiTest, CommandsJogAndTeach) {
+  start();
+  actions_.answer.accepted = false;
+  actions_.answer.state = "RUNNING";
+  actions_.answer.text = "a task is running";
+  auto [status, answer] = post("/api/command/start", "{}");
+  EXPECT_EQ(status, 409);
+  EXPECT_EQ(answer["command"], "start");
+  EXPECT_EQ(answer["error"], "the MP refused START: a task is running");
+  ASSERT_EQ(actions_.commands.size(), 1u);
+  EXPECT_EQ(actions_.commands[0], OperatorCommand::start);
+  actions_.answer.accepted = true;
+  std::tie(status, answer) = post("/api/command/status", "");
+  EXPECT_EQ(status, 200);
+  EXPECT_FALSE(answer.contains("error"));
+  EXPECT_EQ(answer["state"], "RUNNING");
+  actions_.mp_silent = true;
+  std::tie(status, answer) = post("/api/command/stop", "{}");
+  EXPECT_EQ(status, 504);
+  EXPECT_EQ(answer["error"], "no MP answers on 'mrroc/mp/cmd'");
+
+  parts_.state.on_robot_state(0, robot_state(1));
+  parts_.link->joints_after = {0.15, 0.1, 0.1, 0.1, 0.1};
+  std::tie(status, answer) =
+      post("/api/jog", R"({"robot": "irb6", "axis": 0, "direction": 1, "step_rad": 0.05})");
+  ASSERT_EQ(status, 200) << answer.dump();
+  for (const char* key : {"ok", "text", "q", "q_before", "motion_steps"})
+    EXPECT_TRUE(answer.contains(key)) << key;
+  EXPECT_EQ(answer["q"][0], 0.15);
+  EXPECT_EQ(answer["motion_steps"], parts_.link->calls.at(0).second);
+  EXPECT_EQ(parts_.link->calls.at(0).first[0], 0.05);
+
+  std::tie(status, answer) = post("/api/teach", R"({"robot": "irb6"})");
+  ASSERT_EQ(status, 200) << answer.dump();
+  EXPECT_EQ(answer["file"], (dir_.path() / "irb6.traj").string());
+  EXPECT_EQ(answer["points"], 1);
+  EXPECT_EQ(answer["pose"].size(), 5u);
+  EXPECT_EQ(ecp::TrajectoryFile::load(dir_.path() / "irb6.traj").points.size(), 1u);
+}
+
+TEST_F(ApiTest, CrossSiteAndTokenChecks) {
+  start("0123456789abcdef-token");
+  EXPECT_EQ(get("/api/state").first, 401);
+  EXPECT_EQ(get("/api/state", {{"Authorization", "Bearer wrong-token-of-same-len"}}).first, 401);
+  EXPECT_EQ(get("/api/state", {{"Authorization", "Bearer 0123456789abcdef-token"}}).first, 200);
+  EXPECT_EQ(get("/api/state?token=0123456789abcdef-token").first, 200);
+  // The page itself needs no token.
+  auto page = client_->Get("/");
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200);
+  EXPECT_TRUE(has(page->get_header_value("Content-Type"), "text/html"));
+  EXPECT_EQ(client_->Get("/no-such-file.js")->status, 404);
+  // A POST without the cross-site header is refused before anything happens.
+  auto res = client_->Post("/api/estop", {{"Authorization", "Bearer 0123456789abcdef-token"}}, "{}",
+                           "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 403);
+  EXPECT_TRUE(actions_.stops.empty());
+  EXPECT_TRUE(api_->token_ok("Bearer 0123456789abcdef-token", ""));
+  EXPECT_TRUE(api_->token_ok("", "0123456789abcdef-token"));
+  EXPECT_FALSE(api_->token_ok("Bearer 0123456789abcdef-tokeN", ""));
+}
+
+TEST(ReadTokenFile, NamesTheFileAndTheLength) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path());
+  const auto file = dir.path() / "token";
+  {
+    std::ofstream out(file);
+    out << "  short  \n";
+  }
+  try {
+    (void)read_token_file(file);
+    FAIL() << "a token of 5 characters was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "UI token file '" + file.string() +
+                                         "': the token on its first line has 5 characters, at "
+                                         "least 16 needed");
+  }
+  {
+    std::ofstream out(file);
+    out << " 0123456789abcdef\t\nsecond line\n";
+  }
+  EXPECT_EQ(read_token_file(file), "0123456789abcdef");
+  EXPECT_THROW((void)read_token_file(dir.path() / "missing"), Error);
+}

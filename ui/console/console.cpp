@@ -1,0 +1,179 @@
+#include "console/console.hpp"
+
+#include <fmt/format.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <thread>
+#include <vector>
+
+#include "console/bus_feed.hpp"
+#include "console/edp_jog_link.hpp"
+#include "console/http_api.hpp"
+#include "console/jog.hpp"
+#include "console/state.hpp"
+#include "console/teach_in.hpp"
+#include "mrroc/comm/auth.hpp"
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/reporter.hpp"
+#include "mrroc/comm/request_reply.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "operator.hpp"
+
+// Last: <resolv.h>, which it includes, defines `_res`, a name Eigen's headers use.
+#include <httplib.h>
+
+namespace mrroc::ui {
+
+namespace {
+
+std::vector<ConsoleRobot> load_robots(const ProcessSetConfig& config) {
+  std::vector<ConsoleRobot> robots;
+  for (const RobotConfig& r : config.robots)
+    robots.push_back(ConsoleRobot{r.name, load_robot_model(r.model_dir), r.edp.servo_period_s});
+  return robots;
+}
+
+}  // namespace
+
+struct Console::Impl : ConsoleActions {
+  ProcessSetConfig config;
+  ConsoleOptions options;
+  comm::Bus bus;
+  ConsoleState state;
+  std::unique_ptr<BusFeed> feed;
+  std::unique_ptr<Reporter> reporter;
+  std::unique_ptr<MpClient> command_client;
+  std::unique_ptr<Jogger> jogger;
+  std::unique_ptr<TeachIn> teach_in;
+  std::unique_ptr<HttpApi> api;
+  httplib::Server server;
+
+  Impl(const ProcessSetConfig& c, ConsoleOptions o)
+      : config(c), options(std::move(o)), bus(c.lcm_url), state(c.name, load_robots(c)) {
+    comm::enable_auth_from_file(bus, config.auth_key_file);
+    const ReportFn report = [this](Severity severity, const std::string& text) {
+      reporter->report(severity, 0, text);
+    };
+    std::map<std::string, std::unique_ptr<JogLink>> links;
+    for (const ConsoleRobot& r : state.robots())
+      links[r.name] = make_edp_jog_link(bus, r.name, r.model);
+    jogger = std::make_unique<Jogger>(
+        state, JogOptions{options.jog_max_step_rad, options.jog_velocity_fraction, 0.1},
+        std::move(links), report);
+    feed = std::make_unique<BusFeed>(bus, state, no_mp_text());
+    comm::ClientOptions command_options;
+    command_options.attempt_timeout = std::chrono::milliseconds(250);
+    command_options.max_attempts = 8;
+    command_client =
+        std::make_unique<MpClient>(bus, comm::unique_endpoint_name("ui"), "MP",
+                                   channels::mp_command, channels::mp_reply, command_options);
+    bus.start();
+    reporter = std::make_unique<Reporter>(bus, "ui");
+    teach_in = std::make_unique<TeachIn>(state, config.ui.teach_dir, report);
+    ApiSettings settings;
+    settings.set_name = config.name;
+    settings.config_file = config.file;
+    settings.operator_start = config.mp_waits_for_operator;
+    settings.teach_dir = teach_in->dir();
+    settings.jog_max_step_rad = options.jog_max_step_rad;
+    settings.token = options.token;
+    api = std::make_unique<HttpApi>(state, settings, *this);
+    api->install(server);
+  }
+
+  ~Impl() override {
+    feed->stop_polling();
+    bus.stop();
+    feed.reset();  // unsubscribes
+  }
+
+  std::string no_mp_text() const {
+    return fmt::format("no MP answers on '{}' (set '{}', {})", channels::mp_command, config.name,
+                       config.file.string());
+  }
+
+  // --- ConsoleActions: what the API's POST requests do ------------------------------------------
+
+  MpStatus command(OperatorCommand command) override {
+    MpStatus s;
+    try {
+      s = send_operator_command(*command_client, command);
+    } catch (const TimeoutError&) {
+      throw ApiError(504, no_mp_text());
+    }
+    state.on_mp_status(s);
+    std::string upper = to_string(command);
+    for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (command != OperatorCommand::status)
+      reporter->info(fmt::format("operator: {} {} (MP {}{})", upper,
+                                 s.accepted ? "accepted" : "refused", s.state,
+                                 s.text.empty() ? "" : ": " + s.text));
+    return s;
+  }
+
+  EstopResult emergency_stop(bool engage, const std::string& robot,
+                             const std::string& reason) override {
+    EstopResult r;
+    r.servo_step_at_send = state.estimated_servo_steps(robot);
+    // Sent, then confirmed from every robot's robot_state_t within kEstopConfirmDeadline.
+    std::vector<std::string> names;
+    for (const RobotConfig& c : config.robots) names.push_back(c.name);
+    r.confirmation = send_and_confirm_emergency_stop(bus, engage, names, robot, reason);
+    r.text = describe_emergency_stop(engage, robot, reason) + ": " +
+             describe_confirmation(engage, r.confirmation);
+    if (engage || !r.confirmation.all())
+      reporter->report(Severity::error, 10, r.text);
+    else
+      reporter->warning(r.text);
+    return r;
+  }
+
+  JogResult jog(const JogRequest& request) override { return jogger->jog(request); }
+
+  TeachResult teach(const std::string& robot, const std::string& file) override {
+    return teach_in->record(robot, file);
+  }
+
+  int run() {
+    if (!server.bind_to_port(options.bind, options.port)) {
+      const std::string text =
+          fmt::format("cannot listen on {}:{} (in use, or not an address of this host)",
+                      options.bind, options.port);
+      reporter->report(Severity::fatal, 0, text);
+      reporter->set_state(ProcessState::failed, text);
+      throw Error(text);
+    }
+    feed->start_polling();
+    std::atomic<bool> listening_ended{false};
+    std::thread listener_thread([this, &listening_ended] {
+      server.listen_after_bind();
+      listening_ended.store(true);
+    });
+    const std::string url = fmt::format("http://{}:{}/", options.bind, options.port);
+    reporter->set_state(ProcessState::ready);
+    reporter->info(fmt::format("web console at {}{}", url,
+                               options.token.empty() ? "" : " (API token required)"));
+    std::printf("mrroc-ui: web console of set '%s' at %s\n", config.name.c_str(), url.c_str());
+    std::fflush(stdout);
+    while (!stop_requested() && !listening_ended.load())
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    reporter->set_state(ProcessState::stopping);
+    server.stop();
+    listener_thread.join();
+    feed->stop_polling();
+    reporter->set_state(ProcessState::finished);
+    return 0;
+  }
+};
+
+Console::Console(const ProcessSetConfig& config, ConsoleOptions options)
+    : impl_(std::make_unique<Impl>(config, std::move(options))) {}
+Console::~Console() = default;
+int Console::run() { return impl_->run(); }
+
+}  // namespace mrroc::ui

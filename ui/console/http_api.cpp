@@ -1,0 +1,407 @@
+#include "console/http_api.hpp"
+
+#include <fmt/format.h>
+
+#include <exception>
+#include <fstream>
+
+#include "mrroc/core/error.hpp"
+#include "mrroc/core/time.hpp"
+
+// Last: <resolv.h>, which it includes, defines `_res`, a name Eigen's headers use.
+#include <httplib.h>
+
+namespace mrroc::ui {
+
+namespace {
+
+using json = nlohmann::json;
+
+std::string content_type(const std::string& name) {
+  auto ends = [&](const char* suffix) {
+    const std::string s(suffix);
+    return name.size() >= s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0;
+  };
+  if (ends(".html")) return "text/html; charset=utf-8";
+  if (ends(".css")) return "text/css; charset=utf-8";
+  if (ends(".js")) return "application/javascript; charset=utf-8";
+  if (ends(".svg")) return "image/svg+xml";
+  if (ends(".png")) return "image/png";
+  return "application/octet-stream";
+}
+
+void reply_json(httplib::Response& res, const json& body, int status = 200) {
+  res.status = status;
+  res.set_content(body.dump(), "application/json");
+}
+
+void serve_asset(const std::string& name, httplib::Response& res) {
+  const auto& assets = web_assets();
+  const auto it = assets.find(name);
+  if (it == assets.end()) {
+    res.status = 404;
+    res.set_content(fmt::format("no file '{}' in the console", name), "text/plain");
+    return;
+  }
+  res.set_header("Cache-Control", "no-cache");
+  res.set_content(std::string(it->second), content_type(name).c_str());
+}
+
+std::int64_t integer_param(const httplib::Request& req, const char* name, std::int64_t fallback) {
+  if (!req.has_param(name)) return fallback;
+  const std::string text = req.get_param_value(name);
+  try {
+    std::size_t used = 0;
+    const long long v = std::stoll(text, &used);
+    if (used == text.size()) return v;
+  } catch (const std::exception&) {
+  }
+  throw ApiError(400, fmt::format("query parameter '{}' is '{}', expected an integer", name, text));
+}
+
+}  // namespace
+
+std::string read_token_file(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw Error(fmt::format("cannot read the UI token file '{}'", file.string()));
+  std::string line;
+  std::getline(in, line);
+  const auto first = line.find_first_not_of(" \t\r\n");
+  const auto last = line.find_last_not_of(" \t\r\n");
+  const std::string token = first == std::string::npos ? "" : line.substr(first, last - first + 1);
+  if (token.size() < 16)
+    throw Error(fmt::format(
+        "UI token file '{}': the token on its first line has {} characters, at least 16 needed",
+        file.string(), token.size()));
+  return token;
+}
+
+json parse_body(const std::string& text) {
+  if (text.empty()) return json::object();
+  json body = json::parse(text, nullptr, false);
+  if (body.is_discarded() || !body.is_object())
+    throw ApiError(400, "request body is not a JSON object");
+  return body;
+}
+
+JogRequest jog_request_from_json(const json& body) {
+  JogRequest r;
+  r.robot = body.value("robot", std::string());
+  if (!body.contains("axis") || !body["axis"].is_number_integer())
+    throw ApiError(400, "jog needs an integer 'axis'");
+  if (!body.contains("step_rad") || !body["step_rad"].is_number())
+    throw ApiError(400, "jog needs a number 'step_rad' [rad]");
+  r.axis = body["axis"].get<std::int64_t>();
+  r.step_rad = body["step_rad"].get<double>();
+  if (body.contains("direction") && !body["direction"].is_number_integer())
+    throw ApiError(400, "jog 'direction' must be +1 or -1");
+  r.direction = body.value("direction", 1);
+  if (r.direction != 1 && r.direction != -1)
+    throw ApiError(400, fmt::format("jog direction {} is neither +1 nor -1", r.direction));
+  return r;
+}
+
+json mp_json(const MpStatus& s) {
+  return json{{"accepted", s.accepted}, {"state", s.state}, {"task", s.task},
+              {"runs", s.runs},         {"text", s.text},   {"started_utime", s.started_utime}};
+}
+
+json robot_state_json(const mrroc_lcm::robot_state_t& s, double age_s) {
+  return json{{"synchronised", s.synchronised != 0},
+              {"moving", s.moving != 0},
+              {"estop", s.estop != 0},
+              {"fault", s.fault != 0},
+              {"error", s.error},
+              {"servo_step", s.servo_step},
+              {"servo_period_s", s.servo_period_s},
+              {"q", s.q},
+              {"dq", s.dq},
+              {"q_desired", s.q_desired},
+              {"lateness_mean_us", s.lateness_mean_us},
+              {"lateness_max_us", s.lateness_max_us},
+              {"overruns", s.overruns},
+              {"utime", s.header.utime},
+              {"age_s", age_s}};
+}
+
+json message_json(const LogEntry& e) {
+  const SrpMessage& m = e.message;
+  return json{{"n", e.number},
+              {"utime", m.utime},
+              {"time", format_utime(m.utime)},
+              {"process", m.process},
+              {"robot", m.robot},
+              {"severity", static_cast<int>(m.severity)},
+              {"severity_name", to_string(m.severity)},
+              {"code", m.code},
+              {"text", m.text}};
+}
+
+json jog_json(const JogResult& r) {
+  return json{{"ok", true},
+              {"text", r.text},
+              {"q", r.q},
+              {"q_before", r.q_before},
+              {"motion_steps", r.motion_steps}};
+}
+
+json teach_json(const TeachResult& r) {
+  return json{{"ok", true},
+              {"file", r.file.string()},
+              {"points", r.points},
+              {"pose", r.pose},
+              {"text", r.text}};
+}
+
+json estop_json(const EstopResult& r) {
+  json steps = json::object();
+  for (const auto& [name, step] : r.servo_step_at_send) steps[name] = step;
+  json latency = json::object();
+  for (const auto& [name, ms] : r.confirmation.latency_ms) latency[name] = ms;
+  return json{{"ok", true},
+              {"text", r.text},
+              {"servo_step_at_send", steps},
+              {"confirmed", r.confirmation.confirmed},
+              {"unconfirmed", r.confirmation.unconfirmed},
+              {"confirm_ms", latency},
+              {"deadline_ms", kEstopConfirmDeadline.count()},
+              {"latched_by", r.confirmation.latched_by}};
+}
+
+HttpApi::HttpApi(const ConsoleState& state, ApiSettings settings, ConsoleActions& actions)
+    : state_(state), settings_(std::move(settings)), actions_(actions) {}
+
+bool HttpApi::token_ok(const std::string& authorization, const std::string& token_param) const {
+  std::string given = authorization;
+  if (given.rfind("Bearer ", 0) == 0) given = given.substr(7);
+  if (given.empty()) given = token_param;
+  // Compare in constant time (the length is not secret).
+  const std::string& token = settings_.token;
+  if (given.size() != token.size()) return false;
+  unsigned char diff = 0;
+  for (std::size_t i = 0; i < given.size(); ++i)
+    diff = static_cast<unsigned char>(diff | (given[i] ^ token[i]));
+  return diff == 0;
+}
+
+json HttpApi::state_json() const {
+  const StateSnapshot snap = state_.snapshot();
+  json out;
+  out["set"] = settings_.set_name;
+  out["config"] = settings_.config_file.string();
+  out["utime"] = now_utime();
+  out["operator_start"] = settings_.operator_start;
+  json mp = snap.mp ? mp_json(*snap.mp) : json{{"state", "NO MP"}};
+  mp["available"] = snap.mp.has_value();
+  mp["error"] = snap.mp_error;
+  out["mp"] = mp;
+  if (snap.launch) {
+    const auto& l = *snap.launch;
+    json table = json::array();
+    for (const auto& p : l.processes)
+      table.push_back(json{{"name", p.name},
+                           {"group", p.group},
+                           {"host", p.host},
+                           {"state", p.state},
+                           {"pid", p.pid},
+                           {"cpu_percent", p.cpu_percent},
+                           {"rss_kb", p.rss_kb},
+                           {"restarts", p.restarts},
+                           {"uptime_s", p.uptime_s},
+                           {"last_exit_code", p.last_exit_code},
+                           {"required", p.required != 0},
+                           {"restart", p.restart}});
+    out["launch"] = json{{"set_name", l.set_name},
+                         {"state", l.state},
+                         {"launcher_pid", l.launcher_pid},
+                         {"uptime_s", l.uptime_s},
+                         {"processes", table}};
+  } else {
+    out["launch"] = nullptr;
+  }
+  json processes = json::array();
+  for (const auto& [name, seen] : snap.processes)
+    processes.push_back(json{{"name", name},
+                             {"robot", seen.status.robot},
+                             {"state", to_string(seen.status.state)},
+                             {"pid", seen.status.pid},
+                             {"uptime_s", static_cast<double>(seen.status.uptime_us) * 1e-6},
+                             {"detail", seen.status.detail},
+                             {"silent_s", seen.silent_s}});
+  out["processes"] = processes;
+  json robots = json::array();
+  for (std::size_t i = 0; i < state_.robots().size(); ++i) {
+    const ConsoleRobot& r = state_.robots()[i];
+    const StateSnapshot::Robot& seen = snap.robots[i];
+    json j{{"name", r.name},
+           {"joint_names", r.model.joint_names},
+           {"lower_limits", r.model.lower_limits},
+           {"upper_limits", r.model.upper_limits},
+           {"max_velocity", r.model.max_velocity},
+           {"max_acceleration", r.model.max_acceleration},
+           {"servo_period_s", r.servo_period_s}};
+    j["state"] = seen.state ? robot_state_json(*seen.state, seen.age_s) : json();
+    robots.push_back(std::move(j));
+  }
+  out["robots"] = robots;
+  out["srp"] = json{
+      {"last", snap.log_last}, {"epoch", snap.log_epoch}, {"history_loaded", snap.history_loaded}};
+  out["teach_dir"] = settings_.teach_dir.string();
+  out["jog_max_step_rad"] = settings_.jog_max_step_rad;
+  return out;
+}
+
+json HttpApi::samples_json(const std::string& robot, std::int64_t after) const {
+  const std::size_t index = state_.robot_index(robot);
+  json samples = json::array();
+  for (const Sample& s : state_.samples_after(index, after))
+    samples.push_back(json{{"step", s.step},
+                           {"utime", s.utime},
+                           {"q", s.q},
+                           {"dq", s.dq},
+                           {"lateness_mean_us", s.lateness_mean_us},
+                           {"lateness_max_us", s.lateness_max_us}});
+  return json{{"robot", robot},
+              {"servo_period_s", state_.robots()[index].servo_period_s},
+              {"samples", samples}};
+}
+
+json HttpApi::srp_json(std::int64_t after, std::int64_t min_severity, std::int64_t max) const {
+  if (min_severity < 0 || min_severity > 4)
+    throw ApiError(
+        400, fmt::format("min_severity {} is not a severity 0 (DEBUG) .. 4 (FATAL)", min_severity));
+  if (max < 1 || max > 5000)
+    throw ApiError(400, fmt::format("max {} is out of range 1..5000", max));
+  const LogView log =
+      state_.messages(after, static_cast<int>(min_severity), static_cast<std::size_t>(max));
+  json messages = json::array();
+  for (const LogEntry& e : log.entries) messages.push_back(message_json(e));
+  return json{{"last", log.last},
+              {"epoch", log.epoch},
+              {"history_loaded", log.history_loaded},
+              {"srp_last", log.srp_last},
+              {"messages", messages}};
+}
+
+void HttpApi::install(httplib::Server& server) {
+  // A browser keeps several connections open; give them and API clients enough threads.
+  server.new_task_queue = [] { return new httplib::ThreadPool(16); };
+  server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    if (req.path.rfind("/api/", 0) != 0) return httplib::Server::HandlerResponse::Unhandled;
+    if (!settings_.token.empty() &&
+        !token_ok(req.get_header_value("Authorization"),
+                  req.has_param("token") ? req.get_param_value("token") : std::string())) {
+      reply_json(res,
+                 json{{"error",
+                       "missing or wrong token: send 'Authorization: Bearer "
+                       "TOKEN' (the token of [ui] token_file)"}},
+                 401);
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    // A form or image of another web site cannot set this header without a CORS preflight,
+    // which the console never allows: no cross-site requests.
+    if (req.method == "POST" && req.get_header_value("X-Mrroc-Request") != "1") {
+      reply_json(res, json{{"error", "POST requests need the header 'X-Mrroc-Request: 1'"}}, 403);
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
+  server.set_exception_handler(
+      [](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
+        try {
+          std::rethrow_exception(ep);
+        } catch (const ApiError& e) {
+          reply_json(res, json{{"error", e.what()}}, e.status);
+        } catch (const TimeoutError& e) {
+          reply_json(res, json{{"error", e.what()}}, 504);
+        } catch (const json::exception& e) {
+          // A field of the request body has the wrong type (e.g. "robot": 5).
+          reply_json(res, json{{"error", fmt::format("request body: {}", e.what())}}, 400);
+        } catch (const std::exception& e) {
+          reply_json(res, json{{"error", e.what()}}, 500);
+        } catch (...) {
+          reply_json(res, json{{"error", "unknown exception"}}, 500);
+        }
+      });
+  server.Get(
+      "/", [](const httplib::Request&, httplib::Response& res) { serve_asset("index.html", res); });
+  server.Get(R"(/([A-Za-z0-9_.-]+))", [](const httplib::Request& req, httplib::Response& res) {
+    serve_asset(req.matches[1], res);
+  });
+  server.Get("/api/state", [this](const httplib::Request&, httplib::Response& res) {
+    reply_json(res, state_json());
+  });
+  server.Get(R"(/api/robots/([a-z][a-z0-9_]*)/samples)",
+             [this](const httplib::Request& req, httplib::Response& res) {
+               reply_json(res, samples_json(req.matches[1], integer_param(req, "after", 0)));
+             });
+  server.Get("/api/srp", [this](const httplib::Request& req, httplib::Response& res) {
+    reply_json(res, srp_json(integer_param(req, "after", 0), integer_param(req, "min_severity", 0),
+                             integer_param(req, "max", 1000)));
+  });
+  server.Post(
+      R"(/api/command/([a-z]+))", [this](const httplib::Request& req, httplib::Response& res) {
+        const std::string word = req.matches[1];
+        const auto command = operator_command_from_string(word);
+        if (!command)
+          throw ApiError(404, fmt::format("unknown command '{}' (start, pause, resume, stop, "
+                                          "terminate, status)",
+                                          word));
+        const MpStatus s = actions_.command(*command);
+        json body = mp_json(s);
+        body["command"] = word;
+        if (!s.accepted) {
+          std::string upper = word;
+          for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+          body["error"] = fmt::format("the MP refused {}: {}", upper, s.text);
+        }
+        reply_json(res, body, s.accepted ? 200 : 409);
+      });
+  server.Post("/api/estop", [this](const httplib::Request& req, httplib::Response& res) {
+    // Stopping is always safe: a request whose body cannot be understood (not JSON, a field
+    // of the wrong type, an unknown robot) stops every robot instead of none.
+    std::string robot;
+    std::string reason = "operator console";
+    std::string doubt;
+    try {
+      const json body = parse_body(req.body);
+      if (body.contains("robot") && !body["robot"].is_string())
+        throw ApiError(400, "'robot' is not a string");
+      if (body.contains("reason") && !body["reason"].is_string())
+        throw ApiError(400, "'reason' is not a string");
+      robot = body.value("robot", std::string());
+      if (!robot.empty()) (void)state_.robot(robot);
+      reason = body.value("reason", reason);
+    } catch (const ApiError& e) {
+      doubt = e.what();
+      robot.clear();
+      reason = fmt::format("operator console (request not understood: {}; every robot is stopped)",
+                           doubt);
+    }
+    json out = estop_json(actions_.emergency_stop(true, robot, reason));
+    if (doubt.empty()) {
+      reply_json(res, out);
+    } else {
+      out["error"] = fmt::format("request not understood ({}): every robot was stopped", doubt);
+      reply_json(res, out, 400);
+    }
+  });
+  server.Post("/api/release", [this](const httplib::Request& req, httplib::Response& res) {
+    const json body = parse_body(req.body);
+    const std::string robot = body.value("robot", std::string());
+    if (!robot.empty()) (void)state_.robot(robot);
+    const std::string reason = body.value("reason", std::string("operator console"));
+    reply_json(res, estop_json(actions_.emergency_stop(false, robot, reason)));
+  });
+  server.Post("/api/jog", [this](const httplib::Request& req, httplib::Response& res) {
+    reply_json(res, jog_json(actions_.jog(jog_request_from_json(parse_body(req.body)))));
+  });
+  server.Post("/api/teach", [this](const httplib::Request& req, httplib::Response& res) {
+    const json body = parse_body(req.body);
+    const std::string robot = body.value("robot", std::string());
+    const std::string file = body.value("file", robot + ".traj");
+    reply_json(res, teach_json(actions_.teach(robot, file)));
+  });
+}
+
+}  // namespace mrroc::ui

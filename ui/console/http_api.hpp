@@ -1,0 +1,106 @@
+#pragma once
+// The console's HTTP side: the page's files, the JSON API's routes, the encoding of the state and
+// of the actions' answers, the decoding of request bodies, errors as {"error": text} with their
+// status, the token and the cross-site check (docs/operating.md, "JSON API"). It reads a
+// ConsoleState and hands every POST to ConsoleActions, so that it runs without a bus.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <string_view>
+
+#include "console/jog.hpp"
+#include "console/state.hpp"
+#include "console/teach_in.hpp"
+#include "operator.hpp"
+
+namespace httplib {
+class Server;
+}
+
+namespace mrroc::ui {
+
+/// The page's files (ui/web/), embedded at build time (generated web_assets.cpp).
+const std::map<std::string, std::string_view>& web_assets();
+
+/// Reads the token file: its first line without surrounding blanks, at least 16 characters.
+/// @throws Error naming the file when it cannot be read or the token is too short.
+std::string read_token_file(const std::filesystem::path& file);
+
+/// What /api/state shows besides the state.
+struct ApiSettings {
+  std::string set_name;
+  std::filesystem::path config_file;
+  bool operator_start = false;  ///< the MP waits for the operator's START
+  std::filesystem::path teach_dir;
+  double jog_max_step_rad = 0.2;  ///< [rad]
+  /// Every /api request must carry it (header `Authorization: Bearer TOKEN` or `?token=`);
+  /// empty: none.
+  std::string token;
+};
+
+/// An emergency stop or release as sent and confirmed.
+struct EstopResult {
+  std::string text;  ///< "EMERGENCY STOP (...) for every robot: confirmed by ..."
+  /// The servo step each EDP was in when the stop was sent, estimated from its last state.
+  std::map<std::string, std::int64_t> servo_step_at_send;
+  EstopConfirmation confirmation;
+};
+
+/// What the POST routes do (the console does it over the bus).
+class ConsoleActions {
+ public:
+  virtual ~ConsoleActions() = default;
+  /// Sends an operator command to the MP. @throws ApiError 504 when no MP answers.
+  virtual MpStatus command(OperatorCommand command) = 0;
+  /// `robot` empty: every robot; it was checked to be one of the set's.
+  virtual EstopResult emergency_stop(bool engage, const std::string& robot,
+                                     const std::string& reason) = 0;
+  /// @throws ApiError as Jogger::jog.
+  virtual JogResult jog(const JogRequest& request) = 0;
+  /// @throws ApiError as TeachIn::record.
+  virtual TeachResult teach(const std::string& robot, const std::string& file) = 0;
+};
+
+/// A request body: {} when empty. @throws ApiError 400 when it is not a JSON object.
+nlohmann::json parse_body(const std::string& body);
+/// {"robot", "axis", "step_rad", "direction"?}. @throws ApiError 400 naming the missing or
+/// mistyped field; nlohmann::json::exception for a "robot" that is not a string.
+JogRequest jog_request_from_json(const nlohmann::json& body);
+
+nlohmann::json mp_json(const MpStatus& status);
+nlohmann::json robot_state_json(const mrroc_lcm::robot_state_t& state, double age_s);
+nlohmann::json message_json(const LogEntry& entry);
+nlohmann::json jog_json(const JogResult& result);
+nlohmann::json teach_json(const TeachResult& result);
+nlohmann::json estop_json(const EstopResult& result);
+
+class HttpApi {
+ public:
+  HttpApi(const ConsoleState& state, ApiSettings settings, ConsoleActions& actions);
+
+  /// Installs the routes, the token and cross-site checks and the error answers on `server`,
+  /// with a pool of 16 threads (a browser keeps several connections open).
+  void install(httplib::Server& server);
+
+  /// GET /api/state.
+  [[nodiscard]] nlohmann::json state_json() const;
+  /// GET /api/robots/<robot>/samples?after=STEP. @throws ApiError 404 for an unknown robot.
+  [[nodiscard]] nlohmann::json samples_json(const std::string& robot, std::int64_t after) const;
+  /// GET /api/srp. @throws ApiError 400 for a severity outside 0..4 or max outside 1..5000.
+  [[nodiscard]] nlohmann::json srp_json(std::int64_t after, std::int64_t min_severity,
+                                        std::int64_t max) const;
+  /// Whether `authorization` (the header's value) or `token_param` carries the token; compared
+  /// in constant time.
+  [[nodiscard]] bool token_ok(const std::string& authorization,
+                              const std::string& token_param) const;
+
+ private:
+  const ConsoleState& state_;
+  ApiSettings settings_;
+  ConsoleActions& actions_;
+};
+
+}  // namespace mrroc::ui

@@ -1,0 +1,89 @@
+#pragma once
+// Jogging: one axis of one robot by a step [rad], from rest to rest, in one macro-step sent by
+// the console's own EDP link (docs/operating.md, "Jogging"). The checks use the console's state
+// (MP idle, robot fresh, released, without fault, synchronised, at rest); the motion goes
+// through a JogLink, which the console makes from its EDP client (edp_jog_link.hpp).
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "console/common.hpp"
+#include "console/state.hpp"
+
+namespace mrroc::ui {
+
+/// What the EDP said when it refused the motion (nothing moved).
+class JogRefused : public Error {
+ public:
+  using Error::Error;
+};
+
+/// The link to one robot's EDP that carries the jog's motion.
+class JogLink {
+ public:
+  virtual ~JogLink() = default;
+  /// Takes the EDP over (it accepts only while the robot is at rest) and moves the joints by
+  /// `delta` [rad] in one SET ARM JOINT RELATIVE macro-step of `motion_steps` servo steps, from
+  /// rest to rest; returns the measured joint positions after it [rad].
+  /// @throws JogRefused (the EDP's text), TimeoutError (no EDP answers).
+  virtual std::vector<double> move_joints_relative(const std::vector<double>& delta,
+                                                   int motion_steps) = 0;
+};
+
+/// A jog as the API asks for it.
+struct JogRequest {
+  std::string robot;
+  std::int64_t axis = 0;
+  double step_rad = 0.0;  ///< [rad], > 0
+  int direction = 1;      ///< +1 or -1
+};
+
+struct JogOptions {
+  double max_step_rad = 0.2;  ///< largest step accepted [rad]
+  /// The motion stays within this fraction of the axis' velocity and acceleration limits.
+  double velocity_fraction = 0.25;
+  double min_duration_s = 0.1;  ///< shortest macro-step [s]
+};
+
+struct JogResult {
+  std::string text;              ///< "irb6 axis 0 (column) moved +0.1000 rad in ..."
+  std::vector<double> q;         ///< after the motion [rad]
+  std::vector<double> q_before;  ///< from the last robot_state_t before it [rad]
+  int motion_steps = 0;
+};
+
+class Jogger {
+ public:
+  /// @param links  one per robot of `state`, by name; a robot without one cannot be jogged.
+  Jogger(const ConsoleState& state, JogOptions options,
+         std::map<std::string, std::unique_ptr<JogLink>> links, ReportFn report);
+
+  [[nodiscard]] const JogOptions& options() const { return options_; }
+
+  /// Checks the request against the robot and the state, moves and answers once the robot's
+  /// state shows it at rest again (at most 100 ms after the EDP's answer).
+  /// @throws ApiError 404 (unknown robot), 400 (axis or step out of range), 409 (refused: the
+  /// MP runs, no fresh state, stop engaged, fault, not synchronised, moving, another jog of the
+  /// robot in progress, or the EDP refused), 504 (no EDP answers).
+  JogResult jog(const JogRequest& request);
+
+  /// The checks of jog() alone: the joint positions to start from, or the refusal.
+  /// @throws ApiError as jog() (but never for a jog in progress or the EDP).
+  [[nodiscard]] std::vector<double> check(const JogRequest& request) const;
+
+ private:
+  const ConsoleState& state_;
+  JogOptions options_;
+  struct Link {
+    std::unique_ptr<JogLink> link;
+    std::mutex busy;
+  };
+  std::map<std::string, std::unique_ptr<Link>> links_;
+  ReportFn report_;
+};
+
+}  // namespace mrroc::ui

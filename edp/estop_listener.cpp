@@ -9,15 +9,11 @@
 #include <cstring>
 
 #include "mrroc/comm/auth.hpp"
-#include "mrroc/comm/request_reply.hpp"
-#include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
-#include "mrroc_lcm/emergency_stop_t.hpp"
 
 namespace mrroc::edp {
 
 namespace {
-using Stop = mrroc_lcm::emergency_stop_t;
 /// The servo thread's SCHED_FIFO priority (servo_loop.cpp); the listener never goes above it.
 constexpr int kServoPriority = 80;
 /// The listener's priority when the command threads run at the normal scheduler.
@@ -36,17 +32,9 @@ EstopListener::EstopListener(ServoLoop& servo, std::string robot, const std::str
   bus_.set_drop_sink(std::move(drop_sink));
   reason_ = "the EDP starts stopped until it hears the emergency stop's state";
   servo_.emergency_stop();  // before anything can move
-  bus_.subscribe<EstopListener*>(
-      channels::emergency_stop,
-      +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, EstopListener* self) {
-        Stop m;
-        if (!comm::detail::decode_received(buffer, m)) {
-          comm::detail::report_malformed(self->bus_, channel, static_cast<int>(buffer->data_size));
-          return;
-        }
-        self->on_message(m, channel);
-      },
-      this);
+  subscriber_.emplace(
+      bus_, channels::emergency_stop,
+      [this](const EmergencyStop& m, const comm::Received& in) { on_message(m, in); });
   std::unique_lock lock(mutex_);
   thread_ = std::thread([this] { run(); });
   heard_cv_.wait(lock, [this] { return !scheduling_.empty(); });
@@ -55,6 +43,7 @@ EstopListener::EstopListener(ServoLoop& servo, std::string robot, const std::str
 EstopListener::~EstopListener() {
   stop_ = true;
   if (thread_.joinable()) thread_.join();
+  subscriber_.reset();
   bus_.set_drop_sink({});
 }
 
@@ -75,29 +64,29 @@ void EstopListener::run() {
   }
 }
 
-void EstopListener::on_message(const Stop& m, const std::string& channel) {
+void EstopListener::on_message(const EmergencyStop& m, const comm::Received& in) {
   if (!m.robot.empty() && m.robot != robot_) return;
-  const std::string from = m.header.sender;
+  const std::string& from = in.header().sender;
   switch (m.action) {
-    case Stop::ENGAGE: {
+    case EstopAction::engage: {
       {
         std::lock_guard lock(mutex_);
-        last_command_utime_ = std::max(last_command_utime_, m.header.utime);
+        last_command_utime_ = std::max(last_command_utime_, in.header().utime);
       }
       engage(m.reason + " (from " + from + ")", false);
       break;
     }
-    case Stop::RELEASE: {
-      if (!comm::detail::authentic(bus_, m, channel, dropped_)) return;
+    case EstopAction::release: {
+      if (!in.authentic()) return;
       {
         std::lock_guard lock(mutex_);
-        last_command_utime_ = std::max(last_command_utime_, m.header.utime);
+        last_command_utime_ = std::max(last_command_utime_, in.header().utime);
         heard_ = true;
       }
       release();
       break;
     }
-    case Stop::ENGAGED: {
+    case EstopAction::engaged: {
       {
         std::lock_guard lock(mutex_);
         announcer_ = from;
@@ -109,8 +98,8 @@ void EstopListener::on_message(const Stop& m, const std::string& channel) {
       engage(fmt::format("latched: {} (announced by {})", m.reason, from), true);
       break;
     }
-    case Stop::RELEASED: {
-      if (!comm::detail::authentic(bus_, m, channel, dropped_)) return;
+    case EstopAction::released: {
+      if (!in.authentic()) return;
       {
         std::lock_guard lock(mutex_);
         announcer_ = from;
@@ -120,7 +109,6 @@ void EstopListener::on_message(const Stop& m, const std::string& channel) {
       release();
       break;
     }
-    default: return;  // another value: ignored (docs/messages.md)
   }
   heard_cv_.notify_all();
 }

@@ -20,15 +20,14 @@
 #include <cstdint>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
+#include "mrroc/msg/emergency_stop.hpp"
 #include "servo_loop.hpp"
-
-namespace mrroc_lcm {
-class emergency_stop_t;
-}
 
 namespace mrroc::edp {
 
@@ -63,7 +62,7 @@ class EstopListener {
 
  private:
   void run();
-  void on_message(const mrroc_lcm::emergency_stop_t& m, const std::string& channel);
+  void on_message(const EmergencyStop& m, const comm::Received& in);
   void engage(const std::string& why, bool only_if_released);
   void release();
 
@@ -82,7 +81,7 @@ class EstopListener {
   std::string reason_;
   std::string announcer_;
   std::string scheduling_;
-  std::uint64_t dropped_ = 0;
+  std::optional<comm::Subscriber<EmergencyStop>> subscriber_;
 };
 
 }  // namespace mrroc::edp

@@ -10,6 +10,7 @@
 #include "command_interpreter.hpp"
 #include "estop_listener.hpp"
 #include "mrroc/comm/auth.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/links.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
@@ -20,7 +21,6 @@
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
-#include "mrroc_lcm/robot_state_t.hpp"
 #include "servo_loop.hpp"
 
 namespace {
@@ -49,18 +49,18 @@ void refuse_if_another_edp(mrroc::comm::Bus& bus, const std::string& robot,
     std::int64_t servo_step = 0;
   } seen;
   const std::string channel = mrroc::channels::robot_state(robot);
-  mrroc::comm::Subscription* sub = bus.subscribe<Seen*>(
-      channel,
-      +[](const lcm::ReceiveBuffer* buffer, const std::string&, Seen* s) {
-        mrroc_lcm::robot_state_t m;
-        if (!mrroc::comm::detail::decode_received(buffer, m)) return;
-        std::lock_guard lock(s->mutex);
-        s->sender = m.header.sender;
-        s->servo_step = m.servo_step;
-      },
-      &seen);
-  std::this_thread::sleep_for(kOtherEdpListen);
-  bus.unsubscribe(sub);
+  {
+    // A state that does not decode is another EDP's too, but says nothing about whose: dropped.
+    mrroc::comm::Subscriber<mrroc::RobotState> sub(
+        bus, channel,
+        [&seen](const mrroc::RobotState& m, const mrroc::comm::Received& in) {
+          std::lock_guard lock(seen.mutex);
+          seen.sender = in.header().sender;
+          seen.servo_step = m.servo_step;
+        },
+        mrroc::comm::SubscriberOptions::unreported());
+    std::this_thread::sleep_for(kOtherEdpListen);
+  }
   std::lock_guard lock(seen.mutex);
   if (!seen.sender.empty())
     throw mrroc::Error(fmt::format(
@@ -239,13 +239,12 @@ int run(const std::string& config_path, const std::string& robot_name) {
     // The robot's state goes out every kStatePeriod (console, recordings, plots); timing
     // statistics go to the SRP every kTimingReportPeriod and when the EDP stops; an overrun (a
     // cycle that woke more than one period late: a stalled loop) is reported at once.
-    mrroc_lcm::robot_state_t state{};
-    state.header.sender = comm::unique_endpoint_name(process);
-    state.header.kind = mrroc_lcm::header_t::BROADCAST;
+    RobotState state;
+    comm::Envelope state_header;
+    state_header.sender = comm::unique_endpoint_name(process);
     state.robot = robot.name;
     state.servo_period_s = robot.edp.servo_period_s;
     const std::size_t axes = model.axes();
-    state.n_joints = static_cast<std::int32_t>(axes);
     state.q.resize(axes);
     state.dq.resize(axes);
     state.q_desired.resize(axes);
@@ -310,9 +309,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
       state.lateness_mean_us = window.lateness_mean_us;
       state.lateness_max_us = window.lateness_max_us;
       state.overruns = window.overruns_total;
-      ++state.header.seq;
-      state.header.utime = now_utime();
-      comm::publish(bus, state_channel, state);
+      ++state_header.seq;
+      state_header.utime = now_utime();
+      comm::broadcast(bus, state_channel, state_header, state);
       if (last_state) break;
 
       overruns_unreported += window.overruns;

@@ -10,39 +10,27 @@
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
-#include "mrroc_lcm/emergency_stop_t.hpp"
-#include "mrroc_lcm/launch_status_t.hpp"
-#include "mrroc_lcm/robot_state_t.hpp"
 
 namespace mrroc::launch {
-
-using Stop = mrroc_lcm::emergency_stop_t;
 
 EstopLatch::EstopLatch(comm::Bus& bus, std::vector<std::string> robots,
                        std::function<void(const std::string&)> log)
     : bus_(bus), sender_(comm::unique_endpoint_name("launch")), log_(std::move(log)) {
   for (auto& r : robots) robots_[std::move(r)] = Latched{};
-  subscription_ = bus_.subscribe<EstopLatch*>(
-      channels::emergency_stop,
-      +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, EstopLatch* self) {
-        Stop m;
-        if (!comm::detail::decode_received(buffer, m)) {
-          comm::detail::report_malformed(self->bus_, channel, static_cast<int>(buffer->data_size));
-          return;
+  commands_.emplace(
+      bus_, channels::emergency_stop, [this](const EmergencyStop& m, const comm::Received& in) {
+        if (m.action == EstopAction::release) {
+          if (!in.authentic()) return;
+        } else if (m.action != EstopAction::engage) {
+          return;  // announcements (ours, or another latch's)
         }
-        if (m.action == Stop::RELEASE) {
-          if (!comm::detail::authentic(self->bus_, m, channel, self->dropped_)) return;
-        } else if (m.action != Stop::ENGAGE) {
-          return;  // announcements (ours, or another latch's) and unknown values
-        }
-        self->on_command(m.action, m.robot, m.reason, m.header.sender, m.header.utime);
-      },
-      this);
+        on_command(m.action, m.robot, m.reason, in.header().sender, in.header().utime);
+      });
   thread_ = std::thread([this] { run(); });
 }
 
 EstopLatch::~EstopLatch() {
-  bus_.unsubscribe(subscription_);
+  commands_.reset();
   {
     std::lock_guard lock(mutex_);
     stop_ = true;
@@ -57,9 +45,9 @@ bool EstopLatch::engaged(const std::string& robot) const {
   return it != robots_.end() && it->second.engaged;
 }
 
-void EstopLatch::on_command(std::int8_t action, const std::string& robot, const std::string& reason,
+void EstopLatch::on_command(EstopAction action, const std::string& robot, const std::string& reason,
                             const std::string& sender, std::int64_t utime) {
-  const bool engage = action == Stop::ENGAGE;
+  const bool engage = action == EstopAction::engage;
   std::string line;
   {
     std::lock_guard lock(mutex_);
@@ -92,15 +80,15 @@ void EstopLatch::announce() {
     copy = robots_;
   }
   for (const auto& [name, l] : copy) {
-    Stop m{};
-    m.header.sender = sender_;
-    m.header.kind = mrroc_lcm::header_t::BROADCAST;
-    m.header.utime = now_utime();
-    m.action = l.engaged ? Stop::ENGAGED : Stop::RELEASED;
+    EmergencyStop m;
+    m.action = l.engaged ? EstopAction::engaged : EstopAction::released;
     m.robot = name;
     m.reason = l.reason;
     m.latched_utime = l.utime;
-    comm::publish(bus_, channels::emergency_stop, m);  // signed with the set's key
+    comm::Envelope header;
+    header.sender = sender_;
+    header.utime = now_utime();
+    comm::broadcast(bus_, channels::emergency_stop, header, m);  // signed with the set's key
   }
 }
 
@@ -128,38 +116,36 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
     std::string announcer;                    // sender of stop announcements
     std::map<std::string, std::string> edps;  // robot -> sender
   } heard;
-  std::vector<mrroc::comm::Subscription*> subs;
-  subs.push_back(bus.subscribe<Heard*>(
-      channels::launch_status,
-      +[](const lcm::ReceiveBuffer* b, const std::string&, Heard* h) {
-        mrroc_lcm::launch_status_t m;
-        if (!comm::detail::decode_received(b, m)) return;
-        std::lock_guard lock(h->mutex);
-        h->table = fmt::format(
+  // Only listening: what does not decode is not the launcher's to report.
+  const comm::SubscriberOptions quiet = comm::SubscriberOptions::unreported();
+  std::optional<comm::Subscriber<LaunchStatus>> tables;
+  tables.emplace(
+      bus, channels::launch_status,
+      [&heard](const LaunchStatus& m, const comm::Received& in) {
+        std::lock_guard lock(heard.mutex);
+        heard.table = fmt::format(
             "a launcher (pid {}, '{}') runs set '{}' from {} (state {}, up {:.1f} s)",
-            m.launcher_pid, m.header.sender, m.set_name, m.config_file, m.state, m.uptime_s);
+            m.launcher_pid, in.header().sender, m.set_name, m.config_file, m.state, m.uptime_s);
       },
-      &heard));
-  subs.push_back(bus.subscribe<Heard*>(
-      channels::emergency_stop,
-      +[](const lcm::ReceiveBuffer* b, const std::string&, Heard* h) {
-        Stop m;
-        if (!comm::detail::decode_received(b, m)) return;
-        if (m.action != Stop::ENGAGED && m.action != Stop::RELEASED) return;
-        std::lock_guard lock(h->mutex);
-        h->announcer = m.header.sender;
+      quiet);
+  std::optional<comm::Subscriber<EmergencyStop>> announcements;
+  announcements.emplace(
+      bus, channels::emergency_stop,
+      [&heard](const EmergencyStop& m, const comm::Received& in) {
+        if (m.action != EstopAction::engaged && m.action != EstopAction::released) return;
+        std::lock_guard lock(heard.mutex);
+        heard.announcer = in.header().sender;
       },
-      &heard));
+      quiet);
+  std::vector<comm::Subscriber<RobotState>> states;
   for (const std::string& robot : robots)
-    subs.push_back(bus.subscribe<Heard*>(
-        channels::robot_state(robot),
-        +[](const lcm::ReceiveBuffer* b, const std::string&, Heard* h) {
-          mrroc_lcm::robot_state_t m;
-          if (!comm::detail::decode_received(b, m)) return;
-          std::lock_guard lock(h->mutex);
-          h->edps[m.robot] = m.header.sender;
+    states.emplace_back(
+        bus, channels::robot_state(robot),
+        [&heard](const RobotState& m, const comm::Received& in) {
+          std::lock_guard lock(heard.mutex);
+          heard.edps[m.robot] = in.header().sender;
         },
-        &heard));
+        quiet);
   auto any = [&] {
     std::lock_guard lock(heard.mutex);
     return !heard.table.empty() || !heard.announcer.empty() || !heard.edps.empty();
@@ -178,7 +164,9 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
   }
-  for (mrroc::comm::Subscription* s : subs) bus.unsubscribe(s);
+  tables.reset();
+  announcements.reset();
+  states.clear();
   std::lock_guard lock(heard.mutex);
   if (heard.table.empty() && heard.announcer.empty() && heard.edps.empty()) return std::nullopt;
   RunningSet out;

@@ -22,10 +22,8 @@
 #include <vector>
 
 #include "mrroc/comm/bus.hpp"
-
-namespace lcm {
-class Subscription;
-}
+#include "mrroc/comm/edge.hpp"
+#include "mrroc/msg/emergency_stop.hpp"
 
 namespace mrroc::launch {
 
@@ -49,7 +47,7 @@ class EstopLatch {
     std::int64_t utime = 0;  ///< header.utime of the command that set it (0: start)
     std::string reason;
   };
-  void on_command(std::int8_t action, const std::string& robot, const std::string& reason,
+  void on_command(EstopAction action, const std::string& robot, const std::string& reason,
                   const std::string& sender, std::int64_t utime);
   void announce();
   void run();
@@ -57,13 +55,12 @@ class EstopLatch {
   comm::Bus& bus_;
   const std::string sender_;
   std::function<void(const std::string&)> log_;
-  mrroc::comm::Subscription* subscription_ = nullptr;
+  std::optional<comm::Subscriber<EmergencyStop>> commands_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
   std::map<std::string, Latched> robots_;
   bool changed_ = false;
   bool stop_ = false;
-  std::uint64_t dropped_ = 0;
   std::thread thread_;
 };
 

@@ -19,6 +19,7 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -27,12 +28,11 @@
 #include "launch_plan.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
-#include "mrroc_lcm/launch_command_t.hpp"
-#include "mrroc_lcm/srp_message_t.hpp"
 #include "status_board.hpp"
 #include "supervisor.hpp"
 
@@ -154,24 +154,15 @@ class AckInbox {
     std::string sender;
   };
   AckInbox(comm::Bus& bus, std::string set_name) : bus_(bus), set_name_(std::move(set_name)) {
-    subscription_ = bus_.subscribe<AckInbox*>(
-        kCommandChannel,
-        +[](const lcm::ReceiveBuffer* buffer, const std::string& channel, AckInbox* self) {
-          mrroc_lcm::launch_command_t m;
-          if (!comm::detail::decode_received(buffer, m)) {
-            comm::detail::report_malformed(self->bus_, channel,
-                                           static_cast<int>(buffer->data_size));
-            return;
-          }
-          if (m.set_name != self->set_name_ || m.command != mrroc_lcm::launch_command_t::RESTART)
-            return;
-          if (!comm::detail::authentic(self->bus_, m, channel, self->dropped_)) return;
-          std::lock_guard lock(self->mutex_);
-          self->acks_.push_back({m.process, m.header.sender});
-        },
-        this);
+    subscriber_.emplace(bus_, kCommandChannel,
+                        [this](const launch::LaunchCommand& m, const comm::Received& in) {
+                          if (m.set_name != set_name_) return;  // another set's
+                          if (!in.authentic()) return;
+                          std::lock_guard lock(mutex_);
+                          acks_.push_back({m.process, in.header().sender});
+                        });
   }
-  ~AckInbox() { bus_.unsubscribe(subscription_); }
+  ~AckInbox() { subscriber_.reset(); }
   AckInbox(const AckInbox&) = delete;
   AckInbox& operator=(const AckInbox&) = delete;
   std::vector<Ack> take() {
@@ -182,10 +173,9 @@ class AckInbox {
  private:
   comm::Bus& bus_;
   std::string set_name_;
-  mrroc::comm::Subscription* subscription_ = nullptr;
   std::mutex mutex_;
   std::vector<Ack> acks_;
-  std::uint64_t dropped_ = 0;
+  std::optional<comm::Subscriber<launch::LaunchCommand>> subscriber_;
 };
 
 /// The plan; `detailed` adds a line per process with its group, host, restart policy, stop
@@ -291,16 +281,16 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   const std::string ui_config = fs::absolute(config.file).lexically_normal().string();
   // A warning for the SRP (the operator's view), besides the launcher's own output.
   auto srp_warning = [&](const std::string& robot, const std::string& text) {
-    mrroc_lcm::srp_message_t m{};
-    m.header.sender = comm::unique_endpoint_name("launch");
-    m.header.kind = mrroc_lcm::header_t::BROADCAST;
-    m.header.utime = now_utime();
-    m.utime = m.header.utime;
+    comm::Envelope header;
+    header.sender = comm::unique_endpoint_name("launch");
+    header.utime = now_utime();
+    SrpMessage m;
+    m.utime = header.utime;
     m.process = "launch";
     m.robot = robot;
-    m.severity = mrroc_lcm::srp_message_t::WARNING;
+    m.severity = Severity::warning;
     m.text = text;
-    comm::publish(bus, channels::srp, m);
+    comm::broadcast(bus, channels::srp, header, m);
   };
   std::size_t width = 0;
   for (const auto& p : plan) width = std::max(width, p.name.size());

@@ -8,79 +8,15 @@
 
 #include <fmt/format.h>
 
-#include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
-#include "mrroc_lcm/launch_status_t.hpp"
 
 namespace mrroc::launch {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-/// Largest table accepted from the network.
-constexpr int kMaxProcesses = 4096;
-
-mrroc_lcm::launch_status_t encode(const LaunchStatus& s, std::int64_t seq) {
-  mrroc_lcm::launch_status_t m{};
-  m.header.utime = s.utime;
-  m.header.sender = fmt::format("mrroc-launch/{}", s.launcher_pid);
-  m.header.seq = seq;
-  m.header.kind = mrroc_lcm::header_t::BROADCAST;
-  m.set_name = s.set_name;
-  m.config_file = s.config_file;
-  m.state = s.state;
-  m.launcher_pid = s.launcher_pid;
-  m.uptime_s = s.uptime_s;
-  for (const auto& r : s.processes) {
-    mrroc_lcm::launch_process_t p{};
-    p.name = r.name;
-    p.group = r.group;
-    p.host = r.host;
-    p.state = r.state;
-    p.pid = r.pid;
-    p.cpu_percent = r.cpu_percent;
-    p.rss_kb = r.rss_kb;
-    p.restarts = r.restarts;
-    p.uptime_s = r.uptime_s;
-    p.last_exit_code = r.last_exit_code;
-    p.required = r.required;
-    p.restart = r.restart;
-    m.processes.push_back(std::move(p));
-  }
-  m.n = static_cast<std::int32_t>(m.processes.size());
-  return m;
-}
-
-std::optional<LaunchStatus> decode(const mrroc_lcm::launch_status_t& m) {
-  if (m.n < 0 || m.n > kMaxProcesses || static_cast<std::size_t>(m.n) != m.processes.size())
-    return std::nullopt;
-  LaunchStatus s;
-  s.utime = m.header.utime;
-  s.set_name = m.set_name;
-  s.config_file = m.config_file;
-  s.state = m.state;
-  s.launcher_pid = m.launcher_pid;
-  s.uptime_s = m.uptime_s;
-  for (const auto& p : m.processes) {
-    ProcessRow r;
-    r.name = p.name;
-    r.group = p.group;
-    r.host = p.host;
-    r.state = p.state;
-    r.pid = p.pid;
-    r.cpu_percent = p.cpu_percent;
-    r.rss_kb = p.rss_kb;
-    r.restarts = p.restarts;
-    r.uptime_s = p.uptime_s;
-    r.last_exit_code = p.last_exit_code;
-    r.required = p.required;
-    r.restart = p.restart;
-    s.processes.push_back(std::move(r));
-  }
-  return s;
-}
-
 }  // namespace
 
 std::optional<std::uint64_t> process_cpu_ticks(pid_t pid) {
@@ -187,9 +123,10 @@ LaunchStatus StatusBoard::snapshot() const {
 }
 
 void StatusBoard::publish(const LaunchStatus& status) {
-  const auto m = encode(status, ++seq_);
-  comm::detail::published();
-  bus_.lcm().publish(channels::launch_status, &m);
+  comm::broadcast(
+      bus_, channels::launch_status,
+      comm::Envelope{status.utime, fmt::format("mrroc-launch/{}", status.launcher_pid), ++seq_},
+      status);
 }
 
 void StatusBoard::run() {
@@ -262,19 +199,16 @@ std::optional<LaunchStatus> receive_status(comm::Bus& bus, const std::string& se
     std::string wanted;
   } inbox;
   inbox.wanted = set_name;
-  auto handler = [](const lcm::ReceiveBuffer* buffer, const std::string&, Inbox* in) {
-    mrroc_lcm::launch_status_t m;
-    if (!comm::detail::decode_received(buffer, m)) return;
-    auto s = decode(m);
-    if (!s || (!in->wanted.empty() && s->set_name != in->wanted)) return;
-    std::lock_guard lock(in->mutex);
-    in->status = std::move(s);
-    in->cv.notify_all();
-  };
-  mrroc::comm::Subscription* sub = bus.subscribe<Inbox*>(
-      channels::launch_status,
-      static_cast<void (*)(const lcm::ReceiveBuffer*, const std::string&, Inbox*)>(handler),
-      &inbox);
+  std::optional<comm::Subscriber<LaunchStatus>> tables;
+  tables.emplace(
+      bus, channels::launch_status,
+      [&inbox](const LaunchStatus& s, const comm::Received&) {
+        if (!inbox.wanted.empty() && s.set_name != inbox.wanted) return;
+        std::lock_guard lock(inbox.mutex);
+        inbox.status = s;
+        inbox.cv.notify_all();
+      },
+      comm::SubscriberOptions::unreported());
   bus.start();
   std::optional<LaunchStatus> result;
   {
@@ -283,7 +217,7 @@ std::optional<LaunchStatus> receive_status(comm::Bus& bus, const std::string& se
     result = inbox.status;
   }
   bus.stop();
-  bus.unsubscribe(sub);
+  tables.reset();
   return result;
 }
 

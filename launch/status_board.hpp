@@ -2,7 +2,7 @@
 /// @file
 /// The launcher's process table: what `mrroc-launch` broadcasts as launch_status_t on
 /// `channels::launch_status` every second and on every change, and what
-/// `mrroc-launch status` prints. Only this file and status_board.cpp see the LCM types.
+/// `mrroc-launch status` prints (the table's types are in mrroc/msg/launch.hpp).
 
 #include <sys/types.h>
 
@@ -17,38 +17,9 @@
 #include <vector>
 
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/msg/launch.hpp"
 
 namespace mrroc::launch {
-
-/// One row of the table.
-struct ProcessRow {
-  std::string name;
-  std::string group;
-  std::string host = "local";
-  /// "waiting", "starting", "running", "backoff", "exited", "failed", "stopped"
-  std::string state = "waiting";
-  int pid = 0;               ///< 0 when not running
-  double cpu_percent = 0.0;  ///< over the last second (100 = one CPU)
-  std::int64_t rss_kb = 0;   ///< resident memory [KiB]; 0 when unknown
-  int restarts = 0;
-  double uptime_s = 0.0;    ///< since the current start [s]
-  int last_exit_code = -1;  ///< -1 when it has not ended yet
-  bool required = true;
-  std::string restart = "never";
-  /// Read CPU and memory from /proc/<pid> (false for processes on another computer).
-  bool local_metrics = true;
-};
-
-/// The whole table.
-struct LaunchStatus {
-  std::int64_t utime = 0;  ///< time of sending [us since the Unix epoch]
-  std::string set_name;
-  std::string config_file;
-  std::string state;  ///< "starting", "running", "stopping", "stopped"
-  int launcher_pid = 0;
-  double uptime_s = 0.0;
-  std::vector<ProcessRow> processes;
-};
 
 /// CPU time of a process so far [clock ticks] (utime + stime of /proc/<pid>/stat); nullopt
 /// when it cannot be read.

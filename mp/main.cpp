@@ -21,40 +21,13 @@
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc/mp/task.hpp"
-#include "mrroc_lcm/operator_command_t.hpp"
-#include "mrroc_lcm/operator_reply_t.hpp"
 
 namespace {
 
 using namespace mrroc;
-using Command = mrroc_lcm::operator_command_t;
-using Reply = mrroc_lcm::operator_reply_t;
-using OperatorServer = comm::Server<Command, Reply>;
-
-const char* state_name(std::int8_t state) {
-  switch (state) {
-    case Reply::IDLE: return "IDLE";
-    case Reply::RUNNING: return "RUNNING";
-    case Reply::PAUSED: return "PAUSED";
-    case Reply::STOPPING: return "STOPPING";
-    case Reply::FINISHED: return "FINISHED";
-    case Reply::FAILED: return "FAILED";
-    case Reply::TERMINATING: return "TERMINATING";
-    default: return "?";
-  }
-}
-
-const char* command_name(std::int8_t command) {
-  switch (command) {
-    case Command::START: return "START";
-    case Command::PAUSE: return "PAUSE";
-    case Command::RESUME: return "RESUME";
-    case Command::STOP: return "STOP";
-    case Command::TERMINATE: return "TERMINATE";
-    case Command::STATUS: return "STATUS";
-    default: return nullptr;
-  }
-}
+using Command = mp::OperatorCommandType;
+using State = mp::TaskState;
+using Reply = mp::OperatorReply;
 
 /// The MP shell: one run of the MP task at a time on a worker thread; the main thread answers the
 /// operator's commands and sends PAUSE, RESUME and STOP to every ECP.
@@ -102,11 +75,11 @@ class MpShell {
       }
       std::lock_guard lock(mutex_);
       const bool idle =
-          state_ != Reply::RUNNING && state_ != Reply::PAUSED && state_ != Reply::STOPPING;
+          state_ != State::running && state_ != State::paused && state_ != State::stopping;
       if (idle && (!operator_mode || terminate_ || stop_requested())) break;
     }
     std::lock_guard lock(mutex_);
-    return state_ == Reply::FAILED ? 1 : 0;
+    return state_ == State::failed ? 1 : 0;
   }
 
  private:
@@ -122,7 +95,7 @@ class MpShell {
 
   bool running() const {
     std::lock_guard lock(mutex_);
-    return state_ == Reply::RUNNING || state_ == Reply::PAUSED || state_ == Reply::STOPPING;
+    return state_ == State::running || state_ == State::paused || state_ == State::stopping;
   }
 
   void start_run() {
@@ -131,7 +104,7 @@ class MpShell {
     std::unique_ptr<mp::MpTask> task = make_task();
     {
       std::lock_guard lock(mutex_);
-      state_ = Reply::RUNNING;
+      state_ = State::running;
       ++runs_;
       started_utime_ = now_utime();
       last_error_.clear();
@@ -172,7 +145,7 @@ class MpShell {
       by_operator = stopped_by_operator_;
       if (!error.empty() && by_operator) error = "task stopped by the operator (" + error + ")";
       last_error_ = error;
-      state_ = error.empty() ? Reply::FINISHED : Reply::FAILED;
+      state_ = error.empty() ? State::finished : State::failed;
       done_ = false;
     }
     worker_.join();
@@ -202,7 +175,7 @@ class MpShell {
   void stop_run(const std::string& why) {
     {
       std::lock_guard lock(mutex_);
-      state_ = Reply::STOPPING;
+      state_ = State::stopping;
       stopped_by_operator_ = true;
     }
     reporter_.warning(fmt::format("{}: stopping task '{}'", why, config_.mp.name));
@@ -212,7 +185,7 @@ class MpShell {
 
   Reply snapshot(bool accepted, const std::string& text) const {
     std::lock_guard lock(mutex_);
-    Reply r{};
+    Reply r;
     r.accepted = accepted;
     r.state = state_;
     r.task = config_.mp.name;
@@ -222,30 +195,27 @@ class MpShell {
     return r;
   }
 
-  void handle(OperatorServer::Incoming& in) {
-    const std::int8_t command = in.request.command;
-    const char* name = command_name(command);
-    if (name == nullptr) {
-      in.responder.reply(snapshot(false, fmt::format("unknown operator command {} (expected 1..6: "
-                                                     "START, PAUSE, RESUME, STOP, TERMINATE, "
-                                                     "STATUS)",
-                                                     static_cast<int>(command))));
+  void handle(comm::OperatorServer::Incoming& in) {
+    if (!in.request) {
+      in.responder.reply(snapshot(false, "unknown operator command: " + in.decode_error));
       return;
     }
-    std::int8_t state = 0;
+    const Command command = in.request->type;
+    const char* name = mp::to_string(command);
+    State state = State::idle;
     {
       std::lock_guard lock(mutex_);
       state = state_;
     }
     auto refuse = [&](const std::string& why) {
-      in.responder.reply(
-          snapshot(false, fmt::format("{} refused: {} (state {})", name, why, state_name(state))));
+      in.responder.reply(snapshot(
+          false, fmt::format("{} refused: {} (state {})", name, why, mp::to_string(state))));
     };
     const bool active =
-        state == Reply::RUNNING || state == Reply::PAUSED || state == Reply::STOPPING;
+        state == State::running || state == State::paused || state == State::stopping;
     switch (command) {
-      case Command::STATUS: in.responder.reply(snapshot(true, {})); return;
-      case Command::START:
+      case Command::status: in.responder.reply(snapshot(true, {})); return;
+      case Command::start:
         if (!config_.mp_waits_for_operator)
           return refuse("the task starts by itself ([mp] start = \"auto\")");
         if (active) return refuse("the task is already running");
@@ -254,46 +224,45 @@ class MpShell {
         start_run();
         in.responder.reply(snapshot(true, "task started"));
         return;
-      case Command::PAUSE:
-        if (state != Reply::RUNNING) return refuse("no task is running");
+      case Command::pause:
+        if (state != State::running) return refuse("no task is running");
         reporter_.info("PAUSE from the operator: every robot holds before its next macro-step");
         {
           std::lock_guard lock(mutex_);
-          state_ = Reply::PAUSED;
+          state_ = State::paused;
           paused_ecps_ = true;
         }
         for_each_robot("PAUSE", [](mp::Robot& r) { r.pause(); });
         in.responder.reply(snapshot(true, "task paused"));
         return;
-      case Command::RESUME:
-        if (state != Reply::PAUSED) return refuse("the task is not paused");
+      case Command::resume:
+        if (state != State::paused) return refuse("the task is not paused");
         reporter_.info("RESUME from the operator");
         for_each_robot("RESUME", [](mp::Robot& r) { r.resume(); });
         {
           std::lock_guard lock(mutex_);
-          if (state_ == Reply::PAUSED) state_ = Reply::RUNNING;
+          if (state_ == State::paused) state_ = State::running;
           paused_ecps_ = false;
         }
         in.responder.reply(snapshot(true, "task resumed"));
         return;
-      case Command::STOP:
-        if (state != Reply::RUNNING && state != Reply::PAUSED) return refuse("no task is running");
+      case Command::stop:
+        if (state != State::running && state != State::paused) return refuse("no task is running");
         stop_run("STOP from the operator");
         in.responder.reply(snapshot(true, "task stopping"));
         return;
-      case Command::TERMINATE: {
+      case Command::terminate: {
         reporter_.warning("TERMINATE from the operator: the MP ends");
         {
           std::lock_guard lock(mutex_);
           terminate_ = true;
         }
-        if (state == Reply::RUNNING || state == Reply::PAUSED) stop_run("TERMINATE");
+        if (state == State::running || state == State::paused) stop_run("TERMINATE");
         Reply r = snapshot(true, "MP terminating");
-        r.state = Reply::TERMINATING;
+        r.state = State::terminating;
         in.responder.reply(r);
         return;
       }
-      default: return;
     }
   }
 
@@ -302,11 +271,11 @@ class MpShell {
   Reporter& reporter_;
   std::vector<std::unique_ptr<mp::Robot>> robots_;
   mp::TaskContext context_;
-  OperatorServer server_;
+  comm::OperatorServer server_;
   std::thread worker_;
 
   mutable std::mutex mutex_;
-  std::int8_t state_ = Reply::IDLE;
+  State state_ = State::idle;
   std::int32_t runs_ = 0;
   std::int64_t started_utime_ = 0;
   std::string last_error_;

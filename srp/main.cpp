@@ -19,21 +19,18 @@
 #include "log_file.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
+#include "mrroc/comm/links.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
-#include "mrroc_lcm/robot_state_t.hpp"
-#include "mrroc_lcm/srp_history_reply_t.hpp"
-#include "mrroc_lcm/srp_history_request_t.hpp"
 #include "servo_timing.hpp"
 
 namespace {
 
 using namespace mrroc;
-using HistoryServer =
-    comm::Server<mrroc_lcm::srp_history_request_t, mrroc_lcm::srp_history_reply_t>;
 
 constexpr auto kTimingInterval = std::chrono::seconds(10);
 
@@ -101,14 +98,7 @@ struct Srp {
   }
 };
 
-struct StateContext {
-  Srp* srp;
-  std::string robot;
-};
-
-void on_robot_state(const lcm::ReceiveBuffer* buffer, const std::string&, StateContext* ctx) {
-  mrroc_lcm::robot_state_t state;
-  if (!comm::detail::decode_received(buffer, state)) return;
+void on_robot_state(Srp& srp, const std::string& robot, const RobotState& state) {
   // A state with figures that are not numbers would spoil every statistic after it.
   if (!std::isfinite(state.servo_period_s) || !std::isfinite(state.lateness_mean_us) ||
       !std::isfinite(state.lateness_max_us))
@@ -119,32 +109,18 @@ void on_robot_state(const lcm::ReceiveBuffer* buffer, const std::string&, StateC
   sample.lateness_mean_us = state.lateness_mean_us;
   sample.lateness_max_us = state.lateness_max_us;
   sample.overruns = state.overruns;
-  std::lock_guard lock(ctx->srp->mutex);
-  ctx->srp->timing.add(ctx->robot, sample);
+  std::lock_guard lock(srp.mutex);
+  srp.timing.add(robot, sample);
 }
 
-mrroc_lcm::srp_history_reply_t history_reply(const srp::History& history,
-                                             const mrroc_lcm::srp_history_request_t& request) {
-  const srp::HistoryQuery query =
-      srp::clamp_query(request.after, request.max_count, request.min_severity);
+SrpHistoryReply history_reply(const srp::History& history, const SrpHistoryRequest& request) {
+  const srp::HistoryQuery query = srp::clamp_query(request.after, request.max_count,
+                                                   static_cast<std::int8_t>(request.min_severity));
   const std::vector<srp::Entry> entries = history.select(query);
-  mrroc_lcm::srp_history_reply_t reply{};
+  SrpHistoryReply reply;
   reply.last = history.last();
-  reply.n = static_cast<std::int32_t>(entries.size());
-  for (const srp::Entry& e : entries) {
-    reply.numbers.push_back(e.number);
-    mrroc_lcm::srp_message_t m{};
-    m.header.utime = e.message.utime;
-    m.header.sender = e.message.process;
-    m.header.kind = mrroc_lcm::header_t::BROADCAST;
-    m.utime = e.message.utime;
-    m.process = e.message.process;
-    m.robot = e.message.robot;
-    m.severity = static_cast<std::int8_t>(e.message.severity);
-    m.code = e.message.code;
-    m.text = e.message.text;
-    reply.messages.push_back(std::move(m));
-  }
+  reply.entries.reserve(entries.size());
+  for (const srp::Entry& e : entries) reply.entries.push_back({e.number, e.message});
   return reply;
 }
 
@@ -205,25 +181,30 @@ int run(const Options& options) {
                         to_string(s.state), s.pid, s.detail.empty() ? "" : ": " + s.detail),
             s.state == ProcessState::failed ? "\033[31m" : "\033[36m");
       });
-  HistoryServer history_server(
-      bus, comm::unique_endpoint_name("srp"), channels::srp_history_command,
-      channels::srp_history_reply,
-      [&](const mrroc_lcm::srp_history_request_t& request, HistoryServer::Responder responder) {
-        mrroc_lcm::srp_history_reply_t reply;
-        {
-          std::lock_guard lock(srp.mutex);
-          ++srp.history_requests;
-          reply = history_reply(srp.history, request);
-        }
-        responder.reply(std::move(reply));
-      });
-  std::vector<std::unique_ptr<StateContext>> state_contexts;
-  std::vector<mrroc::comm::Subscription*> state_subscriptions;
-  for (const RobotConfig& robot : config.robots) {
-    state_contexts.push_back(std::make_unique<StateContext>(StateContext{&srp, robot.name}));
-    state_subscriptions.push_back(bus.subscribe<StateContext*>(
-        channels::robot_state(robot.name), &on_robot_state, state_contexts.back().get()));
-  }
+  comm::SrpHistoryServer history_server(bus, comm::unique_endpoint_name("srp"),
+                                        channels::srp_history_command, channels::srp_history_reply,
+                                        [&](comm::SrpHistoryServer::Incoming in) {
+                                          // A request that does not validate (an unknown severity)
+                                          // gets the newest number only.
+                                          SrpHistoryReply reply;
+                                          {
+                                            std::lock_guard lock(srp.mutex);
+                                            ++srp.history_requests;
+                                            if (in.request)
+                                              reply = history_reply(srp.history, *in.request);
+                                            else
+                                              reply.last = srp.history.last();
+                                          }
+                                          in.responder.reply(reply);
+                                        });
+  std::vector<comm::Subscriber<RobotState>> state_subscribers;
+  for (const RobotConfig& robot : config.robots)
+    state_subscribers.emplace_back(
+        bus, channels::robot_state(robot.name),
+        [&srp, name = robot.name](const RobotState& state, const comm::Received&) {
+          on_robot_state(srp, name, state);
+        },
+        comm::SubscriberOptions::unreported());
   bus.start();
   Reporter reporter(bus, "srp");
   reporter.set_state(ProcessState::ready);
@@ -239,7 +220,7 @@ int run(const Options& options) {
   reporter.set_state(ProcessState::stopping);
   std::this_thread::sleep_for(std::chrono::milliseconds(100));  // late messages of the others
   bus.stop();
-  for (mrroc::comm::Subscription* s : state_subscriptions) bus.unsubscribe(s);
+  state_subscribers.clear();
 
   std::lock_guard lock(srp.mutex);
   std::string summary;

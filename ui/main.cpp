@@ -20,14 +20,13 @@
 #include "console/http_api.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
-#include "mrroc_lcm/launch_command_t.hpp"
-#include "mrroc_lcm/launch_status_t.hpp"
 #include "operator.hpp"
 
 namespace {
@@ -56,22 +55,21 @@ int acknowledge_restart(const std::string& config_path, const std::string& proce
     std::mutex mutex;
     std::condition_variable cv;
     std::string set_name;
-    std::optional<mrroc_lcm::launch_status_t> latest;
+    std::optional<launch::LaunchStatus> latest;
     std::uint64_t received = 0;  // tables received so far
   } watch;
   watch.set_name = config.name;
-  mrroc::comm::Subscription* sub = bus.subscribe<Watch*>(
-      channels::launch_status,
-      +[](const lcm::ReceiveBuffer* buffer, const std::string&, Watch* w) {
-        mrroc_lcm::launch_status_t m;
-        if (m.decode(buffer->data, 0, static_cast<int>(buffer->data_size)) < 0) return;
-        if (m.set_name != w->set_name) return;
-        std::lock_guard lock(w->mutex);
-        w->latest = std::move(m);
-        ++w->received;
-        w->cv.notify_all();
+  std::optional<comm::Subscriber<launch::LaunchStatus>> tables;
+  tables.emplace(
+      bus, channels::launch_status,
+      [&watch](const launch::LaunchStatus& m, const comm::Received&) {
+        if (m.set_name != watch.set_name) return;
+        std::lock_guard lock(watch.mutex);
+        watch.latest = m;
+        ++watch.received;
+        watch.cv.notify_all();
       },
-      &watch);
+      comm::SubscriberOptions::unreported());
   bus.start();
   using SteadyClock = std::chrono::steady_clock;
   const auto deadline =
@@ -114,20 +112,20 @@ int acknowledge_restart(const std::string& config_path, const std::string& proce
                  process.c_str(), before->state.c_str());
     code = kExitRefused;
   } else {
-    mrroc_lcm::launch_command_t m{};
-    m.header.sender = comm::unique_endpoint_name("ui");
-    m.header.kind = mrroc_lcm::header_t::BROADCAST;
-    m.set_name = config.name;
-    m.command = mrroc_lcm::launch_command_t::RESTART;
-    m.process = process;
+    launch::LaunchCommand command;
+    command.set_name = config.name;
+    command.type = launch::LaunchCommandType::restart;
+    command.process = process;
+    comm::Envelope header;
+    header.sender = comm::unique_endpoint_name("ui");
     std::optional<Row> after;
     // Sent again every 250 ms until a table shows the process released (the launcher acts on
     // the first copy that arrives and ignores the others).
     for (std::int64_t seq = 1; SteadyClock::now() < deadline; ++seq) {
-      m.header.seq = seq;
-      m.header.utime = now_utime();
+      header.seq = seq;
+      header.utime = now_utime();
       const std::uint64_t seen = received();
-      comm::publish(bus, kLaunchCommandChannel, m);
+      comm::broadcast(bus, kLaunchCommandChannel, header, command);
       const auto until = std::min(deadline, SteadyClock::now() + std::chrono::milliseconds(250));
       for (std::uint64_t n = seen; (after = next_row(n, until)); n = received())
         if (after->state != "held") break;
@@ -144,7 +142,7 @@ int acknowledge_restart(const std::string& config_path, const std::string& proce
       code = kExitNoLauncher;
     }
   }
-  bus.unsubscribe(sub);
+  tables.reset();
   return code;
 }
 

@@ -5,17 +5,17 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/faults.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
-#include "mrroc_lcm/emergency_stop_t.hpp"
-#include "mrroc_lcm/robot_state_t.hpp"
 
 namespace mrroc::ui {
 
@@ -44,26 +44,18 @@ const char* to_string(OperatorCommand command) {
 }
 
 std::string mp_state_name(std::int8_t state) {
-  using R = mrroc_lcm::operator_reply_t;
-  switch (state) {
-    case R::IDLE: return "IDLE";
-    case R::RUNNING: return "RUNNING";
-    case R::PAUSED: return "PAUSED";
-    case R::STOPPING: return "STOPPING";
-    case R::FINISHED: return "FINISHED";
-    case R::FAILED: return "FAILED";
-    case R::TERMINATING: return "TERMINATING";
-    default: return fmt::format("UNKNOWN({})", state);
-  }
+  if (state < static_cast<std::int8_t>(mp::TaskState::idle) ||
+      state > static_cast<std::int8_t>(mp::TaskState::terminating))
+    return fmt::format("UNKNOWN({})", state);
+  return mp::to_string(static_cast<mp::TaskState>(state));
 }
 
 MpStatus send_operator_command(MpClient& client, OperatorCommand command) {
-  mrroc_lcm::operator_command_t request{};
-  request.command = static_cast<std::int8_t>(command);
-  const mrroc_lcm::operator_reply_t reply = client.call(request);
+  const mp::OperatorReply reply = comm::decode(client.call(
+      comm::encode(mp::OperatorCommand{static_cast<mp::OperatorCommandType>(command)})));
   MpStatus out;
   out.accepted = reply.accepted;
-  out.state = mp_state_name(reply.state);
+  out.state = mp::to_string(reply.state);
   out.task = reply.task;
   out.runs = reply.runs;
   out.started_utime = reply.started_utime;
@@ -73,18 +65,18 @@ MpStatus send_operator_command(MpClient& client, OperatorCommand command) {
 
 void publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robot,
                             const std::string& reason) {
-  mrroc_lcm::emergency_stop_t m{};
-  m.header.sender = comm::unique_endpoint_name("ui");
-  m.header.kind = mrroc_lcm::header_t::BROADCAST;
-  m.action = engage ? mrroc_lcm::emergency_stop_t::ENGAGE : mrroc_lcm::emergency_stop_t::RELEASE;
-  m.robot = robot;
-  m.reason = reason;
+  EmergencyStop stop;
+  stop.action = engage ? EstopAction::engage : EstopAction::release;
+  stop.robot = robot;
+  stop.reason = reason;
+  comm::Envelope header;
+  header.sender = comm::unique_endpoint_name("ui");
   comm::FaultDice dice(comm::link_faults_from_environment());
   for (int i = 0; i < 5; ++i) {
-    m.header.seq = i + 1;
-    m.header.utime = now_utime();
+    header.seq = i + 1;
+    header.utime = now_utime();
     // Signed when the set has a key (an EDP releases only when signed).
-    comm::detail::publish_with_faults(bus, dice, channels::emergency_stop, m);
+    comm::broadcast(bus, channels::emergency_stop, header, stop, &dice);
     if (i < 4) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
 }
@@ -107,34 +99,33 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
     std::string latched_by;
   } w;
   w.engage = engage;
-  std::vector<mrroc::comm::Subscription*> subs;
+  // The operator's tool only watches: what does not decode is not its to report.
+  const comm::SubscriberOptions quiet = comm::SubscriberOptions::unreported();
+  std::vector<comm::Subscriber<RobotState>> states;
   for (const std::string& r : robots) {
     if (!robot.empty() && r != robot) continue;
-    subs.push_back(bus.subscribe<Watch*>(
-        channels::robot_state(r),
-        +[](const lcm::ReceiveBuffer* b, const std::string&, Watch* c) {
-          mrroc_lcm::robot_state_t s;
-          if (!comm::detail::decode_received(b, s)) return;
+    states.emplace_back(
+        bus, channels::robot_state(r),
+        [&w](const RobotState& s, const comm::Received&) {
           const auto now = Clock::now();
-          std::lock_guard lock(c->mutex);
-          if (!c->armed || c->latency_ms.count(s.robot) != 0 || s.estop != c->engage) return;
-          c->latency_ms[s.robot] = std::chrono::duration<double, std::milli>(now - c->sent).count();
-          c->step[s.robot] = s.servo_step;
-          c->cv.notify_all();
+          std::lock_guard lock(w.mutex);
+          if (!w.armed || w.latency_ms.count(s.robot) != 0 || s.estop != w.engage) return;
+          w.latency_ms[s.robot] = std::chrono::duration<double, std::milli>(now - w.sent).count();
+          w.step[s.robot] = s.servo_step;
+          w.cv.notify_all();
         },
-        &w));
+        quiet);
   }
-  subs.push_back(bus.subscribe<Watch*>(
-      channels::emergency_stop,
-      +[](const lcm::ReceiveBuffer* b, const std::string&, Watch* c) {
-        mrroc_lcm::emergency_stop_t m;
-        if (!comm::detail::decode_received(b, m)) return;
-        using S = mrroc_lcm::emergency_stop_t;
-        std::lock_guard lock(c->mutex);
-        if (!c->armed || m.latched_utime < c->sent_utime) return;
-        if (m.action == (c->engage ? S::ENGAGED : S::RELEASED)) c->latched_by = m.header.sender;
+  std::optional<comm::Subscriber<EmergencyStop>> announcements;
+  announcements.emplace(
+      bus, channels::emergency_stop,
+      [&w](const EmergencyStop& m, const comm::Received& in) {
+        std::lock_guard lock(w.mutex);
+        if (!w.armed || m.latched_utime < w.sent_utime) return;
+        if (m.action == (w.engage ? EstopAction::engaged : EstopAction::released))
+          w.latched_by = in.header().sender;
       },
-      &w));
+      quiet);
   {
     std::lock_guard lock(w.mutex);
     w.armed = true;
@@ -145,7 +136,7 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
   EstopConfirmation out;
   {
     std::unique_lock lock(w.mutex);
-    const std::size_t wanted = subs.size() - 1;
+    const std::size_t wanted = states.size();
     w.cv.wait_until(lock, w.sent + deadline, [&] { return w.latency_ms.size() >= wanted; });
   }
   // The latch announces every 150 ms and at once on a change: give it a moment when it has not.
@@ -157,7 +148,8 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
-  for (mrroc::comm::Subscription* s : subs) bus.unsubscribe(s);
+  states.clear();
+  announcements.reset();
   std::lock_guard lock(w.mutex);
   for (const std::string& r : robots) {
     if (!robot.empty() && r != robot) continue;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "mrroc/comm/request_reply.hpp"
+#include "mrroc/msg/operator.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
 #include "mrroc_lcm/operator_reply_t.hpp"
 
@@ -17,12 +18,12 @@ namespace mrroc::ui {
 
 /// The operator commands, as the command line and the API name them.
 enum class OperatorCommand : std::int8_t {
-  start = mrroc_lcm::operator_command_t::START,
-  pause = mrroc_lcm::operator_command_t::PAUSE,
-  resume = mrroc_lcm::operator_command_t::RESUME,
-  stop = mrroc_lcm::operator_command_t::STOP,
-  terminate = mrroc_lcm::operator_command_t::TERMINATE,
-  status = mrroc_lcm::operator_command_t::STATUS,
+  start = static_cast<std::int8_t>(mp::OperatorCommandType::start),
+  pause = static_cast<std::int8_t>(mp::OperatorCommandType::pause),
+  resume = static_cast<std::int8_t>(mp::OperatorCommandType::resume),
+  stop = static_cast<std::int8_t>(mp::OperatorCommandType::stop),
+  terminate = static_cast<std::int8_t>(mp::OperatorCommandType::terminate),
+  status = static_cast<std::int8_t>(mp::OperatorCommandType::status),
 };
 
 /// "start", "pause", ... ; nothing for another word.
@@ -41,9 +42,12 @@ struct MpStatus {
   std::string text;
 };
 
+/// The client of the MP's operator link (its messages are encoded and decoded by the codecs of
+/// comm/messages.hpp in send_operator_command).
 using MpClient = comm::Client<mrroc_lcm::operator_command_t, mrroc_lcm::operator_reply_t>;
 
-/// Sends one command. @throws TimeoutError when no MP answers.
+/// Sends one command. @throws TimeoutError when no MP answers, comm::DecodeError when its
+/// answer does not validate.
 MpStatus send_operator_command(MpClient& client, OperatorCommand command);
 
 }  // namespace mrroc::ui

@@ -33,7 +33,17 @@ Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
     if (!source_of_channel_.emplace(channel, i).second)
       throw ConfigError(fmt::format("{}: error: VSP '{}' lists source '{}' twice",
                                     config.where.str(), config.name, config.sources[i]));
-    subscriptions_.push_back(bus_.subscribe<Shell*>(channel, &Shell::on_raw, this));
+    comm::SubscriberOptions options;
+    options.report_malformed = false;  // on_malformed warns once, then only counts
+    options.on_malformed = [this](const std::string& ch, const std::string& why) {
+      on_malformed(ch, why);
+    };
+    subscribers_.emplace_back(
+        bus_, channel,
+        [this](const RawSample& sample, const comm::Received& in) {
+          on_sample(in.channel(), sample);
+        },
+        std::move(options));
   }
   if (config_.periodic) {
     periodic_ = std::thread([this] {
@@ -62,7 +72,7 @@ Shell::~Shell() {
   }
   cv_.notify_all();
   if (periodic_.joinable()) periodic_.join();
-  for (mrroc::comm::Subscription* s : subscriptions_) bus_.unsubscribe(s);
+  subscribers_.clear();
 }
 
 std::uint64_t Shell::malformed() const {
@@ -70,38 +80,27 @@ std::uint64_t Shell::malformed() const {
   return malformed_;
 }
 
-void Shell::on_raw(const lcm::ReceiveBuffer* buffer, const std::string& channel, Shell* self) {
-  mrroc_lcm::raw_sensor_t message;
-  std::optional<RawSample> sample;
-  std::string error;
-  if (comm::detail::decode_received(buffer, message)) {
-    try {
-      sample = comm::decode(message);
-    } catch (const comm::DecodeError& e) {
-      error = e.what();
-    }
-  } else {
-    error = "not a raw_sensor_t";
-  }
-  const auto it = self->source_of_channel_.find(channel);
-  if (it == self->source_of_channel_.end()) return;
-  std::unique_lock lock(self->mutex_);
-  if (!sample) {
-    ++self->malformed_;
-    if (!self->malformed_reported_) {
-      self->malformed_reported_ = true;
-      lock.unlock();
-      self->reporter_.warning(
-          fmt::format("malformed raw sample on {} dropped ({}); further ones "
-                      "are only counted",
-                      channel, error));
-    }
-    return;
-  }
+void Shell::on_malformed(const std::string& channel, const std::string& why) {
+  if (source_of_channel_.count(channel) == 0) return;
+  std::unique_lock lock(mutex_);
+  ++malformed_;
+  if (malformed_reported_) return;
+  malformed_reported_ = true;
+  lock.unlock();
+  reporter_.warning(
+      fmt::format("malformed raw sample on {} dropped ({}); further ones "
+                  "are only counted",
+                  channel, why == "bytes that do not decode" ? "not a raw_sensor_t" : why));
+}
+
+void Shell::on_sample(const std::string& channel, const RawSample& sample) {
+  const auto it = source_of_channel_.find(channel);
+  if (it == source_of_channel_.end()) return;
+  std::unique_lock lock(mutex_);
   const std::size_t source = it->second;
-  self->last_rx_[source] = std::chrono::steady_clock::now();
-  self->last_sample_utime_[source] = sample->sample_utime;
-  self->plugin_->on_sample(source, *sample);
+  last_rx_[source] = std::chrono::steady_clock::now();
+  last_sample_utime_[source] = sample.sample_utime;
+  plugin_->on_sample(source, sample);
 }
 
 void Shell::make_reading(const Params& context) {

@@ -23,6 +23,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/links.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -45,7 +46,8 @@ class Shell {
   [[nodiscard]] std::uint64_t malformed() const;
 
  private:
-  static void on_raw(const lcm::ReceiveBuffer* buffer, const std::string& channel, Shell* self);
+  void on_sample(const std::string& channel, const RawSample& sample);
+  void on_malformed(const std::string& channel, const std::string& why);
   void make_reading(const Params& context);
   Reply handle(const Request& request);
 
@@ -54,7 +56,6 @@ class Shell {
   VspConfig config_;
   std::unique_ptr<SensorPlugin> plugin_;
   comm::VspServer server_;
-  std::vector<mrroc::comm::Subscription*> subscriptions_;
   std::map<std::string, std::size_t> source_of_channel_;
 
   mutable std::mutex mutex_;
@@ -66,6 +67,7 @@ class Shell {
   bool was_valid_ = true;
   std::uint64_t malformed_ = 0;
   bool malformed_reported_ = false;
+  std::vector<comm::Subscriber<RawSample>> subscribers_;  ///< last: end before what they use
 
   std::thread periodic_;
   bool stopping_ = false;

@@ -6,12 +6,9 @@
 
 #include <fmt/format.h>
 
-#include "mrroc/comm/request_reply.hpp"
-#include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/time.hpp"
-#include "mrroc_lcm/process_status_t.hpp"
-#include "mrroc_lcm/srp_message_t.hpp"
 
 namespace mrroc {
 
@@ -73,21 +70,15 @@ void Reporter::report(Severity severity, int code, const std::string& text) {
   // Console first: the message is not lost when the bus is down.
   std::fprintf(stderr, "%s: %s: %s\n", process_.c_str(), to_string(severity), text.c_str());
   std::fflush(stderr);
-  mrroc_lcm::srp_message_t m{};
+  comm::Envelope header;
   {
     std::lock_guard lock(mutex_);
-    m.header.seq = ++seq_;
+    header.seq = ++seq_;
   }
-  m.header.utime = now_utime();
-  m.header.sender = sender_;
-  m.header.kind = mrroc_lcm::header_t::BROADCAST;
-  m.utime = m.header.utime;
-  m.process = process_;
-  m.robot = robot_;
-  m.severity = static_cast<std::int8_t>(severity);
-  m.code = code;
-  m.text = text;
-  comm::publish(bus_, channels::srp, m);
+  header.utime = now_utime();
+  header.sender = sender_;
+  comm::broadcast(bus_, channels::srp, header,
+                  SrpMessage{header.utime, process_, robot_, severity, code, text});
 }
 
 void Reporter::set_state(ProcessState state, const std::string& detail) {
@@ -105,80 +96,48 @@ ProcessState Reporter::state() const {
 }
 
 void Reporter::publish_status() {
-  mrroc_lcm::process_status_t m{};
+  comm::Envelope header;
+  ProcessStatus status;
   {
     std::lock_guard lock(mutex_);
-    m.header.seq = ++seq_;
-    m.state = static_cast<std::int8_t>(state_);
-    m.detail = detail_;
+    header.seq = ++seq_;
+    status.state = state_;
+    status.detail = detail_;
   }
-  m.header.utime = now_utime();
-  m.header.sender = sender_;
-  m.header.kind = mrroc_lcm::header_t::BROADCAST;
-  m.process = process_;
-  m.robot = robot_;
-  m.pid = static_cast<std::int32_t>(::getpid());
-  m.uptime_us = (monotonic_ns() - started_ns_) / 1000;
-  comm::publish(bus_, channels::status, m);
+  header.utime = now_utime();
+  header.sender = sender_;
+  status.process = process_;
+  status.robot = robot_;
+  status.pid = static_cast<int>(::getpid());
+  status.uptime_us = (monotonic_ns() - started_ns_) / 1000;
+  comm::broadcast(bus_, channels::status, header, status);
 }
 
 struct SystemListener::Impl {
-  comm::Bus& bus;
-  MessageHandler on_message;
-  StatusHandler on_status;
-  std::atomic<std::uint64_t>* malformed;
-  mrroc::comm::Subscription* srp_sub = nullptr;
-  mrroc::comm::Subscription* status_sub = nullptr;
-
-  static void on_srp(const lcm::ReceiveBuffer* buffer, const std::string& channel, Impl* self) {
-    mrroc_lcm::srp_message_t m;
-    if (!comm::detail::decode_received(buffer, m)) {
-      ++*self->malformed;
-      comm::detail::report_malformed(self->bus, channel, static_cast<int>(buffer->data_size));
-      return;
-    }
-    self->message(&m);
-  }
-  static void on_status_message(const lcm::ReceiveBuffer* buffer, const std::string& channel,
-                                Impl* self) {
-    mrroc_lcm::process_status_t m;
-    if (!comm::detail::decode_received(buffer, m)) {
-      ++*self->malformed;
-      comm::detail::report_malformed(self->bus, channel, static_cast<int>(buffer->data_size));
-      return;
-    }
-    self->status(&m);
-  }
-  void message(const mrroc_lcm::srp_message_t* m) {
-    if (!on_message) return;
-    if (m->severity < 0 || m->severity > 4) {
-      ++*malformed;
-      return;
-    }
-    on_message(SrpMessage{m->utime, m->process, m->robot, static_cast<Severity>(m->severity),
-                          m->code, m->text});
-  }
-  void status(const mrroc_lcm::process_status_t* m) {
-    if (!on_status) return;
-    if (m->state < 1 || m->state > 6) {
-      ++*malformed;
-      return;
-    }
-    on_status(ProcessStatus{m->header.utime, m->process, m->robot, m->pid,
-                            static_cast<ProcessState>(m->state), m->uptime_us, m->detail});
-  }
+  comm::Subscriber<SrpMessage> messages;
+  comm::Subscriber<ProcessStatus> statuses;
 };
+
+namespace {
+template <class Plain>
+comm::Subscriber<Plain> listen(comm::Bus& bus, const char* channel,
+                               std::function<void(const Plain&)> handler) {
+  return comm::Subscriber<Plain>(
+      bus, channel, [handler = std::move(handler)](const Plain& m, const comm::Received&) {
+        if (handler) handler(m);
+      });
+}
+}  // namespace
 
 SystemListener::SystemListener(comm::Bus& bus, MessageHandler on_message, StatusHandler on_status)
     : impl_(std::make_unique<Impl>(
-          Impl{bus, std::move(on_message), std::move(on_status), &malformed_})) {
-  impl_->srp_sub = bus.subscribe<Impl*>(channels::srp, &Impl::on_srp, impl_.get());
-  impl_->status_sub = bus.subscribe<Impl*>(channels::status, &Impl::on_status_message, impl_.get());
-}
+          Impl{listen<SrpMessage>(bus, channels::srp, std::move(on_message)),
+               listen<ProcessStatus>(bus, channels::status, std::move(on_status))})) {}
 
-SystemListener::~SystemListener() {
-  impl_->bus.unsubscribe(impl_->srp_sub);
-  impl_->bus.unsubscribe(impl_->status_sub);
+SystemListener::~SystemListener() = default;
+
+std::uint64_t SystemListener::malformed() const {
+  return impl_->messages.malformed() + impl_->statuses.malformed();
 }
 
 }  // namespace mrroc

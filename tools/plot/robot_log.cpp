@@ -6,8 +6,8 @@
 #include <fmt/format.h>
 #include <lcm/lcm-cpp.hpp>
 
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/core/error.hpp"
-#include "mrroc_lcm/robot_state_t.hpp"
 
 namespace mrroc::plot {
 
@@ -55,14 +55,16 @@ RobotLog read_robot_log(const std::filesystem::path& file) {
   while (const lcm::LogEvent* event = log.readNextEvent()) {
     ++out.events;
     if (!ends_with(event->channel, suffix)) continue;
-    mrroc_lcm::robot_state_t state;
-    if (event->datalen < 0 || state.decode(event->data, 0, event->datalen) < 0 ||
-        state.n_joints < 0) {
+    comm::Envelope header;
+    const std::optional<RobotState> decoded =
+        comm::decode_bytes<RobotState>(event->data, event->datalen, &header);
+    if (!decoded) {
       ++out.malformed;
       continue;
     }
+    const RobotState& state = *decoded;
     const std::string robot = event->channel.substr(0, event->channel.size() - suffix.size());
-    const std::int64_t utime = state.header.utime > 0 ? state.header.utime : event->timestamp;
+    const std::int64_t utime = header.utime > 0 ? header.utime : event->timestamp;
     if (!have_first) {
       out.first_utime = utime;
       have_first = true;
@@ -70,9 +72,9 @@ RobotLog read_robot_log(const std::filesystem::path& file) {
     RobotSeries& series = out.robots[robot];
     if (series.robot.empty()) {
       series.robot = robot;
-      series.n_joints = static_cast<std::size_t>(state.n_joints);
+      series.n_joints = state.q.size();
     }
-    if (static_cast<std::size_t>(state.n_joints) != series.n_joints) {
+    if (state.q.size() != series.n_joints) {
       ++series.other_joint_counts;
       continue;
     }

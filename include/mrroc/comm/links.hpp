@@ -11,6 +11,7 @@
 #include <string>
 
 #include "mrroc/comm/codec.hpp"
+#include "mrroc/comm/messages.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
 
@@ -109,5 +110,18 @@ using VspClient =
     PlainClient<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t, mrroc_lcm::vsp_reply_t>;
 using VspServer =
     PlainServer<vsp::Request, vsp::Reply, mrroc_lcm::vsp_command_t, mrroc_lcm::vsp_reply_t>;
+
+/// UI (client) <-> MP (server), channels mrroc/mp/cmd and mrroc/mp/reply.
+using OperatorClient = PlainClient<mp::OperatorCommand, mp::OperatorReply,
+                                   mrroc_lcm::operator_command_t, mrroc_lcm::operator_reply_t>;
+using OperatorServer = PlainServer<mp::OperatorCommand, mp::OperatorReply,
+                                   mrroc_lcm::operator_command_t, mrroc_lcm::operator_reply_t>;
+/// Console (client) <-> SRP (server), channels mrroc/srp/history/cmd and .../reply.
+using SrpHistoryClient =
+    PlainClient<SrpHistoryRequest, SrpHistoryReply, mrroc_lcm::srp_history_request_t,
+                mrroc_lcm::srp_history_reply_t>;
+using SrpHistoryServer =
+    PlainServer<SrpHistoryRequest, SrpHistoryReply, mrroc_lcm::srp_history_request_t,
+                mrroc_lcm::srp_history_reply_t>;
 
 }  // namespace mrroc::comm

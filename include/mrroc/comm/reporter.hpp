@@ -16,40 +16,9 @@
 #include <thread>
 
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/msg/system.hpp"
 
 namespace mrroc {
-
-enum class Severity : std::int8_t { debug = 0, info = 1, warning = 2, error = 3, fatal = 4 };
-const char* to_string(Severity s);
-
-enum class ProcessState : std::int8_t {
-  starting = 1,
-  ready = 2,
-  running = 3,
-  stopping = 4,
-  failed = 5,
-  finished = 6
-};
-const char* to_string(ProcessState s);
-
-struct SrpMessage {
-  std::int64_t utime = 0;  ///< [us since the Unix epoch]
-  std::string process;     ///< e.g. "edp/irb6"
-  std::string robot;
-  Severity severity = Severity::info;
-  int code = 0;
-  std::string text;
-};
-
-struct ProcessStatus {
-  std::int64_t utime = 0;
-  std::string process;
-  std::string robot;
-  int pid = 0;
-  ProcessState state = ProcessState::starting;
-  std::int64_t uptime_us = 0;
-  std::string detail;
-};
 
 class Reporter {
  public:
@@ -95,12 +64,12 @@ class SystemListener {
   SystemListener(const SystemListener&) = delete;
   SystemListener& operator=(const SystemListener&) = delete;
 
-  [[nodiscard]] std::uint64_t malformed() const { return malformed_.load(); }
+  /// Messages dropped because they did not decode or had an unknown severity or state.
+  [[nodiscard]] std::uint64_t malformed() const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  std::atomic<std::uint64_t> malformed_{0};
 };
 
 }  // namespace mrroc

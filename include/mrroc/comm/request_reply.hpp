@@ -115,6 +115,13 @@ inline void report_malformed(Bus& bus, const std::string& channel, int size) {
                   fmt::format("dropped a malformed message on '{}' ({} bytes that do not decode)",
                               channel, size));
 }
+/// Counts and reports a message that decoded but did not validate (`why`: the DecodeError).
+inline void report_malformed(Bus& bus, const std::string& channel, int size,
+                             const std::string& why) {
+  bus.report_drop(
+      drop_code::malformed, "malformed on " + channel,
+      fmt::format("dropped a malformed message on '{}' ({} bytes): {}", channel, size, why));
+}
 }  // namespace detail
 
 /// The requesting side of a link. `call` is thread-safe (calls are serialised).

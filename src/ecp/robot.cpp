@@ -1,7 +1,5 @@
 #include "mrroc/ecp/robot.hpp"
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <cmath>
 
@@ -20,34 +18,21 @@ int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta
 }
 
 Robot::Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
-             RobotModel model, comm::ClientOptions options)
+             RobotModel model, edp::ClientOptions options)
     : name_(robot_name),
       model_(std::move(model)),
       kinematics_(edp::make_arm_kinematics(model_)),
-      client_(bus, process_name, "EDP " + robot_name, channels::edp_command(robot_name),
-              channels::edp_reply(robot_name), options) {}
+      client_(bus, process_name, robot_name, options) {}
+
+Robot::Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
+             RobotModel model, const comm::ClientOptions& options)
+    : name_(robot_name),
+      model_(std::move(model)),
+      kinematics_(edp::make_arm_kinematics(model_)),
+      client_(bus, process_name, robot_name, options) {}
 
 edp::Reply Robot::exchange(const edp::Instruction& instruction) {
-  edp::Reply reply;
-  try {
-    if (take_over_next_ && instruction.type != edp::InstructionType::query) {
-      edp::Instruction claiming = instruction;
-      claiming.take_over = true;
-      reply = client_.call(claiming);
-    } else {
-      reply = client_.call(instruction);
-    }
-  } catch (const TimeoutError&) {
-    take_over_next_ = true;  // whatever the EDP did with it, the next instruction starts afresh
-    throw;
-  }
-  if (!(reply.type == edp::ReplyType::error && reply.error_code == edp::error_code::not_owner))
-    take_over_next_ = false;
-  if (reply.type == edp::ReplyType::error)
-    throw EdpRefused(reply.error_code,
-                     fmt::format("EDP {} refused {}: {}", name_, edp::to_string(instruction.type),
-                                 reply.error_text));
-  return reply;
+  return client_.call(instruction);
 }
 
 void Robot::update_image(const edp::Reply& reply) {

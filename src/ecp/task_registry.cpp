@@ -1,4 +1,4 @@
-// The name -> factory registry of ECP tasks.
+// The name -> factory registry of ECP tasks, and the virtual sensors of an ECP task.
 #include "../core/registry.hpp"
 #include "mrroc/ecp/task.hpp"
 
@@ -19,3 +19,12 @@ std::unique_ptr<ecp::EcpTask> ecp::make_ecp_task(const std::string& name, TaskCo
 }
 
 }  // namespace mrroc
+
+namespace mrroc::ecp {
+
+std::unique_ptr<VirtualSensor> TaskContext::sensor(const std::string& vsp) const {
+  if (bus == nullptr) throw Error("this task context has no LCM bus for virtual sensors");
+  return std::make_unique<VirtualSensor>(*bus, vsp, process.empty() ? "ecp" : process);
+}
+
+}  // namespace mrroc::ecp

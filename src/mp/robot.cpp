@@ -7,6 +7,7 @@
 #include <exception>
 #include <thread>
 
+#include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/mp/task.hpp"
@@ -17,14 +18,24 @@ EcpFailed::EcpFailed(const std::string& robot, const ecp::EcpReply& reply)
     : RemoteError(reply.error_code, fmt::format("ecp/{}: {}", robot, reply.error_text)),
       class_(reply.error_class) {}
 
+/// The two request/reply clients of the MP's link to one ECP.
+struct Robot::Links {
+  Links(comm::Bus& bus, const std::string& robot_name)
+      : command(bus, "mp", "ECP " + robot_name, channels::ecp_command(robot_name),
+                channels::ecp_reply(robot_name)),
+        control(bus, "mp-control", "ECP " + robot_name, channels::ecp_command(robot_name),
+                channels::ecp_reply(robot_name),
+                comm::ClientOptions{std::chrono::milliseconds(100), 10, {}}) {}
+  comm::EcpClient command;  ///< START_TASK, NEXT_STATE, NEXT_POSE, END_MOTION
+  comm::EcpClient control;  ///< STOP, PAUSE, RESUME (never queued behind a running task)
+};
+
 Robot::Robot(comm::Bus& bus, const std::string& robot_name)
-    : command_(bus, "mp", "ECP " + robot_name, channels::ecp_command(robot_name),
-               channels::ecp_reply(robot_name)),
-      control_(bus, "mp-control", "ECP " + robot_name, channels::ecp_command(robot_name),
-               channels::ecp_reply(robot_name),
-               comm::ClientOptions{std::chrono::milliseconds(100), 10, {}}) {
+    : links_(std::make_unique<Links>(bus, robot_name)) {
   image_.name = robot_name;
 }
+
+Robot::~Robot() = default;
 
 ecp::EcpReply Robot::checked(const ecp::EcpReply& reply) {
   image_.synchronised = reply.synchronised;
@@ -37,7 +48,7 @@ ecp::EcpReply Robot::checked(const ecp::EcpReply& reply) {
 void Robot::start_task() {
   ecp::MpCommand c;
   c.type = ecp::MpCommandType::start_task;
-  checked(command_.call(c));
+  checked(links_->command.call(c));
 }
 
 void Robot::next_state(const std::string& state, const std::string& arguments) {
@@ -45,13 +56,13 @@ void Robot::next_state(const std::string& state, const std::string& arguments) {
   c.type = ecp::MpCommandType::next_state;
   c.state_name = state;
   c.arguments = arguments;
-  checked(command_.call(c));
+  checked(links_->command.call(c));
 }
 
 void Robot::next_pose() {
   ecp::MpCommand c = image_.command;
   c.type = ecp::MpCommandType::next_pose;
-  const ecp::EcpReply r = checked(command_.call(c));
+  const ecp::EcpReply r = checked(links_->command.call(c));
   image_.arm_type = r.arm_type;
   image_.arm = r.arm;
 }
@@ -59,14 +70,14 @@ void Robot::next_pose() {
 void Robot::end_motion() {
   ecp::MpCommand c;
   c.type = ecp::MpCommandType::end_motion;
-  checked(command_.call(c));
+  checked(links_->command.call(c));
 }
 
 ecp::EcpReply Robot::control(ecp::MpCommandType type) {
   // Operator commands come from other threads than the task's: they do not touch the image.
   ecp::MpCommand c;
   c.type = type;
-  const ecp::EcpReply reply = control_.call(c);
+  const ecp::EcpReply reply = links_->control.call(c);
   if (reply.type == ecp::EcpReplyType::error) throw EcpFailed(image_.name, reply);
   return reply;
 }

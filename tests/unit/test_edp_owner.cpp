@@ -122,7 +122,7 @@ TEST_F(Owner, TheOwnerItselfRecoversFromATimeoutWithTakeOver) {
   wait_at_rest();
   // Without take_over the paper's rule holds: a QUERY is due.
   EXPECT_EQ(get("ecp#1").error_code, error_code::query_expected);
-  // ecp::Robot sends take_over after a timeout: the due QUERY is forgotten.
+  // edp::Client (under ecp::Robot) sends take_over after a timeout: the due QUERY is forgotten.
   const Reply r = get("ecp#1", /*take_over=*/true);
   ASSERT_EQ(r.type, ReplyType::data) << r.error_text;
   EXPECT_NEAR(r.joints[0], 0.05, 1e-6);

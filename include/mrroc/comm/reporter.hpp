@@ -5,6 +5,8 @@
 /// Every process owns one `Reporter`: `report()` prints the message on the process' stderr and
 /// publishes it on `mrroc/srp`; `set_state()` publishes the process status on `mrroc/status`
 /// at once and then every second (heartbeat) until the reporter is destroyed.
+///
+/// No LCM here (the task contexts hand tasks a Reporter): the bus is only named.
 
 #include <atomic>
 #include <condition_variable>
@@ -15,8 +17,11 @@
 #include <string>
 #include <thread>
 
-#include "mrroc/comm/bus.hpp"
 #include "mrroc/msg/system.hpp"
+
+namespace mrroc::comm {
+class Bus;
+}  // namespace mrroc::comm
 
 namespace mrroc {
 

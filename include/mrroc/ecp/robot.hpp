@@ -1,17 +1,19 @@
 #pragma once
 /// @file
 /// The ECP's robot: its image (the state the user's generators read and the command they write)
-/// and the link to the robot's EDP that keeps the image current (paper, section 4).
+/// kept current through the robot's EDP client (edp::Client, mrroc/edp/client.hpp; paper,
+/// section 4), and the stop and pause of the task that drives it. No LCM here.
 
 #include <atomic>
 #include <condition_variable>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
 
-#include "mrroc/comm/links.hpp"
 #include "mrroc/ecp/robot_image.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
+#include "mrroc/edp/client.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
@@ -19,9 +21,13 @@ namespace mrroc::ecp {
 
 class Robot {
  public:
-  /// @param robot_name  the robot's name in the process set (channels are named after it).
+  /// @param process_name  the caller's name (e.g. "ecp/irb6"), for its EDP client.
+  /// @param robot_name    the robot's name in the process set (channels are named after it).
   Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
-        RobotModel model, comm::ClientOptions options = {});
+        RobotModel model, edp::ClientOptions options = {});
+  /// With the request/reply layer's own options (mrroc/comm/request_reply.hpp).
+  Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
+        RobotModel model, const comm::ClientOptions& options);
 
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] const RobotModel& model() const { return model_; }
@@ -53,7 +59,9 @@ class Robot {
   /// The next instruction takes the EDP over (edp_instruction_t.take_over; docs/edp.md, "One
   /// owner at a time"): the EDP then obeys this client only, and forgets a QUERY that was due.
   /// Set by the constructor and after a timeout; the console sets it before every jog.
-  void take_over_next() { take_over_next_ = true; }
+  void take_over_next() { client_.take_over_next(); }
+  /// The EDP client the image is kept current through.
+  [[nodiscard]] edp::Client& client() { return client_; }
   /// SYNCHRO + QUERY unless the EDP is already synchronised.
   void synchronise();
 
@@ -78,14 +86,13 @@ class Robot {
   std::string name_;
   RobotModel model_;
   std::unique_ptr<edp::ArmKinematics> kinematics_;
-  comm::EdpClient client_;
+  edp::Client client_;
   RobotImage image_;
   std::atomic<bool> stop_{false};
   mutable std::mutex pause_mutex_;
   std::condition_variable pause_cv_;
   bool paused_ = false;
   bool separate_query_ = false;
-  bool take_over_next_ = true;
 };
 
 }  // namespace mrroc::ecp

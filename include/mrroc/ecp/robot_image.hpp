@@ -2,12 +2,13 @@
 /// @file
 /// What generators and conditions see of a robot: its image (paper, section 3), and the errors a
 /// motion ends with. No LCM, no config reader: a user's generator compiles against this alone
-/// (the EDP client that fills the image in is ecp::Robot, mrroc/ecp/robot.hpp).
+/// (ecp::Robot, mrroc/ecp/robot.hpp, fills the image in through its EDP client, edp::Client).
 
 #include <cstdint>
 #include <vector>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/edp/client.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
@@ -42,11 +43,8 @@ struct RobotImage {
   edp::Instruction command;
 };
 
-/// Thrown when the EDP refuses an instruction (code and text are the EDP's).
-class EdpRefused : public RemoteError {
- public:
-  using RemoteError::RemoteError;
-};
+/// Thrown when the EDP refuses an instruction (code and text are the EDP's): edp::Client's error.
+using EdpRefused = edp::Refused;
 
 /// Thrown inside Move/Wait when the task is asked to stop.
 class TaskStopped : public Error {

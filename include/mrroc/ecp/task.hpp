@@ -2,7 +2,8 @@
 /// @file
 /// ECP tasks: the user's code run by the ECP shell on START_TASK. A task is a class with
 /// `main_task()`, registered under a name with MRROC_REGISTER_ECP_TASK and chosen in the config
-/// (`[robot.ecp] task = "name"`).
+/// (`[robot.ecp] task = "name"`). No LCM and no TOML parser here: a task plugin compiles
+/// against the task API alone (the package test checks it).
 
 #include <functional>
 #include <memory>
@@ -13,6 +14,10 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/ecp/robot.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
+
+namespace mrroc::comm {
+class Bus;
+}  // namespace mrroc::comm
 
 namespace mrroc::ecp {
 

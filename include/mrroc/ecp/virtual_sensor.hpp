@@ -1,22 +1,20 @@
 #pragma once
 /// @file
-/// The image of one virtual sensor in an ECP or the MP: the client side of a VSP
-/// (CONFIGURE, INITIATE_READING, GET_READING, TERMINATE). Move and Wait call `initiate_reading`
-/// and `get_reading` in step with the motion (paper, section 4), so generators and conditions
-/// find the current reading in `image()`.
+/// The image of one virtual sensor in an ECP or the MP, kept current through the VSP's client
+/// (vsp::Client, mrroc/vsp/client.hpp: CONFIGURE, INITIATE_READING, GET_READING, TERMINATE).
+/// Move and Wait call `initiate_reading` and `get_reading` in step with the motion (paper,
+/// section 4), so generators and conditions find the current reading in `image()`. No LCM here.
 ///
 /// A VSP that does not answer, or answers an error, leaves an invalid image whose
 /// `invalid_reason` names the VSP and why; a VSP whose sources went stale answers an invalid
 /// reading. Generators use `valid_image()`, which throws `SensorError` (a system error of the
 /// task) for an invalid image: the Move ends, the robot holds, the SRP gets the reason.
-#include <chrono>
-#include <memory>
 #include <string>
 
-#include "mrroc/comm/bus.hpp"
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/msg/sensor_reading.hpp"
+#include "mrroc/vsp/client.hpp"
 
 namespace mrroc::ecp {
 
@@ -26,18 +24,15 @@ class SensorError : public SystemError {
   explicit SensorError(const std::string& text) : SystemError(text, error_code::sensor_invalid) {}
 };
 
-struct VirtualSensorOptions {
-  /// Per attempt; a reading is needed every macro-step, so a dead VSP must show quickly.
-  std::chrono::milliseconds attempt_timeout{40};
-  int max_attempts = 3;
-};
+/// Timeouts of the VSP's client (40 ms per attempt, 3 attempts unless set).
+using VirtualSensorOptions = vsp::ClientOptions;
 
 class VirtualSensor : public Sensor {
  public:
   /// @param owner  the calling process' name, for the link's endpoint name.
   VirtualSensor(comm::Bus& bus, const std::string& vsp, const std::string& owner,
                 VirtualSensorOptions options = {});
-  ~VirtualSensor() override;
+  ~VirtualSensor() override = default;
   VirtualSensor(const VirtualSensor&) = delete;
   VirtualSensor& operator=(const VirtualSensor&) = delete;
 
@@ -52,7 +47,9 @@ class VirtualSensor : public Sensor {
   void initiate_reading() override;
   void get_reading() override;
 
-  [[nodiscard]] const std::string& name() const { return name_; }
+  [[nodiscard]] const std::string& name() const { return client_.name(); }
+  /// The VSP's client the image is kept current through.
+  [[nodiscard]] vsp::Client& client() { return client_; }
   /// The last reading (possibly invalid).
   [[nodiscard]] const vsp::Reading& image() const { return image_; }
   /// The last reading. @throws SensorError when it is not valid.
@@ -65,9 +62,7 @@ class VirtualSensor : public Sensor {
  private:
   void invalid(const std::string& reason);
 
-  std::string name_;
-  struct Link;
-  std::unique_ptr<Link> link_;
+  vsp::Client client_;
   std::string context_;
   vsp::Reading image_;
 };

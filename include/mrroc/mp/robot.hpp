@@ -4,15 +4,19 @@
 /// its ECP, with the MP-level Move and Wait of the paper (section 4): the MP works on images of
 /// several robots; on this level Move sends every robot's next pose each macro-step (continuous
 /// coordination), and the sporadic commands (START_TASK, NEXT_STATE) run whole ECP tasks.
+/// No LCM here: the links to the ECP live behind a pointer, in src/mp/robot.cpp.
 
 #include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "mrroc/comm/links.hpp"
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/msg/mp_command.hpp"
+
+namespace mrroc::comm {
+class Bus;
+}  // namespace mrroc::comm
 
 namespace mrroc::mp {
 
@@ -47,6 +51,9 @@ class EcpFailed : public RemoteError {
 class Robot {
  public:
   Robot(comm::Bus& bus, const std::string& robot_name);
+  ~Robot();
+  Robot(const Robot&) = delete;
+  Robot& operator=(const Robot&) = delete;
 
   [[nodiscard]] const std::string& name() const { return image_.name; }
   [[nodiscard]] RobotImage& image() { return image_; }
@@ -68,8 +75,8 @@ class Robot {
   ecp::EcpReply checked(const ecp::EcpReply& reply);
   ecp::EcpReply control(ecp::MpCommandType type);
   RobotImage image_;
-  comm::EcpClient command_;
-  comm::EcpClient control_;
+  struct Links;
+  std::unique_ptr<Links> links_;
 };
 
 using RobotList = std::vector<Robot*>;

@@ -1,19 +1,23 @@
 #pragma once
 /// @file
 /// MP tasks: the user's coordinating code run by the MP shell. Registered with
-/// MRROC_REGISTER_MP_TASK and chosen in the config (`[mp] task = "name"`).
+/// MRROC_REGISTER_MP_TASK and chosen in the config (`[mp] task = "name"`). No LCM and no TOML
+/// parser here: a task plugin compiles against the task API alone (the package test checks it).
 
 #include <functional>
 #include <map>
 #include <memory>
 #include <string>
 
-#include "mrroc/comm/links.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/mp/robot.hpp"
+
+namespace mrroc::comm {
+class Bus;
+}  // namespace mrroc::comm
 
 namespace mrroc::mp {
 

@@ -35,7 +35,6 @@ class MpShell {
  public:
   MpShell(const ProcessSetConfig& config, comm::Bus& bus, Reporter& reporter)
       : config_(config),
-        bus_(bus),
         reporter_(reporter),
         context_{{}, reporter, config.mp.args, config, &bus},
         server_(bus, "mp", channels::mp_command, channels::mp_reply) {
@@ -267,7 +266,6 @@ class MpShell {
   }
 
   const ProcessSetConfig& config_;
-  comm::Bus& bus_;
   Reporter& reporter_;
   std::vector<std::unique_ptr<mp::Robot>> robots_;
   mp::TaskContext context_;

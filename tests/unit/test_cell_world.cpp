@@ -12,7 +12,6 @@
 #include <filesystem>
 #include <fstream>
 #include <new>
-#include <numbers>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -40,8 +39,6 @@ using mrroc::ConfigError;
 using mrroc::emu::CellWorld;
 using mrroc::emu::FramePose;
 using mrroc::emu::Scene;
-
-constexpr double kPi = std::numbers::pi;
 
 fs::path source_dir() { return fs::path(MRROC_SOURCE_DIR); }
 fs::path scene_file(const char* name) { return source_dir() / "configs" / "scenes" / name; }

@@ -39,9 +39,7 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
   try {
     (void)make_ecp_task(config_.ecp.name, context);
   } catch (const ConfigError& e) {
-    const std::string text = e.what();
-    if (text.find(": error: ") != std::string::npos) throw;
-    throw ConfigError(fmt::format("{}: error: {}", config_.ecp.where.str(), text));
+    throw e.at(config_.ecp.where);  // an argument's own location, else the [robot.ecp] table's
   }
   worker_ = std::thread([this] { worker_loop(); });
 }

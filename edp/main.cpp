@@ -94,13 +94,14 @@ int run(const std::string& config_path, const std::string& robot_name) {
     try {
       hardware = edp::make_hardware(robot.edp.plugin);
     } catch (const ConfigError& e) {
-      throw ConfigError(fmt::format("{}: error: {}", robot.edp.where.str(), e.what()));
+      throw e.at(robot.edp.where);
     }
     if (robot.edp.lock_step && !hardware->simulated())
-      throw ConfigError(fmt::format(
-          "{}: error: lock_step = true needs simulated hardware; plugin '{}' drives its axes in "
-          "real time (for emulated drives, set lock_step in [emulator] instead)",
-          robot.edp.where.str(), hardware->name()));
+      throw ConfigError(
+          robot.edp.where,
+          fmt::format("lock_step = true needs simulated hardware; plugin '{}' drives its axes in "
+                      "real time (for emulated drives, set lock_step in [emulator] instead)",
+                      hardware->name()));
     edp::HardwareSetup setup;
     setup.robot = robot.name;
     setup.model_dir = robot.model_dir;

@@ -62,8 +62,7 @@ void CellWorld::build(const Scene& scene) {
   std::string error;
   model_ = load_from_memory(xml_, error);
   if (!model_) {
-    throw ConfigError(fmt::format("{}: error: MuJoCo cannot load the composed scene: {}",
-                                  scene.where.str(), error));
+    throw ConfigError(scene.where, fmt::format("MuJoCo cannot load the composed scene: {}", error));
   }
   convert_spring_contacts(scene);
   const mjModel* m = model_.get();
@@ -105,10 +104,10 @@ void CellWorld::build(const Scene& scene) {
     sim::Coupling coupling =
         sim::Coupling::from_parameters(composed_robot.parameters, axes, composed_robot.mjcf);
     if (!composed_robot.parameters.synchro) {
-      throw ConfigError(composed_robot.parameters.path.string() +
-                        ":0: error: missing key robot.synchro_joint_positions [rad]");
+      throw ConfigError(SourceLocation{composed_robot.parameters.path.string(), 0},
+                        "missing key robot.synchro_joint_positions [rad]");
     }
-    sim::PowerOnRequest request{source.initial_joint_positions, source.initial_where.str()};
+    sim::PowerOnRequest request{source.initial_joint_positions, source.initial_where};
     sim::plan_power_on(m, robot.axes, std::move(coupling), *composed_robot.parameters.synchro,
                        sim::quoted(composed_robot.parameters.path), request, context);
     robot.first_equality = composed_robot.first_equality;
@@ -204,10 +203,12 @@ void CellWorld::convert_spring_contacts(const Scene& scene) {
     // mean translational inverse weights at qpos0; the other body is taken as fixed (0).
     const double w = m->body_invweight0[2 * index(body)];
     if (!(w > 0.0)) {
-      throw ConfigError(fmt::format(
-          "{}: error: object '{}' does not move (fixed to the world): a stiffness solref [N/m] "
-          "needs a moving object; give it to the object or robot tool that touches this one",
-          object.solref_where.str(), object.name));
+      throw ConfigError(
+          object.solref_where,
+          fmt::format(
+              "object '{}' does not move (fixed to the world): a stiffness solref [N/m] needs a "
+              "moving object; give it to the object or robot tool that touches this one",
+              object.name));
     }
     // MuJoCo's soft contact (mj_makeImpedance, constant impedance d = solimp[0] = solimp[1],
     // k = -solref[0] / d^2, b = -solref[1] / d): each constraint row gets R = (1 - d) / d * w

@@ -19,12 +19,12 @@ std::vector<RobotDrives> read_drive_wiring(const std::filesystem::path& file,
   try {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(
-        fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(e.source().begin.line)},
+                      std::string(e.description()));
   }
   const auto fail = [&](const toml::node& node, const std::string& text) {
-    return ConfigError(
-        fmt::format("{}:{}: error: {}", file.string(), node.source().begin.line, text));
+    return ConfigError(SourceLocation{file.string(), static_cast<int>(node.source().begin.line)},
+                       text);
   };
   const toml::array* robots = root["scene"]["robot"].as_array();
   std::vector<RobotDrives> out;
@@ -89,8 +89,9 @@ std::vector<RobotDrives> read_drive_wiring(const std::filesystem::path& file,
     if (const auto it = overrides.find(robot.name); it != overrides.end()) d.bus = it->second;
     for (const int node : d.nodes)
       if (!used.insert({d.bus, node}).second)
-        throw ConfigError(fmt::format("{}: error: node id {} is used twice on bus {} (robot '{}')",
-                                      file.string(), node, d.bus, robot.name));
+        throw ConfigError(SourceLocation::whole_file(file.string()),
+                          fmt::format("node id {} is used twice on bus {} (robot '{}')", node,
+                                      d.bus, robot.name));
     out.push_back(std::move(d));
   }
   for (const auto& [name, url] : overrides) {

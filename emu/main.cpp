@@ -485,7 +485,8 @@ int main(int argc, char** argv) {
     if (!config.empty()) {
       const ProcessSetConfig set = load_process_set(config);
       if (!set.emulator)
-        throw ConfigError(set.file.string() + ": error: no [emulator] table in the process set");
+        throw ConfigError(SourceLocation::whole_file(set.file.string()),
+                          "no [emulator] table in the process set");
       options.scene = set.emulator->scene;
       options.lock_step = options.lock_step || set.emulator->lock_step;
       options.faults.insert(options.faults.begin(), set.emulator->faults.begin(),

@@ -35,7 +35,7 @@ class TableReader {
     return SourceLocation{file_.string(), static_cast<int>(node.source().begin.line)};
   }
   [[noreturn]] void fail(const toml::node& node, const std::string& text) const {
-    throw ConfigError(at(node).str() + ": error: " + text);
+    throw ConfigError(at(node), text);
   }
   [[noreturn]] void fail_missing(const char* key, const char* what) const {
     fail(table_, fmt::format("missing key '{}' in [{}] ({})", key, name_, what));
@@ -458,7 +458,7 @@ class SceneComposer {
 
   ComposedScene compose() {
     if (scene_.robots.empty()) {
-      throw ConfigError(scene_.where.str() + ": error: the scene has no [[scene.robot]]");
+      throw ConfigError(scene_.where, "the scene has no [[scene.robot]]");
     }
     for (const SceneRobot& robot : scene_.robots) sources_.push_back(load(robot));
     start_document();
@@ -495,8 +495,7 @@ class SceneComposer {
 
  private:
   [[noreturn]] static void fail(const RobotSource& source, const std::string& text) {
-    throw ConfigError(fmt::format("{}: error: robot '{}': {}", source.robot->where.str(),
-                                  source.robot->name, text));
+    throw ConfigError(source.robot->where, fmt::format("robot '{}': {}", source.robot->name, text));
   }
 
   static RobotSource load(const SceneRobot& robot) {
@@ -658,11 +657,11 @@ class SceneComposer {
                          sim::quoted(source.mjcf), first.robot->name, sim::quoted(first.mjcf)));
       }
       if (!scene_.timestep && source.model->opt.timestep != first.model->opt.timestep) {
-        throw ConfigError(fmt::format(
-            "{}: error: the robots' MuJoCo timesteps differ ({} s in {}, {} s in {}): set "
-            "[scene] timestep",
-            scene_.where.str(), first.model->opt.timestep, sim::quoted(first.mjcf),
-            source.model->opt.timestep, sim::quoted(source.mjcf)));
+        throw ConfigError(scene_.where,
+                          fmt::format("the robots' MuJoCo timesteps differ ({} s in {}, {} s in "
+                                      "{}): set [scene] timestep",
+                                      first.model->opt.timestep, sim::quoted(first.mjcf),
+                                      source.model->opt.timestep, sim::quoted(source.mjcf)));
       }
     }
     xml::XMLElement* option = sections_["option"];
@@ -805,10 +804,12 @@ class SceneComposer {
     if (!object.attach.empty() && object.attach != "world") {
       parent = find_body(sections_["worldbody"], object.attach);
       if (parent == nullptr) {
-        throw ConfigError(fmt::format(
-            "{}: error: object '{}': attach = \"{}\" names no body of the scene (a robot's "
-            "bodies are named '<robot>/<body>', e.g. 'conveyor/belt_link'; objects by their name)",
-            object.where.str(), object.name, object.attach));
+        throw ConfigError(
+            object.where,
+            fmt::format(
+                "object '{}': attach = \"{}\" names no body of the scene (a robot's bodies are "
+                "named '<robot>/<body>', e.g. 'conveyor/belt_link'; objects by their name)",
+                object.name, object.attach));
       }
     }
     xml::XMLElement* body = parent->InsertNewChildElement("body");
@@ -871,14 +872,14 @@ Scene parse_scene(const std::string& text, const fs::path& origin) {
   try {
     root = toml::parse(text, origin.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(
-        fmt::format("{}:{}: error: {}", origin.string(), e.source().begin.line, e.description()));
+    throw ConfigError(SourceLocation{origin.string(), static_cast<int>(e.source().begin.line)},
+                      std::string(e.description()));
   }
   const TableReader top(origin, root, "");
   top.reject_unknown({"scene"});
   const toml::node* scene_node = root.get("scene");
   if (scene_node == nullptr || !scene_node->is_table()) {
-    throw ConfigError(origin.string() + ":1: error: missing table [scene]");
+    throw ConfigError(SourceLocation{origin.string(), 1}, "missing table [scene]");
   }
   const toml::table& table = *scene_node->as_table();
   const TableReader r(origin, table, "scene");
@@ -896,8 +897,8 @@ Scene parse_scene(const std::string& text, const fs::path& origin) {
   const auto claim = [&](const std::string& name, const SourceLocation& where, const char* kind) {
     for (const auto& [other, other_where] : names) {
       if (other == name) {
-        throw ConfigError(fmt::format("{}: error: duplicate {} name '{}' (first used at {})",
-                                      where.str(), kind, name, other_where.str()));
+        throw ConfigError(where, fmt::format("duplicate {} name '{}' (first used at {})", kind,
+                                             name, other_where.str()));
       }
     }
     names.emplace_back(name, where);
@@ -907,7 +908,7 @@ Scene parse_scene(const std::string& text, const fs::path& origin) {
     claim(scene.robots.back().name, scene.robots.back().where, "robot");
   }
   if (scene.robots.empty()) {
-    throw ConfigError(scene.where.str() + ": error: the scene has no [[scene.robot]]");
+    throw ConfigError(scene.where, "the scene has no [[scene.robot]]");
   }
   for (const toml::table* object : table_list(r, "object")) {
     scene.objects.push_back(read_object(origin, *object));
@@ -920,7 +921,7 @@ ComposedScene compose_scene(const Scene& scene) { return SceneComposer(scene).co
 
 Scene load_scene(const fs::path& file) {
   std::ifstream in(file);
-  if (!in) throw ConfigError(file.string() + ":0: error: cannot read the scene file");
+  if (!in) throw ConfigError(SourceLocation{file.string(), 0}, "cannot read the scene file");
   std::stringstream text;
   text << in.rdbuf();
   return parse_scene(text.str(), file);

@@ -52,7 +52,7 @@ class SensorReader {
   }
   [[noreturn]] void fail(const toml::node& node, const std::string& text) const {
     const std::string who = device_.empty() ? "sensor" : fmt::format("sensor '{}'", device_);
-    throw ConfigError(fmt::format("{}: error: {}: {}", at(node).str(), who, text));
+    throw ConfigError(at(node), fmt::format("{}: {}", who, text));
   }
   [[noreturn]] void fail_missing(const char* key, const std::string& what) const {
     fail(table_, fmt::format("missing key '{}' ({})", key, what));
@@ -329,16 +329,16 @@ std::vector<SensorConfig> read_sensor_configs(const fs::path& file, const CellWo
   try {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(
-        fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(e.source().begin.line)},
+                      std::string(e.description()));
   }
   std::vector<SensorConfig> out;
   const toml::node* node = root["scene"]["sensor"].node();
   if (node == nullptr) return out;
   const toml::array* array = node->as_array();
   const auto fail = [&](const toml::node& n) {
-    throw ConfigError(fmt::format("{}:{}: error: 'sensor' must be [[scene.sensor]] tables",
-                                  file.string(), n.source().begin.line));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(n.source().begin.line)},
+                      "'sensor' must be [[scene.sensor]] tables");
   };
   if (array == nullptr) fail(*node);
   for (const toml::node& element : *array) {
@@ -346,8 +346,8 @@ std::vector<SensorConfig> read_sensor_configs(const fs::path& file, const CellWo
     SensorConfig c = read_sensor(file, *element.as_table(), world);
     for (const SensorConfig& other : out) {
       if (other.name == c.name) {
-        throw ConfigError(fmt::format("{}: error: duplicate sensor name '{}' (first used at {})",
-                                      c.where.str(), c.name, other.where.str()));
+        throw ConfigError(c.where, fmt::format("duplicate sensor name '{}' (first used at {})",
+                                               c.name, other.where.str()));
       }
     }
     out.push_back(std::move(c));
@@ -418,7 +418,7 @@ SensorDevices::SensorDevices(std::vector<SensorConfig> configs, const CellWorld&
     auto dev = std::make_unique<Device>();
     Device& d = *dev;
     const auto fail = [&](const std::string& text) {
-      throw ConfigError(fmt::format("{}: error: sensor '{}': {}", c.where.str(), c.name, text));
+      throw ConfigError(c.where, fmt::format("sensor '{}': {}", c.name, text));
     };
     d.period_s = 1.0 / c.rate_hz;
     d.next_due_s = world.time() + d.period_s;

@@ -135,8 +135,9 @@ std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const Plan
     const auto host = std::find_if(config.launch.hosts.begin(), config.launch.hosts.end(),
                                    [&](const HostConfig& h) { return h.name == p.host; });
     if (host == config.launch.hosts.end())
-      throw Error(fmt::format("{}: error: {} runs on host '{}', which is not a [[launch.host]]",
-                              cfg, p.name, p.host));
+      throw ConfigError(
+          SourceLocation::whole_file(cfg),
+          fmt::format("{} runs on host '{}', which is not a [[launch.host]]", p.name, p.host));
     // ssh passes no environment: it travels in the command line.
     s.argv = host_command(*host, {"LCM_DEFAULT_URL=" + comm::resolve_lcm_url(config.lcm_url)},
                           p.command);

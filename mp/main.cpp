@@ -86,9 +86,7 @@ class MpShell {
     try {
       return mp::make_mp_task(config_.mp.name, context_);
     } catch (const ConfigError& e) {
-      const std::string text = e.what();
-      if (text.find(": error: ") != std::string::npos) throw;
-      throw ConfigError(fmt::format("{}: error: {}", config_.mp.where.str(), text));
+      throw e.at(config_.mp.where);  // an argument's own location, else the [mp] table's
     }
   }
 

@@ -215,10 +215,10 @@ int serve(const std::string& config_path, const std::string& bind, int port) {
   if (!config.ui.token_file.empty()) {
     options.token = ui::read_token_file(config.ui.token_file);
   } else if (!loopback) {
-    throw ConfigError(fmt::format(
-        "{}: error: --bind {} is not a loopback address: set [ui] token_file so that every "
-        "API request must carry a token",
-        config.file.string(), options.bind));
+    throw ConfigError(SourceLocation::whole_file(config.file.string()),
+                      fmt::format("--bind {} is not a loopback address: set [ui] token_file so "
+                                  "that every API request must carry a token",
+                                  options.bind));
   }
   ui::Console console(config, options);
   return console.run();

@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
       try {
         plugin = vsp::make_sensor(vsp->plugin);
       } catch (const ConfigError& e) {
-        throw ConfigError(fmt::format("{}: error: {}", vsp->where.str(), e.what()));
+        throw e.at(vsp->where);
       }
       vsp::Shell shell(bus, reporter, *vsp, std::move(plugin));
       bus.start();

@@ -31,8 +31,8 @@ Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
   for (std::size_t i = 0; i < config.sources.size(); ++i) {
     const std::string channel = channels::raw_sensor(config.sources[i]);
     if (!source_of_channel_.emplace(channel, i).second)
-      throw ConfigError(fmt::format("{}: error: VSP '{}' lists source '{}' twice",
-                                    config.where.str(), config.name, config.sources[i]));
+      throw ConfigError(config.where, fmt::format("VSP '{}' lists source '{}' twice", config.name,
+                                                  config.sources[i]));
     comm::SubscriberOptions options;
     options.report_malformed = false;  // on_malformed warns once, then only counts
     options.on_malformed = [this](const std::string& ch, const std::string& why) {

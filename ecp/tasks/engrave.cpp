@@ -90,15 +90,13 @@ class Engrave : public EcpTask {
     servo_algorithm_ = a.get_int("servo_algorithm", 1);
     a.reject_unread("robot.ecp.args");
     if (origin.size() != 3)
-      throw ConfigError(
-          fmt::format("{}: error: 'origin' must be [x, y, z] (m)", a.location_of("origin").str()));
+      throw ConfigError(a.location_of("origin"), "'origin' must be [x, y, z] (m)");
     origin_ = Eigen::Vector3d(origin[0], origin[1], origin[2]);
     for (char c : text_)
       if (c != ' ' && font().count(c) == 0)
         throw ConfigError(
-            fmt::format("{}: error: letter '{}' is not in the stroke font (C, M, O, "
-                        "R, space)",
-                        a.location_of("text").str(), c));
+            a.location_of("text"),
+            fmt::format("letter '{}' is not in the stroke font (C, M, O, R, space)", c));
   }
 
   void main_task() override {

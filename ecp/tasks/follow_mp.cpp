@@ -31,8 +31,8 @@ class SetOutputs : public EcpTask {
       : context_(context), outputs_(context.args.get_int("outputs")) {
     context.args.reject_unread("set_outputs arguments");
     if (outputs_ < 0 || outputs_ > 0xFFFFFFFFLL)
-      throw ConfigError(fmt::format("{}: error: outputs {} is outside 0..0xFFFFFFFF",
-                                    context.args.location_of("outputs").str(), outputs_));
+      throw ConfigError(context.args.location_of("outputs"),
+                        fmt::format("outputs {} is outside 0..0xFFFFFFFF", outputs_));
   }
   void main_task() override {
     edp::Instruction& c = context_.robot.image().command;

@@ -50,16 +50,15 @@ namespace {
 Eigen::Vector3d vector3(const Params& a, const char* key, std::vector<double> fallback) {
   const std::vector<double> v = a.get_doubles(key, fallback);
   if (v.size() != 3)
-    throw ConfigError(
-        fmt::format("{}: error: '{}' must be [x, y, z] (m)", a.location_of(key).str(), key));
+    throw ConfigError(a.location_of(key), fmt::format("'{}' must be [x, y, z] (m)", key));
   return {v[0], v[1], v[2]};
 }
 
 double positive(const Params& a, const char* key, double fallback, const char* unit) {
   const double v = a.get_double(key, fallback);
   if (!(v > 0.0) || !std::isfinite(v))
-    throw ConfigError(fmt::format("{}: error: '{}' = {} {} must be a positive number",
-                                  a.location_of(key).str(), key, v, unit));
+    throw ConfigError(a.location_of(key),
+                      fmt::format("'{}' = {} {} must be a positive number", key, v, unit));
   return v;
 }
 
@@ -269,13 +268,13 @@ class FollowSurface : public Touching {
     settle_ = a.get_double("settle", 0.6);
     motion_steps_ = static_cast<int>(a.get_int("motion_steps", 20));
     if (motion_steps_ < 4 || motion_steps_ > 1000)
-      throw ConfigError(fmt::format("{}: error: 'motion_steps' = {} must be in 4..1000 servo steps",
-                                    a.location_of("motion_steps").str(), motion_steps_));
+      throw ConfigError(
+          a.location_of("motion_steps"),
+          fmt::format("'motion_steps' = {} must be in 4..1000 servo steps", motion_steps_));
     a.reject_unread("robot.ecp.args");
     direction_.z() = 0.0;
     if (direction_.norm() < 1e-9)
-      throw ConfigError(fmt::format("{}: error: 'direction' must have a horizontal part",
-                                    a.location_of("direction").str()));
+      throw ConfigError(a.location_of("direction"), "'direction' must have a horizontal part");
     direction_.normalize();
   }
 
@@ -346,10 +345,8 @@ class PickWhenSeen : public EcpTask {
     camera_name_ = a.get_string("camera", "camera");
     region_ = a.get_doubles("region");
     if (region_.size() != 4 || region_[0] >= region_[1] || region_[2] >= region_[3])
-      throw ConfigError(
-          fmt::format("{}: error: 'region' must be [xmin, xmax, ymin, ymax] (m) "
-                      "with min < max",
-                      a.location_of("region").str()));
+      throw ConfigError(a.location_of("region"),
+                        "'region' must be [xmin, xmax, ymin, ymax] (m) with min < max");
     above_ = positive(a, "above", 0.1, "m");
     tool_length_ = positive(a, "tool", 0.15, "m");
     timeout_ = positive(a, "timeout", 30.0, "s");

@@ -22,7 +22,7 @@ class VisitJointPoses : public EcpTask {
     try {
       JointPosesGenerator check(context.robot.model(), poses_, options_);
     } catch (const Error& e) {
-      throw ConfigError(fmt::format("{}: error: {}", args.location_of("poses").str(), e.what()));
+      throw ConfigError(args.location_of("poses"), e.what());
     }
   }
 

@@ -58,17 +58,14 @@ class CanHardware final : public Hardware {
     if (params.has("nodes")) {
       for (const double n : params.get_doubles("nodes")) {
         if (n != std::floor(n) || n < 1 || n > canopen_max_node())
-          throw ConfigError(
-              fmt::format("{}: error: node id {} in 'nodes' must be an integer in "
-                          "1..127",
-                          params.location_of("nodes").str(), n));
+          throw ConfigError(params.location_of("nodes"),
+                            fmt::format("node id {} in 'nodes' must be an integer in 1..127", n));
         nodes.push_back(static_cast<std::int64_t>(n));
       }
       if (nodes.size() != axes_)
-        throw ConfigError(
-            fmt::format("{}: error: 'nodes' lists {} node ids, robot '{}' has {} "
-                        "axes",
-                        params.location_of("nodes").str(), nodes.size(), model.name, axes_));
+        throw ConfigError(params.location_of("nodes"),
+                          fmt::format("'nodes' lists {} node ids, robot '{}' has {} axes",
+                                      nodes.size(), model.name, axes_));
     } else {
       for (std::size_t i = 0; i < axes_; ++i) nodes.push_back(static_cast<std::int64_t>(i + 1));
     }
@@ -82,8 +79,8 @@ class CanHardware final : public Hardware {
     params.reject_unread("robot.edp.params");
     const auto positive = [&](const char* key, double value, const char* unit) {
       if (!(value > 0.0) || !std::isfinite(value))
-        throw ConfigError(fmt::format("{}: error: '{}' = {} {} must be a positive number",
-                                      params.location_of(key).str(), key, value, unit));
+        throw ConfigError(params.location_of(key),
+                          fmt::format("'{}' = {} {} must be a positive number", key, value, unit));
     };
     positive("counts_per_unit", counts, "counts/unit");
     positive("bitrate", bitrate, "bit/s");
@@ -91,15 +88,14 @@ class CanHardware final : public Hardware {
     positive("bring_up_timeout_s", timeout_s, "s");
     if (window_ms < 1 || window_ms > 65535)
       throw ConfigError(
-          fmt::format("{}: error: 'following_error_timeout_ms' = {} ms must be in "
-                      "1..65535 ms",
-                      params.location_of("following_error_timeout_ms").str(), window_ms));
+          params.location_of("following_error_timeout_ms"),
+          fmt::format("'following_error_timeout_ms' = {} ms must be in 1..65535 ms", window_ms));
     if (silent < 2 || silent > 1000)
-      throw ConfigError(fmt::format("{}: error: 'silent_cycles' = {} must be in 2..1000",
-                                    params.location_of("silent_cycles").str(), silent));
+      throw ConfigError(params.location_of("silent_cycles"),
+                        fmt::format("'silent_cycles' = {} must be in 2..1000", silent));
     if (heartbeat < 0 || heartbeat > 65535)
-      throw ConfigError(fmt::format("{}: error: 'heartbeat_ms' = {} ms must be in 0..65535 ms",
-                                    params.location_of("heartbeat_ms").str(), heartbeat));
+      throw ConfigError(params.location_of("heartbeat_ms"),
+                        fmt::format("'heartbeat_ms' = {} ms must be in 0..65535 ms", heartbeat));
 
     // Transmission a = M q.
     const auto n = static_cast<Eigen::Index>(axes_);
@@ -110,8 +106,8 @@ class CanHardware final : public Hardware {
             model.coupling[r][c];
     const Eigen::FullPivLU<Eigen::MatrixXd> lu(coupling_);
     if (!lu.isInvertible())
-      throw ConfigError(setup.model_dir.string() +
-                        "/parameters.toml: error: robot.transmission.coupling is singular");
+      throw ConfigError(SourceLocation::whole_file(model.parameters_file().string()),
+                        "robot.transmission.coupling is singular");
     inverse_ = lu.inverse();
 
     // Bus load of the cyclic traffic.
@@ -125,12 +121,13 @@ class CanHardware final : public Hardware {
         load.load_nominal * 100.0, load.load_worst * 100.0, bitrate / 1000.0);
     std::fprintf(stderr, "%s\n", load_text_.c_str());
     if (load.load_worst > 1.0)
-      throw ConfigError(fmt::format(
-          "{}: error: robot '{}' needs {:.0f} % of bus {} at {:.0f} kbit/s with a {:.3g} ms cycle "
-          "(limit 100 %, recommended at most {:.0f} %): lengthen servo_period_ms or split the "
-          "drives over more buses",
-          params.location().str(), setup.robot, load.load_worst * 100.0, url, bitrate / 1000.0,
-          setup.servo_period_s * 1000.0, can::canopen::kRecommendedMaxLoad * 100.0));
+      throw ConfigError(
+          params.location(),
+          fmt::format("robot '{}' needs {:.0f} % of bus {} at {:.0f} kbit/s with a {:.3g} ms cycle "
+                      "(limit 100 %, recommended at most {:.0f} %): lengthen servo_period_ms or "
+                      "split the drives over more buses",
+                      setup.robot, load.load_worst * 100.0, url, bitrate / 1000.0,
+                      setup.servo_period_s * 1000.0, can::canopen::kRecommendedMaxLoad * 100.0));
     if (load.load_worst > can::canopen::kRecommendedMaxLoad)
       std::fprintf(stderr,
                    "can: warning: worst-case bus load %.0f %% is above the recommended "

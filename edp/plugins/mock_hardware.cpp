@@ -113,14 +113,13 @@ class FaultyHardware : public MockHardware {
     fault_after_ = params.get_int("fault_after_cycles", 100);
     const std::string kind = params.get_string("fault", "status");
     if (kind != "status" && kind != "throw" && kind != "stall")
-      throw ConfigError(
-          fmt::format("{}: error: fault '{}' must be \"status\", \"throw\" or \"stall\"",
-                      params.location_of("fault").str(), kind));
+      throw ConfigError(params.location_of("fault"),
+                        fmt::format("fault '{}' must be \"status\", \"throw\" or \"stall\"", kind));
     throw_ = kind == "throw";
     const std::int64_t stall = params.get_int("stall_ms", 50);
     if (stall < 1 || stall > 10000)
-      throw ConfigError(fmt::format("{}: error: stall_ms = {} ms is outside 1..10000 ms",
-                                    params.location_of("stall_ms").str(), stall));
+      throw ConfigError(params.location_of("stall_ms"),
+                        fmt::format("stall_ms = {} ms is outside 1..10000 ms", stall));
     if (kind == "stall") stall_ms_ = stall;
   }
 

@@ -50,7 +50,7 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   sim::PowerOnRequest power_on_request;
   if (params.has("initial_joint_positions")) {
     power_on_request.given = params.get_doubles("initial_joint_positions");
-    power_on_request.given_where = params.location_of("initial_joint_positions").str();
+    power_on_request.given_where = params.location_of("initial_joint_positions");
   }
   params.reject_unread(kParamsTable);
 
@@ -60,10 +60,11 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   const bool need_robot_file = mjcf_param.empty() || setup.synchro_positions.empty();
   if (need_robot_file || std::filesystem::exists(robot_file_path)) {
     if (!std::filesystem::exists(robot_file_path)) {
-      throw ConfigError(robot_file_path.string() + ":0: error: robot parameter file not found (" +
-                        (mjcf_param.empty() ? "needed for robot.mjcf"
-                                            : "needed for robot.synchro_joint_positions") +
-                        ")");
+      throw ConfigError(SourceLocation{robot_file_path.string(), 0},
+                        std::string("robot parameter file not found (") +
+                            (mjcf_param.empty() ? "needed for robot.mjcf"
+                                                : "needed for robot.synchro_joint_positions") +
+                            ")");
     }
     robot_file = sim::read_robot_parameters(robot_file_path);
   }
@@ -71,8 +72,8 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   std::string mjcf_name = mjcf_param;
   if (mjcf_name.empty()) {
     if (!robot_file->mjcf || robot_file->mjcf->empty()) {
-      throw ConfigError(robot_file_path.string() +
-                        ":0: error: missing key robot.mjcf (the MJCF model file name)");
+      throw ConfigError(SourceLocation{robot_file_path.string(), 0},
+                        "missing key robot.mjcf (the MJCF model file name)");
     }
     mjcf_name = *robot_file->mjcf;
   }
@@ -126,8 +127,8 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   std::string synchro_source = "the EDP setup";
   if (synchro.empty()) {
     if (!robot_file->synchro) {
-      throw ConfigError(robot_file_path.string() +
-                        ":0: error: missing key robot.synchro_joint_positions [rad]");
+      throw ConfigError(SourceLocation{robot_file_path.string(), 0},
+                        "missing key robot.synchro_joint_positions [rad]");
     }
     synchro = *robot_file->synchro;
     synchro_source = sim::quoted(robot_file_path);

@@ -156,26 +156,23 @@ class CarryBar : public MpTask {
     const Params& args = context.args;
     const auto names = args.get_strings("robots");
     if (names.size() != 2)
-      throw ConfigError(fmt::format("{}: error: 'robots' must name exactly two robots",
-                                    args.location_of("robots").str()));
+      throw ConfigError(args.location_of("robots"), "'robots' must name exactly two robots");
     for (const auto& n : names) robots_.push_back(&context.robot(n));
     bar_length_ = args.get_double("bar_length");
     for (const auto& p : args.get_double_rows("path")) {
       if (p.size() != 3)
-        throw ConfigError(fmt::format("{}: error: every 'path' point is [x, y, z] (m)",
-                                      args.location_of("path").str()));
+        throw ConfigError(args.location_of("path"), "every 'path' point is [x, y, z] (m)");
       path_.emplace_back(p[0], p[1], p[2]);
     }
     if (path_.size() < 2)
-      throw ConfigError(fmt::format("{}: error: 'path' needs at least two points",
-                                    args.location_of("path").str()));
+      throw ConfigError(args.location_of("path"), "'path' needs at least two points");
     speed_ = args.get_double("speed", 0.05);
     motion_steps_ = static_cast<int>(args.get_int("motion_steps", 10));
     tolerance_ = args.get_double("tolerance", 0.003);
     args.reject_unread("mp.args");
     if (!(speed_ > 0.0 && speed_ <= 0.5))
-      throw ConfigError(fmt::format("{}: error: speed {} m/s is outside (0, 0.5] m/s",
-                                    args.location_of("speed").str(), speed_));
+      throw ConfigError(args.location_of("speed"),
+                        fmt::format("speed {} m/s is outside (0, 0.5] m/s", speed_));
   }
 
   void main_task() override {

@@ -16,9 +16,8 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
   explicit Irb6ArmKinematics(const RobotModel& model) : model_(model) {
     if (model.axes() != kAxes)
       throw ConfigError(
-          fmt::format("{}/parameters.toml: error: irb6 kinematics needs {} axes, "
-                      "the model has {}",
-                      model.folder.string(), kAxes, model.axes()));
+          SourceLocation::whole_file(model.parameters_file().string()),
+          fmt::format("irb6 kinematics needs {} axes, the model has {}", kAxes, model.axes()));
   }
 
   std::string name() const override { return "irb6"; }

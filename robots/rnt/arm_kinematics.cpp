@@ -28,9 +28,8 @@ class RntArmKinematics : public edp::ArmKinematics {
   explicit RntArmKinematics(const RobotModel& model) : model_(model) {
     if (model.axes() != kAxes)
       throw ConfigError(
-          fmt::format("{}/parameters.toml: error: rnt kinematics needs {} axes, the "
-                      "model has {}",
-                      model.folder.string(), kAxes, model.axes()));
+          SourceLocation::whole_file(model.parameters_file().string()),
+          fmt::format("rnt kinematics needs {} axes, the model has {}", kAxes, model.axes()));
     std::vector<std::filesystem::path> files = model.kinematic_models;
     if (files.empty()) files.push_back(model.urdf);
     for (const auto& f : files) solvers_.emplace_back(f, "base_link", "flange");

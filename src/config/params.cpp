@@ -27,12 +27,11 @@ const Params::Entry* Params::find(const std::string& key) const {
 }
 
 void Params::type_error(const std::string& key, const char* expected) const {
-  throw ConfigError(
-      fmt::format("{}: error: '{}' must be {}", location_of(key).str(), key, expected));
+  throw ConfigError(location_of(key), fmt::format("'{}' must be {}", key, expected));
 }
 
 void Params::missing(const std::string& key) const {
-  throw ConfigError(fmt::format("{}: error: missing required key '{}'", location_.str(), key));
+  throw ConfigError(location_, fmt::format("missing required key '{}'", key));
 }
 
 namespace {
@@ -118,8 +117,7 @@ std::vector<std::string> Params::unread_keys() const {
 
 void Params::reject_unread(const std::string& table_name) const {
   for (const auto& key : unread_keys())
-    throw ConfigError(fmt::format("{}: error: unknown key '{}' in [{}]", location_of(key).str(),
-                                  key, table_name));
+    throw ConfigError(location_of(key), fmt::format("unknown key '{}' in [{}]", key, table_name));
 }
 
 }  // namespace mrroc

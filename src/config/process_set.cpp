@@ -28,7 +28,7 @@ class Reader {
   }
 
   [[noreturn]] void fail(const toml::node& node, const std::string& text) const {
-    throw ConfigError(fmt::format("{}: error: {}", where(node).str(), text));
+    throw ConfigError(where(node), text);
   }
 
   enum class Kind { any, folder, file };
@@ -66,8 +66,8 @@ class Reader {
                            const std::string& parent_name) const {
     const toml::node* node = parent.get(key);
     if (node == nullptr)
-      throw ConfigError(fmt::format("{}: error: missing table [{}{}{}]", where(parent).str(),
-                                    parent_name, parent_name.empty() ? "" : ".", key));
+      throw ConfigError(where(parent), fmt::format("missing table [{}{}{}]", parent_name,
+                                                   parent_name.empty() ? "" : ".", key));
     if (!node->is_table()) fail(*node, fmt::format("'{}' must be a table", key));
     return *node->as_table();
   }
@@ -77,17 +77,17 @@ class Reader {
     const toml::node* node = t.get(key);
     if (node == nullptr) {
       if (fallback) return *fallback;
-      throw ConfigError(
-          fmt::format("{}: error: missing key '{}' in [{}]", where(t).str(), key, table_name));
+      throw ConfigError(where(t), fmt::format("missing key '{}' in [{}]", key, table_name));
     }
     if (!node->is_string()) fail(*node, fmt::format("'{}' must be a string", key));
     return **node->as_string();
   }
 
-  double number(const toml::table& t, const char* key, double fallback, double min, double max,
-                const char* unit) const {
+  /// The number at `key` in min..max [unit], or nothing when `key` is absent.
+  std::optional<double> number(const toml::table& t, const char* key, double min, double max,
+                               const char* unit) const {
     const toml::node* node = t.get(key);
-    if (node == nullptr) return fallback;
+    if (node == nullptr) return std::nullopt;
     double v = 0;
     if (node->is_floating_point())
       v = **node->as_floating_point();
@@ -100,6 +100,46 @@ class Reader {
     return v;
   }
 
+  // The set_* readers overwrite `field` only when `key` is given: a key left out keeps the
+  // default of the config struct's member initialiser (include/mrroc/config/process_set.hpp).
+
+  void set_number(const toml::table& t, const char* key, double& field, double min, double max,
+                  const char* unit) const {
+    if (const std::optional<double> v = number(t, key, min, max, unit)) field = *v;
+  }
+
+  /// A count, read as a number (a fraction is cut off).
+  void set_count(const toml::table& t, const char* key, int& field, double min, double max,
+                 const char* unit) const {
+    if (const std::optional<double> v = number(t, key, min, max, unit))
+      field = static_cast<int>(*v);
+  }
+
+  /// A period given in milliseconds, stored in seconds.
+  void set_ms(const toml::table& t, const char* key, double& field_s, double min_ms,
+              double max_ms) const {
+    if (const std::optional<double> v = number(t, key, min_ms, max_ms, "ms")) field_s = *v / 1000.0;
+  }
+
+  void set_boolean(const toml::table& t, const char* key, bool& field) const {
+    const toml::node* node = t.get(key);
+    if (node == nullptr) return;
+    if (!node->is_boolean()) fail(*node, fmt::format("'{}' must be true or false", key));
+    field = **node->as_boolean();
+  }
+
+  void set_string(const toml::table& t, const char* key, const std::string& table_name,
+                  std::string& field) const {
+    if (t.get(key) != nullptr) field = string(t, key, table_name);
+  }
+
+  /// A path relative to the config file's folder (an empty string leaves `field` as it is).
+  void set_path(const toml::table& t, const char* key, const std::string& table_name,
+                fs::path& field) const {
+    if (const std::string path = string(t, key, table_name, std::string{}); !path.empty())
+      field = resolve(path);
+  }
+
   /// `keys` plus the keys of ProcessOptions (every process' table accepts them).
   static std::vector<const char*> with_options(std::vector<const char*> keys) {
     for (const char* k : {"cpus", "priority", "stop_grace_s", "stop_signal", "host", "group",
@@ -108,17 +148,10 @@ class Reader {
     return keys;
   }
 
-  bool boolean(const toml::table& t, const char* key, bool fallback) const {
-    const toml::node* node = t.get(key);
-    if (node == nullptr) return fallback;
-    if (!node->is_boolean()) fail(*node, fmt::format("'{}' must be true or false", key));
-    return **node->as_boolean();
-  }
-
   ProcessOptions options(const toml::table& t, const std::string& default_group) const {
     ProcessOptions o;
     o.group = default_group;
-    o.stop_grace_s = number(t, "stop_grace_s", 3.0, 0.0, 60.0, "s");
+    set_number(t, "stop_grace_s", o.stop_grace_s, 0.0, 60.0, "s");
     if (const toml::node* sig = t.get("stop_signal")) {
       static const std::pair<const char*, int> names[] = {
           {"SIGTERM", SIGTERM}, {"SIGINT", SIGINT},   {"SIGHUP", SIGHUP},  {"SIGQUIT", SIGQUIT},
@@ -135,31 +168,33 @@ class Reader {
                                "SIGUSR1, SIGUSR2, SIGKILL",
                                text));
     }
-    o.host = string(t, "host", "", std::string("local"));
-    if (const toml::node* h = t.get("host")) o.host_where = where(*h);
-    if (o.host.empty())
-      fail(*t.get("host"), "'host' must not be empty (\"local\" or a [[launch.host]] name)");
-    o.group = string(t, "group", "", default_group);
-    const std::string restart = string(t, "restart", "", std::string("never"));
-    if (restart == "never")
-      o.restart = RestartPolicy::never;
-    else if (restart == "on-failure")
-      o.restart = RestartPolicy::on_failure;
-    else if (restart == "always")
-      o.restart = RestartPolicy::always;
-    else
-      fail(*t.get("restart"), fmt::format("restart '{}' must be \"never\", \"on-failure\" or "
-                                          "\"always\"",
-                                          restart));
-    o.max_restarts =
-        static_cast<int>(number(t, "max_restarts", 3, 0, kMaxRestartsLimit, "restarts"));
-    o.restart_backoff_s = number(t, "restart_backoff_s", 0.5, 0.0, 30.0, "s");
+    if (const toml::node* h = t.get("host")) {
+      o.host = string(t, "host", "");
+      o.host_where = where(*h);
+      if (o.host.empty())
+        fail(*h, "'host' must not be empty (\"local\" or a [[launch.host]] name)");
+    }
+    set_string(t, "group", "", o.group);
+    if (const toml::node* node = t.get("restart")) {
+      const std::string restart = string(t, "restart", "");
+      if (restart == "never")
+        o.restart = RestartPolicy::never;
+      else if (restart == "on-failure")
+        o.restart = RestartPolicy::on_failure;
+      else if (restart == "always")
+        o.restart = RestartPolicy::always;
+      else
+        fail(*node,
+             fmt::format("restart '{}' must be \"never\", \"on-failure\" or \"always\"", restart));
+    }
+    set_count(t, "max_restarts", o.max_restarts, 0, kMaxRestartsLimit, "restarts");
+    set_number(t, "restart_backoff_s", o.restart_backoff_s, 0.0, 30.0, "s");
     if (o.restart_backoff_s < kMinRestartBackoffS)
       fail(*t.get("restart_backoff_s"),
            fmt::format("'restart_backoff_s' = {} s is below the minimum of {} s (a process that "
                        "keeps failing must not be restarted in a tight loop)",
                        o.restart_backoff_s, kMinRestartBackoffS));
-    o.required = boolean(t, "required", true);
+    set_boolean(t, "required", o.required);
     if (const toml::node* prio = t.get("priority")) {
       if (!prio->is_integer())
         fail(*prio, fmt::format("'priority' must be an integer (a SCHED_FIFO priority 0..{}; 0: "
@@ -246,17 +281,9 @@ class Reader {
     TaskConfig c;
     c.where = where(t);
     c.name = string(t, "task", table_name);
-    const std::string lib = string(t, "library", table_name, std::string{});
-    if (!lib.empty()) {
-      c.library = resolve(lib);
-      require_path(*t.get("library"), c.library, Kind::any, "task library");
-    }
-    if (const toml::node* args = t.get("args")) {
-      if (!args->is_table()) fail(*args, "'args' must be a table");
-      c.args = params(*args->as_table(), table_name + ".args");
-    } else {
-      c.args = Params(where(t));
-    }
+    set_path(t, "library", table_name, c.library);
+    if (!c.library.empty()) require_path(*t.get("library"), c.library, Kind::any, "task library");
+    c.args = table_params(t, "args", table_name + ".args");
     c.options = options(t, group);
     return c;
   }
@@ -265,6 +292,288 @@ class Reader {
     fs::path p(path);
     if (p.is_relative()) p = file_.parent_path() / p;
     return p.lexically_normal();
+  }
+
+  // One reader per table of the process set (docs/configs.md).
+
+  void system(const toml::table& root, ProcessSetConfig& config) const {
+    const toml::table& t = table(root, "system", "");
+    only_keys(t, "system", {"name", "lcm_url", "ready_timeout_s", "auth_key_file"});
+    config.name = string(t, "name", "system");
+    set_string(t, "lcm_url", "system", config.lcm_url);
+    if (!config.lcm_url.empty() && config.lcm_url.find("://") == std::string::npos)
+      fail(*t.get("lcm_url"),
+           fmt::format("lcm_url '{}' is not a URL (expected e.g. udpm://239.255.76.67:7667?ttl=0)",
+                       config.lcm_url));
+    set_number(t, "ready_timeout_s", config.ready_timeout_s, 0.1, 600.0, "s");
+    set_path(t, "auth_key_file", "system", config.auth_key_file);
+    if (!config.auth_key_file.empty())
+      require_path(*t.get("auth_key_file"), config.auth_key_file, Kind::file,
+                   "authentication key file");
+  }
+
+  /// [srp] (optional: `node` null).
+  SrpConfig srp(const toml::node* node) const {
+    SrpConfig c;
+    if (node == nullptr) {
+      c.options = options(toml::table{}, "srp");
+      return c;
+    }
+    if (!node->is_table()) fail(*node, "'srp' must be a table");
+    const toml::table& t = *node->as_table();
+    only_keys(t, "srp", with_options({"log", "log_max_kb", "log_keep", "history"}));
+    c.options = options(t, "srp");
+    set_path(t, "log", "srp", c.log);
+    set_number(t, "log_max_kb", c.log_max_kb, 1.0, 1e7, "KiB");
+    set_count(t, "log_keep", c.log_keep, 0, 100, "files");
+    set_count(t, "history", c.history, 10, 1e6, "messages");
+    return c;
+  }
+
+  /// [ui] (optional: `node` null).
+  UiConfig ui(const toml::node* node) const {
+    UiConfig c;
+    if (node == nullptr) {
+      c.options = options(toml::table{}, "ui");
+      return c;
+    }
+    if (!node->is_table()) fail(*node, "'ui' must be a table");
+    const toml::table& t = *node->as_table();
+    only_keys(t, "ui", with_options({"web", "bind", "port", "token_file", "teach_dir"}));
+    c.where = where(t);
+    c.options = options(t, "ui");
+    set_boolean(t, "web", c.web);
+    set_string(t, "bind", "ui", c.bind);
+    set_count(t, "port", c.port, 1, 65535, "(TCP port)");
+    set_path(t, "token_file", "ui", c.token_file);
+    if (!c.token_file.empty())
+      require_path(*t.get("token_file"), c.token_file, Kind::file, "console token file");
+    const bool loopback = c.bind == "127.0.0.1" || c.bind == "localhost" || c.bind == "::1" ||
+                          c.bind.rfind("127.", 0) == 0;
+    if (!loopback && c.token_file.empty())
+      fail(*t.get("bind"), fmt::format("bind '{}' is not a loopback address: the console then "
+                                       "needs 'token_file' (a file holding the access token)",
+                                       c.bind));
+    set_path(t, "teach_dir", "ui", c.teach_dir);
+    return c;
+  }
+
+  /// [launch] (optional: `node` null).
+  LaunchConfig launch(const toml::node* node) const {
+    LaunchConfig c;
+    if (node == nullptr) return c;
+    if (!node->is_table()) fail(*node, "'launch' must be a table");
+    const toml::table& t = *node->as_table();
+    only_keys(t, "launch", {"log_dir", "log_max_kb", "log_keep", "record", "host"});
+    set_path(t, "log_dir", "launch", c.log_dir);
+    set_number(t, "log_max_kb", c.log_max_kb, 1.0, 1e7, "KiB");
+    set_count(t, "log_keep", c.log_keep, 0, 100, "files");
+    set_path(t, "record", "launch", c.record);
+    if (const toml::node* hosts = t.get("host")) {
+      const toml::array* list = hosts->as_array();
+      if (list == nullptr || !list->is_array_of_tables())
+        fail(*hosts, "'launch.host' must be an array of tables ([[launch.host]])");
+      std::set<std::string> host_names{"local"};
+      for (const auto& entry : *list) {
+        c.hosts.push_back(host(*entry.as_table(), host_names));
+      }
+    }
+    return c;
+  }
+
+  /// One [[launch.host]]; `names`: the host names so far.
+  HostConfig host(const toml::table& h, std::set<std::string>& names) const {
+    only_keys(h, "launch.host", {"name", "command", "address", "quote"});
+    HostConfig c;
+    c.where = where(h);
+    c.name = string(h, "name", "launch.host");
+    if (!names.insert(c.name).second)
+      fail(*h.get("name"),
+           fmt::format("host name '{}' is used twice (\"local\" is reserved)", c.name));
+    c.address = string(h, "address", "launch.host", c.name);
+    if (const toml::node* cmd = h.get("command")) {
+      const toml::array* words = cmd->as_array();
+      if (words == nullptr || words->empty() || !words->is_homogeneous(toml::node_type::string))
+        fail(*cmd,
+             "'command' must be a non-empty list of strings, e.g. [\"ip\", \"netns\", "
+             "\"exec\", \"{host}\"]");
+      c.command.clear();
+      for (const auto& w : *words) c.command.emplace_back(**w.as_string());
+      c.quote = false;  // a command of one's own gets its words as they are, unless asked
+    }
+    set_boolean(h, "quote", c.quote);
+    return c;
+  }
+
+  /// [emulator].
+  EmulatorConfig emulator(const toml::node& node) const {
+    if (!node.is_table()) fail(node, "'emulator' must be a table");
+    const toml::table& t = *node.as_table();
+    only_keys(t, "emulator", with_options({"scene", "lock_step", "faults"}));
+    EmulatorConfig c;
+    c.where = where(t);
+    c.scene = resolve(string(t, "scene", "emulator"));
+    require_path(*t.get("scene"), c.scene, Kind::file, "scene file");
+    set_boolean(t, "lock_step", c.lock_step);
+    if (const toml::node* faults = t.get("faults")) {
+      const toml::array* arr = faults->as_array();
+      if (arr == nullptr || !arr->is_homogeneous(toml::node_type::string))
+        fail(*faults, "'faults' must be a list of strings (see mrroc-axis-emu --help)");
+      for (const auto& f : *arr) c.faults.emplace_back(**f.as_string());
+    }
+    c.options = options(t, "emu");
+    return c;
+  }
+
+  /// [[vsp]], every entry.
+  std::vector<VspConfig> vsps(const toml::node& node) const {
+    const toml::array* list = node.as_array();
+    if (list == nullptr || !list->is_array_of_tables())
+      fail(node, "'vsp' must be an array of tables ([[vsp]])");
+    std::vector<VspConfig> out;
+    std::set<std::string> names;
+    for (const auto& entry : *list) out.push_back(vsp(*entry.as_table(), names));
+    return out;
+  }
+
+  /// One [[vsp]]; `names`: the VSP names so far.
+  VspConfig vsp(const toml::table& t, std::set<std::string>& names) const {
+    only_keys(t, "vsp",
+              with_options({"name", "plugin", "library", "sources", "mode", "period_ms",
+                            "stale_after_ms", "params"}));
+    VspConfig c;
+    c.where = where(t);
+    c.name = string(t, "name", "vsp");
+    if (!std::regex_match(c.name, process_name_re()))
+      fail(*t.get("name"), fmt::format("VSP name '{}' must match [a-z][a-z0-9_]* and have at "
+                                       "most 31 characters",
+                                       c.name));
+    if (!names.insert(c.name).second)
+      fail(*t.get("name"), fmt::format("VSP name '{}' is used twice", c.name));
+    c.plugin = string(t, "plugin", "vsp");
+    set_path(t, "library", "vsp", c.library);
+    if (!c.library.empty())
+      require_path(*t.get("library"), c.library, Kind::any, "sensor plugin library");
+    const toml::node* sources = t.get("sources");
+    if (sources == nullptr)
+      throw ConfigError(where(t), fmt::format("missing key 'sources' in [[vsp]] '{}' (the raw "
+                                              "sensor devices that feed it)",
+                                              c.name));
+    const toml::array* arr = sources->as_array();
+    if (arr == nullptr || arr->empty() || !arr->is_homogeneous(toml::node_type::string))
+      fail(*sources, "'sources' must be a non-empty list of raw sensor device names");
+    for (const auto& s : *arr) c.sources.emplace_back(**s.as_string());
+    if (const toml::node* node = t.get("mode")) {
+      const std::string mode = string(t, "mode", "vsp");
+      if (mode != "on_demand" && mode != "periodic")
+        fail(*node, fmt::format("mode '{}' must be \"on_demand\" or \"periodic\"", mode));
+      c.periodic = mode == "periodic";
+    }
+    set_ms(t, "period_ms", c.period_s, 1.0, 10000.0);
+    set_ms(t, "stale_after_ms", c.stale_after_s, 1.0, 60000.0);
+    c.params = table_params(t, "params", "vsp.params");
+    c.options = options(t, "vsp");
+    return c;
+  }
+
+  /// [mp].
+  void mp(const toml::table& root, ProcessSetConfig& config) const {
+    const toml::table& t = table(root, "mp", "");
+    config.mp = task(t, "mp", "mp", {"start"});
+    if (const toml::node* node = t.get("start")) {
+      const std::string start = string(t, "start", "mp");
+      if (start != "auto" && start != "operator")
+        fail(*node,
+             fmt::format(
+                 "start '{}' must be \"auto\" or \"operator\" (wait for START from mrroc-ui)",
+                 start));
+      config.mp_waits_for_operator = start == "operator";
+    }
+  }
+
+  /// [[robot]], every entry (at least one).
+  std::vector<RobotConfig> robots(const toml::table& root) const {
+    const toml::node* node = root.get("robot");
+    if (node == nullptr)
+      throw ConfigError(SourceLocation::whole_file(file_.string()), "no [[robot]] defined");
+    const toml::array* list = node->as_array();
+    if (list == nullptr || !list->is_array_of_tables())
+      fail(*node, "'robot' must be an array of tables ([[robot]])");
+    std::vector<RobotConfig> out;
+    std::set<std::string> names;
+    for (const auto& entry : *list) out.push_back(robot(*entry.as_table(), names));
+    return out;
+  }
+
+  /// One [[robot]]; `names`: the robot names so far.
+  RobotConfig robot(const toml::table& t, std::set<std::string>& names) const {
+    only_keys(t, "robot", {"name", "model", "base", "edp", "ecp"});
+    RobotConfig c;
+    c.where = where(t);
+    c.name = string(t, "name", "robot");
+    if (!std::regex_match(c.name, process_name_re()))
+      fail(*t.get("name"), fmt::format("robot name '{}' must match [a-z][a-z0-9_]* and have at "
+                                       "most 31 characters",
+                                       c.name));
+    if (!names.insert(c.name).second)
+      fail(*t.get("name"), fmt::format("robot name '{}' is used twice", c.name));
+    c.model_dir = resolve(string(t, "model", "robot"));
+    require_path(*t.get("model"), c.model_dir, Kind::folder, "robot model folder");
+    if (const toml::node* base = t.get("base")) {
+      const toml::array* values = base->as_array();
+      if (values == nullptr || values->size() != 6)
+        fail(*base, "'base' must be [x, y, z, rx, ry, rz] (m, rotation vector in rad)");
+      const std::vector<double> v = numbers(*values, "base");
+      std::copy(v.begin(), v.end(), c.base.begin());
+    }
+    c.edp = edp(table(t, "edp", "robot"));
+    c.ecp = task(table(t, "ecp", "robot"), "robot.ecp", "ecp");
+    return c;
+  }
+
+  /// [robot.edp].
+  EdpConfig edp(const toml::table& t) const {
+    only_keys(
+        t, "robot.edp",
+        with_options({"plugin", "library", "servo_period_ms", "lookahead", "lock_step", "params"}));
+    EdpConfig c;
+    c.where = where(t);
+    c.plugin = string(t, "plugin", "robot.edp");
+    set_path(t, "library", "robot.edp", c.library);
+    if (!c.library.empty())
+      require_path(*t.get("library"), c.library, Kind::any, "hardware plugin library");
+    set_ms(t, "servo_period_ms", c.servo_period_s, 0.1, 100.0);
+    if (const toml::node* la = t.get("lookahead")) {
+      if (!la->is_integer())
+        fail(*la, fmt::format("'lookahead' must be an integer (macro-steps queued ahead of the "
+                              "servo loop, 1..{})",
+                              kMaxLookahead));
+      const std::int64_t v = **la->as_integer();
+      if (v < 1 || v > kMaxLookahead)
+        fail(*la, fmt::format("'lookahead' = {} macro-steps is outside 1..{} (1: the paper's "
+                              "one successor)",
+                              v, kMaxLookahead));
+      c.lookahead = static_cast<int>(v);
+    }
+    set_boolean(t, "lock_step", c.lock_step);
+    c.params = table_params(t, "params", "robot.edp.params");
+    c.options = options(t, "edp");
+    return c;
+  }
+
+  /// The parameters at `key` of `t` (a table), located at `t` when there are none.
+  Params table_params(const toml::table& t, const char* key, const std::string& table_name) const {
+    const toml::node* node = t.get(key);
+    if (node == nullptr) return Params(where(t));
+    if (!node->is_table()) fail(*node, fmt::format("'{}' must be a table", key));
+    return params(*node->as_table(), table_name);
+  }
+
+  /// Names of robots and VSPs: they are parts of process and channel names (LCM channel names are
+  /// at most 63 characters).
+  static const std::regex& process_name_re() {
+    static const std::regex re("[a-z][a-z0-9_]{0,30}");
+    return re;
   }
 
  private:
@@ -288,8 +597,8 @@ Params params_from_toml(const std::string& text, const std::string& origin) {
     const toml::table table = toml::parse(text, origin);
     return r.params(table, origin);
   } catch (const toml::parse_error& e) {
-    throw ConfigError(
-        fmt::format("{}:{}: error: {}", origin, e.source().begin.line, e.description()));
+    throw ConfigError(SourceLocation{origin, static_cast<int>(e.source().begin.line)},
+                      std::string(e.description()));
   }
 }
 
@@ -299,8 +608,9 @@ const VspConfig& ProcessSetConfig::vsp(const std::string& vsp_name) const {
     if (v.name == vsp_name) return v;
     known += (known.empty() ? "" : ", ") + v.name;
   }
-  throw ConfigError(fmt::format("{}: error: no [[vsp]] named '{}' (known: {})", file.string(),
-                                vsp_name, known.empty() ? "none" : known));
+  throw ConfigError(
+      SourceLocation::whole_file(file.string()),
+      fmt::format("no [[vsp]] named '{}' (known: {})", vsp_name, known.empty() ? "none" : known));
 }
 
 const RobotConfig& ProcessSetConfig::robot(const std::string& robot_name) const {
@@ -308,8 +618,9 @@ const RobotConfig& ProcessSetConfig::robot(const std::string& robot_name) const 
     if (r.name == robot_name) return r;
   std::string known;
   for (const auto& r : robots) known += (known.empty() ? "" : ", ") + r.name;
-  throw ConfigError(fmt::format("{}: error: no robot named '{}' (robots: {})", file.string(),
-                                robot_name, known.empty() ? "none" : known));
+  throw ConfigError(
+      SourceLocation::whole_file(file.string()),
+      fmt::format("no robot named '{}' (robots: {})", robot_name, known.empty() ? "none" : known));
 }
 
 namespace {
@@ -321,10 +632,9 @@ void check_hosts(const ProcessSetConfig& config) {
     for (const auto& h : config.launch.hosts)
       if (h.name == o.host) return;
     throw ConfigError(
-        fmt::format("{}: error: {} runs on host '{}', which is not a [[launch.host]] "
-                    "(hosts: local{})",
-                    o.host_where.file.empty() ? config.file.string() : o.host_where.str(), process,
-                    o.host, [&] {
+        o.host_where.known() ? o.host_where : SourceLocation::whole_file(config.file.string()),
+        fmt::format("{} runs on host '{}', which is not a [[launch.host]] (hosts: local{})",
+                    process, o.host, [&] {
                       std::string s;
                       for (const auto& h : config.launch.hosts) s += ", " + h.name;
                       return s;
@@ -344,279 +654,33 @@ void check_hosts(const ProcessSetConfig& config) {
 ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path& file) {
   ProcessSetConfig config;
   config.file = file;
-  Reader r(config.file);
+  const Reader r(config.file);
   r.only_keys(root, "top level",
               {"system", "srp", "emulator", "vsp", "mp", "robot", "ui", "launch"});
-
-  const toml::table& system = r.table(root, "system", "");
-  r.only_keys(system, "system", {"name", "lcm_url", "ready_timeout_s", "auth_key_file"});
-  config.name = r.string(system, "name", "system");
-  config.lcm_url = r.string(system, "lcm_url", "system", std::string{});
-  if (!config.lcm_url.empty() && config.lcm_url.find("://") == std::string::npos)
-    r.fail(*system.get("lcm_url"),
-           fmt::format("lcm_url '{}' is not a URL (expected e.g. udpm://239.255.76.67:7667?ttl=0)",
-                       config.lcm_url));
-  config.ready_timeout_s = r.number(system, "ready_timeout_s", 10.0, 0.1, 600.0, "s");
-  if (const std::string key = r.string(system, "auth_key_file", "system", std::string{});
-      !key.empty()) {
-    config.auth_key_file = r.resolve(key);
-    r.require_path(*system.get("auth_key_file"), config.auth_key_file, Reader::Kind::file,
-                   "authentication key file");
-  }
-
-  if (const toml::node* srp = root.get("srp")) {
-    if (!srp->is_table()) r.fail(*srp, "'srp' must be a table");
-    const toml::table& t = *srp->as_table();
-    r.only_keys(t, "srp", Reader::with_options({"log", "log_max_kb", "log_keep", "history"}));
-    config.srp.options = r.options(t, "srp");
-    if (const std::string log = r.string(t, "log", "srp", std::string{}); !log.empty())
-      config.srp.log = r.resolve(log);
-    config.srp.log_max_kb = r.number(t, "log_max_kb", 4096.0, 1.0, 1e7, "KiB");
-    config.srp.log_keep = static_cast<int>(r.number(t, "log_keep", 5, 0, 100, "files"));
-    config.srp.history = static_cast<int>(r.number(t, "history", 10000, 10, 1e6, "messages"));
-  } else {
-    config.srp.options = r.options(toml::table{}, "srp");
-  }
-
-  config.ui.options = r.options(toml::table{}, "ui");
-  if (const toml::node* ui = root.get("ui")) {
-    if (!ui->is_table()) r.fail(*ui, "'ui' must be a table");
-    const toml::table& t = *ui->as_table();
-    r.only_keys(t, "ui", Reader::with_options({"web", "bind", "port", "token_file", "teach_dir"}));
-    config.ui.where = r.where(t);
-    config.ui.options = r.options(t, "ui");
-    config.ui.web = r.boolean(t, "web", false);
-    config.ui.bind = r.string(t, "bind", "ui", std::string("127.0.0.1"));
-    config.ui.port = static_cast<int>(r.number(t, "port", 8080, 1, 65535, "(TCP port)"));
-    if (const std::string token = r.string(t, "token_file", "ui", std::string{}); !token.empty()) {
-      config.ui.token_file = r.resolve(token);
-      r.require_path(*t.get("token_file"), config.ui.token_file, Reader::Kind::file,
-                     "console token file");
-    }
-    const bool loopback = config.ui.bind == "127.0.0.1" || config.ui.bind == "localhost" ||
-                          config.ui.bind == "::1" || config.ui.bind.rfind("127.", 0) == 0;
-    if (!loopback && config.ui.token_file.empty())
-      r.fail(*t.get("bind"), fmt::format("bind '{}' is not a loopback address: the console then "
-                                         "needs 'token_file' (a file holding the access token)",
-                                         config.ui.bind));
-    if (const std::string dir = r.string(t, "teach_dir", "ui", std::string{}); !dir.empty())
-      config.ui.teach_dir = r.resolve(dir);
-  }
-
-  if (const toml::node* launch = root.get("launch")) {
-    if (!launch->is_table()) r.fail(*launch, "'launch' must be a table");
-    const toml::table& t = *launch->as_table();
-    r.only_keys(t, "launch", {"log_dir", "log_max_kb", "log_keep", "record", "host"});
-    if (const std::string dir = r.string(t, "log_dir", "launch", std::string{}); !dir.empty())
-      config.launch.log_dir = r.resolve(dir);
-    config.launch.log_max_kb = r.number(t, "log_max_kb", 1024.0, 1.0, 1e7, "KiB");
-    config.launch.log_keep = static_cast<int>(r.number(t, "log_keep", 3, 0, 100, "files"));
-    if (const std::string rec = r.string(t, "record", "launch", std::string{}); !rec.empty())
-      config.launch.record = r.resolve(rec);
-    if (const toml::node* hosts = t.get("host")) {
-      const toml::array* list = hosts->as_array();
-      if (list == nullptr || !list->is_array_of_tables())
-        r.fail(*hosts, "'launch.host' must be an array of tables ([[launch.host]])");
-      std::set<std::string> host_names{"local"};
-      for (const auto& node : *list) {
-        const toml::table& h = *node.as_table();
-        r.only_keys(h, "launch.host", {"name", "command", "address", "quote"});
-        HostConfig host;
-        host.where = r.where(h);
-        host.name = r.string(h, "name", "launch.host");
-        if (!host_names.insert(host.name).second)
-          r.fail(*h.get("name"), fmt::format("host name '{}' is used twice (\"local\" is "
-                                             "reserved)",
-                                             host.name));
-        host.address = r.string(h, "address", "launch.host", host.name);
-        host.command = {"ssh", "-o", "BatchMode=yes", "{host}"};
-        if (const toml::node* cmd = h.get("command")) {
-          const toml::array* words = cmd->as_array();
-          if (words == nullptr || words->empty() || !words->is_homogeneous(toml::node_type::string))
-            r.fail(*cmd,
-                   "'command' must be a non-empty list of strings, e.g. [\"ip\", \"netns\", "
-                   "\"exec\", \"{host}\"]");
-          host.command.clear();
-          for (const auto& w : *words) host.command.emplace_back(**w.as_string());
-        }
-        host.quote = r.boolean(h, "quote", h.get("command") == nullptr);
-        config.launch.hosts.push_back(std::move(host));
-      }
-    }
-  }
-
-  if (const toml::node* emu = root.get("emulator")) {
-    if (!emu->is_table()) r.fail(*emu, "'emulator' must be a table");
-    const toml::table& t = *emu->as_table();
-    r.only_keys(t, "emulator", Reader::with_options({"scene", "lock_step", "faults"}));
-    EmulatorConfig e;
-    e.where = r.where(t);
-    e.scene = r.resolve(r.string(t, "scene", "emulator"));
-    r.require_path(*t.get("scene"), e.scene, Reader::Kind::file, "scene file");
-    if (const toml::node* ls = t.get("lock_step")) {
-      if (!ls->is_boolean()) r.fail(*ls, "'lock_step' must be true or false");
-      e.lock_step = **ls->as_boolean();
-    }
-    if (const toml::node* faults = t.get("faults")) {
-      const toml::array* arr = faults->as_array();
-      if (arr == nullptr || !arr->is_homogeneous(toml::node_type::string))
-        r.fail(*faults, "'faults' must be a list of strings (see mrroc-axis-emu --help)");
-      for (const auto& f : *arr) e.faults.emplace_back(**f.as_string());
-    }
-    e.options = r.options(t, "emu");
-    config.emulator = std::move(e);
-  }
-
-  if (const toml::node* vsps = root.get("vsp")) {
-    const toml::array* list = vsps->as_array();
-    if (list == nullptr || !list->is_array_of_tables())
-      r.fail(*vsps, "'vsp' must be an array of tables ([[vsp]])");
-    static const std::regex vsp_name_re("[a-z][a-z0-9_]{0,30}");
-    std::set<std::string> vsp_names;
-    for (const auto& node : *list) {
-      const toml::table& t = *node.as_table();
-      r.only_keys(t, "vsp",
-                  Reader::with_options({"name", "plugin", "library", "sources", "mode", "period_ms",
-                                        "stale_after_ms", "params"}));
-      VspConfig v;
-      v.where = r.where(t);
-      v.name = r.string(t, "name", "vsp");
-      if (!std::regex_match(v.name, vsp_name_re))
-        r.fail(*t.get("name"), fmt::format("VSP name '{}' must match [a-z][a-z0-9_]* and have at "
-                                           "most 31 characters",
-                                           v.name));
-      if (!vsp_names.insert(v.name).second)
-        r.fail(*t.get("name"), fmt::format("VSP name '{}' is used twice", v.name));
-      v.plugin = r.string(t, "plugin", "vsp");
-      if (const std::string lib = r.string(t, "library", "vsp", std::string{}); !lib.empty()) {
-        v.library = r.resolve(lib);
-        r.require_path(*t.get("library"), v.library, Reader::Kind::any, "sensor plugin library");
-      }
-      const toml::node* sources = t.get("sources");
-      if (sources == nullptr)
-        throw ConfigError(
-            fmt::format("{}: error: missing key 'sources' in [[vsp]] '{}' (the raw "
-                        "sensor devices that feed it)",
-                        r.where(t).str(), v.name));
-      const toml::array* arr = sources->as_array();
-      if (arr == nullptr || arr->empty() || !arr->is_homogeneous(toml::node_type::string))
-        r.fail(*sources, "'sources' must be a non-empty list of raw sensor device names");
-      for (const auto& s : *arr) v.sources.emplace_back(**s.as_string());
-      const std::string mode = r.string(t, "mode", "vsp", std::string("on_demand"));
-      if (mode != "on_demand" && mode != "periodic")
-        r.fail(*t.get("mode"),
-               fmt::format("mode '{}' must be \"on_demand\" or \"periodic\"", mode));
-      v.periodic = mode == "periodic";
-      v.period_s = r.number(t, "period_ms", 10.0, 1.0, 10000.0, "ms") / 1000.0;
-      v.stale_after_s = r.number(t, "stale_after_ms", 100.0, 1.0, 60000.0, "ms") / 1000.0;
-      if (const toml::node* p = t.get("params")) {
-        if (!p->is_table()) r.fail(*p, "'params' must be a table");
-        v.params = r.params(*p->as_table(), "vsp.params");
-      } else {
-        v.params = Params(r.where(t));
-      }
-      v.options = r.options(t, "vsp");
-      config.vsps.push_back(std::move(v));
-    }
-  }
-
-  {
-    const toml::table& mp = r.table(root, "mp", "");
-    config.mp = r.task(mp, "mp", "mp", {"start"});
-    const std::string start = r.string(mp, "start", "mp", std::string("auto"));
-    if (start != "auto" && start != "operator")
-      r.fail(
-          *mp.get("start"),
-          fmt::format("start '{}' must be \"auto\" or \"operator\" (wait for START from mrroc-ui)",
-                      start));
-    config.mp_waits_for_operator = start == "operator";
-  }
-
-  const toml::node* robots = root.get("robot");
-  if (robots == nullptr)
-    throw ConfigError(fmt::format("{}: error: no [[robot]] defined", config.file.string()));
-  const toml::array* list = robots->as_array();
-  if (list == nullptr || !list->is_array_of_tables())
-    r.fail(*robots, "'robot' must be an array of tables ([[robot]])");
-  static const std::regex name_re("[a-z][a-z0-9_]{0,30}");
-  std::set<std::string> names;
-  for (const auto& node : *list) {
-    const toml::table& t = *node.as_table();
-    r.only_keys(t, "robot", {"name", "model", "base", "edp", "ecp"});
-    RobotConfig robot;
-    robot.where = r.where(t);
-    robot.name = r.string(t, "name", "robot");
-    if (!std::regex_match(robot.name, name_re))
-      r.fail(*t.get("name"), fmt::format("robot name '{}' must match [a-z][a-z0-9_]* and have at "
-                                         "most 31 characters",
-                                         robot.name));
-    if (!names.insert(robot.name).second)
-      r.fail(*t.get("name"), fmt::format("robot name '{}' is used twice", robot.name));
-    robot.model_dir = r.resolve(r.string(t, "model", "robot"));
-    r.require_path(*t.get("model"), robot.model_dir, Reader::Kind::folder, "robot model folder");
-
-    if (const toml::node* base = t.get("base")) {
-      const toml::array* values = base->as_array();
-      if (values == nullptr || values->size() != 6)
-        r.fail(*base, "'base' must be [x, y, z, rx, ry, rz] (m, rotation vector in rad)");
-      const std::vector<double> v = r.numbers(*values, "base");
-      std::copy(v.begin(), v.end(), robot.base.begin());
-    }
-    const toml::table& edp = r.table(t, "edp", "robot");
-    r.only_keys(edp, "robot.edp",
-                Reader::with_options(
-                    {"plugin", "library", "servo_period_ms", "lookahead", "lock_step", "params"}));
-    robot.edp.where = r.where(edp);
-    robot.edp.plugin = r.string(edp, "plugin", "robot.edp");
-    if (const std::string lib = r.string(edp, "library", "robot.edp", std::string{});
-        !lib.empty()) {
-      robot.edp.library = r.resolve(lib);
-      r.require_path(*edp.get("library"), robot.edp.library, Reader::Kind::any,
-                     "hardware plugin library");
-    }
-    robot.edp.servo_period_s =
-        r.number(edp, "servo_period_ms", kDefaultServoPeriodS * 1000.0, 0.1, 100.0, "ms") / 1000.0;
-    if (const toml::node* la = edp.get("lookahead")) {
-      if (!la->is_integer())
-        r.fail(*la, fmt::format("'lookahead' must be an integer (macro-steps queued ahead of the "
-                                "servo loop, 1..{})",
-                                kMaxLookahead));
-      const std::int64_t v = **la->as_integer();
-      if (v < 1 || v > kMaxLookahead)
-        r.fail(*la, fmt::format("'lookahead' = {} macro-steps is outside 1..{} (1: the paper's "
-                                "one successor)",
-                                v, kMaxLookahead));
-      robot.edp.lookahead = static_cast<int>(v);
-    }
-    if (const toml::node* ls = edp.get("lock_step")) {
-      if (!ls->is_boolean()) r.fail(*ls, "'lock_step' must be true or false");
-      robot.edp.lock_step = **ls->as_boolean();
-    }
-    if (const toml::node* p = edp.get("params")) {
-      if (!p->is_table()) r.fail(*p, "'params' must be a table");
-      robot.edp.params = r.params(*p->as_table(), "robot.edp.params");
-    } else {
-      robot.edp.params = Params(r.where(edp));
-    }
-    robot.edp.options = r.options(edp, "edp");
-    robot.ecp = r.task(r.table(t, "ecp", "robot"), "robot.ecp", "ecp");
-    config.robots.push_back(std::move(robot));
-  }
+  r.system(root, config);
+  config.srp = r.srp(root.get("srp"));
+  config.ui = r.ui(root.get("ui"));
+  config.launch = r.launch(root.get("launch"));
+  if (const toml::node* emu = root.get("emulator")) config.emulator = r.emulator(*emu);
+  if (const toml::node* vsps = root.get("vsp")) config.vsps = r.vsps(*vsps);
+  r.mp(root, config);
+  config.robots = r.robots(root);
   check_hosts(config);
   return config;
 }
 
 [[noreturn]] void throw_parse_error(const fs::path& file, const toml::parse_error& e) {
-  throw ConfigError(
-      fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
+  throw ConfigError(SourceLocation{file.string(), static_cast<int>(e.source().begin.line)},
+                    std::string(e.description()));
 }
 
 }  // namespace
 
 ProcessSetConfig load_process_set(const fs::path& path) {
   if (std::error_code ec; !fs::exists(path, ec))
-    throw ConfigError(fmt::format("{}: error: config file not found{}", path.string(),
-                                  ec ? " (" + ec.message() + ")" : std::string{}));
+    throw ConfigError(
+        SourceLocation::whole_file(path.string()),
+        fmt::format("config file not found{}", ec ? " (" + ec.message() + ")" : std::string{}));
   const fs::path file = fs::absolute(path).lexically_normal();
   toml::table root;
   try {

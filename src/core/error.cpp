@@ -6,7 +6,24 @@ namespace mrroc {
 
 std::string SourceLocation::str() const {
   if (file.empty()) return "<no file>";
+  if (line == kWholeFile) return file;
   return fmt::format("{}:{}", file, line);
+}
+
+std::string located_message(const SourceLocation& where, const std::string& message) {
+  return fmt::format("{}: error: {}", where.str(), message);
+}
+
+ConfigError::ConfigError(SourceLocation where, std::string message)
+    : Error(located_message(where, message)),
+      where_(std::move(where)),
+      message_(std::move(message)) {}
+
+ConfigError::ConfigError(std::string message) : Error(message), message_(std::move(message)) {}
+
+ConfigError ConfigError::at(const SourceLocation& where) const {
+  if (located()) return *this;
+  return ConfigError(where, message_);
 }
 
 }  // namespace mrroc

@@ -18,8 +18,7 @@ void load_plugin_library(const std::filesystem::path& library, const SourceLocat
   if (loaded.count(path) != 0) return;
   // Kept loaded for the life of the process: registered factories point into it.
   if (dlopen(path.c_str(), RTLD_NOW | RTLD_GLOBAL) == nullptr)
-    throw ConfigError(
-        fmt::format("{}: error: cannot load library '{}': {}", where.str(), path, dlerror()));
+    throw ConfigError(where, fmt::format("cannot load library '{}': {}", path, dlerror()));
   loaded.insert(path);
 }
 

@@ -79,8 +79,7 @@ std::unique_ptr<ArmKinematics> make_arm_kinematics(const RobotModel& model) {
   try {
     factory = registry().get(model.kinematics);
   } catch (const ConfigError& e) {
-    throw ConfigError(
-        fmt::format("{}/parameters.toml: error: {}", model.folder.string(), e.what()));
+    throw e.at(SourceLocation::whole_file(model.parameters_file().string()));
   }
   return factory(model);
 }

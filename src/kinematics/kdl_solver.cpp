@@ -205,28 +205,29 @@ KdlSolver::KdlSolver(const fs::path& urdf, const std::string& base, const std::s
   s.tip = tip;
   s.options = options;
   if (!fs::exists(urdf))
-    throw ConfigError(fmt::format("{}: error: URDF file not found", urdf.string()));
+    throw ConfigError(SourceLocation::whole_file(urdf.string()), "URDF file not found");
   const urdf::ModelInterfaceSharedPtr model = urdf::parseURDFFile(urdf.string());
-  if (!model) throw ConfigError(fmt::format("{}: error: the URDF does not parse", urdf.string()));
+  if (!model)
+    throw ConfigError(SourceLocation::whole_file(urdf.string()), "the URDF does not parse");
   KDL::Tree tree;
   if (!kdl_parser::treeFromUrdfModel(*model, tree))
-    throw ConfigError(
-        fmt::format("{}: error: kdl_parser cannot build a KDL tree from the URDF", urdf.string()));
+    throw ConfigError(SourceLocation::whole_file(urdf.string()),
+                      "kdl_parser cannot build a KDL tree from the URDF");
   if (!tree.getChain(base, tip, s.chain) || s.chain.getNrOfSegments() == 0) {
     std::string links;
     for (const auto& [name, link] : model->links_) links += (links.empty() ? "" : ", ") + name;
-    throw ConfigError(
-        fmt::format("{}: error: no kinematic chain from link '{}' to link '{}' "
-                    "(links: {})",
-                    urdf.string(), base, tip, links));
+    throw ConfigError(SourceLocation::whole_file(urdf.string()),
+                      fmt::format("no kinematic chain from link '{}' to link '{}' (links: {})",
+                                  base, tip, links));
   }
   for (const KDL::Segment& segment : s.chain.segments) {
     const KDL::Joint& joint = segment.getJoint();
     if (joint.getType() == KDL::Joint::None) continue;
     const urdf::JointConstSharedPtr uj = model->getJoint(joint.getName());
     if (!uj)
-      throw ConfigError(fmt::format("{}: error: joint '{}' of the KDL chain is not in the URDF",
-                                    urdf.string(), joint.getName()));
+      throw ConfigError(
+          SourceLocation::whole_file(urdf.string()),
+          fmt::format("joint '{}' of the KDL chain is not in the URDF", joint.getName()));
     s.names.push_back(joint.getName());
     if (uj->type == urdf::Joint::CONTINUOUS) {
       s.kinds.push_back(JointKind::continuous);
@@ -237,16 +238,15 @@ KdlSolver::KdlSolver(const fs::path& urdf, const std::string& base, const std::s
     s.kinds.push_back(uj->type == urdf::Joint::PRISMATIC ? JointKind::prismatic
                                                          : JointKind::revolute);
     if (!uj->limits)
-      throw ConfigError(
-          fmt::format("{}: error: joint '{}' has no <limit>", urdf.string(), joint.getName()));
+      throw ConfigError(SourceLocation::whole_file(urdf.string()),
+                        fmt::format("joint '{}' has no <limit>", joint.getName()));
     s.lower.push_back(uj->limits->lower);
     s.upper.push_back(uj->limits->upper);
   }
   if (s.names.empty())
     throw ConfigError(
-        fmt::format("{}: error: the chain from link '{}' to link '{}' has no "
-                    "movable joint",
-                    urdf.string(), base, tip));
+        SourceLocation::whole_file(urdf.string()),
+        fmt::format("the chain from link '{}' to link '{}' has no movable joint", base, tip));
 
   // Restart seeds: uniformly spread over the joint ranges (unlimited: -pi .. pi), fixed sequence.
   std::mt19937 rng(20240607U);

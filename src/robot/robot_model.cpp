@@ -49,18 +49,18 @@ std::vector<double> numbers(const toml::table& t, const char* key, const fs::pat
                             std::size_t n) {
   const toml::node* node = t.get(key);
   if (node == nullptr)
-    throw ConfigError(fmt::format("{}:{}: error: missing key '{}' in [robot]", file.string(),
-                                  t.source().begin.line, key));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(t.source().begin.line)},
+                      fmt::format("missing key '{}' in [robot]", key));
   const toml::array* arr = node->as_array();
   if (arr == nullptr || arr->size() != n)
-    throw ConfigError(fmt::format("{}:{}: error: '{}' must be a list of {} numbers", file.string(),
-                                  node->source().begin.line, key, n));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(node->source().begin.line)},
+                      fmt::format("'{}' must be a list of {} numbers", key, n));
   std::vector<double> out;
   for (const auto& v : *arr) {
     auto d = v.value<double>();
     if (!d)
-      throw ConfigError(fmt::format("{}:{}: error: '{}' must contain only numbers", file.string(),
-                                    v.source().begin.line, key));
+      throw ConfigError(SourceLocation{file.string(), static_cast<int>(v.source().begin.line)},
+                        fmt::format("'{}' must contain only numbers", key));
     out.push_back(*d);
   }
   return out;
@@ -69,34 +69,34 @@ std::vector<double> numbers(const toml::table& t, const char* key, const fs::pat
 }  // namespace
 
 RobotModel load_robot_model(const fs::path& folder) {
-  const fs::path file = folder / "parameters.toml";
+  const fs::path file = folder / kRobotParametersFile;
   if (std::string why; !exists(file, why))
-    throw ConfigError(
-        fmt::format("{}: error: robot parameters file not found{}", file.string(), why));
+    throw ConfigError(SourceLocation::whole_file(file.string()),
+                      fmt::format("robot parameters file not found{}", why));
   toml::table root;
   try {
     root = toml::parse_file(file.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(
-        fmt::format("{}:{}: error: {}", file.string(), e.source().begin.line, e.description()));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(e.source().begin.line)},
+                      std::string(e.description()));
   }
   const toml::table* robot = root["robot"].as_table();
   if (robot == nullptr)
-    throw ConfigError(fmt::format("{}:1: error: missing table [robot]", file.string()));
+    throw ConfigError(SourceLocation{file.string(), 1}, "missing table [robot]");
   RobotModel m;
   m.folder = folder;
   m.name = robot->get_as<std::string>("name") ? **robot->get_as<std::string>("name") : "";
   const toml::array* names = robot->get_as<toml::array>("joint_names");
   if (names == nullptr)
-    throw ConfigError(fmt::format("{}:{}: error: missing 'joint_names' in [robot]", file.string(),
-                                  robot->source().begin.line));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(robot->source().begin.line)},
+                      "missing 'joint_names' in [robot]");
   for (const auto& n : *names) m.joint_names.push_back(n.value_or(std::string{}));
   const std::size_t axes = m.joint_names.size();
   const auto urdf_name = robot->get_as<std::string>("urdf");
   const auto mjcf_name = robot->get_as<std::string>("mjcf");
   if (urdf_name == nullptr)
-    throw ConfigError(fmt::format("{}:{}: error: missing 'urdf' in [robot]", file.string(),
-                                  robot->source().begin.line));
+    throw ConfigError(SourceLocation{file.string(), static_cast<int>(robot->source().begin.line)},
+                      "missing 'urdf' in [robot]");
   m.urdf = folder / std::string(**urdf_name);
   if (mjcf_name != nullptr) m.mjcf = folder / std::string(**mjcf_name);
   m.max_velocity = numbers(*robot, "max_joint_velocity", file, axes);
@@ -109,13 +109,14 @@ RobotModel load_robot_model(const fs::path& folder) {
       for (const auto& entry : *models) {
         const auto name = entry.value<std::string>();
         if (!name)
-          throw ConfigError(fmt::format("{}:{}: error: 'models' must be a list of URDF file names",
-                                        file.string(), entry.source().begin.line));
+          throw ConfigError(
+              SourceLocation{file.string(), static_cast<int>(entry.source().begin.line)},
+              "'models' must be a list of URDF file names");
         const fs::path path = folder / *name;
         if (std::string why; !exists(path, why))
-          throw ConfigError(fmt::format("{}:{}: error: kinematic model file '{}' not found{}",
-                                        file.string(), entry.source().begin.line, path.string(),
-                                        why));
+          throw ConfigError(
+              SourceLocation{file.string(), static_cast<int>(entry.source().begin.line)},
+              fmt::format("kinematic model file '{}' not found{}", path.string(), why));
         m.kinematic_models.push_back(path);
       }
     }
@@ -125,14 +126,14 @@ RobotModel load_robot_model(const fs::path& folder) {
         std::array<double, 6> c{};
         if (values == nullptr || values->size() != 6)
           throw ConfigError(
-              fmt::format("{}:{}: error: each corrector must be [x, y, z, rx, ry, rz] "
-                          "(m, rad)",
-                          file.string(), row.source().begin.line));
+              SourceLocation{file.string(), static_cast<int>(row.source().begin.line)},
+              "each corrector must be [x, y, z, rx, ry, rz] (m, rad)");
         for (std::size_t i = 0; i < 6; ++i) {
           const auto v = (*values)[i].value<double>();
           if (!v)
-            throw ConfigError(fmt::format("{}:{}: error: corrector values must be numbers",
-                                          file.string(), row.source().begin.line));
+            throw ConfigError(
+                SourceLocation{file.string(), static_cast<int>(row.source().begin.line)},
+                "corrector values must be numbers");
           c[i] = *v;
         }
         m.correctors.push_back(c);
@@ -143,9 +144,10 @@ RobotModel load_robot_model(const fs::path& folder) {
     if (const toml::node* node = transmission->get("coupling")) {
       const toml::array* rows = node->as_array();
       const auto shape = [&](const toml::node& where) {
-        return ConfigError(fmt::format(
-            "{}:{}: error: robot.transmission.coupling must be a {} x {} matrix of numbers",
-            file.string(), where.source().begin.line, axes, axes));
+        return ConfigError(
+            SourceLocation{file.string(), static_cast<int>(where.source().begin.line)},
+            fmt::format("robot.transmission.coupling must be a {} x {} matrix of numbers", axes,
+                        axes));
       };
       if (rows == nullptr || rows->size() != axes) throw shape(*node);
       for (const auto& row_node : *rows) {
@@ -162,14 +164,17 @@ RobotModel load_robot_model(const fs::path& folder) {
     }
   }
   if (std::string why; !exists(m.urdf, why))
-    throw ConfigError(fmt::format("{}: error: URDF file not found{}", m.urdf.string(), why));
+    throw ConfigError(SourceLocation::whole_file(m.urdf.string()),
+                      fmt::format("URDF file not found{}", why));
   urdf::ModelInterfaceSharedPtr urdf = urdf::parseURDFFile(m.urdf.string());
-  if (!urdf) throw ConfigError(fmt::format("{}: error: the URDF does not parse", m.urdf.string()));
+  if (!urdf)
+    throw ConfigError(SourceLocation::whole_file(m.urdf.string()), "the URDF does not parse");
   for (const auto& jn : m.joint_names) {
     auto joint = urdf->getJoint(jn);
     if (!joint || !joint->limits)
-      throw ConfigError(fmt::format("{}: error: joint '{}' (from {}) missing or without <limit>",
-                                    m.urdf.string(), jn, file.string()));
+      throw ConfigError(
+          SourceLocation::whole_file(m.urdf.string()),
+          fmt::format("joint '{}' (from {}) missing or without <limit>", jn, file.string()));
     m.lower_limits.push_back(joint->limits->lower);
     m.upper_limits.push_back(joint->limits->upper);
     m.prismatic.push_back(joint->type == urdf::Joint::PRISMATIC);

@@ -42,10 +42,10 @@ Coupling Coupling::from_parameters(const RobotParameters& parameters, std::size_
   bool square = rows.size() == axes;
   for (const auto& row : rows) square = square && row.size() == axes;
   if (!square) {
-    throw ConfigError(parameters.coupling_where +
-                      ": error: robot.transmission.coupling must be a " + std::to_string(axes) +
-                      " x " + std::to_string(axes) +
-                      " matrix (one row and one column per actuator of " + quoted(model) + ")");
+    throw ConfigError(parameters.coupling_where,
+                      "robot.transmission.coupling must be a " + std::to_string(axes) + " x " +
+                          std::to_string(axes) +
+                          " matrix (one row and one column per actuator of " + quoted(model) + ")");
   }
   const auto n = static_cast<Eigen::Index>(axes);
   RowMatrix m(n, n);
@@ -56,10 +56,10 @@ Coupling Coupling::from_parameters(const RobotParameters& parameters, std::size_
   const Eigen::VectorXd singular = svd.singularValues();
   const double rcond = singular(singular.size() - 1) / singular(0);
   if (!(rcond > 1e-9)) {
-    throw ConfigError(parameters.coupling_where +
-                      ": error: robot.transmission.coupling is singular (smallest / largest "
+    throw ConfigError(parameters.coupling_where,
+                      "robot.transmission.coupling is singular (smallest / largest "
                       "singular value " +
-                      format_number(rcond) + "): joints cannot be computed from the actuators");
+                          format_number(rcond) + "): joints cannot be computed from the actuators");
   }
   const RowMatrix inverse = m.inverse();
   out.coupled_ = !m.isIdentity(0.0);

@@ -34,7 +34,7 @@ std::string range_text(const mjModel* m, int joint) {
 [[noreturn]] void power_on_failure(const PowerOnRequest& request, const ModelContext& context,
                                    const std::string& text) {
   if (request.given) {
-    throw ConfigError(request.given_where + ": error: initial_joint_positions " + text);
+    throw ConfigError(request.given_where, "initial_joint_positions " + text);
   }
   throw HardwareError(context.who + ": " + quoted(context.mjcf) + ": the default power-on pose " +
                       text);
@@ -115,21 +115,23 @@ void plan_power_on(const mjModel* m, RobotAxes& axes, Coupling coupling,
   std::vector<double> power_on(n);
   if (request.given) {
     const std::vector<double>& given = *request.given;
-    const std::string where = request.given_where + ": error: initial_joint_positions";
+    const std::string key = "initial_joint_positions";
     if (given.size() != n) {
-      throw ConfigError(where + " has " + std::to_string(given.size()) + " values for " +
-                        std::to_string(n) + " axes");
+      throw ConfigError(request.given_where, key + " has " + std::to_string(given.size()) +
+                                                 " values for " + std::to_string(n) + " axes");
     }
     for (std::size_t i = 0; i < n; ++i) {
       const double q = given[i];
       const int j = range_joint[i];
       if (!std::isfinite(q)) {
-        throw ConfigError(where + "[" + std::to_string(i) + "] is not a finite number");
+        throw ConfigError(request.given_where,
+                          key + "[" + std::to_string(i) + "] is not a finite number");
       }
       if (j >= 0 && outside(m, j, q)) {
-        throw ConfigError(where + "[" + std::to_string(i) + "] = " + format_number(q) +
-                          " rad is outside the range " + range_text(m, j) + " rad of joint '" +
-                          joint_name(m, j) + "'");
+        throw ConfigError(request.given_where, key + "[" + std::to_string(i) +
+                                                   "] = " + format_number(q) +
+                                                   " rad is outside the range " + range_text(m, j) +
+                                                   " rad of joint '" + joint_name(m, j) + "'");
       }
       power_on[i] = q;
     }

@@ -9,8 +9,8 @@
 namespace mrroc::sim {
 namespace {
 
-std::string where(const toml::source_region& region, const std::filesystem::path& file) {
-  return file.string() + ":" + std::to_string(region.begin.line);
+SourceLocation where(const toml::source_region& region, const std::filesystem::path& file) {
+  return SourceLocation{file.string(), static_cast<int>(region.begin.line)};
 }
 
 /// A list of values of type T under `node`. `what` is the error text when `node` is not a list,
@@ -19,11 +19,11 @@ template <typename T>
 std::vector<T> list_of(const toml::node& node, const std::filesystem::path& path,
                        const std::string& what, const std::string& element_what) {
   const toml::array* array = node.as_array();
-  if (array == nullptr) throw ConfigError(where(node.source(), path) + ": error: " + what);
+  if (array == nullptr) throw ConfigError(where(node.source(), path), what);
   std::vector<T> values;
   for (const toml::node& element : *array) {
     const auto value = element.value<T>();
-    if (!value) throw ConfigError(where(element.source(), path) + ": error: " + element_what);
+    if (!value) throw ConfigError(where(element.source(), path), element_what);
     values.push_back(*value);
   }
   return values;
@@ -38,13 +38,13 @@ RobotParameters read_robot_parameters(const std::filesystem::path& path) {
   try {
     table = toml::parse_file(path.string());
   } catch (const toml::parse_error& e) {
-    throw ConfigError(where(e.source(), path) + ": error: " + std::string(e.description()));
+    throw ConfigError(where(e.source(), path), std::string(e.description()));
   }
   const toml::node_view robot = table["robot"];
   if (const toml::node* node = robot["mjcf"].node()) {
     const auto value = node->value<std::string>();
     if (!value) {
-      throw ConfigError(where(node->source(), path) + ": error: robot.mjcf must be a string");
+      throw ConfigError(where(node->source(), path), "robot.mjcf must be a string");
     }
     out.mjcf = *value;
   }
@@ -62,13 +62,13 @@ RobotParameters read_robot_parameters(const std::filesystem::path& path) {
         "robot.transmission.coupling must be a list of rows, each a list of numbers";
     const std::string finite = "robot.transmission.coupling must contain only finite numbers";
     const toml::array* rows = node->as_array();
-    if (rows == nullptr) throw ConfigError(out.coupling_where + ": error: " + shape);
+    if (rows == nullptr) throw ConfigError(out.coupling_where, shape);
     std::vector<std::vector<double>> matrix;
     for (const toml::node& row : *rows) {
       std::vector<double> values = list_of<double>(row, path, shape, finite);
       for (std::size_t c = 0; c < values.size(); ++c) {
         if (!std::isfinite(values[c]))
-          throw ConfigError(where((*row.as_array())[c].source(), path) + ": error: " + finite);
+          throw ConfigError(where((*row.as_array())[c].source(), path), finite);
       }
       matrix.push_back(std::move(values));
     }

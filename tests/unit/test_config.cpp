@@ -6,6 +6,9 @@
 #include <regex>
 
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/error.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 using namespace mrroc;
 namespace fs = std::filesystem;
@@ -206,4 +209,143 @@ TEST_F(ConfigTest, PriorityOutsideItsRangeNamesValueAndLimit) {
   const std::string text3 = valid("priority = 1.5\n");
   expect_located(error_of(text3), dir_ / "set.toml", line_of(text3, "priority"),
                  "'priority' must be an integer");
+}
+
+TEST(ConfigError, WhatReadsFileLineErrorMessage) {
+  const ConfigError at_line(SourceLocation{"cell/set.toml", 12}, "'port' = 0 is outside 1..65535");
+  EXPECT_STREQ(at_line.what(), "cell/set.toml:12: error: 'port' = 0 is outside 1..65535");
+  EXPECT_EQ(at_line.where().file, "cell/set.toml");
+  EXPECT_EQ(at_line.where().line, 12);
+  EXPECT_EQ(at_line.message(), "'port' = 0 is outside 1..65535");
+  EXPECT_TRUE(at_line.located());
+
+  const ConfigError whole(SourceLocation::whole_file("robots/x/model.urdf"), "does not parse");
+  EXPECT_STREQ(whole.what(), "robots/x/model.urdf: error: does not parse");
+  EXPECT_TRUE(whole.located());
+
+  const ConfigError line_zero(SourceLocation{"missing.toml", 0}, "cannot read");
+  EXPECT_STREQ(line_zero.what(), "missing.toml:0: error: cannot read");
+
+  const ConfigError unlocated("unknown task 'x' (known: none)");
+  EXPECT_STREQ(unlocated.what(), "unknown task 'x' (known: none)");
+  EXPECT_FALSE(unlocated.located());
+}
+
+TEST(ConfigError, AtLocatesOnlyAnErrorWithoutFile) {
+  const SourceLocation table{"set.toml", 30};
+  const ConfigError bare("unknown task 'x' (known: none)");
+  const ConfigError placed = bare.at(table);
+  EXPECT_STREQ(placed.what(), "set.toml:30: error: unknown task 'x' (known: none)");
+  EXPECT_EQ(placed.where().line, 30);
+  EXPECT_EQ(placed.message(), bare.message());
+
+  // An error that names its file keeps it: the key's own line is more precise than the table's.
+  const ConfigError precise(SourceLocation{"set.toml", 33}, "'speed' must be a number");
+  EXPECT_STREQ(precise.at(table).what(), "set.toml:33: error: 'speed' must be a number");
+  EXPECT_EQ(precise.at(table).where().line, 33);
+}
+
+TEST(ConfigError, ParamsErrorKeepsItsLocationThroughTheRethrow) {
+  const Params args = params_from_toml("speed = 0.1\nlabel = 3\n", "command");
+  const SourceLocation table{"set.toml", 40};
+  try {
+    try {
+      (void)args.get_string("label");
+      FAIL() << "an integer read as a string";
+    } catch (const ConfigError& e) {
+      throw e.at(table);
+    }
+  } catch (const ConfigError& e) {
+    EXPECT_STREQ(e.what(), "command:2: error: 'label' must be a string");
+    EXPECT_EQ(e.where().file, "command");
+    EXPECT_EQ(e.where().line, 2);
+  }
+}
+
+TEST(ConfigError, UnknownKinematicsIsLocatedAtTheModelsParameterFile) {
+  RobotModel model;
+  model.name = "r";
+  model.folder = "/nowhere/robots/r";
+  model.kinematics = "no_such_solver";
+  try {
+    (void)edp::make_arm_kinematics(model);
+    FAIL() << "an unknown kinematics solver was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.where().file, "/nowhere/robots/r/parameters.toml");
+    EXPECT_EQ(std::string(e.what()).rfind("/nowhere/robots/r/parameters.toml: error: ", 0), 0U)
+        << e.what();
+    EXPECT_NE(e.message().find("no_such_solver"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(ConfigTest, KeysLeftOutTakeTheStructsDefaults) {
+  const std::string text =
+      valid() +
+      "\n[srp]\n\n[ui]\nweb = true\n\n[launch]\n[[launch.host]]\nname = \"cell\"\n\n"
+      "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"gauge\"]\n";
+  const ProcessSetConfig c = load_process_set(write(text));
+
+  const ProcessSetConfig set_defaults;
+  EXPECT_EQ(c.ready_timeout_s, set_defaults.ready_timeout_s);
+  EXPECT_EQ(c.mp_waits_for_operator, set_defaults.mp_waits_for_operator);
+
+  const SrpConfig srp;
+  EXPECT_EQ(c.srp.log_max_kb, srp.log_max_kb);
+  EXPECT_EQ(c.srp.log_keep, srp.log_keep);
+  EXPECT_EQ(c.srp.history, srp.history);
+
+  const UiConfig ui;
+  EXPECT_EQ(c.ui.bind, ui.bind);
+  EXPECT_EQ(c.ui.port, ui.port);
+  EXPECT_TRUE(c.ui.web);
+
+  const LaunchConfig launch;
+  EXPECT_EQ(c.launch.log_max_kb, launch.log_max_kb);
+  EXPECT_EQ(c.launch.log_keep, launch.log_keep);
+  ASSERT_EQ(c.launch.hosts.size(), 1U);
+  const HostConfig host;
+  EXPECT_EQ(c.launch.hosts[0].command, host.command);
+  EXPECT_EQ(c.launch.hosts[0].quote, host.quote);
+  EXPECT_EQ(c.launch.hosts[0].address, "cell");  // the name, when no address is given
+
+  const EdpConfig edp;
+  EXPECT_EQ(c.robots[0].edp.servo_period_s, edp.servo_period_s);
+  EXPECT_EQ(c.robots[0].edp.servo_period_s, kDefaultServoPeriodS);
+  EXPECT_EQ(c.robots[0].edp.lookahead, edp.lookahead);
+  EXPECT_EQ(c.robots[0].edp.lock_step, edp.lock_step);
+
+  ASSERT_EQ(c.vsps.size(), 1U);
+  const VspConfig vsp;
+  EXPECT_EQ(c.vsps[0].period_s, vsp.period_s);
+  EXPECT_EQ(c.vsps[0].stale_after_s, vsp.stale_after_s);
+  EXPECT_EQ(c.vsps[0].periodic, vsp.periodic);
+
+  const ProcessOptions options;
+  for (const ProcessOptions* o : {&c.srp.options, &c.ui.options, &c.mp.options,
+                                  &c.robots[0].edp.options, &c.vsps[0].options}) {
+    EXPECT_EQ(o->stop_grace_s, options.stop_grace_s);
+    EXPECT_EQ(o->stop_signal, options.stop_signal);
+    EXPECT_EQ(o->host, options.host);
+    EXPECT_EQ(o->restart, options.restart);
+    EXPECT_EQ(o->max_restarts, options.max_restarts);
+    EXPECT_EQ(o->restart_backoff_s, options.restart_backoff_s);
+    EXPECT_EQ(o->required, options.required);
+  }
+  EXPECT_EQ(c.srp.options.group, "srp");
+  EXPECT_EQ(c.robots[0].edp.options.group, "edp");
+}
+
+TEST_F(ConfigTest, KeysGivenOverrideTheDefaults) {
+  const std::string text =
+      valid("servo_period_ms = 1\nlookahead = 3\nmax_restarts = 5\nrestart_backoff_s = 1.5\n") +
+      "\n[launch]\n[[launch.host]]\nname = \"ns\"\ncommand = [\"ip\", \"netns\", \"exec\", "
+      "\"{host}\"]\n";
+  const ProcessSetConfig c = load_process_set(write(text));
+  EXPECT_DOUBLE_EQ(c.robots[0].edp.servo_period_s, 0.001);
+  EXPECT_EQ(c.robots[0].edp.lookahead, 3);
+  EXPECT_EQ(c.robots[0].edp.options.max_restarts, 5);
+  EXPECT_DOUBLE_EQ(c.robots[0].edp.options.restart_backoff_s, 1.5);
+  ASSERT_EQ(c.launch.hosts.size(), 1U);
+  EXPECT_EQ(c.launch.hosts[0].command, (std::vector<std::string>{"ip", "netns", "exec", "{host}"}));
+  EXPECT_FALSE(c.launch.hosts[0].quote);  // a command of one's own is not quoted unless asked
 }

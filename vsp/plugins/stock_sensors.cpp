@@ -22,11 +22,11 @@ namespace {
 void require_sources(const SensorSetup& setup, std::size_t min, std::size_t max,
                      const char* plugin) {
   if (setup.sources.size() < min || setup.sources.size() > max)
-    throw ConfigError(fmt::format(
-        "{}: error: sensor plugin '{}' of VSP '{}' takes {} source(s), "
-        "got {}",
-        setup.params.location().str(), plugin, setup.name,
-        min == max ? std::to_string(min) : fmt::format("{}..{}", min, max), setup.sources.size()));
+    throw ConfigError(
+        setup.params.location(),
+        fmt::format("sensor plugin '{}' of VSP '{}' takes {} source(s), got {}", plugin, setup.name,
+                    min == max ? std::to_string(min) : fmt::format("{}..{}", min, max),
+                    setup.sources.size()));
 }
 
 void require_values(const RawSample& s, std::size_t n, const char* plugin) {
@@ -57,30 +57,29 @@ class ForceTorque final : public SensorPlugin {
     if (p.has("calibration")) {
       const auto rows = p.get_double_rows("calibration");
       if (rows.size() != 6)
-        throw ConfigError(
-            fmt::format("{}: error: 'calibration' must be 6 rows of 6 numbers "
-                        "(gauge volts -> N, N m)",
-                        p.location_of("calibration").str()));
+        throw ConfigError(p.location_of("calibration"),
+                          "'calibration' must be 6 rows of 6 numbers (gauge volts -> N, N m)");
       for (std::size_t r = 0; r < 6; ++r) {
         if (rows[r].size() != 6)
-          throw ConfigError(fmt::format("{}: error: 'calibration' row {} has {} numbers, 6 needed",
-                                        p.location_of("calibration").str(), r, rows[r].size()));
+          throw ConfigError(
+              p.location_of("calibration"),
+              fmt::format("'calibration' row {} has {} numbers, 6 needed", r, rows[r].size()));
         for (std::size_t c = 0; c < 6; ++c)
           calibration_(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = rows[r][c];
       }
     }
     filter_hz_ = p.get_double("filter_hz", 0.0);
     if (filter_hz_ < 0.0 || !std::isfinite(filter_hz_))
-      throw ConfigError(fmt::format("{}: error: 'filter_hz' = {} Hz must be >= 0 Hz (0: no filter)",
-                                    p.location_of("filter_hz").str(), filter_hz_));
+      throw ConfigError(
+          p.location_of("filter_hz"),
+          fmt::format("'filter_hz' = {} Hz must be >= 0 Hz (0: no filter)", filter_hz_));
     tool_mass_ = p.get_double("tool_mass", 0.0);
     if (tool_mass_ < 0.0 || tool_mass_ > 1000.0)
-      throw ConfigError(fmt::format("{}: error: 'tool_mass' = {} kg is outside 0..1000 kg",
-                                    p.location_of("tool_mass").str(), tool_mass_));
+      throw ConfigError(p.location_of("tool_mass"),
+                        fmt::format("'tool_mass' = {} kg is outside 0..1000 kg", tool_mass_));
     const std::vector<double> com = p.get_doubles("tool_com", {0.0, 0.0, 0.0});
     if (com.size() != 3)
-      throw ConfigError(fmt::format("{}: error: 'tool_com' must be [x, y, z] in m",
-                                    p.location_of("tool_com").str()));
+      throw ConfigError(p.location_of("tool_com"), "'tool_com' must be [x, y, z] in m");
     tool_com_ = Eigen::Vector3d(com[0], com[1], com[2]);
     gravity_ = p.get_double("gravity", 9.81);
     p.reject_unread("vsp.params");
@@ -169,15 +168,14 @@ class Range final : public SensorPlugin {
     max_ = p.get_double("max_m", 4.0);
     if (!(min_ >= 0.0 && max_ > min_))
       throw ConfigError(
-          fmt::format("{}: error: range limits min_m = {} m, max_m = {} m: need "
-                      "0 <= min_m < max_m",
-                      p.location().str(), min_, max_));
+          p.location(),
+          fmt::format("range limits min_m = {} m, max_m = {} m: need 0 <= min_m < max_m", min_,
+                      max_));
     const std::int64_t median = p.get_int("median", 1);
     if (median < 1 || median > 99 || median % 2 == 0)
       throw ConfigError(
-          fmt::format("{}: error: 'median' = {} must be an odd window of 1..99 "
-                      "samples",
-                      p.location_of("median").str(), median));
+          p.location_of("median"),
+          fmt::format("'median' = {} must be an odd window of 1..99 samples", median));
     window_ = static_cast<std::size_t>(median);
     p.reject_unread("vsp.params");
     history_.assign(setup.sources.size(), {});
@@ -238,8 +236,8 @@ class Conveyor final : public SensorPlugin {
     require_sources(setup, 1, 1, "conveyor");
     filter_hz_ = setup.params.get_double("speed_filter_hz", 20.0);
     if (!(filter_hz_ >= 0.0))
-      throw ConfigError(fmt::format("{}: error: 'speed_filter_hz' = {} Hz must be >= 0 Hz",
-                                    setup.params.location_of("speed_filter_hz").str(), filter_hz_));
+      throw ConfigError(setup.params.location_of("speed_filter_hz"),
+                        fmt::format("'speed_filter_hz' = {} Hz must be >= 0 Hz", filter_hz_));
     setup.params.reject_unread("vsp.params");
   }
 

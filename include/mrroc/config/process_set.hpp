@@ -5,7 +5,8 @@
 /// set reads the same file. See docs/configs.md for the schema.
 ///
 /// Errors are `ConfigError`s reading "file:line: error: ..."; unknown keys are errors; missing
-/// files and folders are named.
+/// files and folders are named. A key left out takes the default of its member initialiser below
+/// (the reader writes no default of its own).
 
 #include <array>
 #include <filesystem>
@@ -52,10 +53,11 @@ struct ProcessOptions {
 struct HostConfig {
   std::string name;
   /// Start-command template: argv words in front of the process' own command line. "{host}" is
-  /// replaced by `address`. Default: ssh -o BatchMode=yes {host}.
-  std::vector<std::string> command;
+  /// replaced by `address`.
+  std::vector<std::string> command = {"ssh", "-o", "BatchMode=yes", "{host}"};
   std::string address;  ///< what "{host}" stands for (default: the name)
-  /// Pass the command line as one shell-quoted word (needed by ssh, which runs a shell).
+  /// Pass the command line as one shell-quoted word (needed by ssh, which runs a shell). The
+  /// default for a `command` of one's own is false.
   bool quote = true;
   SourceLocation where;
 };

@@ -5,17 +5,34 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace mrroc {
 
-/// Where a value was written: `file:line`. Empty file when the value did not come from a file.
+/// Where a value was written: `file:line`, or only `file` when the problem concerns the whole
+/// file (not found, unreadable, a model that does not parse). Empty file when the value did not
+/// come from a file.
 struct SourceLocation {
+  /// `line` of a location that names the file only.
+  static constexpr int kWholeFile = -1;
+
   std::string file;
   int line = 0;
 
-  /// "file:line" (or "<no file>" when unknown).
+  /// The file alone, without a line ("file: error: ...").
+  [[nodiscard]] static SourceLocation whole_file(std::string file) {
+    return SourceLocation{std::move(file), kWholeFile};
+  }
+
+  /// True when a file is named.
+  [[nodiscard]] bool known() const { return !file.empty(); }
+
+  /// "file:line", "file" for a whole file, or "<no file>" when unknown.
   [[nodiscard]] std::string str() const;
 };
+
+/// "where: error: message", the one form every located message takes (the compiler's).
+[[nodiscard]] std::string located_message(const SourceLocation& where, const std::string& message);
 
 /// Base of every mrroc error.
 class Error : public std::runtime_error {
@@ -23,10 +40,31 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
 
-/// A configuration error; `what()` reads "file:line: error: ...".
+/// A configuration error (process-set file, task arguments, plugin parameters, robot model files,
+/// URDF, scene and trajectory files: everything a user writes). `what()` reads
+/// "file:line: error: message".
 class ConfigError : public Error {
  public:
-  using Error::Error;
+  ConfigError(SourceLocation where, std::string message);
+
+  /// An error whose thrower does not know the file (a value checked on its own, e.g. a list of
+  /// joint poses); `what()` is the message alone. The caller that knows where the value was
+  /// written rethrows it with `at(where)`.
+  explicit ConfigError(std::string message);
+
+  [[nodiscard]] const SourceLocation& where() const { return where_; }
+  /// The text after "error: ".
+  [[nodiscard]] const std::string& message() const { return message_; }
+  /// True when the error names its file.
+  [[nodiscard]] bool located() const { return where_.known(); }
+
+  /// This error, at `where` unless it already names a file (the innermost location wins: it is
+  /// the most precise).
+  [[nodiscard]] ConfigError at(const SourceLocation& where) const;
+
+ private:
+  SourceLocation where_;
+  std::string message_;
 };
 
 /// A request did not get a reply within its time limit.

@@ -10,6 +10,9 @@
 
 namespace mrroc {
 
+/// The file of a robot model folder that describes the robot (robots/<name>/parameters.toml).
+inline constexpr const char* kRobotParametersFile = "parameters.toml";
+
 struct RobotModel {
   std::string name;
   std::filesystem::path folder;
@@ -37,6 +40,10 @@ struct RobotModel {
   /// a = coupling q ([robot.transmission] coupling, n x n, row by row); empty: identity.
   std::vector<std::vector<double>> coupling;
   [[nodiscard]] std::size_t axes() const { return joint_names.size(); }
+  /// `folder`/parameters.toml.
+  [[nodiscard]] std::filesystem::path parameters_file() const {
+    return folder / kRobotParametersFile;
+  }
   /// "m" for a prismatic joint, else "rad".
   [[nodiscard]] const char* unit(std::size_t joint) const {
     return joint < prismatic.size() && prismatic[joint] ? "m" : "rad";

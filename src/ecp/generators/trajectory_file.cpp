@@ -121,7 +121,7 @@ class Parser {
 
  private:
   [[noreturn]] void fail(const std::string& text) const {
-    throw ConfigError(fmt::format("{}:{}: error: {}", name_, line_, text));
+    throw ConfigError(SourceLocation{name_, static_cast<int>(line_)}, text);
   }
 
   void parse_header(std::string_view line, TrajectoryFile& file) const {
@@ -280,12 +280,12 @@ TrajectoryFile TrajectoryFile::parse(std::string_view text, const std::string& n
 TrajectoryFile TrajectoryFile::load(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in)
-    throw ConfigError(
-        fmt::format("{}: error: trajectory file cannot be opened for reading", path.string()));
+    throw ConfigError(SourceLocation::whole_file(path.string()),
+                      "trajectory file cannot be opened for reading");
   std::ostringstream buffer;
   buffer << in.rdbuf();
   if (in.bad())
-    throw ConfigError(fmt::format("{}: error: trajectory file cannot be read", path.string()));
+    throw ConfigError(SourceLocation::whole_file(path.string()), "trajectory file cannot be read");
   return parse(buffer.str(), path.string());
 }
 
@@ -335,16 +335,19 @@ void TrajectoryFile::save(const std::filesystem::path& path) const {
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out)
-      throw Error(fmt::format("{}: error: cannot be opened for writing", temporary.string()));
+      throw Error(located_message(SourceLocation::whole_file(temporary.string()),
+                                  "cannot be opened for writing"));
     out << text;
     out.close();
-    if (!out) throw Error(fmt::format("{}: error: write failed", temporary.string()));
+    if (!out)
+      throw Error(located_message(SourceLocation::whole_file(temporary.string()), "write failed"));
   }
   std::error_code ec;
   std::filesystem::rename(temporary, path, ec);
   if (ec) {
     std::filesystem::remove(temporary, ec);
-    throw Error(fmt::format("{}: error: cannot be written ({})", path.string(), ec.message()));
+    throw Error(located_message(SourceLocation::whole_file(path.string()),
+                                fmt::format("cannot be written ({})", ec.message())));
   }
 }
 

@@ -53,7 +53,7 @@ struct ModelContext {
 /// `kDefaultPowerOnOffset` on every axis, clamped into the axis' range).
 struct PowerOnRequest {
   std::optional<std::vector<double>> given;  ///< [rad or m]
-  std::string given_where;                   ///< "file:line" of the given pose
+  SourceLocation given_where;                ///< where the given pose is written
 };
 
 /// One robot's axes in a model.

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "mrroc/core/error.hpp"
+
 namespace mrroc::sim {
 
 struct RobotParameters {
@@ -19,9 +21,9 @@ struct RobotParameters {
   std::optional<std::vector<double>> synchro;
   /// robot.joint_names: the axis names, in axis order.
   std::optional<std::vector<std::string>> joint_names;
-  /// robot.transmission.coupling, row by row (a = M q), and "file:line" of it.
+  /// robot.transmission.coupling, row by row (a = M q), and where it is written.
   std::optional<std::vector<std::vector<double>>> coupling;
-  std::string coupling_where;
+  SourceLocation coupling_where;
 };
 
 /// Reads the keys above (other keys are ignored: the file serves several readers).

@@ -61,7 +61,7 @@ struct Console::Impl : ConsoleActions {
     };
     std::map<std::string, std::unique_ptr<JogLink>> links;
     for (const ConsoleRobot& r : state.robots())
-      links[r.name] = make_edp_jog_link(bus, r.name, r.model);
+      links[r.name] = make_edp_jog_link(bus, r.name);
     jogger = std::make_unique<Jogger>(
         state, JogOptions{options.jog_max_step_rad, options.jog_velocity_fraction, 0.1},
         std::move(links), report);

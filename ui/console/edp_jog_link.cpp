@@ -2,8 +2,7 @@
 
 #include <chrono>
 
-#include "mrroc/comm/request_reply.hpp"
-#include "mrroc/ecp/robot.hpp"
+#include "mrroc/edp/client.hpp"
 
 namespace mrroc::ui {
 
@@ -11,14 +10,12 @@ namespace {
 
 class EdpJogLink : public JogLink {
  public:
-  EdpJogLink(comm::Bus& bus, const std::string& robot, const RobotModel& model,
-             comm::ClientOptions options)
-      : edp_(bus, comm::unique_endpoint_name("ui/jog/" + robot), robot, model, options) {}
+  EdpJogLink(comm::Bus& bus, const std::string& robot, edp::ClientOptions options)
+      : edp_(bus, "ui/jog/" + robot, robot, options) {}
 
   std::vector<double> move_joints_relative(const std::vector<double>& delta,
                                            int motion_steps) override {
-    edp::Instruction& c = edp_.image().command;
-    c = edp::Instruction{};
+    edp::Instruction c;
     c.type = edp::InstructionType::set;
     c.set = edp::item::arm;
     c.set_arm_type = edp::ArmRepresentation::joint;
@@ -26,29 +23,28 @@ class EdpJogLink : public JogLink {
     c.motion_steps = motion_steps;
     c.value_in_step_no = motion_steps + 1;
     c.arm = delta;
+    c.with_query = true;  // the reply carries the joints at the end of the macro-step
     try {
       // The console drives the EDP only after an explicit take-over, which the EDP accepts only
       // while the robot is at rest (the jog checked that the MP is idle).
       edp_.take_over_next();
-      edp_.execute();
-    } catch (const ecp::EdpRefused& e) {
+      return edp_.call(c).joints;
+    } catch (const edp::Refused& e) {
       throw JogRefused(e.what());
     }
-    return edp_.image().joints;
   }
 
  private:
-  ecp::Robot edp_;
+  edp::Client edp_;
 };
 
 }  // namespace
 
-std::unique_ptr<JogLink> make_edp_jog_link(comm::Bus& bus, const std::string& robot,
-                                           const RobotModel& model) {
-  comm::ClientOptions options;
+std::unique_ptr<JogLink> make_edp_jog_link(comm::Bus& bus, const std::string& robot) {
+  edp::ClientOptions options;
   options.attempt_timeout = std::chrono::milliseconds(250);
   options.max_attempts = 8;
-  return std::make_unique<EdpJogLink>(bus, robot, model, options);
+  return std::make_unique<EdpJogLink>(bus, robot, options);
 }
 
 }  // namespace mrroc::ui

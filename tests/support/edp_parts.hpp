@@ -4,6 +4,7 @@
 // and command interpreter on them, each with the options it examines.
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <utility>
@@ -80,7 +81,7 @@ inline std::vector<std::pair<double, int>> cruise(double start, double velocity,
 
 /// The model of stock robot `name` (robots/<name>).
 inline RobotModel stock_model(const std::string& name) {
-  return load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/" + name);
+  return load_robot_model((std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / name).string());
 }
 
 }  // namespace mrroc::test

@@ -60,8 +60,7 @@ struct Console::Impl : ConsoleActions {
       reporter->report(severity, 0, text);
     };
     std::map<std::string, std::unique_ptr<JogLink>> links;
-    for (const ConsoleRobot& r : state.robots())
-      links[r.name] = make_edp_jog_link(bus, r.name);
+    for (const ConsoleRobot& r : state.robots()) links[r.name] = make_edp_jog_link(bus, r.name);
     jogger = std::make_unique<Jogger>(
         state, JogOptions{options.jog_max_step_rad, options.jog_velocity_fraction, 0.1},
         std::move(links), report);

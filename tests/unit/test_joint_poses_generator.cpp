@@ -36,7 +36,9 @@ Plan run(ecp::JointPosesGenerator& g, std::vector<double> start) {
   return plan;
 }
 
-RobotModel model() { return load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6"); }
+RobotModel model() {
+  return load_robot_model((std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / "irb6").string());
+}
 
 }  // namespace
 

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "drops.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/core/error.hpp"
@@ -45,22 +46,6 @@ Req request(int value) {
   r.arguments = "go";
   return r;
 }
-
-/// Collects the texts a bus reports about dropped messages.
-struct Drops {
-  std::mutex mutex;
-  std::vector<std::pair<int, std::string>> seen;
-  void attach(comm::Bus& bus) {
-    bus.set_drop_sink([this](int code, const std::string& text) {
-      std::lock_guard lock(mutex);
-      seen.emplace_back(code, text);
-    });
-  }
-  std::vector<std::pair<int, std::string>> get() {
-    std::lock_guard lock(mutex);
-    return seen;
-  }
-};
 
 struct Echo {
   std::atomic<int> executions{0};
@@ -175,7 +160,7 @@ TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
   server_bus.enable_auth(key(3));
   client_bus.enable_auth(key(3));
   stranger_bus.enable_auth(key(4));  // another key; a bus without any key behaves alike
-  Drops drops;
+  test::Drops drops;
   drops.attach(server_bus);
   Echo echo(server_bus);
   comm::Client<Req, Rep> client(client_bus, "client", "echo", "a/cmd", "a/reply");
@@ -213,7 +198,7 @@ TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
 
 TEST(Auth, DropReportsAreRateLimitedPerKind) {
   comm::Bus bus(kUrl);
-  Drops drops;
+  test::Drops drops;
   drops.attach(bus);
   for (int i = 0; i < 5; ++i) bus.report_drop(1, "kind", "text");
   ASSERT_EQ(drops.get().size(), 1U);
@@ -224,7 +209,7 @@ TEST(Auth, DropReportsAreRateLimitedPerKind) {
 
 TEST(Links, MalformedMessagesAreCountedDroppedAndReported) {
   comm::Bus bus(kUrl);
-  Drops drops;
+  test::Drops drops;
   drops.attach(bus);
   Echo echo(bus);
   bus.start();

@@ -12,6 +12,7 @@
 #include <thread>
 #include <vector>
 
+#include "drops.hpp"
 #include "mrroc/comm/edge.hpp"
 
 using namespace mrroc;
@@ -44,21 +45,6 @@ struct Inbox {
   bool wait_for(std::size_t n, std::chrono::milliseconds timeout = 2000ms) {
     std::unique_lock lock(mutex);
     return cv.wait_for(lock, timeout, [&] { return values.size() >= n; });
-  }
-};
-
-struct Drops {
-  std::mutex mutex;
-  std::vector<std::pair<int, std::string>> seen;
-  void attach(comm::Bus& bus) {
-    bus.set_drop_sink([this](int code, const std::string& text) {
-      std::lock_guard lock(mutex);
-      seen.emplace_back(code, text);
-    });
-  }
-  std::vector<std::pair<int, std::string>> get() {
-    std::lock_guard lock(mutex);
-    return seen;
   }
 };
 
@@ -97,7 +83,7 @@ TEST(Edge, DeliversPlainValuesWithTheirHeader) {
 
 TEST(Edge, MalformedMessagesAreCountedAndReportedNotDelivered) {
   comm::Bus bus(test_url());
-  Drops drops;
+  test::Drops drops;
   drops.attach(bus);
   Inbox<EmergencyStop> inbox;
   std::atomic<int> told{0};
@@ -141,7 +127,7 @@ TEST(Edge, MalformedMessagesAreCountedAndReportedNotDelivered) {
 
 TEST(Edge, UnreportedSubscribersOnlyCount) {
   comm::Bus bus(test_url());
-  Drops drops;
+  test::Drops drops;
   drops.attach(bus);
   comm::Subscriber<ProcessStatus> sub(
       bus, "mrroc/status", [](const ProcessStatus&, const comm::Received&) {},
@@ -189,7 +175,7 @@ TEST(Edge, AuthenticityIsCheckedWhenTheHandlerAsks) {
   receiver.enable_auth(std::vector<std::uint8_t>(32, 3));
   member.enable_auth(std::vector<std::uint8_t>(32, 3));
   stranger.enable_auth(std::vector<std::uint8_t>(32, 4));
-  Drops drops;
+  test::Drops drops;
   drops.attach(receiver);
   Inbox<EmergencyStop> inbox;
   std::mutex mutex;

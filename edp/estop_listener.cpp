@@ -117,8 +117,16 @@ void EstopListener::engage(const std::string& why, bool only_if_released) {
   {
     std::lock_guard lock(mutex_);
     heard_ = true;
-    reason_ = why;
-    if (only_if_released && servo_.emergency_stopped()) return;
+    const bool holds = servo_.emergency_stopped();
+    // A stop that holds keeps the reason it was engaged for: the launcher's announcement of the
+    // same stop, a moment after the command itself, does not rename it (the EDP reports the
+    // reason when it sees the stop, so a rename made the report depend on which came first).
+    // The hold the EDP starts in is nobody's stop: the first command or announcement names it.
+    if (!holds || starting_hold_) {
+      reason_ = why;
+      starting_hold_ = false;
+    }
+    if (only_if_released && holds) return;
   }
   servo_.emergency_stop();
 }

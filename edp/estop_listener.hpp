@@ -79,6 +79,8 @@ class EstopListener {
   bool shutdown_ = false;
   std::int64_t last_command_utime_ = 0;  ///< header.utime of the last operator command obeyed
   std::string reason_;
+  /// True while the EDP holds only because it started stopped (no stop of anyone's yet).
+  bool starting_hold_ = true;
   std::string announcer_;
   std::string scheduling_;
   std::optional<comm::Subscriber<EmergencyStop>> subscriber_;

@@ -7,19 +7,12 @@
 #include <vector>
 
 #include "mrroc/comm/messages.hpp"
+#include "through_bytes.hpp"
 
 using namespace mrroc;
+using test::through_bytes;
 
 namespace {
-
-template <class Msg>
-Msg through_bytes(const Msg& m) {
-  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
-  EXPECT_EQ(m.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
-  Msg out;
-  EXPECT_EQ(out.decode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
-  return out;
-}
 
 template <class Plain>
 Plain round_trip(const Plain& in) {

@@ -3,19 +3,10 @@
 #include <gtest/gtest.h>
 
 #include "mrroc/comm/codec.hpp"
+#include "through_bytes.hpp"
 
 using namespace mrroc;
-
-namespace {
-template <class Msg>
-Msg through_bytes(const Msg& m) {
-  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
-  EXPECT_EQ(m.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
-  Msg out;
-  EXPECT_EQ(out.decode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
-  return out;
-}
-}  // namespace
+using test::through_bytes;
 
 TEST(Messages, EdpInstructionRoundTrip) {
   edp::Instruction in;

@@ -1,6 +1,5 @@
 // mrroc-ecp: the Effector Control Process of one robot. Runs the robot's task on START_TASK.
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -10,6 +9,7 @@
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "shell.hpp"
@@ -44,15 +44,15 @@ int run(const std::string& config_path, const std::string& robot_name) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-ecp",
       "mrroc-ecp: Effector Control Process. Runs the robot's task (generators, Move, Wait) on "
-      "the MP's START_TASK and drives the robot's EDP. Normally started by mrroc-launch."};
+      "the MP's START_TASK and drives the robot's EDP. Normally started by mrroc-launch.");
   std::string config;
   std::string robot;
-  app.add_option("-c,--config", config, "process-set config file (TOML)")->required();
-  app.add_option("-r,--robot", robot, "name of the robot ([[robot]] name in the config)")
-      ->required();
-  CLI11_PARSE(app, argc, argv);
+  cli.option("-c,--config", config, "process-set config file (TOML)").required();
+  cli.option("-r,--robot", robot, "name of the robot ([[robot]] name in the config)").required();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   mrroc::install_stop_handlers();
   try {
     return run(config, robot);

@@ -1,6 +1,5 @@
 // mrroc-edp: the Effector Driver Process of one robot.
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -16,6 +15,7 @@
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
@@ -349,16 +349,16 @@ int run(const std::string& config_path, const std::string& robot_name) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-edp",
       "mrroc-edp: Effector Driver Process. Interprets SET/GET/SET_GET/SYNCHRO/QUERY from its ECP, "
       "runs the servo loop and drives the robot through a hardware plugin. Normally started by "
-      "mrroc-launch."};
+      "mrroc-launch.");
   std::string config;
   std::string robot;
-  app.add_option("-c,--config", config, "process-set config file (TOML)")->required();
-  app.add_option("-r,--robot", robot, "name of the robot ([[robot]] name in the config)")
-      ->required();
-  CLI11_PARSE(app, argc, argv);
+  cli.option("-c,--config", config, "process-set config file (TOML)").required();
+  cli.option("-r,--robot", robot, "name of the robot ([[robot]] name in the config)").required();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   mrroc::install_stop_handlers();
   try {
     return run(config, robot);

@@ -11,7 +11,6 @@
 #include <sched.h>
 #include <sys/prctl.h>
 #include <unistd.h>
-#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -36,6 +35,7 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
@@ -447,34 +447,33 @@ void real_time_priority() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-axis-emu",
       "mrroc-axis-emu: the cell emulator. One MuJoCo world from a scene file; every axis is an "
       "emulated CANopen CiA 402 drive on a CAN bus (virtual or SocketCAN), so the EDP's `can` "
-      "plugin drives it like real hardware. See docs/hil.md."};
+      "plugin drives it like real hardware. See docs/hil.md.");
   Options options;
   std::string config;
   std::string scene;
   std::vector<std::string> bus_overrides;
-  app.add_option("-c,--config", config,
-                 "process-set config file (TOML); its [emulator] table gives the scene, lock_step "
-                 "and faults");
-  app.add_option("-s,--scene", scene, "scene file (TOML; configs/scenes/); instead of --config");
-  app.add_flag("--lock-step", options.lock_step,
-               "advance the physics by the masters' SYNCs (as fast as they come) instead of in "
-               "real time");
-  app.add_option(
-      "--fault", options.faults,
-      "inject a fault (repeatable): drive:<robot>/<axis>@<s>[=<hex code>], "
-      "silent:<robot>/<axis>@<s>, drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>]; "
-      "sensor:<device>@<s>; <s> counts from the robot's drives being enabled");
-  app.add_option("--bus", bus_overrides,
-                 "put a robot's drives on another bus: <robot>=<url>, e.g. irb6=socketcan:vcan0 "
-                 "(repeatable)");
-  app.add_option("--lcm-url", options.lcm_url, "LCM URL for SRP messages (default: the config's)");
-  app.add_option("--run-for", options.run_for_s, "stop after this much simulated time [s]")
-      ->check(CLI::PositiveNumber);
-  app.add_flag("--print-scene", options.print_scene, "print the composed MJCF and exit");
-  CLI11_PARSE(app, argc, argv);
+  cli.option("-c,--config", config,
+             "process-set config file (TOML); its [emulator] table gives the scene, lock_step "
+             "and faults");
+  cli.option("-s,--scene", scene, "scene file (TOML; configs/scenes/); instead of --config");
+  cli.flag("--lock-step", options.lock_step,
+           "advance the physics by the masters' SYNCs (as fast as they come) instead of in "
+           "real time");
+  cli.option("--fault", options.faults,
+             "inject a fault (repeatable): drive:<robot>/<axis>@<s>[=<hex code>], "
+             "silent:<robot>/<axis>@<s>, drop:<robot>@<s>=<fraction>, busoff:<robot>@<s>[+<s>]; "
+             "sensor:<device>@<s>; <s> counts from the robot's drives being enabled");
+  cli.option("--bus", bus_overrides,
+             "put a robot's drives on another bus: <robot>=<url>, e.g. irb6=socketcan:vcan0 "
+             "(repeatable)");
+  cli.option("--lcm-url", options.lcm_url, "LCM URL for SRP messages (default: the config's)");
+  cli.option("--run-for", options.run_for_s, "stop after this much simulated time [s]").positive();
+  cli.flag("--print-scene", options.print_scene, "print the composed MJCF and exit");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
 
   using namespace mrroc;
   install_stop_handlers();

@@ -6,7 +6,6 @@
 // `mrroc-launch status CONFIG` prints the process table of a running set.
 #include <fmt/format.h>
 #include <unistd.h>
-#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -32,6 +31,7 @@
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/time.hpp"
 #include "status_board.hpp"
 #include "supervisor.hpp"
@@ -536,19 +536,18 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
 }
 
 int run_status(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-launch status",
       "mrroc-launch status: prints the process table of the running set of CONFIG (name, group, "
       "host, state, pid, CPU %, resident memory, restarts, uptime, last exit code, required, "
       "restart policy), as its launcher broadcasts it every second on mrroc/launch/status. Exits "
       "0 when a launcher of that set answered, 1 when none did within the timeout, 2 on a "
-      "config error."};
-  app.name("mrroc-launch status");
+      "config error or a bad command line.");
   std::string config_path;
   double timeout_s = 3.0;
-  app.add_option("config", config_path, "process-set config file (TOML) of the running set")
-      ->required();
-  app.add_option("--timeout", timeout_s, "how long to listen [s]")->check(CLI::Range(0.1, 60.0));
-  CLI11_PARSE(app, argc, argv);
+  cli.option("config", config_path, "process-set config file (TOML) of the running set").required();
+  cli.option("--timeout", timeout_s, "how long to listen [s]").range(0.1, 60.0);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   ProcessSetConfig config;
   try {
     config = load_process_set(config_path);
@@ -580,7 +579,8 @@ int main(int argc, char** argv) {
       return kExitInternal;
     }
   }
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-launch",
       "mrroc-launch: starts a process set from one config file (lcm-logger when recording, SRP, "
       "emulator, VSPs, EDPs, ECPs, the web console when [ui] web = true, then MP), on this "
       "computer or on the [[launch.host]]s named by each process' 'host', waits for each process "
@@ -592,24 +592,24 @@ int main(int argc, char** argv) {
       "launcher itself failed, 128+N stopped by signal N. SIGINT/SIGTERM stop every process in "
       "reverse start order (its stop_signal, then SIGKILL after its stop_grace_s).\n"
       "'mrroc-launch status CONFIG' prints the process table of a running set (see "
-      "'mrroc-launch status --help')."};
+      "'mrroc-launch status --help').");
   std::string config;
   std::string bin_dir;
   launch::PlanOptions options;
   std::string record;
   bool check = false;
-  app.add_option("config", config, "process-set config file (TOML)")->required();
-  app.add_flag("--check", check,
-               "validate the config and print the plan (order, command line after host "
-               "templating, group, host, restart policy, stop signal, grace period, log file); "
-               "start nothing");
-  app.add_option("--bin-dir", bin_dir,
-                 "where the mrroc-* executables are (default: beside mrroc-launch)");
-  app.add_option("--srp-log", options.srp_log, "file the SRP appends every message to");
-  app.add_option("--record", record,
-                 "record every LCM message of the run to this file with lcm-logger (overrides "
-                 "[launch] record)");
-  CLI11_PARSE(app, argc, argv);
+  cli.option("config", config, "process-set config file (TOML)").required();
+  cli.flag("--check", check,
+           "validate the config and print the plan (order, command line after host "
+           "templating, group, host, restart policy, stop signal, grace period, log file); "
+           "start nothing");
+  cli.option("--bin-dir", bin_dir,
+             "where the mrroc-* executables are (default: beside mrroc-launch)");
+  cli.option("--srp-log", options.srp_log, "file the SRP appends every message to");
+  cli.option("--record", record,
+             "record every LCM message of the run to this file with lcm-logger (overrides "
+             "[launch] record)");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   options.bin_dir = bin_dir.empty() ? own_directory() : fs::path(bin_dir);
   if (!record.empty()) options.record = fs::absolute(record);
   try {

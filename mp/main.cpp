@@ -1,7 +1,6 @@
 // mrroc-mp: the Master Process. Runs the MP part of the task, coordinating the robots' ECPs, and
 // serves the operator's commands (START, PAUSE, RESUME, STOP, TERMINATE, STATUS from mrroc-ui).
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -17,6 +16,7 @@
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
@@ -309,16 +309,17 @@ int run(const std::string& config_path) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-mp",
       "mrroc-mp: Master Process. Runs the MP task named in the config and coordinates the ECPs. "
       "With [mp] start = \"auto\" (the default) the task starts at once and the MP exits when "
       "it ends; with start = \"operator\" the MP waits for START and serves START, PAUSE, RESUME, "
       "STOP, TERMINATE and STATUS from mrroc-ui (channel mrroc/mp/cmd) until TERMINATE. Exit "
       "code: 0 when the (last) run finished or none ran, 1 when it failed or was stopped, 2 on "
-      "a config error. Normally started by mrroc-launch."};
+      "a config error or a bad command line. Normally started by mrroc-launch.");
   std::string config;
-  app.add_option("-c,--config", config, "process-set config file (TOML)")->required();
-  CLI11_PARSE(app, argc, argv);
+  cli.option("-c,--config", config, "process-set config file (TOML)").required();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   mrroc::install_stop_handlers();
   try {
     return run(config);

@@ -3,7 +3,6 @@
 // console, and watches the servo-loop timing of every robot.
 #include <fmt/format.h>
 #include <unistd.h>
-#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -24,6 +23,7 @@
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
 #include "servo_timing.hpp"
@@ -277,15 +277,15 @@ constexpr const char* kDescription =
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{kDescription};
+  mrroc::CommandLine cli("mrroc-srp", kDescription);
   Options options;
-  app.add_option("-c,--config", options.config, "process-set config file (TOML)")->required();
-  app.add_option("--log", options.log,
-                 "also write the JSON-lines log to this file (rotated as the [srp] log)");
-  app.add_option("--color", options.colour, "severity colours on the console: auto, always, never")
-      ->check(CLI::IsMember({"auto", "always", "never"}))
-      ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  cli.option("-c,--config", options.config, "process-set config file (TOML)").required();
+  cli.option("--log", options.log,
+             "also write the JSON-lines log to this file (rotated as the [srp] log)");
+  cli.option("--color", options.colour, "severity colours on the console: auto, always, never")
+      .one_of({"auto", "always", "never"})
+      .show_default();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   mrroc::install_stop_handlers();
   try {
     return run(options);

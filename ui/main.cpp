@@ -3,7 +3,6 @@
 // status), the acknowledgement of a held restart to the launcher (restart), and the web operator
 // console (serve). docs/operating.md.
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -24,6 +23,7 @@
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
@@ -227,7 +227,8 @@ int serve(const std::string& config_path, const std::string& bind, int port) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-ui",
       "mrroc-ui: operator commands for a running process set.\n"
       "  estop / release      engage / release the emergency stop of every robot (or one) and\n"
       "                       confirm it from every robot's state within 500 ms (exit 4: a\n"
@@ -238,8 +239,9 @@ int main(int argc, char** argv) {
       "                       for the operator (an EDP on CiA 402 drives, state 'held') and\n"
       "                       confirm it from the launcher's process table (exit 1: not held,\n"
       "                       2: no such process, 3: no launcher answers or confirms)\n"
-      "  serve                the web operator console (docs/operating.md)"};
-  app.require_subcommand(1);
+      "  serve                the web operator console (docs/operating.md)\n"
+      "A bad command line exits with 2.");
+  cli.require_subcommand();
   std::string config;
   std::string robot;
   std::string reason = "operator";
@@ -247,12 +249,12 @@ int main(int argc, char** argv) {
   std::string bind;
   int port = 0;
   for (const char* name : {"estop", "release"}) {
-    CLI::App* sub =
-        app.add_subcommand(name, std::string(name) == "estop" ? "engage the emergency stop"
-                                                              : "release the emergency stop");
-    sub->add_option("-c,--config", config, "process-set config file (TOML)")->required();
-    sub->add_option("-r,--robot", robot, "only this robot (default: every robot)");
-    sub->add_option("--reason", reason, "text sent to the SRP");
+    mrroc::CommandLine& sub =
+        cli.subcommand(name, std::string(name) == "estop" ? "engage the emergency stop"
+                                                          : "release the emergency stop");
+    sub.option("-c,--config", config, "process-set config file (TOML)").required();
+    sub.option("-r,--robot", robot, "only this robot (default: every robot)");
+    sub.option("--reason", reason, "text sent to the SRP");
   }
   const std::pair<const char*, const char*> commands[] = {
       {"start", "start the MP task (the set runs with [mp] start = \"operator\")"},
@@ -263,41 +265,39 @@ int main(int argc, char** argv) {
       {"status", "print the MP task's state"},
   };
   for (const auto& [name, help] : commands) {
-    CLI::App* sub = app.add_subcommand(name, help);
-    sub->add_option("-c,--config", config, "process-set config file (TOML)")->required();
-    sub->add_option("--timeout", timeout_s, "wait at most this long for the MP's answer [s]")
-        ->check(CLI::Range(0.25, 60.0));
+    mrroc::CommandLine& sub = cli.subcommand(name, help);
+    sub.option("-c,--config", config, "process-set config file (TOML)").required();
+    sub.option("--timeout", timeout_s, "wait at most this long for the MP's answer [s]")
+        .range(0.25, 60.0);
   }
   std::string process;
-  CLI::App* restart_cmd = app.add_subcommand(
+  mrroc::CommandLine& restart_cmd = cli.subcommand(
       "restart",
       "acknowledge the restart of PROCESS (e.g. edp/irb6), an EDP on CiA 402 drives that ended "
       "and that the launcher holds until an operator agrees (state 'held' in 'mrroc-launch "
       "status'); the launcher then restarts it after its back-off, within max_restarts");
-  restart_cmd->add_option("process", process, "the held process, e.g. edp/irb6")->required();
-  restart_cmd->add_option("-c,--config", config, "process-set config file (TOML)")->required();
-  restart_cmd
-      ->add_option("--timeout", timeout_s, "wait at most this long for the launcher's table [s]")
-      ->check(CLI::Range(0.25, 60.0));
-  CLI::App* serve_cmd = app.add_subcommand(
-      "serve",
-      "web operator console on [ui] bind:port (default 127.0.0.1:8080); SIGINT or "
-      "SIGTERM stops it");
-  serve_cmd->add_option("-c,--config", config, "process-set config file (TOML)")->required();
-  serve_cmd->add_option("--bind", bind, "listen on this address (default: [ui] bind)");
-  serve_cmd->add_option("--port", port, "listen on this TCP port (default: [ui] port)")
-      ->check(CLI::Range(1, 65535));
-  CLI11_PARSE(app, argc, argv);
+  restart_cmd.option("process", process, "the held process, e.g. edp/irb6").required();
+  restart_cmd.option("-c,--config", config, "process-set config file (TOML)").required();
+  restart_cmd.option("--timeout", timeout_s, "wait at most this long for the launcher's table [s]")
+      .range(0.25, 60.0);
+  mrroc::CommandLine& serve_cmd =
+      cli.subcommand("serve",
+                     "web operator console on [ui] bind:port (default 127.0.0.1:8080); SIGINT or "
+                     "SIGTERM stops it");
+  serve_cmd.option("-c,--config", config, "process-set config file (TOML)").required();
+  serve_cmd.option("--bind", bind, "listen on this address (default: [ui] bind)");
+  serve_cmd.option("--port", port, "listen on this TCP port (default: [ui] port)").range(1, 65535);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   try {
-    if (app.got_subcommand("estop") || app.got_subcommand("release"))
-      return send_emergency_stop(config, app.got_subcommand("estop"), robot, reason);
-    if (app.got_subcommand("restart")) return acknowledge_restart(config, process, timeout_s);
-    if (app.got_subcommand("serve")) {
+    if (cli.got("estop") || cli.got("release"))
+      return send_emergency_stop(config, cli.got("estop"), robot, reason);
+    if (cli.got("restart")) return acknowledge_restart(config, process, timeout_s);
+    if (cli.got("serve")) {
       install_stop_handlers();
       return serve(config, bind, port);
     }
     for (const auto& [name, help] : commands)
-      if (app.got_subcommand(name))
+      if (cli.got(name))
         return send_task_command(config, *ui::operator_command_from_string(name), timeout_s);
     return kExitConfig;
   } catch (const std::exception& e) {

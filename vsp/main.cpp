@@ -2,7 +2,6 @@
 // devices on mrroc/raw/<device>) into readings with a sensor plugin, and serves them to ECPs and
 // the MP: CONFIGURE, INITIATE_READING, GET_READING, TERMINATE on vsp/<name>/cmd (docs/sensors.md).
 #include <fmt/format.h>
-#include <CLI/CLI.hpp>
 
 #include <cstdio>
 
@@ -10,21 +9,23 @@
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/plugin_library.hpp"
 #include "mrroc/core/process.hpp"
 #include "shell.hpp"
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-vsp",
       "mrroc-vsp: Virtual Sensor Process. Turns raw sensor samples into readings with a sensor "
       "plugin (force_torque, range, conveyor, object_pose, or one from a library) and serves "
-      "CONFIGURE, INITIATE_READING, GET_READING, TERMINATE. See docs/sensors.md."};
+      "CONFIGURE, INITIATE_READING, GET_READING, TERMINATE. See docs/sensors.md.");
   std::string config_path;
   std::string name;
-  app.add_option("-c,--config", config_path, "process-set config file (TOML)")->required();
-  app.add_option("--vsp", name, "name of the [[vsp]] to run")->required();
-  CLI11_PARSE(app, argc, argv);
+  cli.option("-c,--config", config_path, "process-set config file (TOML)").required();
+  cli.option("--vsp", name, "name of the [[vsp]] to run").required();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
 
   using namespace mrroc;
   install_stop_handlers();

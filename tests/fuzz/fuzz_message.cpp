@@ -1,7 +1,8 @@
 // One LCM message type, decoded from raw bytes the way every handler decodes it
-// (comm::detail::decode_received), then, for the types that have one, into plain values by the
-// codec (comm::decode: the EDP, ECP and VSP links and raw sensor samples). Built once per type:
-// MRROC_FUZZ_MESSAGE selects it (tests/fuzz/CMakeLists.txt).
+// (comm::detail::decode_received), then into plain values by its codec (comm::decode of
+// comm/codec.hpp for the links and raw sensor samples, of comm/messages.hpp for the others, as
+// the typed subscribers and links decode them). Built once per type: MRROC_FUZZ_MESSAGE selects
+// it (tests/fuzz/CMakeLists.txt).
 //
 // Properties (docs/fuzzing.md):
 // - decoding never throws: bytes either decode or are rejected;
@@ -24,11 +25,13 @@
 
 #include "fuzz_common.hpp"
 #include "mrroc/comm/codec.hpp"
+#include "mrroc/comm/messages.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc_lcm/ecp_mp_reply_t.hpp"
 #include "mrroc_lcm/edp_instruction_t.hpp"
 #include "mrroc_lcm/edp_reply_t.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/launch_command_t.hpp"
 #include "mrroc_lcm/launch_status_t.hpp"
 #include "mrroc_lcm/mp_ecp_command_t.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
@@ -112,6 +115,9 @@ std::vector<const std::string*> strings_of(const mrroc_lcm::launch_status_t& m) 
   for (const mrroc_lcm::launch_process_t& p : m.processes)
     out.insert(out.end(), {&p.name, &p.group, &p.host, &p.state, &p.restart});
   return out;
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::launch_command_t& m) {
+  return with_header(m, {&m.set_name, &m.process});
 }
 std::vector<const std::string*> strings_of(const mrroc_lcm::srp_history_request_t& m) {
   return with_header(m, {});
@@ -207,6 +213,68 @@ std::string canonical(const mrroc::vsp::RawSample& v, bool wire) {
                      strs(v.names, wire), strs(v.units, wire));
 }
 
+// The time of sending of a process status and a launcher's table comes from the header, which
+// comm::encode leaves to the publisher: not part of their canonical text. Nor is a process row's
+// local_metrics (the launcher's own, not sent).
+std::string canonical(const mrroc::EmergencyStop& v, bool wire) {
+  return fmt::format("action={} robot={} reason={} latched_utime={}", code(v.action),
+                     str(v.robot, wire), str(v.reason, wire), v.latched_utime);
+}
+std::string canonical(const mrroc::RobotState& v, bool wire) {
+  return fmt::format(
+      "robot={} synchronised={} moving={} estop={} fault={} error={} servo_step={} "
+      "servo_period_s={} q={} dq={} q_desired={} lateness_mean_us={} lateness_max_us={} "
+      "overruns={}",
+      str(v.robot, wire), v.synchronised, v.moving, v.estop, v.fault, str(v.error, wire),
+      v.servo_step, bits(v.servo_period_s), doubles(v.q), doubles(v.dq), doubles(v.q_desired),
+      bits(v.lateness_mean_us), bits(v.lateness_max_us), v.overruns);
+}
+std::string canonical(const mrroc::SrpMessage& v, bool wire) {
+  return fmt::format("utime={} process={} robot={} severity={} code={} text={}", v.utime,
+                     str(v.process, wire), str(v.robot, wire), code(v.severity), v.code,
+                     str(v.text, wire));
+}
+std::string canonical(const mrroc::ProcessStatus& v, bool wire) {
+  return fmt::format("process={} robot={} pid={} state={} uptime_us={} detail={}",
+                     str(v.process, wire), str(v.robot, wire), v.pid, code(v.state), v.uptime_us,
+                     str(v.detail, wire));
+}
+std::string canonical(const mrroc::SrpHistoryRequest& v, bool) {
+  return fmt::format("after={} max_count={} min_severity={}", v.after, v.max_count,
+                     code(v.min_severity));
+}
+std::string canonical(const mrroc::SrpHistoryReply& v, bool wire) {
+  std::string out = fmt::format("last={} entries=[", v.last);
+  for (const mrroc::SrpHistoryEntry& e : v.entries)
+    out += fmt::format("{}:{{{}}},", e.number, canonical(e.message, wire));
+  return out + "]";
+}
+std::string canonical(const mrroc::mp::OperatorCommand& v, bool) {
+  return fmt::format("type={}", code(v.type));
+}
+std::string canonical(const mrroc::mp::OperatorReply& v, bool wire) {
+  return fmt::format("accepted={} state={} task={} runs={} started_utime={} text={}", v.accepted,
+                     code(v.state), str(v.task, wire), v.runs, v.started_utime, str(v.text, wire));
+}
+std::string canonical(const mrroc::launch::LaunchStatus& v, bool wire) {
+  std::string out =
+      fmt::format("set_name={} config_file={} state={} launcher_pid={} uptime_s={} processes=[",
+                  str(v.set_name, wire), str(v.config_file, wire), str(v.state, wire),
+                  v.launcher_pid, bits(v.uptime_s));
+  for (const mrroc::launch::ProcessRow& p : v.processes)
+    out += fmt::format(
+        "{{name={} group={} host={} state={} pid={} cpu_percent={} rss_kb={} restarts={} "
+        "uptime_s={} last_exit_code={} required={} restart={}}},",
+        str(p.name, wire), str(p.group, wire), str(p.host, wire), str(p.state, wire), p.pid,
+        bits(p.cpu_percent), p.rss_kb, p.restarts, bits(p.uptime_s), p.last_exit_code, p.required,
+        str(p.restart, wire));
+  return out + "]";
+}
+std::string canonical(const mrroc::launch::LaunchCommand& v, bool wire) {
+  return fmt::format("set_name={} type={} process={}", str(v.set_name, wire), code(v.type),
+                     str(v.process, wire));
+}
+
 // ---- What a decoded value holds: named enumerators, consistent vectors. ----
 
 void expect_named(mrroc::edp::ArmRepresentation r, const char* field) {
@@ -276,6 +344,45 @@ void check_decoded(const mrroc::vsp::Reply& v) {
 void check_decoded(const mrroc::vsp::RawSample& v) {
   fuzz::expect(!v.device.empty(), "decoded raw sample without a device name");
   check_sensor_values(v.values, v.names, v.units, v.valid, "raw sample");
+}
+
+template <class Enum>
+void expect_named_enum(Enum e, const char* field) {
+  fuzz::expect(std::strcmp(mrroc::to_string(e), "?") != 0,
+               fmt::format("decoded {} holds the unnamed value {}", field, code(e)));
+}
+void check_decoded(const mrroc::EmergencyStop& v) { expect_named_enum(v.action, "action"); }
+void check_decoded(const mrroc::RobotState& v) {
+  fuzz::expect(v.dq.size() == v.q.size() && v.q_desired.size() == v.q.size() &&
+                   v.q.size() <= static_cast<std::size_t>(mrroc::comm::kMaxVector),
+               fmt::format("decoded robot state has {} q, {} dq, {} q_desired", v.q.size(),
+                           v.dq.size(), v.q_desired.size()));
+}
+void check_decoded(const mrroc::SrpMessage& v) { expect_named_enum(v.severity, "severity"); }
+void check_decoded(const mrroc::ProcessStatus& v) { expect_named_enum(v.state, "state"); }
+void check_decoded(const mrroc::SrpHistoryRequest& v) {
+  expect_named_enum(v.min_severity, "min_severity");
+}
+void check_decoded(const mrroc::SrpHistoryReply& v) {
+  fuzz::expect(v.entries.size() <= static_cast<std::size_t>(mrroc::comm::kMaxHistoryEntries),
+               fmt::format("decoded history reply has {} entries", v.entries.size()));
+  for (const mrroc::SrpHistoryEntry& e : v.entries) check_decoded(e.message);
+}
+void check_decoded(const mrroc::mp::OperatorCommand& v) {
+  fuzz::expect(std::strcmp(mrroc::mp::to_string(v.type), "?") != 0,
+               fmt::format("decoded operator command {} has no name", code(v.type)));
+}
+void check_decoded(const mrroc::mp::OperatorReply& v) {
+  fuzz::expect(std::strcmp(mrroc::mp::to_string(v.state), "?") != 0,
+               fmt::format("decoded task state {} has no name", code(v.state)));
+}
+void check_decoded(const mrroc::launch::LaunchStatus& v) {
+  fuzz::expect(v.processes.size() <= static_cast<std::size_t>(mrroc::comm::kMaxLaunchProcesses),
+               fmt::format("decoded launcher table has {} rows", v.processes.size()));
+}
+void check_decoded(const mrroc::launch::LaunchCommand& v) {
+  fuzz::expect(v.type == mrroc::launch::LaunchCommandType::restart,
+               fmt::format("decoded launch command {} is unknown", code(v.type)));
 }
 
 // ---- LCM level. ----

@@ -30,6 +30,7 @@
 #include "mrroc/ecp/generators/trajectory_file.hpp"
 #include "mrroc/msg/sensor_reading.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
+#include "mrroc_lcm/launch_command_t.hpp"
 #include "mrroc_lcm/launch_status_t.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
 #include "mrroc_lcm/operator_reply_t.hpp"
@@ -505,6 +506,17 @@ std::vector<mrroc_lcm::srp_history_reply_t> history_replies() {
   return out;
 }
 
+std::vector<mrroc_lcm::launch_command_t> launch_commands() {
+  std::vector<mrroc_lcm::launch_command_t> out;
+  mrroc_lcm::launch_command_t m{};
+  header(m.header, "ui#4711", 1, mrroc_lcm::header_t::BROADCAST);
+  m.set_name = "cell-hil";
+  m.command = mrroc_lcm::launch_command_t::RESTART;
+  m.process = "edp/irb6";
+  out.push_back(m);
+  return out;
+}
+
 /// Writes the messages as they are, and the first of them signed too (the auth fields set).
 template <class Msg>
 void lcm_seeds(const std::string& target, std::vector<Msg> messages) {
@@ -521,6 +533,7 @@ void new_message_seeds() {
   lcm_seeds("launch_status", launch_statuses());
   lcm_seeds("srp_history_request", history_requests());
   lcm_seeds("srp_history_reply", history_replies());
+  lcm_seeds("launch_command", launch_commands());
 }
 
 // ---- fuzz_auth: [selector][message] with messages signed with its key, and counter sequences.

@@ -301,14 +301,32 @@ TEST(LaunchDemo, CheckPrintsThePlanAndStartsNothing) {
   EXPECT_EQ(r.output.find("mrroc-launch: started"), std::string::npos) << r.output;
 }
 
-TEST(LaunchDemo, EveryBinaryAnswersHelp) {
+TEST(LaunchDemo, EveryBinaryAnswersHelpAndVersionAndExits2OnABadCommandLine) {
   for (const char* name : {"mrroc-launch", "mrroc-mp", "mrroc-ecp", "mrroc-edp", "mrroc-srp",
-                           "mrroc-vsp", "mrroc-ui", "mrroc-axis-emu"}) {
-    const RunResult r = run({(kBin / name).string(), "--help"}, 10.0);
-    EXPECT_EQ(r.exit_code, 0) << name << "\n" << r.output;
-    EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("--help"), std::string::npos) << r.output;
+                           "mrroc-vsp", "mrroc-ui", "mrroc-axis-emu", "mrroc-plot"}) {
+    const std::string bin = (kBin / name).string();
+    const RunResult help = run({bin, "--help"}, 10.0);
+    EXPECT_EQ(help.exit_code, 0) << name << "\n" << help.output;
+    EXPECT_NE(help.output.find(name), std::string::npos) << help.output;
+    EXPECT_NE(help.output.find("--help"), std::string::npos) << help.output;
+    EXPECT_NE(help.output.find("--version"), std::string::npos) << help.output;
+    const RunResult version = run({bin, "--version"}, 10.0);
+    EXPECT_EQ(version.exit_code, 0) << name << "\n" << version.output;
+    EXPECT_NE(version.output.find(std::string(name) + " (mrroc) "), std::string::npos)
+        << version.output;
+    const RunResult bad = run({bin, "--no-such-option"}, 10.0);
+    EXPECT_EQ(bad.exit_code, 2) << name << "\n" << bad.output;
+    EXPECT_NE(bad.output.find("Run with --help for more information."), std::string::npos)
+        << name << "\n"
+        << bad.output;
   }
+  const RunResult missing = run({(kBin / "mrroc-edp").string(), "--robot", "irb6"}, 10.0);
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_NE(missing.output.find("--config is required"), std::string::npos) << missing.output;
+  const RunResult range =
+      run({(kBin / "mrroc-ui").string(), "serve", "-c", "x.toml", "--port", "70000"}, 10.0);
+  EXPECT_EQ(range.exit_code, 2) << range.output;
+  EXPECT_NE(range.output.find("70000"), std::string::npos) << range.output;
 }
 
 TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {

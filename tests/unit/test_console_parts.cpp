@@ -47,19 +47,23 @@ const RobotModel& irb6() {
 
 std::vector<ConsoleRobot> one_robot() { return {ConsoleRobot{"irb6", irb6(), 0.002}}; }
 
-/// A robot_state_t of the irb6 at rest, synchronised, released, without fault.
-mrroc_lcm::robot_state_t robot_state(std::int64_t step, std::vector<double> q = {}) {
-  mrroc_lcm::robot_state_t s{};
+/// A robot state of the irb6 at rest, synchronised, released, without fault.
+RobotState robot_state(std::int64_t step, std::vector<double> q = {}) {
+  RobotState s;
   s.robot = "irb6";
   s.synchronised = true;
   s.servo_step = step;
   s.servo_period_s = 0.002;
-  s.n_joints = static_cast<std::int32_t>(irb6().axes());
   s.q = q.empty() ? std::vector<double>(irb6().axes(), 0.1) : q;
   s.dq.assign(irb6().axes(), 0.0);
   s.q_desired = s.q;
-  s.header.utime = 1'700'000'000'000'000 + step * 2000;
   return s;
+}
+
+/// Hands `s` to the state as the bus feed does, sent at a time that follows from its step.
+void on_state(ConsoleState& state, const RobotState& s,
+              SteadyClock::time_point received = SteadyClock::now()) {
+  state.on_robot_state(0, s, 1'700'000'000'000'000 + s.servo_step * 2000, received);
 }
 
 SrpMessage message(std::int64_t utime, const std::string& text,
@@ -177,8 +181,8 @@ std::string read_file(const std::filesystem::path& p) {
 TEST(ConsoleState, KeepsTheLatestRobotStateAndItsSamples) {
   ConsoleState state("demo", one_robot());
   EXPECT_FALSE(state.reading(0).has_value());
-  state.on_robot_state(0, robot_state(10));
-  state.on_robot_state(0, robot_state(20, {0.5, -1.0, 0.2, 0.0, 0.3}));
+  on_state(state, robot_state(10));
+  on_state(state, robot_state(20, {0.5, -1.0, 0.2, 0.0, 0.3}));
   const auto r = state.reading(0);
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->state.servo_step, 20);
@@ -190,11 +194,11 @@ TEST(ConsoleState, KeepsTheLatestRobotStateAndItsSamples) {
   EXPECT_EQ(state.samples_after(0, 0).size(), 2u);
   // A state with another number of joints than the model's is not this robot's: ignored.
   auto wrong = robot_state(30);
-  wrong.n_joints = 3;
-  state.on_robot_state(0, wrong);
+  wrong.q.resize(3);
+  on_state(state, wrong);
   EXPECT_EQ(state.reading(0)->state.servo_step, 20);
   // A step not above the last one: the EDP started again; the old samples go.
-  state.on_robot_state(0, robot_state(5));
+  on_state(state, robot_state(5));
   const auto after_restart = state.samples_after(0, -1);
   ASSERT_EQ(after_restart.size(), 1u);
   EXPECT_EQ(after_restart[0].step, 5);
@@ -203,7 +207,7 @@ TEST(ConsoleState, KeepsTheLatestRobotStateAndItsSamples) {
 TEST(ConsoleState, KeepsAtMostThirtySecondsOfSamples) {
   ConsoleState state("demo", one_robot());
   for (std::int64_t step = 1; step <= static_cast<std::int64_t>(kMaxSamples) + 100; ++step)
-    state.on_robot_state(0, robot_state(step));
+    on_state(state, robot_state(step));
   const auto samples = state.samples_after(0, 0);
   ASSERT_EQ(samples.size(), kMaxSamples);
   EXPECT_EQ(samples.front().step, 101);
@@ -211,9 +215,9 @@ TEST(ConsoleState, KeepsAtMostThirtySecondsOfSamples) {
 
 TEST(ConsoleState, StaleStatesAndLauncherTables) {
   ConsoleState state("demo", one_robot());
-  state.on_robot_state(0, robot_state(1), SteadyClock::now() - 2s);
+  on_state(state, robot_state(1), SteadyClock::now() - 2s);
   EXPECT_FALSE(state.reading(0)->fresh());
-  mrroc_lcm::launch_status_t launch{};
+  launch::LaunchStatus launch;
   launch.set_name = "demo";
   launch.state = "running";
   state.on_launch_status(launch, SteadyClock::now() - 5s);
@@ -300,7 +304,7 @@ TEST(ConsoleState, UnknownRobotNamesTheSetsRobots) {
 TEST(ConsoleState, EstimatesTheServoStepNow) {
   ConsoleState state("demo", one_robot());
   EXPECT_TRUE(state.estimated_servo_steps("").empty()) << "no state: no estimate";
-  state.on_robot_state(0, robot_state(1000), SteadyClock::now() - 1s);
+  on_state(state, robot_state(1000), SteadyClock::now() - 1s);
   const auto steps = state.estimated_servo_steps("");
   ASSERT_EQ(steps.count("irb6"), 1u);
   // 1 s at 2 ms per step after step 1000 (the test may be slow: allow 0.2 s more).
@@ -312,13 +316,13 @@ TEST(ConsoleState, EstimatesTheServoStepNow) {
 TEST(ConsoleState, AtRestOnlyFromAStateAfterTheGivenTime) {
   ConsoleState state("demo", one_robot());
   const auto t0 = SteadyClock::now();
-  state.on_robot_state(0, robot_state(1), t0 - 10ms);
+  on_state(state, robot_state(1), t0 - 10ms);
   EXPECT_FALSE(state.at_rest_since(0, t0));
   auto moving = robot_state(2);
   moving.moving = true;
-  state.on_robot_state(0, moving, t0 + 10ms);
+  on_state(state, moving, t0 + 10ms);
   EXPECT_FALSE(state.at_rest_since(0, t0));
-  state.on_robot_state(0, robot_state(3), t0 + 20ms);
+  on_state(state, robot_state(3), t0 + 20ms);
   EXPECT_TRUE(state.at_rest_since(0, t0));
 }
 
@@ -327,7 +331,7 @@ TEST(ConsoleState, WritersAndReadersOnOtherThreads) {
   std::atomic<bool> done{false};
   std::thread writer([&] {
     for (std::int64_t step = 1; step <= 3000; ++step) {
-      state.on_robot_state(0, robot_state(step, std::vector<double>(5, static_cast<double>(step))));
+      on_state(state, robot_state(step, std::vector<double>(5, static_cast<double>(step))));
       state.on_message(message(step, "m"));
     }
     done.store(true);
@@ -338,8 +342,8 @@ TEST(ConsoleState, WritersAndReadersOnOtherThreads) {
     for (const Sample& s : state.samples_after(0, 0))
       ASSERT_EQ(s.q[4], static_cast<double>(s.step));
     const auto snap = state.snapshot();
-    if (snap.robots[0].state) {
-      ASSERT_EQ(snap.robots[0].state->q[0], static_cast<double>(snap.robots[0].state->servo_step));
+    if (const auto& r = snap.robots[0].reading) {
+      ASSERT_EQ(r->state.q[0], static_cast<double>(r->state.servo_step));
     }
     ++reads;
   }
@@ -353,12 +357,12 @@ TEST(ConsoleState, WritersAndReadersOnOtherThreads) {
 
 TEST(Jog, MovesOneAxisFromRestToRestWithinAQuarterOfItsLimits) {
   Parts p;
-  p.state.on_robot_state(0, robot_state(100));
+  on_state(p.state, robot_state(100));
   p.link->joints_after = {0.1, 0.1, 0.0, 0.1, 0.1};
   // The EDP's broadcast shows the robot at rest after the motion (else the jog waits 100 ms).
   std::thread broadcaster([&] {
     std::this_thread::sleep_for(20ms);
-    p.state.on_robot_state(0, robot_state(700, {0.1, 0.1, 0.0, 0.1, 0.1}));
+    on_state(p.state, robot_state(700, {0.1, 0.1, 0.0, 0.1, 0.1}));
   });
   const JogResult r = p.jogger->jog(JogRequest{"irb6", 2, 0.1, -1});
   broadcaster.join();
@@ -387,7 +391,7 @@ TEST(Jog, MovesOneAxisFromRestToRestWithinAQuarterOfItsLimits) {
 
 TEST(Jog, RefusesBadInputNamingValueUnitAndLimit) {
   Parts p;
-  p.state.on_robot_state(0, robot_state(100));
+  on_state(p.state, robot_state(100));
   const std::vector<std::tuple<JogRequest, int, std::string>> cases = {
       {{"irb6", 99, 0.01, 1}, 400, "axis 99 is out of range: robot irb6 has axes 0..4"},
       {{"irb6", -1, 0.01, 1}, 400, "axis -1 is out of range: robot irb6 has axes 0..4"},
@@ -413,29 +417,29 @@ TEST(Jog, RefusesWhatTheStateForbids) {
   auto refusal = [&] { return api_error([&] { (void)p.jogger->jog(request); }); };
   EXPECT_EQ(refusal(), std::make_pair(409, std::string("jogging refused: no robot_state_t from "
                                                        "EDP irb6 in the last 1 s")));
-  p.state.on_robot_state(0, robot_state(1), SteadyClock::now() - 1500ms);
+  on_state(p.state, robot_state(1), SteadyClock::now() - 1500ms);
   EXPECT_EQ(refusal().first, 409) << "a state older than 1 s is stale";
   auto s = robot_state(2);
   s.estop = true;
-  p.state.on_robot_state(0, s);
+  on_state(p.state, s);
   EXPECT_EQ(refusal(), std::make_pair(409, std::string("jogging refused: the emergency stop of "
                                                        "irb6 is engaged; release it first")));
   s = robot_state(3);
   s.fault = true;
   s.error = "drive 2 over temperature";
-  p.state.on_robot_state(0, s);
+  on_state(p.state, s);
   EXPECT_EQ(refusal().second,
             "jogging refused: irb6 has a hardware fault: drive 2 over temperature");
   s = robot_state(4);
   s.synchronised = false;
-  p.state.on_robot_state(0, s);
+  on_state(p.state, s);
   EXPECT_TRUE(has(refusal().second, "jogging refused: irb6 is not synchronised"))
       << refusal().second;
   s = robot_state(5);
   s.moving = true;
-  p.state.on_robot_state(0, s);
+  on_state(p.state, s);
   EXPECT_EQ(refusal().second, "jogging refused: irb6 is moving");
-  p.state.on_robot_state(0, robot_state(6));
+  on_state(p.state, robot_state(6));
   for (const char* running : {"RUNNING", "PAUSED", "STOPPING"}) {
     MpStatus mp;
     mp.state = running;
@@ -452,7 +456,7 @@ TEST(Jog, RefusesWhatTheStateForbids) {
 
 TEST(Jog, TheEdpsRefusalAndSilence) {
   Parts p;
-  p.state.on_robot_state(0, robot_state(1));
+  on_state(p.state, robot_state(1));
   p.link->refuse = "EDP irb6 refused SET: joint 0 target 3.2 rad exceeds upper limit 2.9 rad";
   const auto [status, text] = api_error([&] { (void)p.jogger->jog({"irb6", 0, 0.1, 1}); });
   EXPECT_EQ(status, 409);
@@ -470,7 +474,7 @@ TEST(Jog, TheEdpsRefusalAndSilence) {
 
 TEST(Jog, OneJogOfARobotAtATime) {
   Parts p;
-  p.state.on_robot_state(0, robot_state(1));
+  on_state(p.state, robot_state(1));
   p.link->hold = true;
   p.link->joints_after.assign(5, 0.1);
   auto first = std::async(std::launch::async, [&] { return p.jogger->jog({"irb6", 0, 0.1, 1}); });
@@ -497,12 +501,12 @@ TEST(TeachIn, AppendsJointPosesToATrajectoryFile) {
   TempDir dir;
   Parts p;
   TeachIn teach(p.state, dir.path() / "taught", p.reports.fn());
-  p.state.on_robot_state(0, robot_state(1, {0.5, -1.5, 0.25, 0.0, 0.125}));
+  on_state(p.state, robot_state(1, {0.5, -1.5, 0.25, 0.0, 0.125}));
   const TeachResult first = teach.record("irb6", "irb6.traj");
   EXPECT_EQ(first.points, 1u);
   EXPECT_EQ(first.file, dir.path() / "taught" / "irb6.traj");
   EXPECT_EQ(first.text, "pose 1 of irb6 recorded in " + first.file.string());
-  p.state.on_robot_state(0, robot_state(2, {0.75, -1.25, 0.0, 0.5, -0.25}));
+  on_state(p.state, robot_state(2, {0.75, -1.25, 0.0, 0.5, -0.25}));
   const TeachResult second = teach.record("irb6", "irb6.traj");
   EXPECT_EQ(second.points, 2u);
   EXPECT_EQ(second.pose, (std::vector<double>{0.75, -1.25, 0.0, 0.5, -0.25}));
@@ -534,7 +538,7 @@ TEST(TeachIn, Refusals) {
             std::make_pair(409, std::string("no robot_state_t from EDP irb6 in the last 1 s")));
   auto s = robot_state(1);
   s.synchronised = false;
-  p.state.on_robot_state(0, s);
+  on_state(p.state, s);
   EXPECT_EQ(api_error([&] { (void)teach.record("irb6", "x.traj"); }),
             std::make_pair(409, std::string("irb6 is not synchronised: its joint positions are "
                                             "not known yet")));
@@ -546,7 +550,7 @@ TEST(TeachIn, Refusals) {
     out << "# mrroc trajectory v1 representation=JOINT axes=3 robot=rnt\n0 0 0\n";
   }
   const std::string before = read_file(other);
-  p.state.on_robot_state(0, robot_state(2));
+  on_state(p.state, robot_state(2));
   const auto [status, text] = api_error([&] { (void)teach.record("irb6", "other.traj"); });
   EXPECT_EQ(status, 409);
   EXPECT_TRUE(has(text,
@@ -658,7 +662,7 @@ TEST_F(ApiTest, StateHasEveryFieldThePageReads) {
   EXPECT_TRUE(state["robots"][0]["state"].is_null());
   EXPECT_EQ(state["teach_dir"], dir_.path().string());
 
-  parts_.state.on_robot_state(0, robot_state(42));
+  on_state(parts_.state, robot_state(42));
   MpStatus mp;
   mp.accepted = true;
   mp.state = "IDLE";
@@ -678,6 +682,7 @@ TEST_F(ApiTest, StateHasEveryFieldThePageReads) {
     EXPECT_TRUE(s.contains(key)) << key << " in " << s.dump();
   EXPECT_EQ(s["servo_step"], 42);
   EXPECT_EQ(s["synchronised"], true);
+  EXPECT_EQ(s["utime"], 1'700'000'000'000'000 + 42 * 2000) << "the envelope's time of sending";
   EXPECT_EQ(state["mp"]["task"], "joint_poses");
   EXPECT_EQ(state["mp"]["available"], true);
   ASSERT_EQ(state["processes"].size(), 1u);
@@ -688,7 +693,7 @@ TEST_F(ApiTest, StateHasEveryFieldThePageReads) {
 
 TEST_F(ApiTest, SamplesAndSrpMessages) {
   start();
-  for (std::int64_t step = 1; step <= 5; ++step) parts_.state.on_robot_state(0, robot_state(step));
+  for (std::int64_t step = 1; step <= 5; ++step) on_state(parts_.state, robot_state(step));
   auto [status, samples] = get("/api/robots/irb6/samples?after=3");
   ASSERT_EQ(status, 200);
   EXPECT_EQ(samples["robot"], "irb6");
@@ -720,7 +725,7 @@ TEST_F(ApiTest, SamplesAndSrpMessages) {
 
 TEST_F(ApiTest, MalformedBodiesAreRefusedWithTheirReason) {
   start();
-  parts_.state.on_robot_state(0, robot_state(1));
+  on_state(parts_.state, robot_state(1));
   const std::vector<std::tuple<std::string, std::string, int, std::string>> cases = {
       {"/api/jog", "{", 400, "request body is not a JSON object"},
       {"/api/jog", "[1, 2]", 400, "request body is not a JSON object"},
@@ -771,7 +776,7 @@ TEST_F(ApiTest, AnEstopNotUnderstoodStopsEveryRobot) {
     EXPECT_EQ(std::get<1>(actions_.stops[0]), "") << "every robot";
     EXPECT_TRUE(has(std::get<2>(actions_.stops[0]), "request not understood")) << body;
   }
-  parts_.state.on_robot_state(0, robot_state(100));
+  on_state(parts_.state, robot_state(100));
   const auto [status, answer] = post("/api/estop", R"({"robot": "irb6", "reason": "test"})");
   ASSERT_EQ(status, 200);
   for (const char* key : {"ok", "text", "servo_step_at_send", "confirmed", "unconfirmed",
@@ -810,7 +815,7 @@ TEST_F(ApiTest, CommandsJogAndTeach) {
   EXPECT_EQ(status, 504);
   EXPECT_EQ(answer["error"], "no MP answers on 'mrroc/mp/cmd'");
 
-  parts_.state.on_robot_state(0, robot_state(1));
+  on_state(parts_.state, robot_state(1));
   parts_.link->joints_after = {0.15, 0.1, 0.1, 0.1, 0.1};
   std::tie(status, answer) =
       post("/api/jog", R"({"robot": "irb6", "axis": 0, "direction": 1, "step_rad": 0.05})");

@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 #include <spawn.h>
 #include <sys/wait.h>
-#include <CLI/CLI.hpp>
 
 #include <cerrno>
 #include <cstdio>
@@ -13,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "mrroc/core/command_line.hpp"
 #include "mrroc/core/error.hpp"
 #include "robot_log.hpp"
 
@@ -162,7 +162,8 @@ int run(const Options& options) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
+  mrroc::CommandLine cli(
+      "mrroc-plot",
       "mrroc-plot: plots the robot states of an LCM log file written by lcm-logger (for "
       "example by `mrroc-launch` with [launch] record, or `lcm-logger FILE` beside a set).\n"
       "For every robot (channels <robot>/edp/state, robot_state_t) it writes into the output "
@@ -173,19 +174,14 @@ int main(int argc, char** argv) {
       "  <robot>-joints.png      joint positions [rad] over time [s]\n"
       "  <robot>-velocities.png  joint velocities [rad/s]\n"
       "  <robot>-lateness.png    servo wake-up lateness, mean and max [us]\n"
-      "and prints every file it wrote. Time 0 is the first robot state of the log."};
+      "and prints every file it wrote. Time 0 is the first robot state of the log.");
   Options options;
-  app.add_option("log", options.log, "LCM log file")->required();
-  app.add_option("-o,--output", options.out_dir, "output folder (created if missing)")
-      ->capture_default_str();
-  app.add_option("--width", options.width, "PNG width [pixels]")
-      ->check(CLI::Range(200, 10000))
-      ->capture_default_str();
-  app.add_option("--height", options.height, "PNG height [pixels]")
-      ->check(CLI::Range(150, 10000))
-      ->capture_default_str();
-  app.add_option("--gnuplot", options.gnuplot, "gnuplot executable")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  cli.option("log", options.log, "LCM log file").required();
+  cli.option("-o,--output", options.out_dir, "output folder (created if missing)").show_default();
+  cli.option("--width", options.width, "PNG width [pixels]").range(200, 10000).show_default();
+  cli.option("--height", options.height, "PNG height [pixels]").range(150, 10000).show_default();
+  cli.option("--gnuplot", options.gnuplot, "gnuplot executable").show_default();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   try {
     return run(options);
   } catch (const std::exception& e) {

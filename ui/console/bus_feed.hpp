@@ -1,8 +1,8 @@
 #pragma once
-// Feeds the console's state from the bus: each robot's robot_state_t, the launcher's process
+// Feeds the console's state from the bus: each robot's state, the launcher's process
 // table, SRP messages and process statuses (subscriptions, on the bus thread), the MP's state
 // (STATUS every 400 ms) and the SRP's history (asked for every 2 s until it answers), on a
-// poller thread. The one place where the console decodes LCM messages.
+// poller thread. Every message arrives decoded and checked (comm/edge.hpp, comm/links.hpp).
 
 #include <condition_variable>
 #include <memory>
@@ -15,7 +15,6 @@
 
 namespace mrroc::comm {
 class Bus;
-class Subscription;
 }  // namespace mrroc::comm
 
 namespace mrroc {
@@ -40,20 +39,15 @@ class BusFeed {
   void stop_polling();
 
  private:
+  struct Subscribers;
   struct Clients;
-  struct RobotContext {
-    ConsoleState* state;
-    std::size_t index;
-  };
   void poll_loop();
   void poll_mp();
   void fetch_history();
 
-  comm::Bus& bus_;
   ConsoleState& state_;
   std::string no_mp_text_;
-  std::vector<std::unique_ptr<RobotContext>> contexts_;
-  std::vector<comm::Subscription*> subscriptions_;
+  std::unique_ptr<Subscribers> subscribers_;
   std::unique_ptr<SystemListener> listener_;
   std::unique_ptr<Clients> clients_;
   std::thread poller_;

@@ -106,11 +106,12 @@ json mp_json(const MpStatus& s) {
               {"runs", s.runs},         {"text", s.text},   {"started_utime", s.started_utime}};
 }
 
-json robot_state_json(const mrroc_lcm::robot_state_t& s, double age_s) {
-  return json{{"synchronised", s.synchronised != 0},
-              {"moving", s.moving != 0},
-              {"estop", s.estop != 0},
-              {"fault", s.fault != 0},
+json robot_state_json(const RobotReading& r, double age_s) {
+  const RobotState& s = r.state;
+  return json{{"synchronised", s.synchronised},
+              {"moving", s.moving},
+              {"estop", s.estop},
+              {"fault", s.fault},
               {"error", s.error},
               {"servo_step", s.servo_step},
               {"servo_period_s", s.servo_period_s},
@@ -120,7 +121,7 @@ json robot_state_json(const mrroc_lcm::robot_state_t& s, double age_s) {
               {"lateness_mean_us", s.lateness_mean_us},
               {"lateness_max_us", s.lateness_max_us},
               {"overruns", s.overruns},
-              {"utime", s.header.utime},
+              {"utime", r.utime},
               {"age_s", age_s}};
 }
 
@@ -209,7 +210,7 @@ json HttpApi::state_json() const {
                            {"restarts", p.restarts},
                            {"uptime_s", p.uptime_s},
                            {"last_exit_code", p.last_exit_code},
-                           {"required", p.required != 0},
+                           {"required", p.required},
                            {"restart", p.restart}});
     out["launch"] = json{{"set_name", l.set_name},
                          {"state", l.state},
@@ -240,7 +241,7 @@ json HttpApi::state_json() const {
            {"max_velocity", r.model.max_velocity},
            {"max_acceleration", r.model.max_acceleration},
            {"servo_period_s", r.servo_period_s}};
-    j["state"] = seen.state ? robot_state_json(*seen.state, seen.age_s) : json();
+    j["state"] = seen.reading ? robot_state_json(*seen.reading, seen.age_s) : json();
     robots.push_back(std::move(j));
   }
   out["robots"] = robots;

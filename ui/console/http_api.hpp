@@ -71,7 +71,7 @@ nlohmann::json parse_body(const std::string& body);
 JogRequest jog_request_from_json(const nlohmann::json& body);
 
 nlohmann::json mp_json(const MpStatus& status);
-nlohmann::json robot_state_json(const mrroc_lcm::robot_state_t& state, double age_s);
+nlohmann::json robot_state_json(const RobotReading& reading, double age_s);
 nlohmann::json message_json(const LogEntry& entry);
 nlohmann::json jog_json(const JogResult& result);
 nlohmann::json teach_json(const TeachResult& result);

@@ -37,21 +37,20 @@ const ConsoleRobot& ConsoleState::robot(const std::string& name) const {
   return robots_[robot_index(name)];
 }
 
-void ConsoleState::on_robot_state(std::size_t index, const mrroc_lcm::robot_state_t& s,
+void ConsoleState::on_robot_state(std::size_t index, const RobotState& s, std::int64_t utime,
                                   SteadyClock::time_point received) {
-  if (index >= robots_.size()) return;
-  if (s.n_joints < 0 || static_cast<std::size_t>(s.n_joints) != robots_[index].model.axes()) return;
+  if (index >= robots_.size() || s.q.size() != robots_[index].model.axes()) return;
   std::lock_guard lock(mutex_);
   RobotData& data = data_[index];
-  data.reading = RobotReading{s, received};
+  data.reading = RobotReading{s, utime, received};
   if (!data.samples.empty() && data.samples.back().step >= s.servo_step)
     data.samples.clear();  // the EDP started again
   data.samples.push_back(
-      Sample{s.servo_step, s.header.utime, s.q, s.dq, s.lateness_mean_us, s.lateness_max_us});
+      Sample{s.servo_step, utime, s.q, s.dq, s.lateness_mean_us, s.lateness_max_us});
   while (data.samples.size() > kMaxSamples) data.samples.pop_front();
 }
 
-void ConsoleState::on_launch_status(const mrroc_lcm::launch_status_t& status,
+void ConsoleState::on_launch_status(const launch::LaunchStatus& status,
                                     SteadyClock::time_point received) {
   std::lock_guard lock(mutex_);
   launch_ = status;
@@ -118,7 +117,7 @@ StateSnapshot ConsoleState::snapshot() const {
   for (const RobotData& d : data_) {
     StateSnapshot::Robot r;
     if (d.reading) {
-      r.state = d.reading->state;
+      r.reading = d.reading;
       r.age_s = seconds_since(d.reading->received);
     }
     out.robots.push_back(std::move(r));

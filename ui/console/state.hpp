@@ -1,5 +1,5 @@
 #pragma once
-// What the web console knows of the running set: each robot's latest robot_state_t and its
+// What the web console knows of the running set: each robot's latest robot state and its
 // recent samples, the launcher's process table, every process' last status, the SRP's messages
 // and the MP's state. The bus feed (bus_feed.hpp) writes it from the bus thread and the poller;
 // the HTTP threads, the jog and the teach-in read it. Every method is thread-safe; readers get
@@ -15,9 +15,9 @@
 #include <vector>
 
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/msg/launch.hpp"
+#include "mrroc/msg/robot_state.hpp"
 #include "mrroc/robot/robot_model.hpp"
-#include "mrroc_lcm/launch_status_t.hpp"
-#include "mrroc_lcm/robot_state_t.hpp"
 #include "operator.hpp"
 
 namespace mrroc::ui {
@@ -26,7 +26,7 @@ using SteadyClock = std::chrono::steady_clock;
 
 inline constexpr std::size_t kMaxSamples = 1500;  ///< robot states kept: 30 s at 50 Hz
 inline constexpr std::size_t kMaxLog = 5000;      ///< SRP messages kept
-inline constexpr double kStateFreshS = 1.0;       ///< a robot_state_t older than this is stale [s]
+inline constexpr double kStateFreshS = 1.0;       ///< a robot state older than this is stale [s]
 inline constexpr double kLaunchFreshS = 3.0;      ///< the launcher broadcasts every second [s]
 
 /// [s] from `t` to now.
@@ -39,7 +39,7 @@ struct ConsoleRobot {
   double servo_period_s = kDefaultServoPeriodS;  ///< the EDP's configured period [s]
 };
 
-/// One robot_state_t as the plots need it.
+/// One robot state as the plots need it.
 struct Sample {
   std::int64_t step = 0;
   std::int64_t utime = 0;
@@ -49,9 +49,10 @@ struct Sample {
   double lateness_max_us = 0.0;
 };
 
-/// The latest robot_state_t of a robot and when it came.
+/// The latest robot state of a robot, when it was sent and when it came.
 struct RobotReading {
-  mrroc_lcm::robot_state_t state;
+  RobotState state;
+  std::int64_t utime = 0;  ///< time of sending [us since the Unix epoch] (its envelope's)
   SteadyClock::time_point received{};
   [[nodiscard]] bool fresh() const { return seconds_since(received) <= kStateFreshS; }
 };
@@ -82,11 +83,11 @@ struct StateSnapshot {
   std::optional<MpStatus> mp;
   std::string mp_error;  ///< why the last STATUS got no answer
   /// The launcher's table, when one came in the last kLaunchFreshS.
-  std::optional<mrroc_lcm::launch_status_t> launch;
+  std::optional<launch::LaunchStatus> launch;
   std::map<std::string, SeenProcess> processes;
   struct Robot {
-    std::optional<mrroc_lcm::robot_state_t> state;
-    double age_s = 0.0;  ///< of `state` [s]
+    std::optional<RobotReading> reading;
+    double age_s = 0.0;  ///< of `reading` [s]
   };
   std::vector<Robot> robots;  ///< in the order of ConsoleState::robots()
   std::int64_t log_last = 0;
@@ -108,11 +109,12 @@ class ConsoleState {
 
   // --- written by the bus feed ------------------------------------------------------------------
 
-  /// A robot_state_t of robots()[index]; ignored when its number of joints is not the model's.
-  /// A servo step not above the last sample's starts the samples again (the EDP restarted).
-  void on_robot_state(std::size_t index, const mrroc_lcm::robot_state_t& state,
+  /// A robot state of robots()[index], sent at `utime` [us since the Unix epoch]; ignored when
+  /// its number of joints is not the model's. A servo step not above the last sample's starts
+  /// the samples again (the EDP restarted).
+  void on_robot_state(std::size_t index, const RobotState& state, std::int64_t utime,
                       SteadyClock::time_point received = SteadyClock::now());
-  void on_launch_status(const mrroc_lcm::launch_status_t& status,
+  void on_launch_status(const launch::LaunchStatus& status,
                         SteadyClock::time_point received = SteadyClock::now());
   /// A live SRP message: numbered next; the oldest beyond kMaxLog are dropped.
   void on_message(const SrpMessage& message);
@@ -130,17 +132,17 @@ class ConsoleState {
   // --- read by the HTTP part, the jog and the teach-in -----------------------------------------
 
   [[nodiscard]] StateSnapshot snapshot() const;
-  /// The latest robot_state_t of robots()[index], nothing before the first.
+  /// The latest robot state of robots()[index], nothing before the first.
   [[nodiscard]] std::optional<RobotReading> reading(std::size_t index) const;
   /// The samples of robots()[index] after servo step `after`, oldest first.
   [[nodiscard]] std::vector<Sample> samples_after(std::size_t index, std::int64_t after) const;
   /// The messages numbered above `after` with severity >= `min_severity`, the newest `max`.
   [[nodiscard]] LogView messages(std::int64_t after, int min_severity, std::size_t max) const;
   [[nodiscard]] std::optional<MpStatus> mp() const;
-  /// True once a robot_state_t received after `since` shows robots()[index] at rest.
+  /// True once a robot state received after `since` shows robots()[index] at rest.
   [[nodiscard]] bool at_rest_since(std::size_t index, SteadyClock::time_point since) const;
   /// The servo step each robot (or only `robot`, when not empty) is in now, estimated from its
-  /// last robot_state_t and its period; robots with none are left out.
+  /// last robot state and its period; robots with none are left out.
   [[nodiscard]] std::map<std::string, std::int64_t> estimated_servo_steps(
       const std::string& robot) const;
 
@@ -153,7 +155,7 @@ class ConsoleState {
   std::vector<ConsoleRobot> robots_;
   mutable std::mutex mutex_;
   std::vector<RobotData> data_;  // parallel to robots_
-  std::optional<mrroc_lcm::launch_status_t> launch_;
+  std::optional<launch::LaunchStatus> launch_;
   SteadyClock::time_point launch_received_{};
   std::map<std::string, std::pair<ProcessStatus, SteadyClock::time_point>> processes_;
   std::deque<LogEntry> log_;

@@ -1,8 +1,8 @@
 // One LCM message type, decoded from raw bytes the way every handler decodes it
 // (comm::detail::decode_received), then into plain values by its codec (comm::decode of
 // comm/codec.hpp for the links and raw sensor samples, of comm/messages.hpp for the others, as
-// the typed subscribers and links decode them). Built once per type: MRROC_FUZZ_MESSAGE selects
-// it (tests/fuzz/CMakeLists.txt).
+// the typed subscribers and links decode them). One program for all types, started under one
+// name per type (fuzz/fuzz_<type>), which selects it (LLVMFuzzerInitialize below).
 //
 // Properties (docs/fuzzing.md):
 // - decoding never throws: bytes either decode or are rejected;
@@ -16,9 +16,13 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <lcm/lcm-cpp.hpp>
@@ -45,7 +49,6 @@
 #include "mrroc_lcm/vsp_command_t.hpp"
 #include "mrroc_lcm/vsp_reply_t.hpp"
 
-// A named namespace: each build uses the overloads of one message type only.
 namespace fuzz_message {
 
 using fuzz::bits;
@@ -507,19 +510,61 @@ void check_codec_if_any(const Msg& msg) {
   if constexpr (requires { mrroc::comm::decode(msg); }) check_codec(msg);
 }
 
-#ifndef MRROC_FUZZ_MESSAGE
-#error "MRROC_FUZZ_MESSAGE must name an LCM type of src/msg (e.g. edp_instruction_t)"
-#endif
-using Message = mrroc_lcm::MRROC_FUZZ_MESSAGE;
-
-}  // namespace fuzz_message
-
-extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  if (size > (1U << 20)) return -1;  // far above any message; keeps int offsets meaningful
-  using namespace fuzz_message;
+/// One input of type Message: decoded as the handlers do, then checked at both levels.
+template <class Message>
+int test_one(const std::uint8_t* data, std::size_t size) {
   const std::optional<Message> msg = decode_as_handlers_do<Message>(data, size);
   if (!msg) return 0;
   check_lcm_round_trip(*msg, data, size);
   check_codec_if_any(*msg);
   return 0;
+}
+
+using Test = int (*)(const std::uint8_t*, std::size_t);
+struct Target {
+  std::string_view name;  // the program is fuzz_<name>
+  Test test;
+};
+constexpr Target kTargets[] = {
+    {"edp_instruction", &test_one<mrroc_lcm::edp_instruction_t>},
+    {"edp_reply", &test_one<mrroc_lcm::edp_reply_t>},
+    {"mp_ecp_command", &test_one<mrroc_lcm::mp_ecp_command_t>},
+    {"ecp_mp_reply", &test_one<mrroc_lcm::ecp_mp_reply_t>},
+    {"vsp_command", &test_one<mrroc_lcm::vsp_command_t>},
+    {"vsp_reply", &test_one<mrroc_lcm::vsp_reply_t>},
+    {"raw_sensor", &test_one<mrroc_lcm::raw_sensor_t>},
+    {"emergency_stop", &test_one<mrroc_lcm::emergency_stop_t>},
+    {"srp_message", &test_one<mrroc_lcm::srp_message_t>},
+    {"process_status", &test_one<mrroc_lcm::process_status_t>},
+    {"operator_command", &test_one<mrroc_lcm::operator_command_t>},
+    {"operator_reply", &test_one<mrroc_lcm::operator_reply_t>},
+    {"robot_state", &test_one<mrroc_lcm::robot_state_t>},
+    {"launch_status", &test_one<mrroc_lcm::launch_status_t>},
+    {"launch_command", &test_one<mrroc_lcm::launch_command_t>},
+    {"srp_history_request", &test_one<mrroc_lcm::srp_history_request_t>},
+    {"srp_history_reply", &test_one<mrroc_lcm::srp_history_reply_t>},
+};
+Test selected = nullptr;
+
+}  // namespace fuzz_message
+
+// The program is built once and started under one name per message type, fuzz/fuzz_<type> (links
+// to fuzz_message, tests/fuzz/CMakeLists.txt): the name selects the type.
+extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
+  using namespace fuzz_message;
+  const std::string self = *argc > 0 ? std::filesystem::path((*argv)[0]).filename().string() : "";
+  for (const Target& t : kTargets)
+    if (self == "fuzz_" + std::string(t.name)) selected = t.test;
+  if (selected == nullptr) {
+    std::string names;
+    for (const Target& t : kTargets) names += " fuzz_" + std::string(t.name);
+    std::fprintf(stderr, "%s: start this program as one of:%s\n", self.c_str(), names.c_str());
+    std::exit(2);
+  }
+  return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  if (size > (1U << 20)) return -1;  // far above any message; keeps int offsets meaningful
+  return fuzz_message::selected(data, size);
 }

@@ -209,12 +209,9 @@ int serve(const std::string& config_path, const std::string& bind, int port) {
   ui::ConsoleOptions options;
   options.bind = bind.empty() ? config.ui.bind : bind;
   options.port = port > 0 ? port : config.ui.port;
-  options.teach_dir = config.ui.teach_dir;
-  const bool loopback = options.bind == "127.0.0.1" || options.bind == "::1" ||
-                        options.bind == "localhost" || options.bind.rfind("127.", 0) == 0;
   if (!config.ui.token_file.empty()) {
     options.token = ui::read_token_file(config.ui.token_file);
-  } else if (!loopback) {
+  } else if (!is_loopback(options.bind)) {
     throw ConfigError(SourceLocation::whole_file(config.file.string()),
                       fmt::format("--bind {} is not a loopback address: set [ui] token_file so "
                                   "that every API request must carry a token",

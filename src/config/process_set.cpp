@@ -1,6 +1,8 @@
 #include "mrroc/config/process_set.hpp"
 
+#include <arpa/inet.h>
 #include <fmt/format.h>
+#include <netinet/in.h>
 #include <sched.h>
 
 #include <csignal>
@@ -348,9 +350,7 @@ class Reader {
     set_path(t, "token_file", "ui", c.token_file);
     if (!c.token_file.empty())
       require_path(*t.get("token_file"), c.token_file, Kind::file, "console token file");
-    const bool loopback = c.bind == "127.0.0.1" || c.bind == "localhost" || c.bind == "::1" ||
-                          c.bind.rfind("127.", 0) == 0;
-    if (!loopback && c.token_file.empty())
+    if (!is_loopback(c.bind) && c.token_file.empty())
       fail(*t.get("bind"), fmt::format("bind '{}' is not a loopback address: the console then "
                                        "needs 'token_file' (a file holding the access token)",
                                        c.bind));
@@ -581,6 +581,15 @@ class Reader {
 };
 
 }  // namespace
+
+bool is_loopback(std::string_view host) {
+  if (host == "localhost") return true;
+  const std::string text(host);
+  in_addr v4{};
+  if (inet_pton(AF_INET, text.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  return inet_pton(AF_INET6, text.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
+}
 
 const char* to_string(RestartPolicy policy) {
   switch (policy) {

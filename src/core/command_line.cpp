@@ -112,9 +112,7 @@ CommandLine& CommandLine::subcommand(const std::string& name, const std::string&
 
 void CommandLine::require_subcommand() { app_of(app_)->require_subcommand(1); }
 
-bool CommandLine::got(const std::string& name) const {
-  return app_of(app_)->got_subcommand(name);
-}
+bool CommandLine::got(const std::string& name) const { return app_of(app_)->got_subcommand(name); }
 
 std::optional<int> CommandLine::parse(int argc, const char* const* argv) {
   CLI::App& app = root_->app;

@@ -40,7 +40,8 @@ void VirtualSensor::initiate_reading() {
   } catch (const vsp::Refused& e) {
     invalid("INITIATE_READING refused: " + e.reason());
   } catch (const vsp::NoAnswer& e) {
-    invalid(e.what());
+    image_ = vsp::Reading{};
+    image_.invalid_reason = e.what();  // names the VSP already
   }
 }
 

@@ -14,6 +14,7 @@
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/ecp/robot_image.hpp"
+#include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/edp/client.hpp"
 #include "mrroc/vsp/client.hpp"
 
@@ -222,4 +223,14 @@ TEST(VspClient, ReadsConfiguresAndNamesTheVspInEveryFailure) {
               std::string::npos)
         << e.what();
   }
+
+  // The task's sensor image names the VSP once in the reason it is invalid.
+  ecp::VirtualSensor elbow(bus, "elbow", "test", vsp::ClientOptions{10ms, 2});
+  elbow.initiate_reading();
+  const std::string reason = elbow.image().invalid_reason;
+  EXPECT_EQ(reason.rfind("VSP 'elbow' did not answer INITIATE_READING", 0), 0u) << reason;
+  EXPECT_EQ(reason.find("VSP 'elbow'", 1), std::string::npos) << reason;
+  elbow.get_reading();
+  EXPECT_EQ(elbow.image().invalid_reason.rfind("VSP 'elbow' did not answer GET_READING", 0), 0u)
+      << elbow.image().invalid_reason;
 }

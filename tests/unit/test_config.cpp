@@ -349,3 +349,23 @@ TEST_F(ConfigTest, KeysGivenOverrideTheDefaults) {
   EXPECT_EQ(c.launch.hosts[0].command, (std::vector<std::string>{"ip", "netns", "exec", "{host}"}));
   EXPECT_FALSE(c.launch.hosts[0].quote);  // a command of one's own is not quoted unless asked
 }
+
+TEST(Loopback, OnlyLoopbackAddressesAndLocalhost) {
+  for (const char* host : {"localhost", "127.0.0.1", "127.1.2.3", "::1"})
+    EXPECT_TRUE(is_loopback(host)) << host;
+  for (const char* host : {"", "0.0.0.0", "::", "10.0.0.1", "128.0.0.1", "127.example.com",
+                           "127.0.0.1.example.com", "localhost.example.com", "::2"})
+    EXPECT_FALSE(is_loopback(host)) << host;
+}
+
+TEST_F(ConfigTest, AConsoleBoundBeyondLoopbackNeedsATokenFile) {
+  EXPECT_NO_THROW(load_process_set(write(valid() + "\n[ui]\nbind = \"127.0.0.2\"\n")));
+  try {
+    load_process_set(write(valid() + "\n[ui]\nbind = \"127.evil.example\"\n"));
+    FAIL() << "a host name that starts with 127. is not loopback";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("bind '127.evil.example' is not a loopback address"),
+              std::string::npos)
+        << e.what();
+  }
+}

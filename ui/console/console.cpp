@@ -61,9 +61,7 @@ struct Console::Impl : ConsoleActions {
     };
     std::map<std::string, std::unique_ptr<JogLink>> links;
     for (const ConsoleRobot& r : state.robots()) links[r.name] = make_edp_jog_link(bus, r.name);
-    jogger = std::make_unique<Jogger>(
-        state, JogOptions{options.jog_max_step_rad, options.jog_velocity_fraction, 0.1},
-        std::move(links), report);
+    jogger = std::make_unique<Jogger>(state, options.jog, std::move(links), report);
     feed = std::make_unique<BusFeed>(bus, state, no_mp_text());
     comm::ClientOptions command_options;
     command_options.attempt_timeout = std::chrono::milliseconds(250);
@@ -79,7 +77,7 @@ struct Console::Impl : ConsoleActions {
     settings.config_file = config.file;
     settings.operator_start = config.mp_waits_for_operator;
     settings.teach_dir = teach_in->dir();
-    settings.jog_max_step_rad = options.jog_max_step_rad;
+    settings.jog_max_step_rad = options.jog.max_step_rad;
     settings.token = options.token;
     api = std::make_unique<HttpApi>(state, settings, *this);
     api->install(server);

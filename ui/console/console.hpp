@@ -9,19 +9,19 @@
 #include <memory>
 #include <string>
 
+#include "console/jog.hpp"
 #include "mrroc/config/process_set.hpp"
 
 namespace mrroc::ui {
 
+/// How `mrroc-ui serve` runs the console; the rest comes from the set's [ui] table (where
+/// teach-in files go, the token file).
 struct ConsoleOptions {
-  std::string bind = "127.0.0.1";
-  int port = 8080;
+  std::string bind = UiConfig{}.bind;
+  int port = UiConfig{}.port;
   /// Every /api request must carry it (header `Authorization: Bearer TOKEN`); empty: none.
   std::string token;
-  std::filesystem::path teach_dir;  ///< where "Record pose" writes; empty: current folder
-  double jog_max_step_rad = 0.2;    ///< largest jog step accepted [rad]
-  /// A jog stays within this fraction of the axis' velocity and acceleration limits.
-  double jog_velocity_fraction = 0.25;
+  JogOptions jog;
 };
 
 class Console {

@@ -35,7 +35,7 @@ struct ApiSettings {
   std::filesystem::path config_file;
   bool operator_start = false;  ///< the MP waits for the operator's START
   std::filesystem::path teach_dir;
-  double jog_max_step_rad = 0.2;  ///< [rad]
+  double jog_max_step_rad = JogOptions{}.max_step_rad;  ///< [rad]
   /// Every /api request must carry it (header `Authorization: Bearer TOKEN` or `?token=`);
   /// empty: none.
   std::string token;

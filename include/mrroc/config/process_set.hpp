@@ -72,6 +72,10 @@ struct LaunchConfig {
 };
 
 /// The operator console ([ui]): `mrroc-ui serve`, started by the launcher when `web = true`.
+/// True for a loopback address or name: "localhost", "::1" or any 127.x.y.z (the console needs
+/// no token there).
+bool is_loopback(std::string_view host);
+
 struct UiConfig {
   bool web = false;  ///< the launcher starts the web console
   std::string bind = "127.0.0.1";

@@ -82,8 +82,8 @@ class CommandLine {
  private:
   struct Impl;
   CommandLine(std::shared_ptr<Impl> root, void* app);
-  std::shared_ptr<Impl> root_;                        // owns the parser and the subcommands' objects
-  void* app_;                                         // CLI::App* of this (sub)command
+  std::shared_ptr<Impl> root_;  // owns the parser and the subcommands' objects
+  void* app_;                   // CLI::App* of this (sub)command
   std::vector<std::unique_ptr<CommandLine>> children_;  // subcommands
 };
 

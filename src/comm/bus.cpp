@@ -1,6 +1,7 @@
 #include "mrroc/comm/bus.hpp"
 
 #include <unistd.h>
+#include <atomic>
 
 #include <fmt/format.h>
 
@@ -174,6 +175,15 @@ void Bus::stop() {
 }
 
 bool Bus::on_bus_thread() const { return t_on_bus_thread; }
+
+namespace detail {
+
+std::int64_t next_request_seq() {
+  static std::atomic<std::int64_t> last{0};
+  return ++last;
+}
+
+}  // namespace detail
 
 std::string unique_endpoint_name(const std::string& base) {
   return base + "#" + std::to_string(::getpid());

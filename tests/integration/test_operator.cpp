@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -229,6 +230,52 @@ TEST_F(Operator, StartPauseResumeStopAndTerminate) {
   EXPECT_TRUE(has(run.output, "START from the operator")) << run.output;
   EXPECT_TRUE(has(run.output, "PAUSE from the operator")) << run.output;
   EXPECT_TRUE(has(run.output, "TERMINATE from the operator")) << run.output;
+  expect_nothing_left();
+}
+
+// A task with sensors runs any number of times in one set: each run's ECP makes its VSP clients
+// again under the same endpoint name, and the VSPs answer them (they once dropped the second
+// run's requests as stale: "VSP 'wrist_force' did not answer CONFIGURE").
+TEST_F(Operator, ASensorTaskRunsTwiceInOneSet) {
+  std::ifstream in(std::string(MRROC_SOURCE_DIR) + "/configs/sensing-touch.toml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string config = text.str();
+  const std::string dir = MRROC_SOURCE_DIR;
+  for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+           {"scene = \"scenes/", "scene = \"" + dir + "/configs/scenes/"},
+           {"model = \"../robots/", "model = \"" + dir + "/robots/"},
+           {"task = \"start_and_wait\"", "task = \"start_and_wait\"\nstart = \"operator\""}}) {
+    const auto at = config.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    config.replace(at, from.size(), to);
+  }
+  const fs::path file = fs::temp_directory_path() / ("mrroc-operator-" + std::to_string(getpid())) /
+                        "sensing-twice.toml";
+  fs::create_directories(file.parent_path());
+  std::ofstream(file) << config;
+  BackgroundLaunch launch(file.string());
+  Reply r = wait_for_mp(std::chrono::seconds(60));
+  ASSERT_EQ(r.state, +Reply::IDLE) << r.text;
+  for (int run = 1; run <= 2; ++run) {
+    r = send(Command::START);
+    ASSERT_TRUE(r.accepted) << "run " << run << ": " << r.text;
+    EXPECT_EQ(r.runs, run);
+    r = wait_for_state(Reply::FINISHED, std::chrono::seconds(60));
+    ASSERT_EQ(r.state, +Reply::FINISHED) << "run " << run << ": " << r.text;
+  }
+  r = send(Command::TERMINATE);
+  EXPECT_TRUE(r.accepted) << r.text;
+  const LaunchRun run = launch.wait();
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  // Each run touched the table (the ECP's own line; the SRP repeats it).
+  const std::string touched = "ecp/irb6: info: touched: first contact";
+  std::size_t touches = 0;
+  for (auto at = run.output.find(touched); at != std::string::npos;
+       at = run.output.find(touched, at + 1))
+    ++touches;
+  EXPECT_EQ(touches, 2U) << run.output;
+  EXPECT_FALSE(has(run.output, "did not answer")) << run.output;
   expect_nothing_left();
 }
 

@@ -62,15 +62,35 @@ TEST(RequestReply, EchoesWithMatchingSequence) {
   EchoServer echo(bus);
   comm::Client<Req, Rep> client(bus, "client", "echo server", "t/cmd", "t/reply");
   bus.start();
+  std::int64_t last_seq = 0;
   for (int i = 1; i <= 50; ++i) {
     const Rep rep = client.call(request(i));
     EXPECT_EQ(rep.error_code, i);
-    EXPECT_EQ(rep.header.seq, i);
+    EXPECT_GT(rep.header.seq, last_seq) << "sequences grow";
+    last_seq = rep.header.seq;
     EXPECT_EQ(rep.header.recipient, "client");
     EXPECT_EQ(rep.header.kind, std::int8_t{mrroc_lcm::header_t::REPLY});
   }
   EXPECT_EQ(echo.executions, 50);
   EXPECT_EQ(client.stats().resends, 0U);
+}
+
+TEST(RequestReply, AClientMadeAgainUnderTheSameNameIsAnswered) {
+  // A task's second run in the same process makes its clients again under the same endpoint
+  // name; the server, which remembers the first client's last sequence, must answer them.
+  comm::Bus bus(test_url());
+  EchoServer echo(bus);
+  bus.start();
+  for (int run = 1; run <= 3; ++run) {
+    comm::ClientOptions options;
+    options.attempt_timeout = 100ms;
+    options.max_attempts = 3;
+    comm::Client<Req, Rep> client(bus, "ecp/irb6#42", "echo server", "t/cmd", "t/reply", options);
+    for (int i = 1; i <= 3; ++i)
+      EXPECT_EQ(client.call(request(run * 10 + i)).error_code, run * 10 + i) << "run " << run;
+  }
+  EXPECT_EQ(echo.executions, 9);
+  EXPECT_EQ(echo.server->stats().stale, 0U);
 }
 
 TEST(RequestReply, SurvivesDropAndDuplicateWithoutExecutingTwice) {

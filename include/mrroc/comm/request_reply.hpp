@@ -78,6 +78,12 @@ void publish(Bus& bus, const std::string& channel, Msg msg) {
 }
 
 namespace detail {
+/// The next request sequence number of this process, shared by all its clients. A server keeps
+/// the last sequence of each client name and drops lower ones as stale; a client made again
+/// under the same name (unique_endpoint_name: a task's second run in the same ECP or MP)
+/// continues above the numbers its predecessor used instead of starting at 1 again.
+std::int64_t next_request_seq();
+
 /// Signs (when the bus has a key) and publishes `msg`, with the link faults of `dice`.
 template <class Msg>
 void publish_with_faults(Bus& bus, FaultDice& dice, const std::string& channel, Msg msg) {
@@ -152,7 +158,7 @@ class Client {
       throw Error("request/reply call on '" + request_channel_ + "' from the bus thread");
     std::lock_guard call_lock(call_mutex_);
     std::unique_lock lock(mutex_);
-    const std::int64_t seq = ++last_seq_;
+    const std::int64_t seq = detail::next_request_seq();
     waiting_seq_ = seq;
     reply_.reset();
     in_progress_ = false;
@@ -256,7 +262,6 @@ class Client {
   std::mutex call_mutex_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
-  std::int64_t last_seq_ = 0;
   std::int64_t waiting_seq_ = -1;
   std::optional<Rep> reply_;
   bool in_progress_ = false;

@@ -98,9 +98,19 @@ void Shell::on_sample(const std::string& channel, const RawSample& sample) {
   if (it == source_of_channel_.end()) return;
   std::unique_lock lock(mutex_);
   const std::size_t source = it->second;
+  try {
+    plugin_->on_sample(source, sample);
+  } catch (const std::exception& e) {
+    // A sample the plugin cannot take (e.g. another number of values than its device has) is
+    // malformed for this VSP: counted, reported, and the source is not fresher for it.
+    const std::string why =
+        fmt::format("plugin '{}' refused it: {}", plugin_->plugin_name(), e.what());
+    lock.unlock();
+    on_malformed(channel, why);
+    return;
+  }
   last_rx_[source] = std::chrono::steady_clock::now();
   last_sample_utime_[source] = sample.sample_utime;
-  plugin_->on_sample(source, sample);
 }
 
 void Shell::make_reading(const Params& context) {

@@ -42,7 +42,7 @@ class Shell {
   /// Answers requests until `keep_going()` returns false.
   void serve(const std::function<bool()>& keep_going);
 
-  /// Raw samples that did not decode (counted and dropped).
+  /// Raw samples that did not decode or that the plugin refused (counted and dropped).
   [[nodiscard]] std::uint64_t malformed() const;
 
  private:

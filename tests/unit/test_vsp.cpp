@@ -345,12 +345,27 @@ TEST(Vsp, MalformedRawSamplesAreCountedAndDropped) {
   bad.names = {"d"};
   bad.units = {"m"};
   bus.lcm().publish(channels::raw_sensor("sonar"), &bad);
+  // A well-formed sample of three values, which the range plugin (one value per source) refuses
+  // by throwing: counted as malformed, the VSP goes on.
+  mrroc_lcm::raw_sensor_t three{};
+  three.device = "sonar";
+  three.valid = 1;
+  three.n = 3;
+  three.values = {1.0, 2.0, 3.0};
+  three.names = {"a", "b", "c"};
+  three.units = {"m", "m", "m"};
+  bus.lcm().publish(channels::raw_sensor("sonar"), &three);
   std::this_thread::sleep_for(50ms);
-  EXPECT_EQ(vsp.shell.malformed(), 2U);
+  EXPECT_EQ(vsp.shell.malformed(), 3U);
   // Nothing reached the plugin: still no sample.
   ecp::VirtualSensor sensor(bus, "range", "test");
   refresh(sensor);
   EXPECT_NE(sensor.image().invalid_reason.find("no sample from source 'sonar' yet"),
             std::string::npos)
       << sensor.image().invalid_reason;
+  // A good sample afterwards is read: the VSP kept running.
+  Publisher sonar(bus, "sonar", {1.25});
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
 }

@@ -20,6 +20,7 @@
 #include "virtual_bus.hpp"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <linux/can/error.h>
 #include <linux/can/raw.h>
 #include <linux/futex.h>
@@ -192,11 +193,20 @@ std::shared_ptr<Mapping> map_bus(std::string_view url, std::string_view name) {
   const std::string object = virtual_bus_object(name);
   const std::string path = "/dev/shm" + object;
   const std::string where = std::string(url) + ": " + path;
-  FileDescriptor fd(shm_open(object.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666));
+  // Only this user's processes share a bus: a frame on it can move a robot.
+  FileDescriptor fd(shm_open(object.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600));
   if (fd.get() < 0)
     throw HardwareError(where + ": cannot open the shared-memory object: " + errno_text(errno));
   struct stat st {};
   if (fstat(fd.get(), &st) != 0) throw HardwareError(where + ": fstat: " + errno_text(errno));
+  if (st.st_uid != geteuid())
+    throw HardwareError(
+        fmt::format("{}: the shared-memory object belongs to user {}, not to this "
+                    "process' user {}: refusing a bus others can write to",
+                    where, st.st_uid, geteuid()));
+  if ((st.st_mode & 0077) != 0 && fchmod(fd.get(), 0600) != 0)
+    throw HardwareError(
+        where + ": cannot make the shared-memory object private (mode 0600): " + errno_text(errno));
 
   std::lock_guard lock(registry_mutex);
   if (auto it = registry.find(object); it != registry.end()) {

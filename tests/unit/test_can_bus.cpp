@@ -10,6 +10,7 @@
 #include <net/if.h>
 #include <sys/mman.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -151,6 +152,25 @@ TEST(OpenBus, NamespaceVariableSeparatesBusesOfTheSameName) {
   can::Received r;
   EXPECT_FALSE(outside->receive(r, 0ns)) << "a frame crossed into another namespace";
   shm_unlink(("/mrroc-can-run-a." + bus.name()).c_str());
+}
+
+TEST(OpenBus, TheSharedMemoryIsPrivateToItsUser) {
+  TestBus bus("private");
+  const std::string object = can::detail::virtual_bus_object(bus.name());
+  // An object left writable by everyone (as an older version made it) is made private.
+  const int fd = shm_open(object.c_str(), O_RDWR | O_CREAT, 0600);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(fchmod(fd, 0666), 0);
+  close(fd);
+  const auto opened = bus.open();
+  struct stat st {};
+  ASSERT_EQ(stat(("/dev/shm" + object).c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600U);
+  // A new one is private from the start.
+  TestBus fresh("private-new");
+  const auto fresh_opened = fresh.open();
+  ASSERT_EQ(stat(("/dev/shm" + can::detail::virtual_bus_object(fresh.name())).c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600U);
 }
 
 // ---- The virtual bus in one process ----

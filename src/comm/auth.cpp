@@ -12,11 +12,13 @@
 #include <sstream>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
 
 namespace mrroc::comm {
 
 std::vector<std::uint8_t> load_auth_key(const std::filesystem::path& file) {
+  require_private_file(file, "authentication key file");
   std::ifstream in(file);
   if (!in) throw Error(fmt::format("authentication key file '{}' cannot be read", file.string()));
   std::stringstream text;

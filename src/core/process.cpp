@@ -2,8 +2,10 @@
 
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
 
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstring>
 
@@ -59,6 +61,19 @@ std::string apply_priority(int priority) {
 std::string lock_memory() {
   if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return "memory locked (mlockall)";
   return fmt::format("memory not locked (mlockall: {})", std::strerror(errno));
+}
+
+void require_private_file(const std::filesystem::path& file, const std::string& what) {
+  struct stat st {};
+  if (::stat(file.c_str(), &st) != 0)
+    throw Error(
+        fmt::format("{} '{}' cannot be read: {}", what, file.string(), std::strerror(errno)));
+  const unsigned mode = static_cast<unsigned>(st.st_mode) & 0777U;
+  if ((mode & 0077U) != 0)
+    throw Error(
+        fmt::format("{} '{}' has mode {:04o}: other users may read it; a secret must be "
+                    "readable by its owner only (chmod 600 '{}')",
+                    what, file.string(), mode, file.string()));
 }
 
 }  // namespace mrroc

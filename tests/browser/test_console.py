@@ -213,6 +213,7 @@ def check_token(args, config):
     token_file = os.path.join(args.artifacts, "ui.token")
     with open(token_file, "w") as f:
         f.write(token + "\n")
+    os.chmod(token_file, 0o600)  # a secret: the console refuses one others can read
     text = open(config).read().replace("[ui]\n", f'[ui]\ntoken_file = "{token_file}"\n', 1)
     token_config = os.path.join(args.artifacts, "console-demo-token.toml")
     with open(token_config, "w") as f:

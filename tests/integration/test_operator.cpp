@@ -375,6 +375,7 @@ TEST(Authentication, AForeignPublisherCannotMoveARobot) {
   const fs::path key =
       fs::temp_directory_path() / ("mrroc-operator-key-" + std::to_string(getpid()));
   std::ofstream(key) << "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n";
+  fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write);
   const std::string config =
       write_config("auth", "start = \"operator\"", "plugin = \"mujoco\"",
                    "[[0.3, -1.4, 0.1, 0.2, 0.3], [0.0, -1.5708, 0.0, 0.0, 0.0]]",

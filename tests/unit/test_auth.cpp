@@ -36,6 +36,7 @@ std::vector<std::uint8_t> key(std::uint8_t fill) { return std::vector<std::uint8
 fs::path write_file(const std::string& name, const std::string& text) {
   const fs::path p = fs::temp_directory_path() / ("mrroc-auth-" + std::to_string(getpid()) + name);
   std::ofstream(p) << text;
+  fs::permissions(p, fs::perms::owner_read | fs::perms::owner_write);  // a secret: 0600
   return p;
 }
 
@@ -82,6 +83,18 @@ TEST(AuthKey, FileErrorsNameTheFileAndTheProblem) {
   const fs::path bad = write_file("bad", std::string(63, 'a') + "x");
   EXPECT_THROW((void)comm::load_auth_key(bad), Error);
   EXPECT_THROW((void)comm::load_auth_key("/nonexistent/key"), Error);
+  // A key others can read is refused, naming the mode and the fix.
+  fs::permissions(good, fs::perms::group_read | fs::perms::others_read, fs::perm_options::add);
+  try {
+    (void)comm::load_auth_key(good);
+    FAIL() << "a key readable by others was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("authentication key file '" + good.string() +
+                                         "' has mode 0644: other users may read it"),
+              std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("chmod 600"), std::string::npos) << e.what();
+  }
   fs::remove(good);
   fs::remove(short_key);
   fs::remove(bad);

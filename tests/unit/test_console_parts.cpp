@@ -865,6 +865,8 @@ TEST(ReadTokenFile, NamesTheFileAndTheLength) {
     std::ofstream out(file);
     out << "  short  \n";
   }
+  std::filesystem::permissions(
+      file, std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
   try {
     (void)read_token_file(file);
     FAIL() << "a token of 5 characters was accepted";
@@ -879,4 +881,15 @@ TEST(ReadTokenFile, NamesTheFileAndTheLength) {
   }
   EXPECT_EQ(read_token_file(file), "0123456789abcdef");
   EXPECT_THROW((void)read_token_file(dir.path() / "missing"), Error);
+  // A token others can read is refused.
+  std::filesystem::permissions(file, std::filesystem::perms::others_read,
+                               std::filesystem::perm_options::add);
+  try {
+    (void)read_token_file(file);
+    FAIL() << "a token file readable by others was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("has mode 0604: other users may read it"),
+              std::string::npos)
+        << e.what();
+  }
 }

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
 
 // Last: <resolv.h>, which it includes, defines `_res`, a name Eigen's headers use.
@@ -62,6 +63,7 @@ std::int64_t integer_param(const httplib::Request& req, const char* name, std::i
 }  // namespace
 
 std::string read_token_file(const std::filesystem::path& file) {
+  require_private_file(file, "UI token file");
   std::ifstream in(file);
   if (!in) throw Error(fmt::format("cannot read the UI token file '{}'", file.string()));
   std::string line;

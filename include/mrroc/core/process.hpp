@@ -3,6 +3,7 @@
 /// Small helpers every process binary uses: stop signals, CPU affinity, real-time priority,
 /// memory locking.
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -25,5 +26,10 @@ std::string apply_priority(int priority);
 
 /// Tries `mlockall(MCL_CURRENT | MCL_FUTURE)`; returns what happened, for the log.
 std::string lock_memory();
+
+/// Refuses a secret (`what`, e.g. "authentication key file") that other users may read or write:
+/// any group or other permission bit, as ssh does for private keys.
+/// @throws Error naming the file, its mode and the command that fixes it.
+void require_private_file(const std::filesystem::path& file, const std::string& what);
 
 }  // namespace mrroc

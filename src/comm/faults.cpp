@@ -2,11 +2,14 @@
 
 #include <fmt/format.h>
 
+#include <atomic>
+#include <cstdio>
 #include <cstdlib>
 #include <sstream>
 #include <string>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc_build_options.hpp"
 
 namespace mrroc::comm {
 
@@ -14,6 +17,15 @@ LinkFaults link_faults_from_environment() {
   LinkFaults faults;
   const char* text = std::getenv("MRROC_LINK_FAULTS");
   if (text == nullptr || *text == '\0') return faults;
+  if constexpr (!kLinkFaultInjection) {
+    static std::atomic<bool> told{false};
+    if (!told.exchange(true))
+      std::fprintf(stderr,
+                   "MRROC_LINK_FAULTS is ignored: this build has no link fault injection (a "
+                   "testing aid: cmake -DMRROC_LINK_FAULT_INJECTION=ON, the default with the "
+                   "tests)\n");
+    return faults;
+  }
   std::stringstream all(text);
   std::string item;
   while (std::getline(all, item, ',')) {

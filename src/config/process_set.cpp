@@ -341,7 +341,7 @@ class Reader {
     }
     if (!node->is_table()) fail(*node, "'ui' must be a table");
     const toml::table& t = *node->as_table();
-    only_keys(t, "ui", with_options({"web", "bind", "port", "token_file", "teach_dir"}));
+    only_keys(t, "ui", with_options({"web", "bind", "port", "token_file", "teach_dir", "hosts"}));
     c.where = where(t);
     c.options = options(t, "ui");
     set_boolean(t, "web", c.web);
@@ -355,6 +355,21 @@ class Reader {
                                        "needs 'token_file' (a file holding the access token)",
                                        c.bind));
     set_path(t, "teach_dir", "ui", c.teach_dir);
+    if (const toml::node* hosts = t.get("hosts")) {
+      const toml::array* arr = hosts->as_array();
+      if (arr == nullptr || !arr->is_homogeneous(toml::node_type::string))
+        fail(*hosts, "'hosts' must be a list of host names or addresses (e.g. [\"cell-pc\"])");
+      for (const auto& h : *arr) {
+        const std::string name = **h.as_string();
+        in6_addr v6{};
+        const bool ipv6 = inet_pton(AF_INET6, name.c_str(), &v6) == 1;
+        if (name.empty() || (!ipv6 && name.find_first_of(" :/[]@") != std::string::npos))
+          fail(h, fmt::format("host '{}' must be a name or an address, without port, scheme or "
+                              "path (an IPv6 address without brackets)",
+                              name));
+        c.hosts.push_back(name);
+      }
+    }
     return c;
   }
 

@@ -4,7 +4,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "mrroc_version.hpp"
+#include "mrroc_build_options.hpp"
 
 namespace mrroc {
 

@@ -369,3 +369,17 @@ TEST_F(ConfigTest, AConsoleBoundBeyondLoopbackNeedsATokenFile) {
         << e.what();
   }
 }
+
+TEST_F(ConfigTest, ConsoleHostsAreNamesOrAddressesWithoutPorts) {
+  const ProcessSetConfig c = load_process_set(
+      write(valid() + "\n[ui]\nhosts = [\"cell-pc\", \"10.0.0.5\", \"fe80::1\"]\n"));
+  EXPECT_EQ(c.ui.hosts, (std::vector<std::string>{"cell-pc", "10.0.0.5", "fe80::1"}));
+  try {
+    load_process_set(write(valid() + "\n[ui]\nhosts = [\"cell-pc:8080\"]\n"));
+    FAIL() << "a host with a port was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("host 'cell-pc:8080' must be a name or an address"),
+              std::string::npos)
+        << e.what();
+  }
+}

@@ -893,3 +893,54 @@ TEST(ReadTokenFile, NamesTheFileAndTheLength) {
         << e.what();
   }
 }
+
+TEST(HttpApiHosts, HostAndOriginParse) {
+  EXPECT_EQ(HttpApi::host_of("127.0.0.1:8080", false), "127.0.0.1");
+  EXPECT_EQ(HttpApi::host_of("Cell-PC", false), "cell-pc");
+  EXPECT_EQ(HttpApi::host_of("[::1]:8080", false), "::1");
+  EXPECT_EQ(HttpApi::host_of("[::1", false), "");
+  EXPECT_EQ(HttpApi::host_of("::1", false), "");
+  EXPECT_EQ(HttpApi::host_of("http://localhost:8080", true), "localhost");
+  EXPECT_EQ(HttpApi::host_of("https://[::1]", true), "::1");
+  EXPECT_EQ(HttpApi::host_of("null", true), "");
+  EXPECT_EQ(HttpApi::host_of("file://x", true), "");
+  EXPECT_EQ(HttpApi::host_of("http://evil.example/path", true), "");
+}
+
+TEST_F(ApiTest, ForeignHostsAndOriginsAreRefusedAndNothingMayFrameTheConsole) {
+  start();
+  // The console's own names work, and every answer forbids framing and type guessing.
+  auto own = client_->Get("/api/state", {{"Origin", "http://127.0.0.1:" + std::to_string(port_)}});
+  ASSERT_TRUE(own);
+  EXPECT_EQ(own->status, 200);
+  EXPECT_EQ(own->get_header_value("X-Frame-Options"), "DENY");
+  EXPECT_EQ(own->get_header_value("Content-Security-Policy"), "frame-ancestors 'none'");
+  EXPECT_EQ(own->get_header_value("X-Content-Type-Options"), "nosniff");
+  EXPECT_EQ(client_->Get("/api/state", {{"Host", "localhost:8080"}})->status, 200);
+  // DNS rebinding: a name of another site that resolves to this host.
+  auto [status, body] = get("/api/state", {{"Host", "evil.example:8080"}});
+  EXPECT_EQ(status, 403);
+  EXPECT_EQ(body["error"],
+            "Host 'evil.example:8080' is not a name of this console (localhost, 127.0.0.1, ::1; "
+            "more in [ui] hosts)");
+  EXPECT_EQ(get("/", {{"Host", "evil.example"}}).first, 403) << "the page too";
+  // A page of another site: refused even for a POST with the console's header, and nothing ran.
+  auto res =
+      client_->Post("/api/estop", {{"X-Mrroc-Request", "1"}, {"Origin", "http://evil.example"}},
+                    R"({"robot": "irb6"})", "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 403);
+  EXPECT_NE(res->body.find("requests from pages of 'http://evil.example' are refused"),
+            std::string::npos)
+      << res->body;
+  EXPECT_TRUE(actions_.stops.empty());
+}
+
+TEST_F(ApiTest, ABodyAbove64KiBIsRefused) {
+  start();
+  const std::string big(HttpApi::kMaxBodyBytes + 1, ' ');
+  auto res = client_->Post("/api/estop", {{"X-Mrroc-Request", "1"}}, big, "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 413);
+  EXPECT_TRUE(actions_.stops.empty());
+}

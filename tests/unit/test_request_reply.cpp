@@ -9,7 +9,9 @@
 #include <string>
 #include <thread>
 
+#include "mrroc/comm/faults.hpp"
 #include "mrroc/comm/request_reply.hpp"
+#include "mrroc_build_options.hpp"
 #include "mrroc_lcm/ecp_mp_reply_t.hpp"
 #include "mrroc_lcm/mp_ecp_command_t.hpp"
 
@@ -242,4 +244,25 @@ TEST(RequestReply, RequestsOlderThanTheDeadlineAreDroppedNotExecuted) {
   EXPECT_EQ(echo.executions, 1);
   EXPECT_EQ(replies, 1);
   bus.unsubscribe(sub);
+}
+
+TEST(LinkFaults, TheEnvironmentVariableCountsOnlyInBuildsWithFaultInjection) {
+  ASSERT_EQ(setenv("MRROC_LINK_FAULTS", "drop=0.25,duplicate=0.125,seed=3", 1), 0);
+  const comm::LinkFaults faults = comm::link_faults_from_environment();
+  if (kLinkFaultInjection) {
+    EXPECT_DOUBLE_EQ(faults.drop, 0.25);
+    EXPECT_DOUBLE_EQ(faults.duplicate, 0.125);
+    EXPECT_EQ(faults.seed, 3U);
+    ASSERT_EQ(setenv("MRROC_LINK_FAULTS", "drop=2", 1), 0);
+    try {
+      (void)comm::link_faults_from_environment();
+      ADD_FAILURE() << "a probability of 2 was accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "MRROC_LINK_FAULTS: drop = 2 is outside 0..1 (a probability)");
+    }
+  } else {
+    EXPECT_FALSE(faults.active()) << "a build without fault injection honoured MRROC_LINK_FAULTS";
+  }
+  ASSERT_EQ(unsetenv("MRROC_LINK_FAULTS"), 0);
 }

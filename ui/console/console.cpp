@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <atomic>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -79,6 +80,11 @@ struct Console::Impl : ConsoleActions {
     settings.teach_dir = teach_in->dir();
     settings.jog_max_step_rad = options.jog.max_step_rad;
     settings.token = options.token;
+    // Browsers name the console by its bind address, a loopback name, or a configured name.
+    if (options.bind != "0.0.0.0" && options.bind != "::") settings.hosts.push_back(options.bind);
+    for (const std::string& h : config.ui.hosts) settings.hosts.push_back(h);
+    for (std::string& h : settings.hosts)
+      for (char& ch : h) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     api = std::make_unique<HttpApi>(state, settings, *this);
     api->install(server);
   }

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cctype>
 #include <exception>
 #include <fstream>
 
@@ -286,10 +288,67 @@ json HttpApi::srp_json(std::int64_t after, std::int64_t min_severity, std::int64
               {"messages", messages}};
 }
 
+std::string HttpApi::host_of(std::string_view value, bool origin) {
+  if (origin) {
+    const auto scheme = value.find("://");
+    if (scheme == std::string_view::npos) return "";
+    const std::string_view s = value.substr(0, scheme);
+    if (s != "http" && s != "https") return "";
+    value.remove_prefix(scheme + 3);
+    if (value.find('/') != std::string_view::npos) return "";
+  }
+  std::string_view host = value;
+  if (!host.empty() && host.front() == '[') {  // [v6 address]:port
+    const auto close = host.find(']');
+    if (close == std::string_view::npos) return "";
+    const std::string_view rest = host.substr(close + 1);
+    if (!rest.empty() && rest.front() != ':') return "";
+    host = host.substr(1, close - 1);
+  } else if (const auto colon = host.find(':'); colon != std::string_view::npos) {
+    if (host.find(':', colon + 1) != std::string_view::npos) return "";  // bare v6: not a Host
+    host = host.substr(0, colon);
+  }
+  std::string out(host);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+std::optional<std::string> HttpApi::refuse_host(const std::string& host,
+                                                const std::string& origin) const {
+  const auto allowed = [this](const std::string& name) {
+    return !name.empty() &&
+           std::find(settings_.hosts.begin(), settings_.hosts.end(), name) != settings_.hosts.end();
+  };
+  std::string names;
+  for (const std::string& h : settings_.hosts) names += (names.empty() ? "" : ", ") + h;
+  if (!allowed(host_of(host, false)))
+    return fmt::format("Host '{}' is not a name of this console ({}; more in [ui] hosts)", host,
+                       names);
+  if (!origin.empty() && !allowed(host_of(origin, true)))
+    return fmt::format("requests from pages of '{}' are refused (this console's names: {})", origin,
+                       names);
+  return std::nullopt;
+}
+
 void HttpApi::install(httplib::Server& server) {
   // A browser keeps several connections open; give them and API clients enough threads.
   server.new_task_queue = [] { return new httplib::ThreadPool(16); };
+  server.set_payload_max_length(kMaxBodyBytes);
+  server.set_read_timeout(kIoTimeoutS, 0);
+  server.set_write_timeout(kIoTimeoutS, 0);
+  server.set_keep_alive_timeout(kIoTimeoutS);
+  // No other site may frame the console (clickjacking) or make a browser guess content types.
+  server.set_default_headers({{"X-Frame-Options", "DENY"},
+                              {"Content-Security-Policy", "frame-ancestors 'none'"},
+                              {"X-Content-Type-Options", "nosniff"},
+                              {"Referrer-Policy", "no-referrer"}});
   server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    // DNS rebinding (a name of another site resolving to this host) and pages of other sites.
+    if (const auto why =
+            refuse_host(req.get_header_value("Host"), req.get_header_value("Origin"))) {
+      reply_json(res, json{{"error", *why}}, 403);
+      return httplib::Server::HandlerResponse::Handled;
+    }
     if (req.path.rfind("/api/", 0) != 0) return httplib::Server::HandlerResponse::Unhandled;
     if (!settings_.token.empty() &&
         !token_ok(req.get_header_value("Authorization"),

@@ -8,8 +8,10 @@
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "console/jog.hpp"
 #include "console/state.hpp"
@@ -36,6 +38,9 @@ struct ApiSettings {
   bool operator_start = false;  ///< the MP waits for the operator's START
   std::filesystem::path teach_dir;
   double jog_max_step_rad = JogOptions{}.max_step_rad;  ///< [rad]
+  /// The names and addresses a request's Host (and a browser's Origin) may carry, without the
+  /// port: others are refused (DNS rebinding; a page of another site). Compared in lower case.
+  std::vector<std::string> hosts{"localhost", "127.0.0.1", "::1"};
   /// Every /api request must carry it (header `Authorization: Bearer TOKEN` or `?token=`);
   /// empty: none.
   std::string token;
@@ -81,9 +86,23 @@ class HttpApi {
  public:
   HttpApi(const ConsoleState& state, ApiSettings settings, ConsoleActions& actions);
 
-  /// Installs the routes, the token and cross-site checks and the error answers on `server`,
+  /// Installs the routes, the Host/Origin, token and cross-site checks, the anti-framing
+  /// headers, the request limits (kMaxBodyBytes, kIoTimeoutS) and the error answers on `server`,
   /// with a pool of 16 threads (a browser keeps several connections open).
   void install(httplib::Server& server);
+
+  /// Largest request body accepted (larger ones: 413 without reading them) [bytes].
+  static constexpr std::size_t kMaxBodyBytes = 64 * 1024;
+  /// A connection that sends or takes nothing for this long is closed [s].
+  static constexpr int kIoTimeoutS = 5;
+
+  /// The host of a Host header or an Origin ("http://name:8080" with `origin`), lower case and
+  /// without the port; "" when it does not parse.
+  [[nodiscard]] static std::string host_of(std::string_view value, bool origin);
+  /// Whether a request with these Host and Origin headers ("" when absent) may be served; else
+  /// the reason.
+  [[nodiscard]] std::optional<std::string> refuse_host(const std::string& host,
+                                                       const std::string& origin) const;
 
   /// GET /api/state.
   [[nodiscard]] nlohmann::json state_json() const;

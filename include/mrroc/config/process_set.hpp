@@ -82,6 +82,9 @@ struct UiConfig {
   int port = 8080;
   std::filesystem::path token_file;  ///< required unless bound to a loopback address
   std::filesystem::path teach_dir;   ///< where teach-in trajectory files go (default: ./)
+  /// Names (or addresses) by which browsers reach the console, besides its bind address and the
+  /// loopback names; a request naming another host is refused.
+  std::vector<std::string> hosts;
   ProcessOptions options;
   SourceLocation where;
 };

@@ -8,8 +8,6 @@
 
 namespace mrroc {
 
-const char* version() { return kVersion; }
-
 namespace {
 
 CLI::Option* opt(void* p) { return static_cast<CLI::Option*>(p); }
@@ -101,8 +99,6 @@ CommandLineOption CommandLine::flag(const std::string& names, bool& value,
                                     const std::string& help) {
   return CommandLineOption(app_of(app_)->add_flag(names, value, help));
 }
-
-void CommandLine::footer(const std::string& text) { app_of(app_)->footer(text); }
 
 CommandLine& CommandLine::subcommand(const std::string& name, const std::string& description) {
   CLI::App* sub = app_of(app_)->add_subcommand(name, description);

@@ -20,9 +20,6 @@ namespace mrroc {
 /// Exit code of a program given a bad command line.
 inline constexpr int kUsageError = 2;
 
-/// mrroc's version ("0.1.0"), as `--version` prints it.
-const char* version();
-
 class CommandLine;
 
 /// An option just added; its methods add rules and return it for chaining.
@@ -63,8 +60,6 @@ class CommandLine {
                            const std::string& help);
   /// A flag: true when given.
   CommandLineOption flag(const std::string& names, bool& value, const std::string& help);
-  /// Text shown after the options in `--help`.
-  void footer(const std::string& text);
 
   /// A subcommand (`mrroc-ui estop ...`); its options are added to the CommandLine returned,
   /// which lives as long as this one.

@@ -13,16 +13,15 @@ namespace {
 CLI::Option* opt(void* p) { return static_cast<CLI::Option*>(p); }
 CLI::App* app_of(void* p) { return static_cast<CLI::App*>(p); }
 
-/// A check that `in` is a number within [min, max]; the error names the value and the limits as
-/// written (CLI::Range prints them with six decimals).
-CLI::Validator numeric(double min, double max, std::string description) {
+/// A check that `in` is a number `rule` accepts (it returns "" or what is wrong, naming the value
+/// and the limit as written: CLI::Range prints them with six decimals).
+template <class Rule>
+CLI::Validator numeric(Rule rule, std::string description) {
   return CLI::Validator(
-      [min, max](std::string& in) -> std::string {
+      [rule](std::string& in) -> std::string {
         double v = 0.0;
         if (!CLI::detail::lexical_cast(in, v)) return fmt::format("'{}' is not a number", in);
-        if (v < min) return fmt::format("{} is below {}", in, min);
-        if (v > max) return fmt::format("{} is above {}", in, max);
-        return {};
+        return rule(v, in);
       },
       std::move(description));
 }
@@ -40,15 +39,19 @@ CommandLineOption& CommandLineOption::required() {
 }
 
 CommandLineOption& CommandLineOption::range(double min, double max) {
-  opt(option_)->check(numeric(min, max, fmt::format("in {}..{}", min, max)));
+  opt(option_)->check(numeric(
+      [min, max](double v, const std::string& in) -> std::string {
+        if (v < min) return fmt::format("{} is below {}", in, min);
+        if (v > max) return fmt::format("{} is above {}", in, max);
+        return {};
+      },
+      fmt::format("in {}..{}", min, max)));
   return *this;
 }
 
 CommandLineOption& CommandLineOption::positive() {
-  opt(option_)->check(CLI::Validator(
-      [](std::string& in) -> std::string {
-        double v = 0.0;
-        if (!CLI::detail::lexical_cast(in, v)) return fmt::format("'{}' is not a number", in);
+  opt(option_)->check(numeric(
+      [](double v, const std::string& in) {
         return v > 0.0 ? std::string() : fmt::format("{} is not above 0", in);
       },
       "above 0"));

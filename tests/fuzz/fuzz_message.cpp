@@ -280,9 +280,11 @@ std::string canonical(const mrroc::launch::LaunchCommand& v, bool wire) {
 
 // ---- What a decoded value holds: named enumerators, consistent vectors. ----
 
-void expect_named(mrroc::edp::ArmRepresentation r, const char* field) {
-  fuzz::expect(std::strcmp(mrroc::edp::to_string(r), "?") != 0,
-               fmt::format("decoded {} holds the unnamed value {}", field, code(r)));
+/// An enumeration of any message: its to_string (found by argument-dependent lookup) names it.
+template <class Enum>
+void expect_named(Enum e, const char* field) {
+  fuzz::expect(std::strcmp(to_string(e), "?") != 0,
+               fmt::format("decoded {} holds the unnamed value {}", field, code(e)));
 }
 void check_decoded(const mrroc::edp::Instruction& v) {
   fuzz::expect(std::strcmp(mrroc::edp::to_string(v.type), "?") != 0,
@@ -349,22 +351,17 @@ void check_decoded(const mrroc::vsp::RawSample& v) {
   check_sensor_values(v.values, v.names, v.units, v.valid, "raw sample");
 }
 
-template <class Enum>
-void expect_named_enum(Enum e, const char* field) {
-  fuzz::expect(std::strcmp(mrroc::to_string(e), "?") != 0,
-               fmt::format("decoded {} holds the unnamed value {}", field, code(e)));
-}
-void check_decoded(const mrroc::EmergencyStop& v) { expect_named_enum(v.action, "action"); }
+void check_decoded(const mrroc::EmergencyStop& v) { expect_named(v.action, "action"); }
 void check_decoded(const mrroc::RobotState& v) {
   fuzz::expect(v.dq.size() == v.q.size() && v.q_desired.size() == v.q.size() &&
                    v.q.size() <= static_cast<std::size_t>(mrroc::comm::kMaxVector),
                fmt::format("decoded robot state has {} q, {} dq, {} q_desired", v.q.size(),
                            v.dq.size(), v.q_desired.size()));
 }
-void check_decoded(const mrroc::SrpMessage& v) { expect_named_enum(v.severity, "severity"); }
-void check_decoded(const mrroc::ProcessStatus& v) { expect_named_enum(v.state, "state"); }
+void check_decoded(const mrroc::SrpMessage& v) { expect_named(v.severity, "severity"); }
+void check_decoded(const mrroc::ProcessStatus& v) { expect_named(v.state, "state"); }
 void check_decoded(const mrroc::SrpHistoryRequest& v) {
-  expect_named_enum(v.min_severity, "min_severity");
+  expect_named(v.min_severity, "min_severity");
 }
 void check_decoded(const mrroc::SrpHistoryReply& v) {
   fuzz::expect(v.entries.size() <= static_cast<std::size_t>(mrroc::comm::kMaxHistoryEntries),

@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <atomic>
-#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -83,8 +82,6 @@ struct Console::Impl : ConsoleActions {
     // Browsers name the console by its bind address, a loopback name, or a configured name.
     if (options.bind != "0.0.0.0" && options.bind != "::") settings.hosts.push_back(options.bind);
     for (const std::string& h : config.ui.hosts) settings.hosts.push_back(h);
-    for (std::string& h : settings.hosts)
-      for (char& ch : h) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     api = std::make_unique<HttpApi>(state, settings, *this);
     api->install(server);
   }

@@ -62,6 +62,12 @@ std::int64_t integer_param(const httplib::Request& req, const char* name, std::i
   throw ApiError(400, fmt::format("query parameter '{}' is '{}', expected an integer", name, text));
 }
 
+/// Host names compare without case.
+std::string lower(std::string text) {
+  for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
+}
+
 }  // namespace
 
 std::string read_token_file(const std::filesystem::path& file) {
@@ -174,7 +180,9 @@ json estop_json(const EstopResult& r) {
 }
 
 HttpApi::HttpApi(const ConsoleState& state, ApiSettings settings, ConsoleActions& actions)
-    : state_(state), settings_(std::move(settings)), actions_(actions) {}
+    : state_(state), settings_(std::move(settings)), actions_(actions) {
+  for (std::string& h : settings_.hosts) h = lower(std::move(h));
+}
 
 bool HttpApi::token_ok(const std::string& authorization, const std::string& token_param) const {
   std::string given = authorization;
@@ -308,9 +316,7 @@ std::string HttpApi::host_of(std::string_view value, bool origin) {
     if (host.find(':', colon + 1) != std::string_view::npos) return "";  // bare v6: not a Host
     host = host.substr(0, colon);
   }
-  std::string out(host);
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
+  return lower(std::string(host));
 }
 
 std::optional<std::string> HttpApi::refuse_host(const std::string& host,

@@ -2,6 +2,8 @@
 
 #include <unistd.h>
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 
 #include <fmt/format.h>
 
@@ -23,14 +25,32 @@ class Subscription {
 #if defined(__SANITIZE_THREAD__)
     __tsan_acquire(self);
 #endif
+    {
+      std::lock_guard lock(self->state_mutex);
+      if (self->ended) return;
+      self->running = true;
+    }
+    struct Done {
+      Subscription* s;
+      ~Done() {
+        {
+          std::lock_guard lock(s->state_mutex);
+          s->running = false;
+        }
+        s->idle.notify_all();
+      }
+    } done{self};
     const lcm::ReceiveBuffer buffer{rbuf->data, rbuf->data_size, rbuf->recv_utime};
     self->handler(&buffer, std::string(channel));
-#if defined(__SANITIZE_THREAD__)
-    __tsan_release(self);  // LCM holds its handler lock until here; see Bus::unsubscribe
-#endif
   }
   Bus::Handler handler;
   lcm_subscription_t* c_subscription = nullptr;
+  /// Guards `ended` and `running`: LCM calls handlers without holding a lock of its own, so
+  /// Bus::unsubscribe waits here for a call in progress.
+  std::mutex state_mutex;
+  std::condition_variable idle;
+  bool ended = false;
+  bool running = false;
 };
 
 namespace {
@@ -68,12 +88,34 @@ void Bus::unsubscribe(Subscription* subscription) {
     }
   }
   if (!owned) return;
-  // LCM dispatches under its handler lock, which lcm_unsubscribe takes: a callback in progress
-  // on the bus thread has ended when it returns (ThreadSanitizer cannot see that lock).
+  {
+    // LCM (1.3) runs a handler with its own lock released: a call in progress on the bus thread
+    // is waited for here, and none begins after this block. On the bus thread the only call in
+    // progress can be the caller's own.
+    std::unique_lock lock(owned->state_mutex);
+    owned->ended = true;
+    if (!on_bus_thread()) owned->idle.wait(lock, [&] { return !owned->running; });
+  }
+  // LCM's dispatch loop loses track of a handler that lcm_unsubscribe removes while it
+  // dispatches (from any thread): the handler is never freed, and a later one can be skipped.
+  // While the bus thread runs, it ends the LCM subscription between two dispatches.
+  {
+    std::lock_guard lock(subscriptions_mutex_);
+    if (dispatching_) {
+      retired_.push_back(std::move(owned));
+      return;
+    }
+  }
   lcm_unsubscribe(lcm_->getUnderlyingLCM(), owned->c_subscription);
-#if defined(__SANITIZE_THREAD__)
-  __tsan_acquire(owned.get());
-#endif
+}
+
+void Bus::end_retired() {
+  std::vector<std::unique_ptr<Subscription>> retired;
+  {
+    std::lock_guard lock(subscriptions_mutex_);
+    retired.swap(retired_);
+  }
+  for (const auto& sub : retired) lcm_unsubscribe(lcm_->getUnderlyingLCM(), sub->c_subscription);
 }
 
 std::string resolve_lcm_url(const std::string& url) {
@@ -163,15 +205,27 @@ void Bus::run_delayer() {
 
 void Bus::start() {
   if (running_.exchange(true)) return;
+  {
+    std::lock_guard lock(subscriptions_mutex_);
+    dispatching_ = true;
+  }
   thread_ = std::thread([this] {
     t_on_bus_thread = true;
-    while (running_.load(std::memory_order_relaxed)) lcm_->handleTimeout(50);
+    while (running_.load(std::memory_order_relaxed)) {
+      lcm_->handleTimeout(50);
+      end_retired();
+    }
   });
 }
 
 void Bus::stop() {
   if (!running_.exchange(false)) return;
   if (thread_.joinable()) thread_.join();
+  {
+    std::lock_guard lock(subscriptions_mutex_);
+    dispatching_ = false;
+  }
+  end_retired();
 }
 
 bool Bus::on_bus_thread() const { return t_on_bus_thread; }

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <map>
+#include <memory>
 #include <string>
 #include <thread>
 
@@ -213,6 +214,86 @@ TEST(Bus, BadUrlIsNamed) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("nonsense://what"), std::string::npos);
   }
+}
+
+// LCM calls a handler with its own lock released: Bus::unsubscribe from another thread waits for
+// a call in progress, and no call begins after it returned.
+TEST(Bus, UnsubscribeWaitsForAHandlerInProgress) {
+  comm::Bus bus(test_url());
+  std::atomic<bool> entered{false};
+  std::atomic<bool> left{false};
+  std::atomic<bool> ended{false};
+  std::atomic<int> calls_after_end{0};
+  comm::Subscription* sub =
+      bus.subscribe_function("t/slow", [&](const lcm::ReceiveBuffer*, const std::string&) {
+        if (ended) ++calls_after_end;
+        entered = true;
+        std::this_thread::sleep_for(200ms);
+        left = true;
+      });
+  bus.start();
+  const std::uint8_t byte = 1;
+  bus.lcm().publish("t/slow", &byte, 1);
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (!entered && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(1ms);
+  ASSERT_TRUE(entered) << "the handler was not called within 5 s";
+  bus.unsubscribe(sub);
+  ended = true;
+  EXPECT_TRUE(left) << "unsubscribe returned while the handler was still running";
+  for (int i = 0; i < 5; ++i) bus.lcm().publish("t/slow", &byte, 1);
+  std::this_thread::sleep_for(100ms);
+  bus.stop();
+  EXPECT_EQ(calls_after_end, 0);
+}
+
+// Subscriptions ended while their channel is busy, from another thread and from their own
+// handler, are called no more and leave nothing behind (the sanitizer stages see a handler that
+// outlives its state and an LCM subscription never freed).
+TEST(Bus, SubscriptionsEndedDuringTrafficAreCalledNoMore) {
+  comm::Bus bus(test_url());
+  std::atomic<bool> publishing{true};
+  std::atomic<long> delivered{0};
+  comm::Subscription* steady = bus.subscribe_function(
+      "t/churn", [&](const lcm::ReceiveBuffer*, const std::string&) { ++delivered; });
+  bus.start();
+  std::thread publisher([&] {
+    const std::uint8_t byte = 2;
+    while (publishing) {
+      bus.lcm().publish("t/churn", &byte, 1);
+      std::this_thread::sleep_for(50us);
+    }
+  });
+  constexpr int kRounds = 200;
+  std::atomic<int> calls_after_end{0};
+  for (int i = 0; i < kRounds; ++i) {
+    auto state = std::make_unique<std::atomic<int>>(0);  // freed right after unsubscribe
+    auto* calls = state.get();
+    auto ended = std::make_shared<std::atomic<bool>>(false);
+    comm::Subscription* sub = bus.subscribe_function(
+        "t/churn", [calls, ended, &calls_after_end](const lcm::ReceiveBuffer*, const std::string&) {
+          if (*ended) ++calls_after_end;
+          ++*calls;
+        });
+    // One that ends itself from its handler, on the bus thread.
+    auto self = std::make_shared<std::atomic<comm::Subscription*>>(nullptr);
+    self->store(bus.subscribe_function(
+        "t/churn", [&bus, self](const lcm::ReceiveBuffer*, const std::string&) {
+          bus.unsubscribe(self->exchange(nullptr));  // null (not yet stored, or ended): nothing
+        }));
+    std::this_thread::sleep_for(std::chrono::microseconds(100 * (i % 7)));
+    bus.unsubscribe(sub);
+    *ended = true;
+    state.reset();
+  }
+  std::this_thread::sleep_for(50ms);
+  const long before = delivered;
+  std::this_thread::sleep_for(50ms);
+  EXPECT_GT(delivered, before) << "the subscription that stayed stopped receiving";
+  publishing = false;
+  publisher.join();
+  bus.unsubscribe(steady);
+  bus.stop();
+  EXPECT_EQ(calls_after_end, 0);
 }
 
 // A request that took longer than the server's max_request_age to arrive is dropped, not

@@ -66,8 +66,9 @@ class Bus {
   }
   using Handler = std::function<void(const lcm::ReceiveBuffer*, const std::string&)>;
   Subscription* subscribe_function(const std::string& channel, Handler handler);
-  /// Ends a subscription made with subscribe (null: nothing). Safe from any thread but a handler
-  /// of the same subscription.
+  /// Ends a subscription made with subscribe (null: nothing). Safe from any thread, also from a
+  /// handler (its own or another's). When it returns, no call of the handler is in progress
+  /// (but the caller's own, from a handler) and none begins.
   void unsubscribe(Subscription* subscription);
 
   [[nodiscard]] lcm::LCM& lcm() { return *lcm_; }
@@ -122,8 +123,13 @@ class Bus {
   std::multimap<std::chrono::steady_clock::time_point, Delayed> delayed_;
   std::thread delayer_;
   bool delayer_stop_ = false;
+  void end_retired();
+
   std::mutex subscriptions_mutex_;
   std::vector<std::unique_ptr<Subscription>> subscriptions_;
+  /// Ended subscriptions whose LCM subscription the bus thread ends between two dispatches.
+  std::vector<std::unique_ptr<Subscription>> retired_;
+  bool dispatching_ = false;  ///< the bus thread runs (guarded by subscriptions_mutex_)
 };
 
 /// Resolves the URL the way Bus does (empty -> $LCM_DEFAULT_URL -> kDefaultLcmUrl).

@@ -106,10 +106,11 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
     if (!robot.empty() && r != robot) continue;
     states.emplace_back(
         bus, channels::robot_state(r),
-        [&w](const RobotState& s, const comm::Received&) {
+        [&w](const RobotState& s, const comm::Received& in) {
           const auto now = Clock::now();
           std::lock_guard lock(w.mutex);
           if (!w.armed || w.latency_ms.count(s.robot) != 0 || s.estop != w.engage) return;
+          if (!in.authentic()) return;  // with a key, only an EDP's own state confirms
           w.latency_ms[s.robot] = std::chrono::duration<double, std::milli>(now - w.sent).count();
           w.step[s.robot] = s.servo_step;
           w.cv.notify_all();

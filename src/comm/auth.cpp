@@ -10,6 +10,7 @@
 #include <cctype>
 #include <fstream>
 #include <sstream>
+#include <string_view>
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
@@ -47,7 +48,8 @@ void enable_auth_from_file(Bus& bus, const std::filesystem::path& key_file) {
   bus.enable_auth(load_auth_key(key_file));
 }
 
-Authenticator::Authenticator(std::vector<std::uint8_t> key) : key_(std::move(key)) {
+Authenticator::Authenticator(std::vector<std::uint8_t> key, std::int64_t epoch_utime)
+    : key_(std::move(key)), epoch_utime_(epoch_utime != 0 ? epoch_utime : now_utime()) {
   if (key_.size() < 32)
     throw Error(
         fmt::format("authentication key of {} bytes is too short (at least 32)", key_.size()));
@@ -59,10 +61,26 @@ std::int64_t Authenticator::next_counter() {
   return last_counter_;
 }
 
-Authenticator::Tag Authenticator::mac(const std::uint8_t* data, std::size_t size) const {
+Authenticator::Tag Authenticator::mac(const std::string& channel, const std::uint8_t* data,
+                                      std::size_t size) const {
+  // The domain, the channel's length (4 bytes, big-endian), the channel, then the message: no
+  // two (channel, message) pairs give the same input.
+  static constexpr std::string_view kDomain{"mrroc-auth-2"};
+  std::vector<std::uint8_t> input;
+  input.reserve(kDomain.size() + 4 + channel.size() + size);
+  input.insert(input.end(), kDomain.begin(), kDomain.end());
+  const auto channel_length = static_cast<std::uint32_t>(channel.size());
+  for (unsigned shift = 24;; shift -= 8) {
+    input.push_back(static_cast<std::uint8_t>(channel_length >> shift));
+    if (shift == 0) break;
+  }
+  input.insert(input.end(), channel.begin(), channel.end());
+  if (size > 0) input.insert(input.end(), data, data + size);
   Tag tag{};
   unsigned int length = 0;
-  HMAC(EVP_sha256(), key_.data(), static_cast<int>(key_.size()), data, size, tag.data(), &length);
+  if (HMAC(EVP_sha256(), key_.data(), static_cast<int>(key_.size()), input.data(), input.size(),
+           tag.data(), &length) == nullptr)
+    throw Error("HMAC-SHA256 failed in OpenSSL");
   return tag;
 }
 
@@ -71,15 +89,14 @@ bool Authenticator::same(const std::uint8_t* a, const std::uint8_t* b, std::size
 }
 
 Authenticator::Verdict Authenticator::accept_counter(const std::string& sender,
+                                                     const std::string& channel,
                                                      std::int64_t counter) {
+  // Signed before this process started: recorded earlier (also when the reorder window below
+  // would take it).
+  if (counter < epoch_utime_) return Verdict::stale;
   std::lock_guard lock(mutex_);
-  auto it = seen_.find(sender);
-  if (it == seen_.end()) {
-    const std::int64_t oldest =
-        now_utime() - std::chrono::duration_cast<std::chrono::microseconds>(kFreshness).count();
-    if (counter < oldest) return Verdict::stale;
-    it = seen_.emplace(sender, Seen{}).first;
-  }
+  auto it = seen_.find(std::pair(sender, channel));
+  if (it == seen_.end()) it = seen_.emplace(std::pair(sender, channel), Seen{}).first;
   Seen& s = it->second;
   if (counter > s.highest) {
     s.highest = counter;
@@ -99,7 +116,8 @@ const char* to_string(Authenticator::Verdict verdict) {
     case Authenticator::Verdict::missing: return "no authentication tag";
     case Authenticator::Verdict::bad_tag: return "wrong authentication tag";
     case Authenticator::Verdict::replayed: return "replayed (counter already seen)";
-    case Authenticator::Verdict::stale: return "stale (counter older than 30 s)";
+    case Authenticator::Verdict::stale:
+      return "stale (signed before this process started: recorded, or the hosts' clocks disagree)";
   }
   return "?";
 }

@@ -212,6 +212,7 @@ void Bus::start() {
   thread_ = std::thread([this] {
     t_on_bus_thread = true;
     while (running_.load(std::memory_order_relaxed)) {
+      ++delivery_;  // LCM dispatches at most one message per call
       lcm_->handleTimeout(50);
       end_retired();
     }
@@ -229,6 +230,22 @@ void Bus::stop() {
 }
 
 bool Bus::on_bus_thread() const { return t_on_bus_thread; }
+
+bool Bus::recall_verdict(const std::string& channel, const std::string& sender,
+                         std::int64_t counter, int& verdict) const {
+  if (!on_bus_thread()) return false;
+  const Verdict& v = last_verdict_;
+  if (v.delivery != delivery_ || v.counter != counter || v.channel != channel || v.sender != sender)
+    return false;
+  verdict = v.verdict;
+  return true;
+}
+
+void Bus::remember_verdict(const std::string& channel, const std::string& sender,
+                           std::int64_t counter, int verdict) {
+  if (!on_bus_thread()) return;
+  last_verdict_ = Verdict{delivery_, channel, sender, counter, verdict};
+}
 
 namespace detail {
 

@@ -118,26 +118,34 @@ struct SystemListener::Impl {
   comm::Subscriber<ProcessStatus> statuses;
 };
 
-namespace {
-template <class Plain>
-comm::Subscriber<Plain> listen(comm::Bus& bus, const char* channel,
-                               std::function<void(const Plain&)> handler) {
-  return comm::Subscriber<Plain>(
-      bus, channel, [handler = std::move(handler)](const Plain& m, const comm::Received&) {
-        if (handler) handler(m);
-      });
-}
-}  // namespace
-
 SystemListener::SystemListener(comm::Bus& bus, MessageHandler on_message, StatusHandler on_status)
-    : impl_(std::make_unique<Impl>(
-          Impl{listen<SrpMessage>(bus, channels::srp, std::move(on_message)),
-               listen<ProcessStatus>(bus, channels::status, std::move(on_status))})) {}
+    : impl_(std::make_unique<Impl>(Impl{
+          comm::Subscriber<SrpMessage>(
+              bus, channels::srp,
+              [handler = std::move(on_message)](const SrpMessage& m, const comm::Received& in) {
+                if (!handler) return;
+                if (in.authentic_unreported()) {  // kept, marked: no drop to report
+                  handler(m);
+                  return;
+                }
+                SrpMessage marked = m;
+                marked.text = std::string(kUnverifiedMark) + m.text;
+                handler(marked);
+              }),
+          comm::Subscriber<ProcessStatus>(
+              bus, channels::status,
+              [handler = std::move(on_status)](const ProcessStatus& s, const comm::Received& in) {
+                if (handler && in.authentic()) handler(s);
+              })})) {}
 
 SystemListener::~SystemListener() = default;
 
 std::uint64_t SystemListener::malformed() const {
   return impl_->messages.malformed() + impl_->statuses.malformed();
+}
+
+std::uint64_t SystemListener::unauthenticated() const {
+  return impl_->messages.unauthenticated() + impl_->statuses.unauthenticated();
 }
 
 }  // namespace mrroc

@@ -9,18 +9,18 @@
 // Properties (docs/fuzzing.md):
 // - verify never throws, whatever decoded;
 // - a received message whose tag verify accepts (verdict ok, replayed or stale) carries
-//   HMAC-SHA256(key, the message encoded with an empty tag), recomputed here with OpenSSL
-//   directly (with random input this only happens for the signed seeds); one that verifies ok is
-//   "replayed" the second time;
+//   HMAC-SHA256(key, domain, channel, the message encoded with an empty tag), recomputed here with
+//   OpenSSL directly (with random input this only happens for the signed seeds); one that verifies
+//   ok is "replayed" the second time;
 // - a decoded message signed with the key (comm::sign) and
-//   sent as bytes verifies ok once, then "replayed";
+//   sent as bytes verifies ok once, then "replayed"; on another channel it is "bad tag";
 // - with one byte of a signed encoding changed (16 positions per input), the bytes either do not
 //   decode or verify says missing or bad_tag; the only exception is a changed byte that ends a
 //   string (the decoder does not read it): then the message is the one that was signed and
 //   verify says replayed;
 // - counters: a counter is accepted (ok) at most once per sender; one greater than every counter
 //   seen from a known sender is accepted; one more than the reorder window below the highest is
-//   not; stale only for a sender's first message.
+//   not; stale exactly when the counter is earlier than the receiver's start (its epoch).
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -70,6 +70,9 @@ using kTypes =
 constexpr std::size_t kTypeCount = std::tuple_size_v<kTypes>;
 static_assert(kTypeCount == fuzz_auth::kMessageTypes);
 
+/// The channel messages are signed for and received on.
+constexpr const char* kChannel = "fuzz/edp/cmd";
+
 Authenticator& signer() {
   static Authenticator a(fuzz_auth::key());
   return a;
@@ -114,15 +117,24 @@ std::optional<Msg> decode(const std::uint8_t* data, std::size_t size) {
 template <class Msg>
 Verdict verify(Authenticator& auth, const Msg& m, const char* what) {
   Verdict v = Verdict::missing;
-  fuzz::no_throw(what, [&] { v = mrroc::comm::verify(auth, m); });
+  fuzz::no_throw(what, [&] { v = mrroc::comm::verify(auth, m, kChannel); });
   fuzz::expect(std::strcmp(name(v), "?") != 0,
                fmt::format("{}: verdict {} has no name", what, static_cast<int>(v)));
   return v;
 }
 
-/// HMAC-SHA256 with the key, by OpenSSL directly (not through Authenticator::mac).
-std::vector<std::uint8_t> reference_mac(const std::vector<std::uint8_t>& bytes) {
+/// HMAC-SHA256 with the key over the domain, the channel (with its length) and `message`, by
+/// OpenSSL directly (not through Authenticator::mac).
+std::vector<std::uint8_t> reference_mac(const std::vector<std::uint8_t>& message) {
   const std::vector<std::uint8_t>& key = fuzz_auth::key();
+  const std::string domain = "mrroc-auth-2";
+  const std::string channel = kChannel;
+  std::vector<std::uint8_t> bytes(domain.begin(), domain.end());
+  const auto n = static_cast<std::uint32_t>(channel.size());
+  for (const unsigned shift : {24U, 16U, 8U, 0U})
+    bytes.push_back(static_cast<std::uint8_t>(n >> shift));
+  bytes.insert(bytes.end(), channel.begin(), channel.end());
+  bytes.insert(bytes.end(), message.begin(), message.end());
   std::vector<std::uint8_t> out(EVP_MAX_MD_SIZE);
   unsigned int length = 0;
   fuzz::expect(HMAC(EVP_sha256(), key.data(), static_cast<int>(key.size()), bytes.data(),
@@ -167,7 +179,7 @@ void check_message(const std::uint8_t* data, std::size_t size) {
   // wire: the tag covers the bytes encode() writes, so it still verifies (docs/fuzzing.md,
   // "Findings" 6).
   Msg message = *received;
-  fuzz::no_throw("comm::sign", [&] { mrroc::comm::sign(signer(), message); });
+  fuzz::no_throw("comm::sign", [&] { mrroc::comm::sign(signer(), message, kChannel); });
   const std::vector<std::uint8_t> wire = encode_bytes(message);
   const std::optional<Msg> sent = decode<Msg>(wire.data(), wire.size());
   fuzz::expect(sent.has_value(), "a signed message does not decode from its bytes");
@@ -179,6 +191,17 @@ void check_message(const std::uint8_t* data, std::size_t size) {
   fuzz::expect(
       second == Verdict::replayed,
       fmt::format("a signed message received twice was '{}' the second time", name(second)));
+
+  // The same signed message received on another channel: a wrong tag, whatever its counter.
+  {
+    Authenticator elsewhere(fuzz_auth::key(), 1);
+    Verdict v = Verdict::ok;
+    fuzz::no_throw("verify on another channel",
+                   [&] { v = mrroc::comm::verify(elsewhere, *sent, "fuzz/edp/cmd2"); });
+    fuzz::expect(v == Verdict::bad_tag,
+                 fmt::format("a message signed for '{}' verified as '{}' on another channel",
+                             kChannel, name(v)));
+  }
 
   // 3. One byte of the signed encoding changed.
   const std::vector<std::uint8_t> original = signed_part(*sent);
@@ -218,11 +241,13 @@ void check_counters(const std::uint8_t* data, std::size_t size) {
     const auto offset = static_cast<std::int64_t>(raw % 8'000'001ULL) - 4'000'000;
     const std::int64_t counter = (raw >> 62U) == 3U ? static_cast<std::int64_t>(raw) : now + offset;
     Verdict v = Verdict::missing;
-    fuzz::no_throw("accept_counter", [&] { v = receiver.accept_counter(sender, counter); });
+    fuzz::no_throw("accept_counter",
+                   [&] { v = receiver.accept_counter(sender, kChannel, counter); });
     auto it = accepted.find(sender);
     const bool known = it != accepted.end();
-    if (v == Verdict::stale)
-      fuzz::expect(!known, fmt::format("counter {} of known {} called stale", counter, sender));
+    fuzz::expect((v == Verdict::stale) == (counter < receiver.epoch_utime()),
+                 fmt::format("counter {} ({} the receiver's start) was '{}'", counter,
+                             counter < receiver.epoch_utime() ? "before" : "not before", name(v)));
     fuzz::expect(v == Verdict::ok || v == Verdict::replayed || v == Verdict::stale,
                  fmt::format("accept_counter returned '{}'", name(v)));
     if (known && !it->second.empty()) {

@@ -11,7 +11,8 @@
 // Built twice: `links` on a bus without a key, `links_auth` (MRROC_FUZZ_LINKS_AUTH) on a bus with
 // a key (Bus::enable_auth), where every request/reply endpoint checks the messages' tags. There,
 // flag bit 1 signs the payload with the key before sending it (when it decodes as the channel's
-// type), and flag bit 2 sends the last payload signed on that channel again instead (a replay).
+// type), flag bit 2 sends the last payload signed on that channel again instead (a replay), and
+// flag bit 3 signs it for another channel (a replay from elsewhere; see auth.hpp).
 //
 // Properties (docs/fuzzing.md), checked after every record:
 // - nothing throws out of the handlers, whatever the bytes;
@@ -25,7 +26,8 @@
 //   severity or state;
 // - with a key: a request or reply (for this client) that decodes and was not freshly signed is
 //   dropped as unauthenticated and reaches no queue; a freshly signed one is never dropped as
-//   unauthenticated; a replayed one always is;
+//   unauthenticated; a replayed one (also one signed for another channel) always is; a process
+//   status that is not authentic is dropped, an SRP message passed on;
 // - every drop report (Bus::report_drop, to the SRP) names the channel of the message dropped,
 //   with drop code malformed or unauthenticated, and reports of one kind are at least
 //   Bus::kDropReportPeriod apart.
@@ -105,7 +107,7 @@ void fresh_key() {
 /// Signs `payload` as the channel's type `Msg` with the bus' key (when it decodes); `last` keeps
 /// the signed bytes for a replay. Returns whether it was signed.
 template <class Msg>
-bool sign_payload(std::string& payload, std::string& last) {
+bool sign_payload(std::string& payload, std::string& last, const std::string& channel) {
   Msg m;
   if (m.decode(payload.data(), 0, static_cast<int>(payload.size())) < 0) return false;
   const auto encode = [&] {
@@ -115,7 +117,7 @@ bool sign_payload(std::string& payload, std::string& last) {
     out.resize(static_cast<std::size_t>(n));
     return out;
   };
-  fuzz::no_throw("comm::sign", [&] { mrroc::comm::sign(*bus().auth(), m); });
+  fuzz::no_throw("comm::sign", [&] { mrroc::comm::sign(*bus().auth(), m, channel); });
   payload = encode();
   last = payload;
   return true;
@@ -124,15 +126,21 @@ bool sign_payload(std::string& payload, std::string& last) {
 /// How a record was sent: as it was, freshly signed, or a replay of an earlier signed one.
 enum class Sent { raw, signed_now, replayed };
 
-/// Applies flag bits 1 and 2 (only with a key).
+/// Applies flag bits 1, 2 and 3 (only with a key) to a payload sent on `channel`.
 template <class Msg>
-Sent prepare(std::string& payload, std::uint8_t flags, std::string& last_signed) {
+Sent prepare(std::string& payload, std::uint8_t flags, std::string& last_signed,
+             const std::string& channel) {
   if (!kAuth) return Sent::raw;
   if ((flags & 4U) != 0 && !last_signed.empty()) {
     payload = last_signed;
     return Sent::replayed;
   }
-  if ((flags & 2U) != 0 && sign_payload<Msg>(payload, last_signed)) return Sent::signed_now;
+  if ((flags & 8U) != 0) {
+    std::string elsewhere;
+    if (sign_payload<Msg>(payload, elsewhere, channel + "/other")) return Sent::replayed;
+  }
+  if ((flags & 2U) != 0 && sign_payload<Msg>(payload, last_signed, channel))
+    return Sent::signed_now;
   return Sent::raw;
 }
 
@@ -174,7 +182,7 @@ struct ServerSide {
   std::string last_signed;
 
   void receive(std::string payload, std::uint8_t flags) {
-    const Sent sent = prepare<LcmReq>(payload, flags, last_signed);
+    const Sent sent = prepare<LcmReq>(payload, flags, last_signed, channel);
     const LinkStats before = server.stats();
     g_channel = channel;
     bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
@@ -261,7 +269,7 @@ struct ClientSide {
   std::string last_signed;
 
   void receive(std::string payload, std::uint8_t flags) {
-    const Sent sent = prepare<LcmRep>(payload, flags, last_signed);
+    const Sent sent = prepare<LcmRep>(payload, flags, last_signed, channel);
     const LinkStats before = client.stats();
     g_channel = channel;
     bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
@@ -301,10 +309,14 @@ struct ListenerSide {
   void receive(const char* channel, const std::string& payload) {
     g_channel = channel;
     const std::uint64_t malformed = listener.malformed();
+    const std::uint64_t unauthenticated = listener.unauthenticated();
     const std::uint64_t handled = messages + statuses;
     bus().lcm().publish(channel, payload.data(), static_cast<unsigned>(payload.size()));
     deliver();
-    const std::uint64_t dropped = listener.malformed() - malformed;
+    // Statuses that are not authentic are dropped; SRP messages are passed on, marked.
+    const bool status = std::string(channel) == mrroc::channels::status;
+    const std::uint64_t dropped = listener.malformed() - malformed +
+                                  (status ? listener.unauthenticated() - unauthenticated : 0);
     const std::uint64_t passed = messages + statuses - handled;
     fuzz::expect(dropped + passed == 1,
                  fmt::format("SystemListener on '{}' dropped {} and passed on {} of one message",

@@ -75,6 +75,9 @@ void header(mrroc_lcm::header_t& h, const std::string& sender, std::int64_t seq,
   h.auth_tag.clear();
 }
 
+/// The channel fuzz_auth signs and verifies on.
+const std::string kSignedChannel = "fuzz/edp/cmd";
+
 /// Signs `m` as comm::sign does, with the key of fuzz_auth and a fixed counter (so that the seeds
 /// do not change from one run to the next).
 template <class Msg>
@@ -85,7 +88,8 @@ void sign_fixed(Msg& m, std::int64_t counter) {
   m.header.auth_len = 0;
   const std::string unsigned_bytes = bytes_of(m);
   const comm::Authenticator::Tag tag =
-      auth.mac(reinterpret_cast<const std::uint8_t*>(unsigned_bytes.data()), unsigned_bytes.size());
+      auth.mac(kSignedChannel, reinterpret_cast<const std::uint8_t*>(unsigned_bytes.data()),
+               unsigned_bytes.size());
   m.header.auth_tag.assign(tag.begin(), tag.end());
   m.header.auth_len = static_cast<std::int16_t>(tag.size());
 }

@@ -15,7 +15,11 @@
 
 #include "drops.hpp"
 #include "mrroc/comm/auth.hpp"
+#include "mrroc/comm/edge.hpp"
+#include "mrroc/comm/messages.hpp"
+#include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
+#include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/time.hpp"
 #include "mrroc_lcm/ecp_mp_reply_t.hpp"
@@ -51,9 +55,9 @@ Req request(int value) {
 struct Echo {
   std::atomic<int> executions{0};
   std::unique_ptr<comm::Server<Req, Rep>> server;
-  explicit Echo(comm::Bus& bus, comm::ServerOptions options = {}) {
+  explicit Echo(comm::Bus& bus, comm::ServerOptions options = {}, const std::string& prefix = "a") {
     server = std::make_unique<comm::Server<Req, Rep>>(
-        bus, "server", "a/cmd", "a/reply",
+        bus, "server", prefix + "/cmd", prefix + "/reply",
         [this](const Req& r, comm::Server<Req, Rep>::Responder responder) {
           ++executions;
           Rep rep{};
@@ -106,25 +110,25 @@ TEST(Auth, SignedMessagesVerifyAndTamperingOrReplayIsCaught) {
   comm::Authenticator stranger(key(8));
   Req r = request(5);
   r.header.sender = "ecp#1";
-  comm::sign(sender, r);
+  comm::sign(sender, r, "a/cmd");
   EXPECT_EQ(r.header.auth_len, 32);
-  EXPECT_EQ(comm::verify(receiver, r), comm::Authenticator::Verdict::ok);
+  EXPECT_EQ(comm::verify(receiver, r, "a/cmd"), comm::Authenticator::Verdict::ok);
   // The same message again: a replay.
-  EXPECT_EQ(comm::verify(receiver, r), comm::Authenticator::Verdict::replayed);
+  EXPECT_EQ(comm::verify(receiver, r, "a/cmd"), comm::Authenticator::Verdict::replayed);
   // Changed content, changed sender, or another key: a wrong tag.
   Req changed = r;
   changed.motion_steps = 6;
-  EXPECT_EQ(comm::verify(receiver, changed), comm::Authenticator::Verdict::bad_tag);
+  EXPECT_EQ(comm::verify(receiver, changed, "a/cmd"), comm::Authenticator::Verdict::bad_tag);
   Req renamed = r;
   renamed.header.sender = "ecp#2";
-  EXPECT_EQ(comm::verify(receiver, renamed), comm::Authenticator::Verdict::bad_tag);
+  EXPECT_EQ(comm::verify(receiver, renamed, "a/cmd"), comm::Authenticator::Verdict::bad_tag);
   Req foreign = request(5);
   foreign.header.sender = "ecp#1";
-  comm::sign(stranger, foreign);
-  EXPECT_EQ(comm::verify(receiver, foreign), comm::Authenticator::Verdict::bad_tag);
+  comm::sign(stranger, foreign, "a/cmd");
+  EXPECT_EQ(comm::verify(receiver, foreign, "a/cmd"), comm::Authenticator::Verdict::bad_tag);
   // No tag at all.
   Req plain = request(5);
-  EXPECT_EQ(comm::verify(receiver, plain), comm::Authenticator::Verdict::missing);
+  EXPECT_EQ(comm::verify(receiver, plain, "a/cmd"), comm::Authenticator::Verdict::missing);
 }
 
 TEST(Auth, AStringHoldingANulStillVerifiesAfterTheWire) {
@@ -134,14 +138,14 @@ TEST(Auth, AStringHoldingANulStillVerifiesAfterTheWire) {
   Req r = request(1);
   r.header.sender = "ecp#1";
   r.arguments = std::string("ab\0cd", 5);
-  comm::sign(sender, r);
+  comm::sign(sender, r, "a/cmd");
   std::vector<std::uint8_t> wire(static_cast<std::size_t>(r.getEncodedSize()));
   const int n = r.encode(wire.data(), 0, static_cast<int>(wire.size()));
   ASSERT_GT(n, 0);
   Req received;
   ASSERT_GE(received.decode(wire.data(), 0, n), 0);
   EXPECT_EQ(received.arguments, "ab");
-  EXPECT_EQ(comm::verify(receiver, received), comm::Authenticator::Verdict::ok);
+  EXPECT_EQ(comm::verify(receiver, received, "a/cmd"), comm::Authenticator::Verdict::ok);
 }
 
 TEST(Auth, CountersIncreaseAndReorderingWithinASecondIsAccepted) {
@@ -152,18 +156,62 @@ TEST(Auth, CountersIncreaseAndReorderingWithinASecondIsAccepted) {
     ASSERT_GT(c, last);
     last = c;
   }
-  comm::Authenticator r(key(1));
   const std::int64_t now = now_utime();
+  comm::Authenticator r(key(1), now - 5'000'000);  // started 5 s ago
   using V = comm::Authenticator::Verdict;
-  EXPECT_EQ(r.accept_counter("x", now), V::ok);
-  EXPECT_EQ(r.accept_counter("x", now + 10), V::ok);
-  EXPECT_EQ(r.accept_counter("x", now + 5), V::ok) << "overtaken message within the window";
-  EXPECT_EQ(r.accept_counter("x", now + 5), V::replayed);
-  EXPECT_EQ(r.accept_counter("x", now + 10), V::replayed);
-  EXPECT_EQ(r.accept_counter("x", now - 2'000'000), V::replayed) << "older than the window";
-  // A new sender whose first message is older than 30 s: recorded earlier, replayed now.
-  EXPECT_EQ(r.accept_counter("y", now - 31'000'000), V::stale);
-  EXPECT_EQ(r.accept_counter("y", now - 1'000'000), V::ok);
+  EXPECT_EQ(r.accept_counter("x", "c", now), V::ok);
+  EXPECT_EQ(r.accept_counter("x", "c", now + 10), V::ok);
+  EXPECT_EQ(r.accept_counter("x", "c", now + 5), V::ok) << "overtaken message within the window";
+  EXPECT_EQ(r.accept_counter("x", "c", now + 5), V::replayed);
+  EXPECT_EQ(r.accept_counter("x", "c", now + 10), V::replayed);
+  EXPECT_EQ(r.accept_counter("x", "c", now - 2'000'000), V::replayed) << "older than the window";
+  // Counters are kept per sender and channel: the same counter on another channel is new.
+  EXPECT_EQ(r.accept_counter("x", "d", now + 10), V::ok);
+  EXPECT_EQ(r.accept_counter("x", "d", now + 10), V::replayed);
+  // Signed before the receiver started (its epoch): recorded earlier, replayed now, however
+  // recent, for a new sender and within a known sender's reorder window alike.
+  EXPECT_EQ(r.accept_counter("y", "c", now - 5'000'001), V::stale);
+  EXPECT_EQ(r.accept_counter("y", "c", now - 5'000'000), V::ok);
+  EXPECT_EQ(r.accept_counter("z", "c", now - 4'500'000), V::ok);
+  EXPECT_EQ(r.accept_counter("z", "c", now - 5'000'001), V::stale);
+}
+
+// The tag covers the channel: a request recorded on one robot's command channel does not
+// verify on another's (configs/tight-bar.toml: left/edp/cmd, right/edp/cmd), whatever the
+// counters.
+TEST(Auth, AMessageSignedForOneChannelDoesNotVerifyOnAnother) {
+  comm::Authenticator sender(key(7));
+  comm::Authenticator receiver(key(7));
+  Req r = request(5);
+  r.header.sender = "ecp/left#1";
+  comm::sign(sender, r, "left/edp/cmd");
+  EXPECT_EQ(comm::verify(receiver, r, "right/edp/cmd"), comm::Authenticator::Verdict::bad_tag);
+  EXPECT_EQ(comm::verify(receiver, r, "left/edp/cm"), comm::Authenticator::Verdict::bad_tag);
+  EXPECT_EQ(comm::verify(receiver, r, "left/edp/cmd"), comm::Authenticator::Verdict::ok);
+  // The channel and the message are framed apart: moving a byte between them changes the tag.
+  const comm::Authenticator::Tag a =
+      sender.mac("ab", reinterpret_cast<const std::uint8_t*>("c"), 1);
+  const comm::Authenticator::Tag b =
+      sender.mac("a", reinterpret_cast<const std::uint8_t*>("bc"), 2);
+  EXPECT_NE(a, b);
+}
+
+// A process that starts (e.g. restarted by the launcher) refuses everything signed before it
+// started, also what it never saw, and takes what is signed afterwards.
+TEST(Auth, ARestartedReceiverRefusesTrafficRecordedBeforeItStarted) {
+  comm::Authenticator sender(key(7));
+  Req recorded = request(1);
+  recorded.header.sender = "ecp#1";
+  comm::sign(sender, recorded, "irb6/edp/cmd");
+  std::this_thread::sleep_for(2ms);
+  comm::Authenticator restarted(key(7));
+  EXPECT_EQ(comm::verify(restarted, recorded, "irb6/edp/cmd"), comm::Authenticator::Verdict::stale);
+  Req fresh = request(2);
+  fresh.header.sender = "ecp#1";
+  comm::sign(sender, fresh, "irb6/edp/cmd");
+  EXPECT_EQ(comm::verify(restarted, fresh, "irb6/edp/cmd"), comm::Authenticator::Verdict::ok);
+  // Within a second of the fresh one, so a reordered message but for the epoch.
+  EXPECT_EQ(comm::verify(restarted, recorded, "irb6/edp/cmd"), comm::Authenticator::Verdict::stale);
 }
 
 TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
@@ -196,7 +244,7 @@ TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
   Req recorded = request(42);
   recorded.header.sender = "client";
   recorded.header.seq = 1000;
-  comm::sign(*client_bus.auth(), recorded);
+  comm::sign(*client_bus.auth(), recorded, "a/cmd");
   client_bus.lcm().publish("a/cmd", &recorded);
   std::this_thread::sleep_for(100ms);
   EXPECT_EQ(echo.executions, 21);
@@ -207,6 +255,75 @@ TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
   server_bus.stop();
   client_bus.stop();
   stranger_bus.stop();
+}
+
+// Two servers of one set (two robots' EDPs): a request recorded on one's channel and sent on
+// the other's is refused there, and a status or robot state that a stranger forges is not
+// acted on, while a forged SRP line is kept, marked.
+TEST(Auth, RequestsReplayedOnAnotherChannelAndForgedStatusesAreRefused) {
+  comm::Bus server_bus(kUrl);
+  comm::Bus client_bus(kUrl);
+  comm::Bus stranger_bus(kUrl);
+  server_bus.enable_auth(key(3));
+  client_bus.enable_auth(key(3));
+  test::Drops drops;
+  drops.attach(server_bus);
+  Echo left(server_bus, {}, "left");
+  Echo right(server_bus, {}, "right");
+  std::mutex mutex;
+  std::vector<std::string> lines;
+  std::vector<std::string> statuses;
+  SystemListener listener(
+      server_bus,
+      [&](const SrpMessage& m) {
+        std::lock_guard lock(mutex);
+        lines.push_back(m.text);
+      },
+      [&](const ProcessStatus& s) {
+        std::lock_guard lock(mutex);
+        statuses.push_back(s.process);
+      });
+  server_bus.start();
+  client_bus.start();
+  // Recorded from the left client, sent on the right channel by someone without the key.
+  Req recorded = request(7);
+  recorded.header.sender = "ecp/left#1";
+  recorded.header.seq = 1;
+  comm::sign(*client_bus.auth(), recorded, "left/edp/cmd");
+  stranger_bus.lcm().publish("right/cmd", &recorded);
+  // A status and an SRP line from a stranger (no key), then the same from a process with it.
+  auto status = [](const std::string& process) {
+    ProcessStatus s;
+    s.process = process;
+    s.state = ProcessState::failed;
+    s.pid = 1;
+    return s;
+  };
+  auto line = [](const std::string& text) {
+    SrpMessage m;
+    m.utime = now_utime();
+    m.process = "edp";
+    m.severity = Severity::error;
+    m.text = text;
+    return m;
+  };
+  comm::broadcast(stranger_bus, channels::status, {now_utime(), "forger#9", 1}, status("forged"));
+  comm::broadcast(stranger_bus, channels::srp, {now_utime(), "forger#9", 2}, line("forged"));
+  comm::broadcast(client_bus, channels::status, {now_utime(), "edp#2", 1}, status("signed"));
+  comm::broadcast(client_bus, channels::srp, {now_utime(), "edp#2", 2}, line("signed"));
+  std::this_thread::sleep_for(200ms);
+  server_bus.stop();
+  client_bus.stop();
+  EXPECT_EQ(right.executions, 0) << "a request signed for left/cmd was executed on right/cmd";
+  EXPECT_EQ(right.server->stats().unauthenticated, 1U);
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(statuses, std::vector<std::string>{"signed"});
+  ASSERT_EQ(lines.size(), 2U);
+  const std::string forged = std::string(SystemListener::kUnverifiedMark) + "forged";
+  EXPECT_TRUE((lines[0] == forged && lines[1] == "signed") ||
+              (lines[1] == forged && lines[0] == "signed"))
+      << lines[0] << " / " << lines[1];
+  EXPECT_EQ(listener.unauthenticated(), 2U);
 }
 
 TEST(Auth, DropReportsAreRateLimitedPerKind) {

@@ -30,6 +30,8 @@ BusFeed::BusFeed(comm::Bus& bus, ConsoleState& state, std::string no_mp_text)
     subscribers_->robot_states.emplace_back(
         bus, channels::robot_state(state_.robots()[i].name),
         [this, i](const RobotState& s, const comm::Received& in) {
+          // With a key, only an EDP's own states: the jog checks and the view rely on them.
+          if (!in.authentic()) return;
           state_.on_robot_state(i, s, in.header().utime);
         });
   subscribers_->launch_status.emplace(

@@ -3,17 +3,25 @@
 /// Message authentication with a key shared by the processes of a set ([system] auth_key_file).
 ///
 /// Every message a process with the key sends carries, in its header, a counter and
-/// HMAC-SHA256(key, the message encoded with an empty tag). The counter is the sender's
-/// wall-clock time in microseconds, made strictly increasing per process, so it never repeats,
-/// not even across restarts. A receiver with the key accepts a message only when
-///  - the tag is there and correct (the message comes from a holder of the key, unchanged), and
-///  - its counter was not seen before from that sender: greater than the highest so far, or
-///    within the last second below it and not among the counters already accepted (LCM may
-///    reorder a little), and
-///  - the first message of a sender is at most `kFreshness` older than the receiver's clock (a
-///    message recorded earlier cannot be replayed to a receiver that restarted).
+/// HMAC-SHA256(key, "mrroc-auth-2", the LCM channel it is published on, the message encoded with
+/// an empty tag). The counter is the sender's wall-clock time in microseconds, made strictly
+/// increasing per process, so it never repeats, not even across restarts. A receiver with the
+/// key accepts a message only when
+///  - the tag is there and correct for the channel it arrived on (the message comes from a holder
+///    of the key, unchanged, and was sent on this channel: a request recorded on one robot's
+///    command channel does not verify on another's; each command channel has one server, so
+///    the channel names a request's recipient), and
+///  - its counter was not seen before from that sender on that channel: greater than the highest
+///    so far, or within the last second below it and not among the counters already accepted
+///    (LCM may reorder a little), and
+///  - the counter is not earlier than the receiver's own start (its epoch): whatever was
+///    recorded before a process started, e.g. before the launcher restarted it, is refused by it
+///    ("stale"), also within the reorder window. The hosts' clocks must agree (NTP) to well
+///    under the time a process takes to start.
 /// Requests and replies are checked by every request/reply endpoint, RELEASE of the emergency
-/// stop by the EDP; broadcasts (status, SRP messages, robot state) are signed but not checked.
+/// stop by the EDP, statuses by every SystemListener, robot states by the console and the
+/// launcher's emergency-stop latch; SRP messages are checked and, when not authentic, logged
+/// marked as unverified.
 
 #include <array>
 #include <chrono>
@@ -23,6 +31,7 @@
 #include <mutex>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace mrroc::comm {
@@ -41,22 +50,26 @@ class Authenticator {
  public:
   using Tag = std::array<std::uint8_t, 32>;
   enum class Verdict { ok, missing, bad_tag, replayed, stale };
-  /// How old the first message of an unknown sender may be.
-  static constexpr std::chrono::seconds kFreshness{30};
   /// How far below the highest counter of a sender a reordered message may be.
   static constexpr std::int64_t kReorderWindowUs = 1'000'000;
 
+  /// The epoch (the first counter of an unknown sender must be later) is the time of
+  /// construction, or `epoch_utime` when given (tests).
   /// @throws Error when the key is shorter than 32 bytes.
-  explicit Authenticator(std::vector<std::uint8_t> key);
+  explicit Authenticator(std::vector<std::uint8_t> key, std::int64_t epoch_utime = 0);
 
   /// The next counter of this process (strictly increasing, microseconds since the epoch).
   std::int64_t next_counter();
-  /// HMAC-SHA256 of `size` bytes.
-  [[nodiscard]] Tag mac(const std::uint8_t* data, std::size_t size) const;
+  /// HMAC-SHA256 of the domain, `channel` and `size` bytes (see above).
+  [[nodiscard]] Tag mac(const std::string& channel, const std::uint8_t* data,
+                        std::size_t size) const;
   /// Compares in constant time.
   [[nodiscard]] static bool same(const std::uint8_t* a, const std::uint8_t* b, std::size_t n);
-  /// Checks (and on success records) a counter of `sender`.
-  Verdict accept_counter(const std::string& sender, std::int64_t counter);
+  /// Checks (and on success records) a counter of `sender` on `channel`.
+  Verdict accept_counter(const std::string& sender, const std::string& channel,
+                         std::int64_t counter);
+  /// Microseconds since the Unix epoch; see the constructor.
+  [[nodiscard]] std::int64_t epoch_utime() const { return epoch_utime_; }
 
  private:
   struct Seen {
@@ -64,16 +77,17 @@ class Authenticator {
     std::set<std::int64_t> recent;  ///< accepted counters within the reorder window
   };
   std::vector<std::uint8_t> key_;
+  std::int64_t epoch_utime_;
   std::mutex mutex_;
   std::int64_t last_counter_ = 0;
-  std::map<std::string, Seen> seen_;
+  std::map<std::pair<std::string, std::string>, Seen> seen_;  ///< by sender and channel
 };
 
 const char* to_string(Authenticator::Verdict verdict);
 
-/// Signs `msg` (sets header.auth_counter and header.auth_tag).
+/// Signs `msg` for `channel` (sets header.auth_counter and header.auth_tag).
 template <class Msg>
-void sign(Authenticator& auth, Msg& msg) {
+void sign(Authenticator& auth, Msg& msg, const std::string& channel) {
   msg.header.auth_counter = auth.next_counter();
   msg.header.auth_tag.clear();
   msg.header.auth_len = 0;
@@ -82,14 +96,15 @@ void sign(Authenticator& auth, Msg& msg) {
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
   const int written = msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
   const Authenticator::Tag tag =
-      auth.mac(bytes.data(), written > 0 ? static_cast<std::size_t>(written) : 0);
+      auth.mac(channel, bytes.data(), written > 0 ? static_cast<std::size_t>(written) : 0);
   msg.header.auth_tag.assign(tag.begin(), tag.end());
   msg.header.auth_len = static_cast<std::int16_t>(tag.size());
 }
 
-/// Checks a received message's tag and counter.
+/// Checks the tag and counter of a message received on `channel`.
 template <class Msg>
-Authenticator::Verdict verify(Authenticator& auth, const Msg& received) {
+Authenticator::Verdict verify(Authenticator& auth, const Msg& received,
+                              const std::string& channel) {
   if (received.header.auth_len != 32 || received.header.auth_tag.size() != 32)
     return Authenticator::Verdict::missing;
   Msg copy = received;
@@ -98,10 +113,10 @@ Authenticator::Verdict verify(Authenticator& auth, const Msg& received) {
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(copy.getEncodedSize()));
   const int written = copy.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
   const Authenticator::Tag tag =
-      auth.mac(bytes.data(), written > 0 ? static_cast<std::size_t>(written) : 0);
+      auth.mac(channel, bytes.data(), written > 0 ? static_cast<std::size_t>(written) : 0);
   if (!Authenticator::same(tag.data(), received.header.auth_tag.data(), tag.size()))
     return Authenticator::Verdict::bad_tag;
-  return auth.accept_counter(received.header.sender, received.header.auth_counter);
+  return auth.accept_counter(received.header.sender, channel, received.header.auth_counter);
 }
 
 }  // namespace mrroc::comm

@@ -82,6 +82,14 @@ class Bus {
   void enable_auth(std::vector<std::uint8_t> key);
   /// The authenticator, or null when the set runs without a key.
   [[nodiscard]] Authenticator* auth() const { return auth_.get(); }
+  /// Several handlers of one process may receive the same message (e.g. two subscribers of a
+  /// channel); its counter is recorded by the first check, so the others are told that check's
+  /// verdict instead of "replayed". On the bus thread, for the message being dispatched: true
+  /// and `verdict` set when a handler of it was already checked; never elsewhere.
+  bool recall_verdict(const std::string& channel, const std::string& sender, std::int64_t counter,
+                      int& verdict) const;
+  void remember_verdict(const std::string& channel, const std::string& sender, std::int64_t counter,
+                        int verdict);
 
   /// Where reports of dropped messages go (normally the process' Reporter, which installs
   /// itself): `code` is a drop_code, `text` names the channel, sender and reason.
@@ -113,6 +121,15 @@ class Bus {
   std::thread thread_;
   std::atomic<bool> running_{false};
   std::unique_ptr<Authenticator> auth_;
+  struct Verdict {
+    std::uint64_t delivery = 0;
+    std::string channel;
+    std::string sender;
+    std::int64_t counter = 0;
+    int verdict = 0;
+  };
+  std::uint64_t delivery_ = 1;  ///< the message being dispatched (bus thread only)
+  Verdict last_verdict_;        ///< bus thread only
 
   std::mutex drop_mutex_;
   DropSink drop_sink_;

@@ -79,10 +79,14 @@ class Received {
   /// before; otherwise the message is counted (Subscriber::unauthenticated) and reported
   /// (drop_code::unauthenticated) and false is returned. Ask at most once per message (it
   /// advances the sender's replay counter) and only for messages acted on only when authentic.
-  [[nodiscard]] bool authentic() const { return verify_(context_, lcm_message_, channel_); }
+  [[nodiscard]] bool authentic() const { return verify_(context_, lcm_message_, channel_, true); }
+  /// As authentic(), counted but not reported (for a handler that keeps the message, marked).
+  [[nodiscard]] bool authentic_unreported() const {
+    return verify_(context_, lcm_message_, channel_, false);
+  }
 
   Received(const std::string& channel, Envelope header, const void* lcm_message,
-           bool (*verify)(void*, const void*, const std::string&), void* context)
+           bool (*verify)(void*, const void*, const std::string&, bool), void* context)
       : channel_(channel),
         header_(std::move(header)),
         lcm_message_(lcm_message),
@@ -93,7 +97,7 @@ class Received {
   const std::string& channel_;
   Envelope header_;
   const void* lcm_message_;
-  bool (*verify_)(void*, const void*, const std::string&);
+  bool (*verify_)(void*, const void*, const std::string&, bool);
   void* context_;
 };
 
@@ -153,11 +157,11 @@ class Subscriber {
         : bus(b), handler(std::move(h)), options(std::move(o)) {}
   };
 
-  static bool verify(void* context, const void* message, const std::string& channel) {
+  static bool verify(void* context, const void* message, const std::string& channel, bool report) {
     auto* state = static_cast<State*>(context);
     std::uint64_t dropped = 0;
     const bool ok =
-        detail::authentic(state->bus, *static_cast<const Lcm*>(message), channel, dropped);
+        detail::authentic(state->bus, *static_cast<const Lcm*>(message), channel, dropped, report);
     state->unauthenticated += dropped;
     return ok;
   }

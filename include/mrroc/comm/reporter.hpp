@@ -59,9 +59,13 @@ class Reporter {
   std::thread heartbeat_;
 };
 
-/// Receives SRP messages and process statuses (callbacks run on the bus thread).
+/// Receives SRP messages and process statuses (callbacks run on the bus thread). When the bus
+/// has a key (comm/auth.hpp), a status that is not authentic is dropped (counted and reported:
+/// the launcher, the console and the SRP act on statuses), and an SRP message that is not
+/// authentic is handed over with kUnverifiedMark in front of its text.
 class SystemListener {
  public:
+  static constexpr const char* kUnverifiedMark = "(unverified sender) ";
   using MessageHandler = std::function<void(const SrpMessage&)>;
   using StatusHandler = std::function<void(const ProcessStatus&)>;
   SystemListener(comm::Bus& bus, MessageHandler on_message, StatusHandler on_status);
@@ -71,6 +75,8 @@ class SystemListener {
 
   /// Messages dropped because they did not decode or had an unknown severity or state.
   [[nodiscard]] std::uint64_t malformed() const;
+  /// Statuses dropped and SRP messages marked because they were not authentic.
+  [[nodiscard]] std::uint64_t unauthenticated() const;
 
  private:
   struct Impl;

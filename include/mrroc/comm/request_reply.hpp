@@ -72,7 +72,7 @@ struct LinkStats {
 /// messages, robot state, emergency stop).
 template <class Msg>
 void publish(Bus& bus, const std::string& channel, Msg msg) {
-  if (Authenticator* auth = bus.auth()) sign(*auth, msg);
+  if (Authenticator* auth = bus.auth()) sign(*auth, msg, channel);
   detail::published();
   bus.lcm().publish(channel, &msg);
 }
@@ -87,7 +87,7 @@ std::int64_t next_request_seq();
 /// Signs (when the bus has a key) and publishes `msg`, with the link faults of `dice`.
 template <class Msg>
 void publish_with_faults(Bus& bus, FaultDice& dice, const std::string& channel, Msg msg) {
-  if (Authenticator* auth = bus.auth()) sign(*auth, msg);
+  if (Authenticator* auth = bus.auth()) sign(*auth, msg, channel);
   const FaultPlan plan = dice.plan();
   if (plan.copies == 0) return;
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
@@ -101,17 +101,28 @@ void publish_with_faults(Bus& bus, FaultDice& dice, const std::string& channel, 
   }
 }
 
-/// Checks a received message on a bus with a key; reports and counts what it drops.
+/// Checks a received message on a bus with a key; counts and (unless `report` is false)
+/// reports what it refuses.
 template <class Msg>
-bool authentic(Bus& bus, const Msg& msg, const std::string& channel, std::uint64_t& dropped) {
+bool authentic(Bus& bus, const Msg& msg, const std::string& channel, std::uint64_t& dropped,
+               bool report = true) {
   Authenticator* auth = bus.auth();
   if (auth == nullptr) return true;
-  const Authenticator::Verdict verdict = verify(*auth, msg);
+  int recalled = 0;
+  Authenticator::Verdict verdict{};
+  if (bus.recall_verdict(channel, msg.header.sender, msg.header.auth_counter, recalled)) {
+    verdict = static_cast<Authenticator::Verdict>(recalled);
+  } else {
+    verdict = verify(*auth, msg, channel);
+    bus.remember_verdict(channel, msg.header.sender, msg.header.auth_counter,
+                         static_cast<int>(verdict));
+  }
   if (verdict == Authenticator::Verdict::ok) return true;
   ++dropped;
-  bus.report_drop(drop_code::unauthenticated, "unauthenticated on " + channel,
-                  fmt::format("dropped a message on '{}' from '{}': {}", channel, msg.header.sender,
-                              to_string(verdict)));
+  if (report)
+    bus.report_drop(drop_code::unauthenticated, "unauthenticated on " + channel,
+                    fmt::format("dropped a message on '{}' from '{}': {}", channel,
+                                msg.header.sender, to_string(verdict)));
   return false;
 }
 

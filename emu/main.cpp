@@ -32,6 +32,7 @@
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_drive.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -52,6 +53,7 @@ struct Options {
   std::vector<std::string> faults;
   std::map<std::string, std::string> buses;
   std::string lcm_url;
+  std::filesystem::path auth_key_file;  ///< the set's key: raw samples are signed with it
   std::vector<int> cpus;
   int priority = 0;  ///< the process' threads; its stepping thread runs at 70 regardless
   double run_for_s = 0.0;
@@ -210,8 +212,8 @@ class Emulator {
       report_warning(fmt::format("no LCM: {} raw sensor device(s) sampled, not published", n));
       return;
     }
-    publisher_ = std::make_unique<emu::RawSamplePublisher>(lcm_->lcm(), *sensors_,
-                                                           "emu#" + std::to_string(::getpid()));
+    publisher_ = std::make_unique<emu::RawSamplePublisher>(
+        lcm_->lcm(), *sensors_, "emu#" + std::to_string(::getpid()), lcm_->auth());
   }
 
   /// After a physics step: the samples that are due, published.
@@ -493,6 +495,7 @@ int main(int argc, char** argv) {
       options.cpus = set.emulator->options.cpus;
       options.priority = set.emulator->options.priority;
       if (options.lcm_url.empty()) options.lcm_url = set.lcm_url;
+      options.auth_key_file = set.auth_key_file;
     } else {
       options.scene = scene;
     }
@@ -525,11 +528,19 @@ int main(int argc, char** argv) {
   std::unique_ptr<Reporter> reporter;
   try {
     lcm = std::make_unique<comm::Bus>(options.lcm_url);
-    lcm->start();
-    reporter = std::make_unique<Reporter>(*lcm, process);
   } catch (const Error& e) {
     std::fprintf(stderr, "mrroc-axis-emu: LCM unavailable (%s); SRP messages only on stderr\n",
                  e.what());
+  }
+  if (lcm) {
+    try {
+      comm::enable_auth_from_file(*lcm, options.auth_key_file);  // a bad key file is fatal
+    } catch (const Error& e) {
+      std::fprintf(stderr, "mrroc-axis-emu: %s\n", e.what());
+      return 1;
+    }
+    lcm->start();
+    reporter = std::make_unique<Reporter>(*lcm, process);
   }
   try {
     Emulator emulator(options, reporter.get(), lcm.get());

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
@@ -696,15 +697,22 @@ std::span<const std::size_t> SensorDevices::update(CellWorld& world,
 // ---- Publishing ----
 
 RawSamplePublisher::RawSamplePublisher(lcm::LCM& lcm, const SensorDevices& devices,
-                                       const std::string& sender)
-    : lcm_(lcm) {
+                                       const std::string& sender, comm::Authenticator* auth)
+    : lcm_(lcm), auth_(auth) {
   for (std::size_t i = 0; i < devices.size(); ++i) {
     Channel c;
     c.name = channels::raw_sensor(devices.config(i).name);
     c.message = comm::encode(devices.sample(i));
     c.message.header.sender = sender;
     c.message.header.kind = mrroc_lcm::header_t::BROADCAST;
-    c.buffer.resize(static_cast<std::size_t>(c.message.getEncodedSize()));
+    c.message.header.auth_tag.reserve(sizeof(comm::Authenticator::Tag));
+    if (auth_ != nullptr) {
+      c.unsigned_bytes.resize(static_cast<std::size_t>(c.message.getEncodedSize()));
+      c.mac_input.reserve(comm::Authenticator::mac_input_size(c.name, c.unsigned_bytes.size()));
+      c.buffer.resize(c.unsigned_bytes.size() + sizeof(comm::Authenticator::Tag));
+    } else {
+      c.buffer.resize(static_cast<std::size_t>(c.message.getEncodedSize()));
+    }
     channels_.push_back(std::move(c));
   }
 }
@@ -721,9 +729,26 @@ bool RawSamplePublisher::publish(std::size_t i, const vsp::RawSample& sample,
   m.sample_no = sample.sample_no;
   m.valid = sample.valid ? 1 : 0;
   std::copy(sample.values.begin(), sample.values.end(), m.values.begin());
+  bool ok = true;
+  if (auth_ != nullptr) {
+    // As comm::sign: the tag covers the channel and the message encoded with an empty tag.
+    try {
+      m.header.auth_counter = auth_->next_counter();
+      m.header.auth_tag.clear();
+      m.header.auth_len = 0;
+      const int plain = static_cast<int>(c.unsigned_bytes.size());
+      ok = m.encode(c.unsigned_bytes.data(), 0, plain) == plain;
+      const comm::Authenticator::Tag tag =
+          auth_->mac(c.name, c.unsigned_bytes.data(), c.unsigned_bytes.size(), c.mac_input);
+      m.header.auth_tag.assign(tag.begin(), tag.end());
+      m.header.auth_len = static_cast<std::int16_t>(tag.size());
+    } catch (const std::exception&) {
+      ok = false;  // OpenSSL failed: nothing unsigned goes out
+    }
+  }
   const int size = static_cast<int>(c.buffer.size());
-  const bool ok = m.encode(c.buffer.data(), 0, size) == size &&
-                  lcm_.publish(c.name, c.buffer.data(), static_cast<unsigned>(size)) == 0;
+  ok = ok && m.encode(c.buffer.data(), 0, size) == size &&
+       lcm_.publish(c.name, c.buffer.data(), static_cast<unsigned>(size)) == 0;
   ++(ok ? published_ : failed_);
   return ok;
 }

@@ -67,6 +67,10 @@
 #include "mrroc/msg/sensor_reading.hpp"
 #include "mrroc_lcm/raw_sensor_t.hpp"
 
+namespace mrroc::comm {
+class Authenticator;
+}  // namespace mrroc::comm
+
 namespace mrroc::emu {
 
 enum class SensorType { strain_gauges, range, encoder, camera };
@@ -151,11 +155,13 @@ class SensorDevices {
 
 /// Sends raw samples as raw_sensor_t on mrroc/raw/<device>: messages, channels and encode
 /// buffers are made at construction, so publish() does not allocate in mrroc's code (LCM's
-/// transport may).
+/// transport and OpenSSL may). With an authenticator (the set's key), every sample is signed
+/// for its channel as comm::sign does (the VSP checks it).
 class RawSamplePublisher {
  public:
-  /// `sender` goes into header.sender (e.g. "emu#1234").
-  RawSamplePublisher(lcm::LCM& lcm, const SensorDevices& devices, const std::string& sender);
+  /// `sender` goes into header.sender (e.g. "emu#1234"); `auth` may be null (no key).
+  RawSamplePublisher(lcm::LCM& lcm, const SensorDevices& devices, const std::string& sender,
+                     comm::Authenticator* auth = nullptr);
   /// Publishes device i's sample with header.utime = `wall_utime`. Returns false when LCM
   /// refused it.
   bool publish(std::size_t i, const vsp::RawSample& sample, std::int64_t wall_utime) noexcept;
@@ -166,9 +172,12 @@ class RawSamplePublisher {
   struct Channel {
     std::string name;
     mrroc_lcm::raw_sensor_t message;
-    std::vector<std::uint8_t> buffer;
+    std::vector<std::uint8_t> buffer;          ///< what goes out
+    std::vector<std::uint8_t> unsigned_bytes;  ///< with a key: the message with an empty tag
+    std::vector<std::uint8_t> mac_input;       ///< with a key: Authenticator::mac's scratch
   };
   lcm::LCM& lcm_;
+  comm::Authenticator* auth_;
   std::vector<Channel> channels_;
   std::uint64_t published_ = 0;
   std::uint64_t failed_ = 0;

@@ -21,7 +21,7 @@ Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
       plugin_(std::move(plugin)),
       server_(bus, "vsp/" + config.name, channels::vsp_command(config.name),
               channels::vsp_reply(config.name)),
-      last_rx_(config.sources.size()),
+      received_(config.sources.size(), false),
       last_sample_utime_(config.sources.size(), 0) {
   SensorSetup setup;
   setup.name = config.name;
@@ -40,9 +40,7 @@ Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
     };
     subscribers_.emplace_back(
         bus_, channel,
-        [this](const RawSample& sample, const comm::Received& in) {
-          on_sample(in.channel(), sample);
-        },
+        [this](const RawSample& sample, const comm::Received& in) { on_sample(sample, in); },
         std::move(options));
   }
   if (config_.periodic) {
@@ -93,11 +91,40 @@ void Shell::on_malformed(const std::string& channel, const std::string& why) {
                   channel, why == "bytes that do not decode" ? "not a raw_sensor_t" : why));
 }
 
-void Shell::on_sample(const std::string& channel, const RawSample& sample) {
+std::uint64_t Shell::out_of_order() const {
+  std::lock_guard lock(mutex_);
+  return out_of_order_;
+}
+
+std::uint64_t Shell::unauthenticated() const {
+  std::uint64_t n = 0;
+  for (const auto& s : subscribers_) n += s.unauthenticated();
+  return n;
+}
+
+void Shell::on_sample(const RawSample& sample, const comm::Received& in) {
+  const std::string& channel = in.channel();
   const auto it = source_of_channel_.find(channel);
   if (it == source_of_channel_.end()) return;
+  // With the set's key, only samples signed by the emulator or a driver holding it (counted,
+  // reported as unauthenticated): a forged sample could steer a task into its surface.
+  if (!in.authentic()) return;
   std::unique_lock lock(mutex_);
   const std::size_t source = it->second;
+  if (received_[source] && sample.sample_utime <= last_sample_utime_[source]) {
+    // Order by the sample's own time: an older (reordered, replayed) sample never replaces a
+    // newer one, nor makes its source look fresh.
+    ++out_of_order_;
+    if (out_of_order_reported_) return;
+    out_of_order_reported_ = true;
+    const std::string text = fmt::format(
+        "raw sample on {} from '{}' taken at {} us, not after the last one ({} us): dropped "
+        "(reordered or replayed); further ones are only counted",
+        channel, in.header().sender, sample.sample_utime, last_sample_utime_[source]);
+    lock.unlock();
+    reporter_.warning(text);
+    return;
+  }
   try {
     plugin_->on_sample(source, sample);
   } catch (const std::exception& e) {
@@ -109,20 +136,23 @@ void Shell::on_sample(const std::string& channel, const RawSample& sample) {
     on_malformed(channel, why);
     return;
   }
-  last_rx_[source] = std::chrono::steady_clock::now();
+  received_[source] = true;
   last_sample_utime_[source] = sample.sample_utime;
 }
 
 void Shell::make_reading(const Params& context) {
   std::unique_lock lock(mutex_);
   Reading r;
-  const auto now = std::chrono::steady_clock::now();
+  // A source's age is that of its newest sample, by the sample's own time (the emulator stamps
+  // the modelled latency in; the hosts' clocks must agree): a sample that spent long on the way
+  // is as stale as one never sent.
+  const std::int64_t now = now_utime();
   std::string stale;
   for (std::size_t i = 0; i < config_.sources.size() && stale.empty(); ++i) {
-    if (!last_rx_[i]) {
+    if (!received_[i]) {
       stale = fmt::format("no sample from source '{}' yet", config_.sources[i]);
     } else {
-      const double age = std::chrono::duration<double>(now - *last_rx_[i]).count();
+      const double age = static_cast<double>(now - last_sample_utime_[i]) * 1e-6;
       if (age > config_.stale_after_s)
         stale = fmt::format("source '{}' stale for {:.0f} ms (limit {:.0f} ms)", config_.sources[i],
                             age * 1000.0, config_.stale_after_s * 1000.0);
@@ -142,7 +172,7 @@ void Shell::make_reading(const Params& context) {
   }
   std::int64_t oldest = 0;
   for (std::size_t i = 0; i < last_sample_utime_.size(); ++i)
-    if (last_rx_[i] && (oldest == 0 || last_sample_utime_[i] < oldest))
+    if (received_[i] && (oldest == 0 || last_sample_utime_[i] < oldest))
       oldest = last_sample_utime_[i];
   r.reading_utime = oldest;
   r.reading_no = ++reading_no_;

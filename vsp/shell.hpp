@@ -44,9 +44,14 @@ class Shell {
 
   /// Raw samples that did not decode or that the plugin refused (counted and dropped).
   [[nodiscard]] std::uint64_t malformed() const;
+  /// Raw samples not newer (by their own sample time) than the last one of their source:
+  /// reordered or replayed (counted and dropped).
+  [[nodiscard]] std::uint64_t out_of_order() const;
+  /// Raw samples that were not authentic with the set's key (counted, dropped, reported).
+  [[nodiscard]] std::uint64_t unauthenticated() const;
 
  private:
-  void on_sample(const std::string& channel, const RawSample& sample);
+  void on_sample(const RawSample& sample, const comm::Received& in);
   void on_malformed(const std::string& channel, const std::string& why);
   void make_reading(const Params& context);
   Reply handle(const Request& request);
@@ -59,14 +64,16 @@ class Shell {
   std::map<std::string, std::size_t> source_of_channel_;
 
   mutable std::mutex mutex_;
-  std::vector<std::optional<std::chrono::steady_clock::time_point>> last_rx_;
-  std::vector<std::int64_t> last_sample_utime_;
+  std::vector<bool> received_;                   ///< per source: a sample taken
+  std::vector<std::int64_t> last_sample_utime_;  ///< per source: its sample time [us]
   std::optional<Reading> reading_;
   std::int64_t reading_no_ = 0;
   bool terminated_ = false;
   bool was_valid_ = true;
   std::uint64_t malformed_ = 0;
   bool malformed_reported_ = false;
+  std::uint64_t out_of_order_ = 0;
+  bool out_of_order_reported_ = false;
   std::vector<comm::Subscriber<RawSample>> subscribers_;  ///< last: end before what they use
 
   std::thread periodic_;

@@ -8,6 +8,7 @@
 #include <openssl/hmac.h>
 
 #include <cctype>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <string_view>
@@ -61,21 +62,35 @@ std::int64_t Authenticator::next_counter() {
   return last_counter_;
 }
 
+namespace {
+constexpr std::string_view kDomain{"mrroc-auth-2"};
+}  // namespace
+
+std::size_t Authenticator::mac_input_size(const std::string& channel, std::size_t size) {
+  return kDomain.size() + 4 + channel.size() + size;
+}
+
 Authenticator::Tag Authenticator::mac(const std::string& channel, const std::uint8_t* data,
                                       std::size_t size) const {
+  std::vector<std::uint8_t> scratch;
+  scratch.reserve(mac_input_size(channel, size));
+  return mac(channel, data, size, scratch);
+}
+
+Authenticator::Tag Authenticator::mac(const std::string& channel, const std::uint8_t* data,
+                                      std::size_t size, std::vector<std::uint8_t>& input) const {
   // The domain, the channel's length (4 bytes, big-endian), the channel, then the message: no
   // two (channel, message) pairs give the same input.
-  static constexpr std::string_view kDomain{"mrroc-auth-2"};
-  std::vector<std::uint8_t> input;
-  input.reserve(kDomain.size() + 4 + channel.size() + size);
-  input.insert(input.end(), kDomain.begin(), kDomain.end());
+  input.resize(mac_input_size(channel, size));  // no allocation within the capacity
+  std::uint8_t* out = input.data();
+  std::memcpy(out, kDomain.data(), kDomain.size());
+  out += kDomain.size();
   const auto channel_length = static_cast<std::uint32_t>(channel.size());
-  for (unsigned shift = 24;; shift -= 8) {
-    input.push_back(static_cast<std::uint8_t>(channel_length >> shift));
-    if (shift == 0) break;
-  }
-  input.insert(input.end(), channel.begin(), channel.end());
-  if (size > 0) input.insert(input.end(), data, data + size);
+  for (const unsigned shift : {24U, 16U, 8U, 0U})
+    *out++ = static_cast<std::uint8_t>(channel_length >> shift);
+  if (!channel.empty()) std::memcpy(out, channel.data(), channel.size());
+  out += channel.size();
+  if (size > 0) std::memcpy(out, data, size);
   Tag tag{};
   unsigned int length = 0;
   if (HMAC(EVP_sha256(), key_.data(), static_cast<int>(key_.size()), input.data(), input.size(),

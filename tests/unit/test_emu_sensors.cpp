@@ -23,6 +23,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "cell_world.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/kinematics/irb6.hpp"
@@ -479,6 +480,51 @@ TEST(EmuSensors, PublishedSamplesCountAtTheirRatesWithoutAllocating) {
   EXPECT_EQ(wrist.back().n, 6);
   EXPECT_EQ(wrist.back().names[5], "g5");
   EXPECT_EQ(wrist.back().units[0], "V");
+}
+
+// With the set's key every sample is signed for its own channel (as comm::sign does), still
+// without allocating in mrroc's code: a VSP with the key accepts each once, on its channel only.
+TEST(EmuSensors, SignedSamplesVerifyOnTheirChannelWithoutAllocating) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  Received received;
+  lcm.subscribeFunction<mrroc_lcm::raw_sensor_t, Received*>("mrroc/raw/.*", &Received::on,
+                                                            &received);
+  const std::vector<std::uint8_t> key(32, 9);
+  mrroc::comm::Authenticator receiver(key);  // started before anything is signed
+  mrroc::comm::Authenticator signer(key);
+  CellWorld world(sensing_scene(probe_pose(0.01)));
+  SensorDevices sensors(scene_file("sensing.toml"), world);
+  RawSamplePublisher publisher(lcm, sensors, "test#1", &signer);
+  long allocations = 0;
+  for (int i = 0; i < 200; ++i) {
+    ASSERT_TRUE(world.step());
+    const std::int64_t now = wall_utime(world);
+    g_heap.allocations = 0;
+    g_heap.counting = true;
+    for (const std::size_t device : sensors.update(world, now))
+      (void)publisher.publish(device, sensors.sample(device), now);
+    g_heap.counting = false;
+    allocations += g_heap.allocations;
+    while (lcm.handleTimeout(0) > 0) {
+    }
+  }
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(publisher.failed(), 0U);
+  std::size_t checked = 0;
+  for (const auto& [channel, messages] : received.by_channel) {
+    for (const auto& m : messages) {
+      EXPECT_EQ(m.header.auth_len, 32);
+      EXPECT_EQ(mrroc::comm::verify(receiver, m, "mrroc/raw/elsewhere"),
+                mrroc::comm::Authenticator::Verdict::bad_tag);
+      EXPECT_EQ(mrroc::comm::verify(receiver, m, channel), mrroc::comm::Authenticator::Verdict::ok)
+          << channel;
+      EXPECT_EQ(mrroc::comm::verify(receiver, m, channel),
+                mrroc::comm::Authenticator::Verdict::replayed);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 100U);
 }
 
 // ---- Scene contact keys ----

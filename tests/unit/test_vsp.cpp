@@ -12,10 +12,13 @@
 #include <mutex>
 #include <thread>
 
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/time.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "shell.hpp"
 
@@ -368,4 +371,88 @@ TEST(Vsp, MalformedRawSamplesAreCountedAndDropped) {
   std::this_thread::sleep_for(30ms);
   refresh(sensor);
   ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+}
+
+namespace {
+/// One sample of `device` taken at `sample_utime`, sent as it is (no signature).
+void publish_taken_at(comm::Bus& bus, const std::string& device, double value,
+                      std::int64_t sample_utime) {
+  vsp::RawSample s;
+  s.device = device;
+  s.sample_utime = sample_utime;
+  s.values = {value};
+  s.names = {"d"};
+  s.units = {"m"};
+  mrroc_lcm::raw_sensor_t m = comm::encode(s);
+  bus.lcm().publish(channels::raw_sensor(device), &m);
+}
+}  // namespace
+
+// A source's age and order come from the samples' own time: a sample taken 300 ms ago that
+// arrives now is stale, and an older sample after a newer one changes nothing.
+TEST(Vsp, SamplesAreAgedAndOrderedByTheirOwnTime) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\nstale_after_ms = "
+      "100\n");
+  RunningVsp vsp(bus, reporter, c.vsp("range"));
+  bus.start();
+  ecp::VirtualSensor sensor(bus, "range", "test");
+  const std::int64_t now = now_utime();
+  publish_taken_at(bus, "sonar", 0.7, now - 300'000);
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  EXPECT_FALSE(sensor.image().valid) << "a sample taken 300 ms ago counted as fresh";
+  EXPECT_NE(sensor.image().invalid_reason.find("source 'sonar' stale for"), std::string::npos)
+      << sensor.image().invalid_reason;
+  publish_taken_at(bus, "sonar", 0.5, now_utime());
+  const std::int64_t newest = now_utime();
+  publish_taken_at(bus, "sonar", 0.9, newest - 50'000);  // reordered or replayed: older
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("distance"), 0.5, 1e-12) << "an older sample replaced a newer one";
+  EXPECT_EQ(vsp.shell.out_of_order(), 1U);
+  EXPECT_GE(sensor.image().age_us, 30'000);  // from the sample's time, not its arrival
+}
+
+// With the set's key, a sample counts only when signed for its channel by a holder of the key.
+TEST(Vsp, WithAKeyOnlySignedSamplesCount) {
+  comm::Bus bus(test_url());
+  bus.enable_auth(std::vector<std::uint8_t>(32, 5));
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c =
+      config_with("[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\n");
+  RunningVsp vsp(bus, reporter, c.vsp("range"));
+  bus.start();
+  ecp::VirtualSensor sensor(bus, "range", "test");
+  publish_taken_at(bus, "sonar", 0.1, now_utime());  // forged: no tag
+  vsp::RawSample s;
+  s.device = "sonar";
+  s.sample_utime = now_utime();
+  s.values = {0.2};
+  s.names = {"d"};
+  s.units = {"m"};
+  comm::publish(bus, channels::raw_sensor("other"), comm::encode(s));  // signed elsewhere
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  EXPECT_FALSE(sensor.image().valid);
+  EXPECT_NE(sensor.image().invalid_reason.find("no sample from source 'sonar' yet"),
+            std::string::npos)
+      << sensor.image().invalid_reason;
+  // The forged one is not counted here: it arrived on 'sonar'; the one signed for 'other' never
+  // reached this VSP's channel.
+  EXPECT_EQ(vsp.shell.unauthenticated(), 1U);
+  mrroc_lcm::raw_sensor_t elsewhere = comm::encode(s);
+  comm::sign(*bus.auth(), elsewhere, channels::raw_sensor("other"));
+  bus.lcm().publish(channels::raw_sensor("sonar"), &elsewhere);  // moved to 'sonar'
+  s.sample_utime = now_utime();
+  s.values = {0.3};
+  comm::publish(bus, channels::raw_sensor("sonar"), comm::encode(s));  // signed for 'sonar'
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("distance"), 0.3, 1e-12);
+  EXPECT_EQ(vsp.shell.unauthenticated(), 2U);
 }

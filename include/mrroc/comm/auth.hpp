@@ -63,6 +63,11 @@ class Authenticator {
   /// HMAC-SHA256 of the domain, `channel` and `size` bytes (see above).
   [[nodiscard]] Tag mac(const std::string& channel, const std::uint8_t* data,
                         std::size_t size) const;
+  /// The same, built in `scratch`: no allocation in mrroc's code when its capacity holds
+  /// mac_input_size(channel, size) bytes (for senders that must not allocate, e.g. sensors).
+  [[nodiscard]] Tag mac(const std::string& channel, const std::uint8_t* data, std::size_t size,
+                        std::vector<std::uint8_t>& scratch) const;
+  [[nodiscard]] static std::size_t mac_input_size(const std::string& channel, std::size_t size);
   /// Compares in constant time.
   [[nodiscard]] static bool same(const std::uint8_t* a, const std::uint8_t* b, std::size_t n);
   /// Checks (and on success records) a counter of `sender` on `channel`.

@@ -9,7 +9,8 @@
 
 namespace mrroc {
 
-/// SIGINT and SIGTERM set a flag (read with `stop_requested`) instead of killing the process.
+/// SIGINT, SIGTERM and SIGHUP set a flag (read with `stop_requested`) instead of killing the
+/// process: a process whose terminal or connection hangs up stops as a stopped one does.
 void install_stop_handlers();
 [[nodiscard]] bool stop_requested();
 void request_stop();

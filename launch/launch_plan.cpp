@@ -33,22 +33,54 @@ std::string shell_quote(std::string_view word) {
   return out;
 }
 
+std::string_view remote_stop_script() {
+  // One line (it is shown in `mrroc-launch --check`). Arguments: SIGNAL GRACE PROGRAM ARGS...
+  // The script's own stdin moves to descriptor 3 for the watcher; the program gets /dev/null.
+  // Both the script and the watcher catch SIGNAL (which the watcher sends to the whole process
+  // group) so that they live on: the script to return the program's status, the watcher to
+  // send SIGKILL after GRACE. A program that ends by itself ends the watcher.
+  return "s=$1 g=$2; shift 2; trap : \"$s\"; exec 3<&0 </dev/null; "
+         "{ trap : \"$s\"; while read -r _ <&3; do :; done; kill -s \"$s\" 0; sleep \"$g\"; "
+         "kill -s KILL 0; } >/dev/null 2>&1 & w=$!; exec 3<&-; \"$@\"; r=$?; "
+         "kill -s KILL \"$w\" 2>/dev/null; exit \"$r\"";
+}
+
 std::vector<std::string> host_command(const HostConfig& host, const std::vector<std::string>& env,
-                                      const std::vector<std::string>& command) {
+                                      const std::vector<std::string>& command,
+                                      const RemoteStop& stop) {
+  const bool ssh = is_ssh_command(host.command);
+  // ssh: "--" before the destination (the last word with "{host}"), unless there is one.
+  std::size_t destination = host.command.size();
+  if (ssh && std::find(host.command.begin(), host.command.end(), "--") == host.command.end())
+    for (std::size_t i = 0; i < host.command.size(); ++i)
+      if (host.command[i].find("{host}") != std::string::npos) destination = i;
   std::vector<std::string> argv;
-  for (std::string word : host.command) {
+  for (std::size_t i = 0; i < host.command.size(); ++i) {
+    std::string word = host.command[i];
     for (std::size_t at = word.find("{host}"); at != std::string::npos;
          at = word.find("{host}", at + host.address.size()))
       word.replace(at, 6, host.address);
+    if (i == destination) argv.emplace_back("--");
     argv.push_back(std::move(word));
   }
   std::vector<std::string> inner;
+  if (ssh) {
+    const char* abbrev = ::sigabbrev_np(stop.signal);
+    // exec: the login shell must not stay in the process group the script signals.
+    inner = {"exec",
+             "sh",
+             "-c",
+             std::string(remote_stop_script()),
+             "mrroc-remote",
+             abbrev != nullptr ? abbrev : std::to_string(stop.signal),
+             std::to_string(std::lround(std::ceil(std::max(stop.grace_s, 0.0))))};
+  }
   if (!env.empty()) {
     inner.emplace_back("env");
     inner.insert(inner.end(), env.begin(), env.end());
   }
   inner.insert(inner.end(), command.begin(), command.end());
-  if (host.quote) {
+  if (ssh || host.quote) {
     std::string line;
     for (const auto& w : inner) line += (line.empty() ? "" : " ") + shell_quote(w);
     argv.push_back(std::move(line));
@@ -138,9 +170,11 @@ std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const Plan
       throw ConfigError(
           SourceLocation::whole_file(cfg),
           fmt::format("{} runs on host '{}', which is not a [[launch.host]]", p.name, p.host));
-    // ssh passes no environment: it travels in the command line.
+    // ssh passes no environment: it travels in the command line. Through ssh the launcher
+    // stops a process by closing its input; the remote side then sends the stop signal.
     s.argv = host_command(*host, {"LCM_DEFAULT_URL=" + comm::resolve_lcm_url(config.lcm_url)},
-                          p.command);
+                          p.command, RemoteStop{p.options.stop_signal, p.options.stop_grace_s});
+    s.stop_by_closing_input = is_ssh_command(host->command);
   }
   return plan;
 }

@@ -3,6 +3,8 @@
 /// What `mrroc-launch` starts, in which order and how: the plan built from a process-set
 /// config (docs/configs.md). Pure functions, no side effects (used by `--check` and the tests).
 
+#include <signal.h>
+
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -49,11 +51,33 @@ std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const Plan
 /// `word` quoted for a POSIX shell (unchanged when it has only safe characters).
 std::string shell_quote(std::string_view word);
 
+/// How the remote side of an ssh host stops its program (`host_command`).
+struct RemoteStop {
+  int signal = SIGTERM;  ///< sent when the connection's input ends
+  double grace_s = 3.0;  ///< then SIGKILL after this many seconds (rounded up)
+};
+
+/// The POSIX sh script that runs a program on an ssh host (`host_command`), arguments
+/// `SIGNAL GRACE PROGRAM ARGS...`: it runs the program with stdin from /dev/null and, in the
+/// background, reads its own stdin (the ssh connection's) until it ends; then it sends SIGNAL
+/// (a name such as TERM) to its process group (the program, its children and the script),
+/// and SIGKILL GRACE seconds later if the program is still there (which ends the script too).
+/// Otherwise it exits with the program's exit status. The connection's input ends when the
+/// launcher closes it to stop the process, when the ssh client ends (killed, or the launcher
+/// gone) and when sshd finds the connection lost.
+std::string_view remote_stop_script();
+
 /// The argv that runs `command` (with `env`, "NAME=value") on `host`: the host's start command
-/// with "{host}" replaced by its address, then `env NAME=value ... command...`, either as
-/// separate words or (quote = true) as one shell-quoted word.
+/// with "{host}" replaced by its address, then `env NAME=value ... command...`.
+///  - ssh (`is_ssh_command`): "--" in front of the word with "{host}" unless the command has a
+///    "--" already (an address is never taken for an option), then one shell-quoted word for
+///    the remote shell, whatever `quote` says: `exec sh -c SCRIPT mrroc-remote SIGNAL GRACE
+///    env ... command...` (`remote_stop_script`, with `stop`'s signal and grace).
+///  - another command: `env ... command...` as separate words, or (quote = true) as one
+///    shell-quoted word.
 std::vector<std::string> host_command(const HostConfig& host, const std::vector<std::string>& env,
-                                      const std::vector<std::string>& command);
+                                      const std::vector<std::string>& command,
+                                      const RemoteStop& stop = {});
 
 /// The log file of a process: log_dir/<name with '/' as '_'>.log ("edp/irb6" -> edp_irb6.log).
 std::filesystem::path log_file_of(const std::filesystem::path& log_dir, const std::string& name);

@@ -268,7 +268,7 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
     // the program itself under that pid.
     row.local_metrics = p.host == "local";
     for (const auto& h : config.launch.hosts)
-      if (h.name == p.host && !h.quote) row.local_metrics = true;
+      if (h.name == p.host && !h.quote && !is_ssh_command(h.command)) row.local_metrics = true;
     initial.processes.push_back(std::move(row));
   }
 

@@ -185,7 +185,7 @@ struct ExecPlan {
   const char* path;
   char* const* argv;
   char* const* envp;
-  int devnull;
+  int input;  // stdin: /dev/null or the read end of the input pipe
   int out_w;
   int err_w;
   int error_w;  // close-on-exec; receives errno if exec (or the set-up) fails
@@ -245,7 +245,7 @@ void fork_stop_guard(const ExecPlan& p) {
   }
 
   // Move the sources out of 0..2 first (they might be there if the launcher's stdio is closed).
-  int sources[3] = {p.devnull, p.out_w, p.err_w};
+  int sources[3] = {p.input, p.out_w, p.err_w};
   for (int& fd : sources) {
     if (fd < 3) {
       fd = ::fcntl(fd, F_DUPFD_CLOEXEC, 3);
@@ -278,6 +278,7 @@ struct Child {
   int stop_signal = SIGTERM;
   std::size_t order = 0;         // place in the stop order (that of the name's first start)
   std::unique_ptr<LogFile> log;  // null: no log file
+  Fd input_w;  // write end of the child's stdin pipe (ChildSpec::stop_by_closing_input), or none
   Stream out;
   Stream err;
   bool reaped = false;
@@ -396,6 +397,7 @@ struct Supervisor::Impl {
   }
 
   void on_reaped(Child& c, std::optional<int> status) {
+    c.input_w.reset();
     std::string batch;
     read_stream(c, c.out, kReadAtExit, batch);
     read_stream(c, c.err, kReadAtExit, batch);
@@ -548,7 +550,10 @@ struct Supervisor::Impl {
                   int signals_at_start) {
     const auto t0 = Clock::now();
     const bool leader_running = !c.reaped;
-    if (leader_running) {
+    const bool close_input = leader_running && c.input_w.get() >= 0;
+    if (close_input) {
+      emit(fmt::format("stopping {} (pid {}) by closing its input\n", c.name, c.pid));
+    } else if (leader_running) {
       emit(fmt::format(
           "stopping {} (pid {}){}\n", c.name, c.pid,
           c.stop_signal == SIGTERM ? std::string() : " with " + signal_name(c.stop_signal)));
@@ -564,7 +569,11 @@ struct Supervisor::Impl {
       return hurrying;
     };
     if (!hurry()) {
-      signal_child(c, c.stop_signal);
+      if (close_input) {
+        c.input_w.reset();
+      } else {
+        signal_child(c, c.stop_signal);
+      }
       if (wait_gone(lock, c, t0 + c.grace, hurry)) return;
     }
 
@@ -660,9 +669,18 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   sigset_t empty_mask;
   ::sigemptyset(&empty_mask);
 
-  Fd devnull(::open("/dev/null", O_RDONLY | O_CLOEXEC));
-  if (devnull.get() < 0) {
-    throw Error(fmt::format("cannot start {}: /dev/null: {}", spec.name, errno_text(errno)));
+  // Stdin: /dev/null, or a pipe whose write end the supervisor keeps (and closes to stop it).
+  Fd input_r;
+  Fd input_w;
+  if (spec.stop_by_closing_input) {
+    auto [r, w] = make_pipe();
+    input_r = std::move(r);
+    input_w = std::move(w);
+  } else {
+    input_r = Fd(::open("/dev/null", O_RDONLY | O_CLOEXEC));
+    if (input_r.get() < 0) {
+      throw Error(fmt::format("cannot start {}: /dev/null: {}", spec.name, errno_text(errno)));
+    }
   }
   auto [out_r, out_w] = make_pipe();
   auto [err_r, err_w] = make_pipe();
@@ -674,7 +692,7 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   const ExecPlan plan{path->c_str(),
                       argv.data(),
                       envp.data(),
-                      devnull.get(),
+                      input_r.get(),
                       out_w.get(),
                       err_w.get(),
                       error_w.get(),
@@ -698,7 +716,7 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   out_w.reset();
   err_w.reset();
   error_w.reset();
-  devnull.reset();
+  input_r.reset();
   if (pid < 0) {
     throw Error(fmt::format("cannot start {}: fork: {}", spec.name, errno_text(fork_errno)));
   }
@@ -723,6 +741,7 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   child->pid = pid;
   child->grace = std::clamp(spec.stop_grace, milliseconds(0), kMaxWait);
   child->stop_signal = spec.stop_signal;
+  child->input_w = std::move(input_w);
   child->out.fd = out_r.release();
   child->err.fd = err_r.release();
   if (log)

@@ -13,9 +13,10 @@
 ///    is SIGKILLed (Linux ties this to the *thread* that forked: call `start()` from a thread
 ///    that lives as long as the children, normally the main thread). This covers the child
 ///    only, not processes it forks: wrapper scripts should `exec` the real program;
-///  - has stdin from /dev/null, stdout and stderr in pipes read by the supervisor, default
-///    signal dispositions and an empty signal mask, and inherits no other descriptor of the
-///    launcher (all of them are made close-on-exec in the child).
+///  - has stdin from /dev/null (or a pipe: `ChildSpec::stop_by_closing_input`), stdout and
+///    stderr in pipes read by the supervisor, default signal dispositions and an empty signal
+///    mask, and inherits no other descriptor of the launcher (all of them are made
+///    close-on-exec in the child).
 ///
 /// The constructor makes the calling process a child subreaper (`PR_SET_CHILD_SUBREAPER`):
 /// processes that a child forks and orphans are re-parented to the launcher, which reaps those
@@ -64,6 +65,12 @@ struct ChildSpec {
   std::chrono::milliseconds stop_grace{3000};
   /// The signal `stop_all()` sends first (to the child's process group).
   int stop_signal = SIGTERM;
+  /// Stdin is a pipe the supervisor holds open and never writes to, instead of /dev/null, and
+  /// `stop_all()` closes it instead of sending `stop_signal` (then SIGKILL after `stop_grace`
+  /// as usual). For ssh: the client passes the end of its input on to the remote side, whose
+  /// wrapper then sends the stop signal (launch_plan.hpp, `host_command`). The pipe also closes
+  /// when the child is reaped, and with the launcher.
+  bool stop_by_closing_input = false;
   /// When not empty, every output line of the child is also appended to this file with a UTC
   /// time stamp (see LogFile), as are the start and the end of the child. The file is rotated
   /// when it holds `log_max_bytes` or more, keeping `log_keep` old files (path.1 .. path.N).
@@ -147,13 +154,14 @@ class Supervisor {
 
   /// Stops all children in reverse start order (a restarted child counts at the place of its
   /// first start), one after the other: its `stop_signal` (SIGTERM by default) to the child's
-  /// process group, then wait until the child is reaped and its group is empty, at most its
-  /// `stop_grace`, then SIGKILL to the group and wait until it is gone (at most 5 s more;
-  /// a warning line is written if not). Children that already exited but left processes in
-  /// their group are handled the same way. A further stop signal (e.g. a second Ctrl-C)
-  /// during `stop_all()` skips the remaining grace periods (SIGKILL at once).
-  /// Prints "stopping NAME (pid N)" (plus " with SIGX" for another stop signal than SIGTERM),
-  /// the exit line, or "killed NAME after G ms".
+  /// process group (or its input closed: `ChildSpec::stop_by_closing_input`), then wait until
+  /// the child is reaped and its group is empty, at most its `stop_grace`, then SIGKILL to the
+  /// group and wait until it is gone (at most 5 s more; a warning line is written if not).
+  /// Children that already exited but left processes in their group are handled the same way.
+  /// A further stop signal (e.g. a second Ctrl-C) during `stop_all()` skips the remaining grace
+  /// periods (SIGKILL at once). Prints "stopping NAME (pid N)" (plus " with SIGX" for another
+  /// stop signal than SIGTERM, or " by closing its input"), the exit line, or "killed NAME
+  /// after G ms".
   void stop_all();
 
   /// All exits so far, in the order they were reaped.

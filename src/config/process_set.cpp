@@ -5,6 +5,7 @@
 #include <netinet/in.h>
 #include <sched.h>
 
+#include <algorithm>
 #include <csignal>
 
 #include <toml++/toml.h>
@@ -406,6 +407,15 @@ class Reader {
       fail(*h.get("name"),
            fmt::format("host name '{}' is used twice (\"local\" is reserved)", c.name));
     c.address = string(h, "address", "launch.host", c.name);
+    if (!is_valid_host_address(c.address)) {
+      const char* key = h.get("address") != nullptr ? "address" : "name";
+      fail(*h.get(key),
+           fmt::format("'{}' = '{}' is not a host address: a host name, an IPv4 or IPv6 address "
+                       "(IPv6 also in brackets), user@ one of these or a network namespace name "
+                       "(letters, digits, '.', '-', '_', not starting with '-'; no spaces or "
+                       "shell characters)",
+                       key, c.address));
+    }
     if (const toml::node* cmd = h.get("command")) {
       const toml::array* words = cmd->as_array();
       if (words == nullptr || words->empty() || !words->is_homogeneous(toml::node_type::string))
@@ -416,8 +426,43 @@ class Reader {
       for (const auto& w : *words) c.command.emplace_back(**w.as_string());
       c.quote = false;  // a command of one's own gets its words as they are, unless asked
     }
-    set_boolean(h, "quote", c.quote);
+    const bool ssh = is_ssh_command(c.command);
+    if (ssh) {
+      if (const std::string option = ssh_option_without_input(c.command); !option.empty())
+        fail(*h.get("command"),
+             fmt::format("'command' gives ssh option -{}, which takes away the remote program's "
+                         "input: the launcher stops a program on an ssh host by closing that "
+                         "input",
+                         option));
+      c.quote = true;  // the remote shell reads the command line: always one quoted word
+    }
+    if (const toml::node* quote = h.get("quote")) {
+      set_boolean(h, "quote", c.quote);
+      if (ssh && !c.quote)
+        fail(*quote,
+             "'quote' = false does not go with an ssh command: the remote shell reads the "
+             "command line, which is therefore always one shell-quoted word (leave 'quote' out)");
+    }
     return c;
+  }
+
+  /// "n" or "f" when the ssh command line `command` gives option -n or -f (stdin from
+  /// /dev/null), else "". Options with an argument (-o X, -oX, -p 22, ...) are skipped; the
+  /// scan ends at "--" or at the first word that is not an option.
+  static std::string ssh_option_without_input(const std::vector<std::string>& command) {
+    constexpr std::string_view with_argument = "BbcDEeFIiJLlmOoPpQRSWw";
+    for (std::size_t i = 1; i < command.size(); ++i) {
+      const std::string& word = command[i];
+      if (word == "--" || word.size() < 2 || word[0] != '-') break;
+      for (std::size_t k = 1; k < word.size(); ++k) {
+        if (word[k] == 'n' || word[k] == 'f') return std::string(1, word[k]);
+        if (with_argument.find(word[k]) != std::string_view::npos) {
+          if (k + 1 == word.size()) ++i;  // the argument is the next word
+          break;
+        }
+      }
+    }
+    return {};
   }
 
   /// [emulator].
@@ -604,6 +649,39 @@ bool is_loopback(std::string_view host) {
   if (inet_pton(AF_INET, text.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
   in6_addr v6{};
   return inet_pton(AF_INET6, text.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
+}
+
+bool is_ssh_command(const std::vector<std::string>& command) {
+  if (command.empty()) return false;
+  const std::string& program = command.front();
+  const std::size_t slash = program.rfind('/');
+  return std::string_view(program).substr(slash == std::string::npos ? 0 : slash + 1) == "ssh";
+}
+
+bool is_valid_host_address(std::string_view address) {
+  auto plain = [](std::string_view text) {  // host name, IPv4 address, namespace or user name
+    return !text.empty() && text.front() != '-' &&
+           std::all_of(text.begin(), text.end(), [](char ch) {
+             return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
+                    (ch >= '0' && ch <= '9') || ch == '.' || ch == '-' || ch == '_';
+           });
+  };
+  auto ipv6 = [&](std::string_view text) {  // with an optional %zone (an interface name)
+    const std::size_t percent = text.find('%');
+    if (percent != std::string_view::npos && !plain(text.substr(percent + 1))) return false;
+    const std::string bare(text.substr(0, percent));
+    in6_addr v6{};
+    return inet_pton(AF_INET6, bare.c_str(), &v6) == 1;
+  };
+  std::string_view host = address;
+  if (const std::size_t at = address.find('@'); at != std::string_view::npos) {
+    if (!plain(address.substr(0, at))) return false;
+    host = address.substr(at + 1);
+  }
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    return ipv6(host.substr(1, host.size() - 2));
+  if (host.find(':') != std::string_view::npos) return ipv6(host);
+  return plain(host);
 }
 
 const char* to_string(RestartPolicy policy) {

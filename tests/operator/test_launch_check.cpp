@@ -40,11 +40,14 @@ TEST(LaunchCheck, PrintsThePlanWithHostTemplatingAndStartsNothing) {
   EXPECT_EQ(code, 0) << out;
   const std::string cfg = config.string();
   const std::string bin = kBin.string();
-  // ssh: the command line with its environment is one shell-quoted word.
+  // ssh: "--" before the address; the command line with its environment is one shell-quoted
+  // word, run by the remote stop script with the process' stop signal and grace (rounded up).
+  EXPECT_TRUE(has(out, "1. srp          ssh -o BatchMode=yes -- robot@10.0.0.7 'exec sh -c '"))
+      << out;
   EXPECT_TRUE(has(out,
-                  "1. srp          ssh -o BatchMode=yes robot@10.0.0.7 'env "
+                  " mrroc-remote INT 2 env "
                   "'\\''LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=0'\\'' " +
-                      bin + "/mrroc-srp --config " + cfg + "'"))
+                      bin + "/mrroc-srp --config " + cfg + "'\n"))
       << out;
   EXPECT_TRUE(has(out,
                   "group logging, host cell, restart always (at most 5, back-off from 0.5 s), "

@@ -350,6 +350,80 @@ TEST_F(ConfigTest, KeysGivenOverrideTheDefaults) {
   EXPECT_FALSE(c.launch.hosts[0].quote);  // a command of one's own is not quoted unless asked
 }
 
+TEST_F(ConfigTest, HostAddressesAreNamesOrAddressesNeverOptionsOrShellText) {
+  for (const char* address : {"robot@10.0.0.7", "host.example", "cell-pc", "10.0.0.7", "fe80::1",
+                              "[fe80::1]", "robot@[fe80::1]", "fe80::1%eth0", "ns-1", "mrroc_b"}) {
+    const std::string text =
+        valid() + "\n[launch]\n[[launch.host]]\nname = \"cell\"\naddress = \"" + address + "\"\n";
+    try {
+      const ProcessSetConfig c = load_process_set(write(text));
+      ASSERT_EQ(c.launch.hosts.size(), 1U);
+      EXPECT_EQ(c.launch.hosts[0].address, address);
+    } catch (const ConfigError& e) {
+      ADD_FAILURE() << address << " was refused: " << e.what();
+    }
+  }
+  for (const char* address : {"-oProxyCommand=x", "a b", "a;b", "$(x)", "a\\tb", "a\\nb", "`x`",
+                              "a&b", "a|b", "a'b", "", "@host", "robot@-oProxyCommand=x",
+                              "[fe80::1", "[10.0.0.7]", "fe80::1%e th0", "a@b@c", "x/../y"}) {
+    const std::string text =
+        valid() + "\n[launch]\n[[launch.host]]\nname = \"cell\"\naddress = \"" + address + "\"\n";
+    const std::string error = error_of(text);
+    // The value as the file holds it once TOML has read the escapes.
+    std::string value = address;
+    for (const auto& [escape, ch] : {std::pair{"\\t", '\t'}, std::pair{"\\n", '\n'}})
+      if (const auto at = value.find(escape); at != std::string::npos)
+        value.replace(at, 2, std::string(1, ch));
+    expect_located(error, dir_ / "set.toml", line_of(text, "address ="),
+                   "'address' = '" + value + "' is not a host address");
+  }
+  // Without 'address' the name is the address: a bad one is reported at 'name'.
+  const std::string text =
+      valid() + "\n[launch]\n[[launch.host]]\nname = \"-oProxyCommand=touch /tmp/x\"\n";
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "name = \"-o"),
+                 "'name' = '-oProxyCommand=touch /tmp/x' is not a host address");
+}
+
+TEST_F(ConfigTest, SshHostsAlwaysQuoteAndKeepTheirInput) {
+  const std::string host = "\n[launch]\n[[launch.host]]\nname = \"cell\"\n";
+  // A command of one's own that runs ssh is quoted all the same.
+  for (const char* command : {R"(["ssh", "-t", "-t", "-o", "BatchMode=yes", "{host}"])",
+                              R"(["/usr/bin/ssh", "{host}"])"}) {
+    const ProcessSetConfig c =
+        load_process_set(write(valid() + host + "command = " + command + "\n"));
+    ASSERT_EQ(c.launch.hosts.size(), 1U);
+    EXPECT_TRUE(c.launch.hosts[0].quote) << command;
+    EXPECT_TRUE(is_ssh_command(c.launch.hosts[0].command)) << command;
+  }
+  EXPECT_TRUE(load_process_set(write(valid() + host + "quote = true\n")).launch.hosts[0].quote);
+  // Other commands keep `quote` as given.
+  EXPECT_FALSE(is_ssh_command({"ip", "netns", "exec", "{host}"}));
+  EXPECT_FALSE(is_ssh_command({"/usr/bin/sshpass", "ssh", "{host}"}));
+  EXPECT_TRUE(load_process_set(write(valid() + host +
+                                     "command = [\"ip\", \"netns\", \"exec\", \"{host}\"]\n"
+                                     "quote = true\n"))
+                  .launch.hosts[0]
+                  .quote);
+
+  // quote = false with ssh (the default command or one's own) is refused at 'quote'.
+  for (const std::string command : {"", "command = [\"ssh\", \"-t\", \"-t\", \"{host}\"]\n"}) {
+    const std::string text = valid() + host + command + "quote = false\n";
+    expect_located(error_of(text), dir_ / "set.toml", line_of(text, "quote = false"),
+                   "'quote' = false does not go with an ssh command");
+  }
+  // -n and -f give ssh no input: refused at 'command'; option arguments are not options.
+  for (const char* command : {R"(["ssh", "-n", "{host}"])", R"(["ssh", "-tn", "{host}"])",
+                              R"(["ssh", "-o", "BatchMode=yes", "-f", "{host}"])"}) {
+    const std::string text = valid() + host + "command = " + command + "\n";
+    expect_located(error_of(text), dir_ / "set.toml", line_of(text, "command ="),
+                   "'command' gives ssh option -");
+  }
+  for (const char* command : {R"(["ssh", "-o", "-n", "{host}"])", R"(["ssh", "-lfn", "{host}"])",
+                              R"(["ssh", "-p", "22", "--", "{host}", "-n"])"})
+    EXPECT_NO_THROW(load_process_set(write(valid() + host + "command = " + command + "\n")))
+        << command;
+}
+
 TEST(Loopback, OnlyLoopbackAddressesAndLocalhost) {
   for (const char* host : {"localhost", "127.0.0.1", "127.1.2.3", "::1"})
     EXPECT_TRUE(is_loopback(host)) << host;

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
 
 namespace mrroc::launch {
 namespace {
@@ -625,6 +626,39 @@ TEST(Supervisor, StopsWithTheChildsStopSignal) {
   EXPECT_EQ(s.exits()[0].exit_code, 7);
 }
 
+TEST(Supervisor, StopsAChildByClosingItsInput) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  // Reads its stdin to the end: /dev/null would end it at once, the pipe only when closed.
+  ChildSpec spec =
+      sh("reader",
+         "trap 'echo got TERM; exit 8' TERM; echo ready; "
+         "while read -r line; do echo \"read $line\"; done; echo input closed; exit 3");
+  spec.stop_by_closing_input = true;
+  s.start(spec);
+  ASSERT_TRUE(cap.wait_for_line("reader", "ready")) << cap.text();
+  std::this_thread::sleep_for(100ms);
+  EXPECT_TRUE(s.is_running("reader")) << cap.text();
+  s.stop_all();
+  const std::string text = cap.text();
+  EXPECT_THAT(text,
+              testing::ContainsRegex("stopping reader \\(pid [0-9]+\\) by closing its input"));
+  EXPECT_THAT(text, HasSubstr("[reader] input closed\n"));
+  EXPECT_THAT(text, testing::Not(HasSubstr("got TERM")));
+  EXPECT_THAT(text, testing::Not(HasSubstr("read ")));
+  ASSERT_EQ(s.exits().size(), 1u);
+  EXPECT_EQ(s.exits()[0].exit_code, 3);
+  EXPECT_FALSE(s.exits()[0].forced);
+}
+
+TEST(Supervisor, AChildWithoutItsOwnInputReadsNothing) {
+  Capture cap;
+  Supervisor s(cap.stream());
+  s.start(sh("devnull", "while read -r line; do echo \"read $line\"; done; echo input ended"));
+  ASSERT_EQ(collect(s, 1).size(), 1u) << cap.text();
+  EXPECT_THAT(cap.text(), HasSubstr("[devnull] input ended\n"));
+}
+
 TEST(Supervisor, RejectsAnInvalidStopSignal) {
   Capture cap;
   Supervisor s(cap.stream());
@@ -727,6 +761,24 @@ TEST(LaunchPlan, QuotesForTheShell) {
   EXPECT_EQ(shell_quote(""), "''");
 }
 
+/// The words `/bin/sh` makes of `line` (as a remote shell reads the line ssh passes on).
+std::vector<std::string> shell_words(const std::string& line) {
+  FILE* out = ::popen(("printf '%s\\0' " + line).c_str(), "r");
+  if (out == nullptr) return {"popen failed"};
+  std::string text;
+  char buf[4096];
+  std::size_t n = 0;
+  while ((n = std::fread(buf, 1, sizeof buf, out)) > 0) text.append(buf, n);
+  if (::pclose(out) != 0) return {"sh failed on: " + line};
+  std::vector<std::string> words;
+  for (std::size_t at = 0; at < text.size();) {
+    const std::size_t end = text.find('\0', at);
+    words.push_back(text.substr(at, end - at));
+    at = end + 1;
+  }
+  return words;
+}
+
 TEST(LaunchPlan, HostTemplatingQuotedAndAsSeparateWords) {
   HostConfig ssh;
   ssh.name = "cell";
@@ -736,8 +788,10 @@ TEST(LaunchPlan, HostTemplatingQuotedAndAsSeparateWords) {
   EXPECT_EQ(host_command(ssh, {"LCM_DEFAULT_URL=udpm://x?ttl=1"},
                          {"/opt/mrroc-edp", "--config", "/a b.toml"}),
             (std::vector<std::string>{
-                "ssh", "-o", "BatchMode=yes", "robot@10.0.0.7",
-                "env 'LCM_DEFAULT_URL=udpm://x?ttl=1' /opt/mrroc-edp --config '/a b.toml'"}));
+                "ssh", "-o", "BatchMode=yes", "--", "robot@10.0.0.7",
+                "exec sh -c " + shell_quote(remote_stop_script()) +
+                    " mrroc-remote TERM 3 env 'LCM_DEFAULT_URL=udpm://x?ttl=1' /opt/mrroc-edp "
+                    "--config '/a b.toml'"}));
   HostConfig netns;
   netns.name = "b";
   netns.address = "ns-b";
@@ -746,6 +800,53 @@ TEST(LaunchPlan, HostTemplatingQuotedAndAsSeparateWords) {
   EXPECT_EQ(
       host_command(netns, {"K=V"}, {"/bin/prog", "a b"}),
       (std::vector<std::string>{"ip", "netns", "exec", "ns-b", "env", "K=V", "/bin/prog", "a b"}));
+  // quote = true for another command: one quoted word, no "--" and no remote stop script.
+  netns.quote = true;
+  EXPECT_EQ(host_command(netns, {"K=V"}, {"/bin/prog", "a b"}),
+            (std::vector<std::string>{"ip", "netns", "exec", "ns-b", "env K=V /bin/prog 'a b'"}));
+}
+
+TEST(LaunchPlan, SshHostsPassTheCommandLineAsOneWordTheRemoteShellSplitsBack) {
+  // A command of one's own, with quote = false in the struct: ssh is quoted all the same.
+  HostConfig host;
+  host.name = "cell";
+  host.address = "robot@10.0.0.7";
+  host.command = {"ssh", "-t", "-t", "-o", "BatchMode=yes", "{host}"};
+  host.quote = false;
+  const std::string value =
+      "LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=1&x=1; echo hi 'q' $HOME";
+  const std::vector<std::string> command{"/opt/bin/mrroc-edp", "--config", "/srv/a b/it's.toml",
+                                         "--robot", "irb6 & false; $(echo injected) `true`"};
+  const auto argv = host_command(host, {value}, command, RemoteStop{SIGINT, 1.2});
+  ASSERT_EQ(argv.size(), 8u);
+  EXPECT_EQ(
+      (std::vector<std::string>(argv.begin(), argv.begin() + 7)),
+      (std::vector<std::string>{"ssh", "-t", "-t", "-o", "BatchMode=yes", "--", "robot@10.0.0.7"}));
+  std::vector<std::string> expected{"exec",         "sh",  "-c", std::string(remote_stop_script()),
+                                    "mrroc-remote", "INT", "2",  "env",
+                                    value};
+  expected.insert(expected.end(), command.begin(), command.end());
+  EXPECT_EQ(shell_words(argv[7]), expected);
+}
+
+TEST(LaunchPlan, SshGetsDoubleDashBeforeTheDestinationOnce) {
+  HostConfig host;
+  host.name = "cell";
+  host.address = "cell-pc";
+  host.command = {"/usr/bin/ssh", "-o", "HostKeyAlias={host}", "{host}"};
+  auto front = [&] {
+    auto argv = host_command(host, {}, {"prog"});
+    argv.pop_back();
+    return argv;
+  };
+  EXPECT_EQ(front(), (std::vector<std::string>{"/usr/bin/ssh", "-o", "HostKeyAlias=cell-pc", "--",
+                                               "cell-pc"}));
+  host.command = {"ssh", "-p", "2222", "--", "{host}"};
+  EXPECT_EQ(front(), (std::vector<std::string>{"ssh", "-p", "2222", "--", "cell-pc"}));
+  host.command = {"ip", "netns", "exec", "{host}"};
+  host.quote = false;
+  EXPECT_EQ(host_command(host, {}, {"prog"}),
+            (std::vector<std::string>{"ip", "netns", "exec", "cell-pc", "prog"}));
 }
 
 TEST(LaunchPlan, OrderGroupsHostsLogFilesAndRecording) {
@@ -805,7 +906,8 @@ group = "arm"
       (std::vector<std::string>{
           "ip", "netns", "exec", "b", "env", "LCM_DEFAULT_URL=udpm://239.255.76.67:7667?ttl=1",
           "/opt/bin/mrroc-edp", "--config", "/tmp/plan/set.toml", "--robot", "irb6"}));
-  EXPECT_TRUE(plan[2].spec.env.empty());  // the environment travels in the command
+  EXPECT_TRUE(plan[2].spec.env.empty());             // the environment travels in the command
+  EXPECT_FALSE(plan[2].spec.stop_by_closing_input);  // a wrapper that execs: the stop signal
   EXPECT_EQ(plan[2].spec.log_file, std::filesystem::path("/tmp/plan/logs/edp_irb6.log"));
   EXPECT_EQ(plan[2].spec.log_max_bytes, 2048u);
   EXPECT_EQ(plan[2].spec.log_keep, 4);
@@ -852,6 +954,206 @@ task = "visit_joint_poses"
   EXPECT_EQ(plan[3].spec.argv, (std::vector<std::string>{"/opt/bin/mrroc-ui", "serve", "--config",
                                                          "/tmp/ui/set.toml"}));
   EXPECT_EQ(plan[4].name, "mp");
+}
+
+TEST(LaunchPlan, ProcessesOnSshHostsStopByTheirInput) {
+  const std::string text = R"(
+[system]
+name = "ssh"
+[[launch.host]]
+name = "cell"
+address = "robot@10.0.0.7"
+[mp]
+task = "start_and_wait"
+host = "cell"
+stop_signal = "SIGINT"
+stop_grace_s = 4.5
+[[robot]]
+name = "irb6"
+model = ")" + std::string(MRROC_SOURCE_DIR) +
+                           R"(/robots/irb6"
+[robot.edp]
+plugin = "mujoco"
+[robot.ecp]
+task = "visit_joint_poses"
+)";
+  PlanOptions options;
+  options.bin_dir = "/opt/bin";
+  const auto plan = make_plan(parse_process_set(text, "/tmp/ssh/set.toml"), options);
+  ASSERT_EQ(plan.size(), 4u);
+  EXPECT_EQ(plan[3].name, "mp");
+  EXPECT_TRUE(plan[3].spec.stop_by_closing_input);
+  EXPECT_EQ(plan[3].spec.stop_grace, 4500ms);
+  ASSERT_EQ(plan[3].spec.argv.size(), 6u);
+  EXPECT_EQ(plan[3].spec.argv[3], "--");
+  EXPECT_EQ(plan[3].spec.argv[4], "robot@10.0.0.7");
+  // The remote side sends the process' stop signal, and SIGKILL after its grace (rounded up).
+  const auto words = shell_words(plan[3].spec.argv[5]);
+  ASSERT_GE(words.size(), 7u);
+  EXPECT_EQ(words[5], "INT");
+  EXPECT_EQ(words[6], "5");
+  EXPECT_FALSE(plan[2].spec.stop_by_closing_input);  // ecp/irb6 runs here
+}
+
+/// A stand-in for ssh with this computer as the remote host, as far as stopping goes: the
+/// remote command line runs in a session (and process group) of its own, as sshd starts it,
+/// and gets this program's input through a pipe, as through the connection: it ends when
+/// this program ends or its own input ends.
+void write_local_ssh(const std::filesystem::path& file) {
+  std::ofstream(file) << R"(#!/bin/sh
+while [ "$#" -gt 0 ] && [ "$1" != -- ]; do shift; done
+[ "$#" -eq 3 ] || { echo "local ssh: expected -- HOST LINE, got $# words" >&2; exit 255; }
+cat | setsid -w sh -c "$3"
+)";
+  std::filesystem::permissions(file, std::filesystem::perms::owner_all);
+}
+
+/// Waits until `pid` has ended: gone, or a zombie. (An orphan whose parent was killed with it
+/// comes to this process, a subreaper for the Supervisor, which reaps it here.)
+bool gone(pid_t pid, milliseconds timeout = 3000ms) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    ::waitpid(pid, nullptr, WNOHANG);
+    if (::kill(pid, 0) != 0 && errno == ESRCH) return true;
+    const std::string stat = slurp("/proc/" + std::to_string(pid) + "/stat");
+    const std::size_t paren = stat.rfind(')');
+    if (paren != std::string::npos && paren + 2 < stat.size() && stat[paren + 2] == 'Z')
+      return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+/// A program for the remote side: writes its pid and $V to files, then runs until SIGTERM,
+/// which it notes in a third file.
+std::vector<std::string> remote_program(const std::filesystem::path& dir) {
+  return {"/bin/sh", "-c",
+          "echo $$ > " + (dir / "pid").string() + "; printf %s \"$V\" > " +
+              (dir / "value").string() + "; trap 'echo TERM > " + (dir / "stopped").string() +
+              "; exit 0' TERM; echo ready; while :; do sleep 0.02; done"};
+}
+
+/// Expects `pid` to end (`gone`); if it does not, kills its process group (never this
+/// process' own) so that a failing test leaves nothing behind.
+void expect_gone(pid_t pid) {
+  const bool ended = gone(pid);
+  EXPECT_TRUE(ended) << "pid " << pid << " still runs";
+  const pid_t group = ::getpgid(pid);
+  if (!ended && group > 1 && group != ::getpgrp()) ::kill(-group, SIGKILL);
+}
+
+pid_t read_pid(const std::filesystem::path& file) {
+  const std::string text = slurp(file);
+  return text.empty() ? -1 : static_cast<pid_t>(std::stol(text));
+}
+
+TEST(LaunchPlan, TheSupervisorStopsAProgramOnAnSshHost) {
+  const auto dir = temp_dir("ssh-stop");
+  std::filesystem::create_directories(dir);
+  write_local_ssh(dir / "ssh");
+  HostConfig host;
+  host.name = "cell";
+  host.address = "robot@10.0.0.7";
+  host.command = {(dir / "ssh").string(), "-o", "BatchMode=yes", "{host}"};
+  const std::string value = "a&b; c 'd' $(e) `f`";
+  ChildSpec spec;
+  spec.name = "remote";
+  spec.argv = host_command(host, {"V=" + value}, remote_program(dir), RemoteStop{SIGTERM, 2.0});
+  spec.stop_by_closing_input = true;
+  spec.stop_grace = 3000ms;
+
+  Capture cap;
+  Supervisor s(cap.stream());
+  s.start(spec);
+  ASSERT_TRUE(cap.wait_for_line("remote", "ready")) << cap.text();
+  const pid_t remote = read_pid(dir / "pid");
+  ASSERT_GT(remote, 0);
+  EXPECT_EQ(slurp(dir / "value"), value);
+  // Not in the launcher's process group of the child: its stop signal would not reach it.
+  EXPECT_NE(::getpgid(remote), *s.pid_of("remote"));
+  const auto t0 = std::chrono::steady_clock::now();
+  s.stop_all();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 2000ms) << cap.text();
+  EXPECT_THAT(cap.text(), HasSubstr("by closing its input")) << cap.text();
+  EXPECT_EQ(slurp(dir / "stopped"), "TERM\n");
+  expect_gone(remote);
+  ASSERT_EQ(s.exits().size(), 1u);
+  EXPECT_EQ(s.exits()[0].exit_code, 0) << cap.text();  // the program's own
+  EXPECT_FALSE(s.exits()[0].forced);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(LaunchPlan, AProgramOnAnSshHostEndsWhenItsConnectionIsGone) {
+  const auto dir = temp_dir("ssh-lost");
+  std::filesystem::create_directories(dir);
+  write_local_ssh(dir / "ssh");
+  HostConfig host;
+  host.name = "cell";
+  host.command = {(dir / "ssh").string(), "{host}"};
+  host.address = "cell";
+  ChildSpec spec;
+  spec.name = "remote";
+  spec.argv = host_command(host, {"V=x"}, remote_program(dir), RemoteStop{SIGTERM, 2.0});
+  spec.stop_by_closing_input = true;
+
+  Capture cap;
+  Supervisor s(cap.stream());
+  const pid_t client = s.start(spec);
+  ASSERT_TRUE(cap.wait_for_line("remote", "ready")) << cap.text();
+  const pid_t remote = read_pid(dir / "pid");
+  ASSERT_GT(remote, 0);
+  // The ssh client killed (the launcher gone, the network down): its input ends too.
+  ::kill(-client, SIGKILL);
+  expect_gone(remote);
+  EXPECT_EQ(slurp(dir / "stopped"), "TERM\n");
+  s.stop_all();
+  std::filesystem::remove_all(dir);
+}
+
+TEST(LaunchPlan, TheRemoteSideKillsAProgramThatIgnoresTheStopSignal) {
+  const auto dir = temp_dir("ssh-kill");
+  std::filesystem::create_directories(dir);
+  write_local_ssh(dir / "ssh");
+  HostConfig host;
+  host.name = "cell";
+  host.command = {(dir / "ssh").string(), "{host}"};
+  host.address = "cell";
+  ChildSpec spec;
+  spec.name = "remote";
+  spec.argv = host_command(host, {},
+                           {"/bin/sh", "-c",
+                            "echo $$ > " + (dir / "pid").string() +
+                                "; trap '' TERM; echo ready; while :; do sleep "
+                                "0.02; done"},
+                           RemoteStop{SIGTERM, 0.5});
+  spec.stop_by_closing_input = true;
+  spec.stop_grace = 3000ms;
+
+  Capture cap;
+  Supervisor s(cap.stream());
+  s.start(spec);
+  ASSERT_TRUE(cap.wait_for_line("remote", "ready")) << cap.text();
+  const pid_t remote = read_pid(dir / "pid");
+  ASSERT_GT(remote, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  s.stop_all();
+  // The remote side's SIGKILL after 1 s, before the launcher's own after 3 s.
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 2500ms) << cap.text();
+  expect_gone(remote);
+  ASSERT_EQ(s.exits().size(), 1u);
+  EXPECT_NE(s.exits()[0].exit_code, 0) << cap.text();
+  EXPECT_FALSE(s.exits()[0].forced) << cap.text();
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Process, SighupRequestsAStopLikeSigterm) {
+  const std::string failure = in_subprocess(+[]() -> std::string {
+    ::mrroc::install_stop_handlers();
+    if (::mrroc::stop_requested()) return "stop requested too early";
+    ::raise(SIGHUP);
+    return ::mrroc::stop_requested() ? "" : "SIGHUP did not request a stop";
+  });
+  EXPECT_EQ(failure, "");
 }
 
 // ---- the status table ----------------------------------------------------------------------

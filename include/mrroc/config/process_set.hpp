@@ -55,12 +55,24 @@ struct HostConfig {
   /// Start-command template: argv words in front of the process' own command line. "{host}" is
   /// replaced by `address`.
   std::vector<std::string> command = {"ssh", "-o", "BatchMode=yes", "{host}"};
-  std::string address;  ///< what "{host}" stands for (default: the name)
-  /// Pass the command line as one shell-quoted word (needed by ssh, which runs a shell). The
-  /// default for a `command` of one's own is false.
+  /// What "{host}" stands for (default: the name): a host name, an IPv4 or IPv6 address (plain
+  /// or in brackets), user@host or a network namespace name (`is_valid_host_address`).
+  std::string address;
+  /// Pass the command line as one shell-quoted word instead of separate words. Always in force
+  /// for an ssh command (`is_ssh_command`), which hands it to the remote shell; for another
+  /// command of one's own the default is false.
   bool quote = true;
   SourceLocation where;
 };
+
+/// True when `command` runs ssh: its first word is "ssh" or a path ending in "/ssh".
+bool is_ssh_command(const std::vector<std::string>& command);
+
+/// True for what a [[launch.host]] address may be: a host name, IPv4 address, IPv6 address
+/// (plain or in brackets, with an optional %zone), user@ in front of any of these, or a network
+/// namespace name. Never true for text that starts with '-' (an option to ssh) or holds
+/// whitespace, control characters or shell metacharacters.
+bool is_valid_host_address(std::string_view address);
 
 /// The launcher's own settings ([launch]).
 struct LaunchConfig {

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/comm/request_reply.hpp"
@@ -165,6 +166,19 @@ void Shell::make_reading(const Params& context) {
       r = Reading{};
       r.valid = false;
       r.invalid_reason = fmt::format("plugin '{}' failed: {}", plugin_->plugin_name(), e.what());
+    }
+    // A task never gets a valid reading it cannot use (any plugin, also a user's).
+    if (r.valid && (r.names.size() != r.values.size() || r.units.size() != r.values.size())) {
+      r.valid = false;
+      r.invalid_reason =
+          fmt::format("plugin '{}' gave {} values with {} names and {} units",
+                      plugin_->plugin_name(), r.values.size(), r.names.size(), r.units.size());
+    }
+    for (std::size_t i = 0; r.valid && i < r.values.size(); ++i) {
+      if (std::isfinite(r.values[i])) continue;
+      r.valid = false;
+      r.invalid_reason = fmt::format("plugin '{}' gave {} = {}, not a finite number",
+                                     plugin_->plugin_name(), r.names[i], r.values[i]);
     }
   } else {
     r.valid = false;

@@ -281,6 +281,29 @@ std::vector<vsp::RawSample> raw_samples() {
   return out;
 }
 
+/// fuzz_vsp_plugins: [vsp][source][raw_sensor_t] for the first VSPs of the example sets, with
+/// samples of 1 (range, encoder), 6 (strain gauges) and 7 (object pose) values.
+void vsp_plugin_seeds() {
+  int i = 0;
+  for (const std::size_t count : {1U, 6U, 7U}) {
+    vsp::RawSample s;
+    s.device = "seed";
+    s.sample_utime = 1700000000000000;
+    s.sample_no = 1;
+    for (std::size_t k = 0; k < count; ++k) {
+      s.values.push_back(0.01 * static_cast<double>(k + 1));
+      s.names.push_back(fmt::format("v{}", k));
+      s.units.push_back("V");
+    }
+    auto m = comm::encode(s);
+    header(m.header, "mrroc-axis-emu#77", 1, mrroc_lcm::header_t::BROADCAST);
+    const std::string bytes = bytes_of(m);
+    for (unsigned vsp = 0; vsp < 6; ++vsp)
+      write("vsp_plugins", fmt::format("{:02}", i++),
+            std::string{static_cast<char>(vsp), '\0'} + bytes);
+  }
+}
+
 template <class Plain>
 void message_seeds(const std::string& target, const std::vector<Plain>& values, std::int8_t kind) {
   int i = 0;
@@ -949,6 +972,7 @@ int main(int argc, char** argv) {
   message_seeds("vsp_command", vsp_requests(), mrroc_lcm::header_t::REQUEST);
   message_seeds("vsp_reply", vsp_replies(), mrroc_lcm::header_t::REPLY);
   message_seeds("raw_sensor", raw_samples(), mrroc_lcm::header_t::BROADCAST);
+  vsp_plugin_seeds();
   other_message_seeds();
   new_message_seeds();
   auth_seeds();

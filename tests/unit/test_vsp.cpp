@@ -456,3 +456,25 @@ TEST(Vsp, WithAKeyOnlySignedSamplesCount) {
   EXPECT_NEAR(sensor.value("distance"), 0.3, 1e-12);
   EXPECT_EQ(vsp.shell.unauthenticated(), 2U);
 }
+
+// Gauge values that overflow the calibration (finite volts, infinite newtons) are refused as
+// malformed: the filter keeps the last good force, and no reading is ever valid with infinity.
+TEST(Vsp, ForcesThatOverflowAreRefusedAndTheReadingStaysUsable) {
+  comm::Bus bus(test_url());
+  Reporter reporter(bus, "vsp/test");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"wrist\"\nplugin = \"force_torque\"\nsources = [\"gauges\"]\n"
+      "[vsp.params]\nfilter_hz = 30\ncalibration = [[2,0,0,0,0,0],[0,2,0,0,0,0],[0,0,2,0,0,0],"
+      "[0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,0,1]]\n");
+  RunningVsp vsp(bus, reporter, c.vsp("wrist"));
+  bus.start();
+  ecp::VirtualSensor sensor(bus, "wrist", "test");
+  publish(bus, "gauges", {1.0, 0.0, 0.0, 0.0, 0.0, 0.0});
+  std::this_thread::sleep_for(20ms);
+  publish(bus, "gauges", {1.5e308, 0.0, 0.0, 0.0, 0.0, 0.0});  // 3e308 N: infinity
+  std::this_thread::sleep_for(20ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("fx"), 2.0, 1e-9);
+  EXPECT_EQ(vsp.shell.malformed(), 1U);
+}

@@ -95,8 +95,17 @@ class ForceTorque final : public SensorPlugin {
     for (int i = 0; i < 6; ++i) g(i) = s.values[static_cast<std::size_t>(i)];
     const Eigen::Matrix<double, 6, 1> w = calibration_ * g;
     const double dt = have_ ? seconds(s.sample_utime, last_utime_) : 0.0;
+    Eigen::Matrix<double, 6, 1> next;
     for (int i = 0; i < 6; ++i)
-      filtered_(i) = have_ ? low_pass(filtered_(i), w(i), filter_hz_, dt) : w(i);
+      next(i) = have_ ? low_pass(filtered_(i), w(i), filter_hz_, dt) : w(i);
+    // Volts far beyond any gauge's range overflow the calibration or the filter: refused before
+    // the filter keeps an infinity for good.
+    if (!next.allFinite())
+      throw Error(
+          fmt::format("force_torque: gauge values up to {:g} V give forces that are not "
+                      "finite numbers",
+                      g.cwiseAbs().maxCoeff()));
+    filtered_ = next;
     have_ = true;
     sample_valid_ = true;
     last_utime_ = s.sample_utime;
@@ -130,7 +139,8 @@ class ForceTorque final : public SensorPlugin {
     }
     const Eigen::Matrix<double, 6, 1> w = filtered_ - bias_ - tool_load(rotation_);
     out.values.assign(w.data(), w.data() + 6);
-    out.valid = true;
+    out.valid = w.allFinite();
+    if (!out.valid) out.invalid_reason = "the compensated force is not a finite number";
     return out;
   }
 

@@ -12,7 +12,9 @@
 // a key (Bus::enable_auth), where every request/reply endpoint checks the messages' tags. There,
 // flag bit 1 signs the payload with the key before sending it (when it decodes as the channel's
 // type), flag bit 2 sends the last payload signed on that channel again instead (a replay), and
-// flag bit 3 signs it for another channel (a replay from elsewhere; see auth.hpp).
+// flag bit 3 signs it for another channel (a replay from elsewhere; see auth.hpp), and flag bit 4
+// first gives the bus a new authenticator, as a restart of every receiving process does (a
+// replay is then refused as signed before the start, a fresh signature accepted).
 //
 // Properties (docs/fuzzing.md), checked after every record:
 // - nothing throws out of the handlers, whatever the bytes;
@@ -41,11 +43,13 @@
 #include <vector>
 
 #include "fuzz_common.hpp"
+#include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/links.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/time.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
 
@@ -126,11 +130,19 @@ bool sign_payload(std::string& payload, std::string& last, const std::string& ch
 /// How a record was sent: as it was, freshly signed, or a replay of an earlier signed one.
 enum class Sent { raw, signed_now, replayed };
 
-/// Applies flag bits 1, 2 and 3 (only with a key) to a payload sent on `channel`.
+/// Applies flag bits 1 to 4 (only with a key) to a payload sent on `channel`.
 template <class Msg>
 Sent prepare(std::string& payload, std::uint8_t flags, std::string& last_signed,
              const std::string& channel) {
   if (!kAuth) return Sent::raw;
+  if ((flags & 16U) != 0) {
+    // Every receiver restarts: what it saw is forgotten. A restart takes time: the new start
+    // comes after every counter signed so far (several may fall in one microsecond).
+    const std::int64_t last = bus().auth()->next_counter();
+    while (mrroc::now_utime() <= last) {
+    }
+    fresh_key();
+  }
   if ((flags & 4U) != 0 && !last_signed.empty()) {
     payload = last_signed;
     return Sent::replayed;

@@ -1,10 +1,10 @@
 // The stock VSP sensor plugins (vsp/plugins/stock_sensors.cpp), configured as the example sets
 // configure them, fed raw samples as the VSP shell hands them over.
 //
-// Input: [vsp][source][rest]. `vsp` (mod the number of [[vsp]] tables in configs/sensing-touch.toml,
-// configs/sensing-follow.toml and configs/conveyor-pick.toml) picks the plugin and its parameters,
-// `source` (mod its sources) the source, and the rest is one raw_sensor_t as received. A fresh
-// plugin per input, so that inputs replay alike.
+// Input: [vsp][source][rest]. `vsp` (mod the number of [[vsp]] tables in
+// configs/sensing-touch.toml, configs/sensing-follow.toml and configs/conveyor-pick.toml) picks the
+// plugin and its parameters, `source` (mod its sources) the source, and the rest is one
+// raw_sensor_t as received. A fresh plugin per input, so that inputs replay alike.
 //
 // Properties (docs/fuzzing.md):
 // - what does not decode, or does not validate (comm::decode), never reaches a plugin (the shell
@@ -86,8 +86,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   setup.sources = v.sources;
   setup.params = v.params;
   plugin->configure(setup);  // the example sets' own parameters: must be accepted
-  const bool taken =
-      shell_catches("on_sample", [&] { plugin->on_sample(source, *sample); });
+  const bool taken = shell_catches("on_sample", [&] { plugin->on_sample(source, *sample); });
   mrroc::vsp::Reading reading;
   const bool read = shell_catches("make_reading", [&] { reading = plugin->make_reading({}); });
   if (!read || !reading.valid) return 0;
@@ -98,12 +97,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                            v.plugin, v.name, reading.values.size(), reading.names.size(),
                            reading.units.size()));
   for (std::size_t i = 0; i < reading.values.size(); ++i)
-    fuzz::expect(std::isfinite(reading.values[i]),
-                 fmt::format("plugin '{}' (VSP '{}'): a valid reading with {} = {} (sample {} "
-                             "{})",
-                             v.plugin, v.name,
-                             i < reading.names.size() ? reading.names[i] : std::to_string(i),
-                             reading.values[i], taken ? "taken" : "refused",
-                             sample->values.size()));
+    fuzz::expect(
+        std::isfinite(reading.values[i]),
+        fmt::format("plugin '{}' (VSP '{}'): a valid reading with {} = {} (sample {} "
+                    "{})",
+                    v.plugin, v.name,
+                    i < reading.names.size() ? reading.names[i] : std::to_string(i),
+                    reading.values[i], taken ? "taken" : "refused", sample->values.size()));
   return 0;
 }

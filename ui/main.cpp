@@ -209,6 +209,7 @@ int serve(const std::string& config_path, const std::string& bind, int port) {
   ui::ConsoleOptions options;
   options.bind = bind.empty() ? config.ui.bind : bind;
   options.port = port > 0 ? port : config.ui.port;
+  // Without a token file the console generates its token (loopback addresses only).
   if (!config.ui.token_file.empty()) {
     options.token = ui::read_token_file(config.ui.token_file);
   } else if (!is_loopback(options.bind)) {
@@ -279,8 +280,11 @@ int main(int argc, char** argv) {
       .range(0.25, 60.0);
   mrroc::CommandLine& serve_cmd =
       cli.subcommand("serve",
-                     "web operator console on [ui] bind:port (default 127.0.0.1:8080); SIGINT or "
-                     "SIGTERM stops it");
+                     "web operator console on [ui] bind:port (default 127.0.0.1:8080); every API "
+                     "request needs the token of [ui] token_file or, without one, the token "
+                     "generated at start (printed with the URL on standard output and written to "
+                     "<[launch] log_dir, or the current folder>/ui-<port>.token, mode 0600, until "
+                     "the console ends); SIGINT or SIGTERM stops it");
   serve_cmd.option("-c,--config", config, "process-set config file (TOML)").required();
   serve_cmd.option("--bind", bind, "listen on this address (default: [ui] bind)");
   serve_cmd.option("--port", port, "listen on this TCP port (default: [ui] port)").range(1, 65535);

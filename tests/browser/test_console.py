@@ -3,7 +3,9 @@
 
 Runs configs/console-demo.toml (SRP, EDP with MuJoCo, ECP, MP waiting for the operator, and the
 console `mrroc-ui serve`, started by mrroc-launch because [ui] web = true) inside
-scripts/netns-run, opens the console and, through the page's buttons:
+scripts/netns-run, reads the API token the console generated (no [ui] token_file) from the URL it
+prints (and checks its file, and that a request without it gets 401), opens the console with it
+and, through the page's buttons:
   Start -> MP RUNNING, the joints change -> FINISHED;
   Start, Pause -> PAUSED and the robot stands still (|dq| of the EDP's robot_state_t);
   Resume, Emergency stop during a motion -> standstill within the bound computed from the
@@ -32,6 +34,10 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
 URL = "http://127.0.0.1:8080"
+# The console's API token, read from the URL it prints (set in main()).
+TOKEN = ""
+URL_WITH_TOKEN = re.compile(r"web console of set 'console-demo' at "
+                            r"http://127\.0\.0\.1:8080/\?token=([0-9a-f]{48})$", re.M)
 STANDSTILL_DQ = 0.01   # rad/s: every |dq| below this is a standstill
 PAUSE_STILL_DQ = 0.01  # rad/s while paused
 
@@ -47,6 +53,7 @@ def check(condition, what):
 
 def api(path, body=None):
     request = urllib.request.Request(URL + path)
+    request.add_header("Authorization", "Bearer " + TOKEN)
     if body is not None:
         request.data = json.dumps(body).encode()
         request.add_header("X-Mrroc-Request", "1")
@@ -61,6 +68,7 @@ def api(path, body=None):
 def api_raw(path, data, content_type="application/json"):
     """POSTs raw bytes; returns (HTTP status, parsed JSON answer or None)."""
     request = urllib.request.Request(URL + path, data=data, method="POST")
+    request.add_header("Authorization", "Bearer " + TOKEN)
     request.add_header("X-Mrroc-Request", "1")
     request.add_header("Content-Type", content_type)
     try:
@@ -206,6 +214,43 @@ def samples_after(step):
     return api(f"/api/robots/irb6/samples?after={step}")["samples"]
 
 
+def status_and_error(url, headers=None):
+    """GET url; returns (HTTP status, the answer's "error" or None)."""
+    request = urllib.request.Request(url, headers=headers or {})
+    try:
+        with urllib.request.urlopen(request, timeout=5) as response:
+            status, text = response.status, response.read()
+    except urllib.error.HTTPError as e:
+        status, text = e.code, e.read()
+    try:
+        return status, json.loads(text).get("error")
+    except ValueError:
+        return status, None
+
+
+def check_generated_token(token_file):
+    """The console without [ui] token_file: its token is in token_file (mode 0600), a request
+    without it gets 401 saying where it is, and the SRP's log does not hold it."""
+    mode = os.stat(token_file).st_mode & 0o777 if os.path.exists(token_file) else None
+    check(mode == 0o600, f"the generated token is in {token_file}, mode 0600 (got {mode and oct(mode)})")
+    if mode is not None:
+        check(open(token_file).read() == TOKEN + "\n", "the token file holds the printed token")
+    status, error = status_and_error(URL + "/api/state")
+    check(status == 401 and "?token=TOKEN" in (error or "") and token_file in (error or ""),
+          f"no token: 401 saying how to send it and where it is: {status} {error}")
+    status, _ = status_and_error(URL + "/api/state", {"Authorization": "Bearer " + "0" * 48})
+    check(status == 401, f"a wrong token: 401 (got {status})")
+    status, _ = status_and_error(URL + "/api/state?token=" + TOKEN)
+    check(status == 200, f"the token as ?token=: 200 (got {status})")
+    started = wait_for("the console's start message in the SRP's log", lambda: [
+        m["text"] for m in api("/api/srp?max=5000")["messages"] if "web console at" in m["text"]],
+        10) or []
+    messages = api("/api/srp?max=5000")["messages"]
+    check(len(started) == 1 and "API token required" in started[0] and TOKEN not in started[0],
+          f"the SRP's message names the URL without the token: {started}")
+    check(all(TOKEN not in m["text"] for m in messages), "no SRP message holds the token")
+
+
 def check_token(args, config):
     """A second console on port 8081 with [ui] token_file: the API wants the token; SIGTERM ends
     the console cleanly."""
@@ -231,6 +276,8 @@ def check_token(args, config):
     try:
         wait_for("the console with a token answers", lambda: status({}) == 401, 10)
         check(status({}) == 401, "no token: 401")
+        _, error = status_and_error("http://127.0.0.1:8081/api/state")
+        check(token_file in (error or ""), f"the 401 names [ui] token_file: {error}")
         check(status({"Authorization": "Bearer wrong-token-0123456789"}) == 401, "wrong token: 401")
         check(status({"Authorization": "Bearer " + token}) == 200, "right token: 200")
     finally:
@@ -270,14 +317,20 @@ def main():
         shots.append(path)
         print(f"screenshot: {path}", flush=True)
 
+    global TOKEN
+    # The console runs in the launcher's folder, this one; without [launch] log_dir its generated
+    # token goes to ui-<port>.token here.
+    token_file = os.path.join(os.getcwd(), "ui-8080.token")
     launched = LaunchedSet(args.bin_dir, config)
-    own_ui = None
-    # The launcher starts the console ([ui] web = true); a launcher that does not is helped out.
-    if not wait_for("the console answers", lambda: api("/api/state"), 20):
-        if "started ui" not in launched.output():
-            own_ui = subprocess.Popen([os.path.join(args.bin_dir, "mrroc-ui"), "serve",
-                                       "--config", config])
-            wait_for("the console started by the test answers", lambda: api("/api/state"), 10)
+    # The launcher starts the console ([ui] web = true) and echoes what it prints.
+    printed = wait_for("the console prints its URL with the token",
+                       lambda: URL_WITH_TOKEN.search(launched.output()), 20)
+    if printed is None:
+        launched.process.terminate()
+        return 1
+    TOKEN = printed.group(1)
+    check(launched.output().count(TOKEN) == 1, "the token is printed once")
+    wait_for("the console answers", lambda: api("/api/state"), 20)
     state = wait_for("MP IDLE and robot_state_t from the EDP",
                      lambda: (lambda s: s if s["mp"]["state"] == "IDLE" and s["robots"][0]["state"]
                               else None)(api("/api/state")), 30)
@@ -285,6 +338,7 @@ def main():
         launched.process.terminate()
         return 1
 
+    check_generated_token(token_file)
     check_token(args, config)
 
     profile = tempfile.mkdtemp(prefix="mrroc-chromium-")
@@ -297,7 +351,7 @@ def main():
         options.add_argument(flag)
     driver = webdriver.Chrome(service=Service(args.chromedriver), options=options)
     try:
-        driver.get(URL + "/")
+        driver.get(URL + "/?token=" + TOKEN)
         wait_for("the page shows the MP IDLE", lambda: mp_state(driver) == "IDLE", 10)
         wait_for("the page shows the process table", lambda: len(process_names(driver)) >= 5, 10)
         names = process_names(driver)
@@ -309,6 +363,8 @@ def main():
         # The EDP's start message came before the console subscribed: only the SRP's history has it.
         check("ready: plugin" in driver.find_element(By.ID, "log").text,
               "the log shows the EDP's start message from the SRP's history")
+        check("token" not in driver.current_url,
+              f"the page took the token out of the address bar: {driver.current_url}")
         screenshot(driver, "idle")
         check_hostile_requests()
         # The command line: STATUS answers, RESUME while IDLE is refused (exit 1).
@@ -479,6 +535,7 @@ def main():
         except subprocess.TimeoutExpired:
             code = None
         check(code == 0, f"the set ended after Terminate (launcher exit code {code})")
+        check(not os.path.exists(token_file), f"the console removed {token_file} at its end")
         time.sleep(1.0)
         screenshot(driver, "terminated")
         check("no connection" in driver.find_element(By.ID, "connection").text,
@@ -489,8 +546,13 @@ def main():
                    for exe, extra in [("mrroc-srp", []), ("mrroc-edp", ["--robot", "irb6"]),
                                       ("mrroc-ui", ["serve"])]]
         try:
+            # A new console, a new token: read from its file this time.
+            fresh = wait_for("the console started by hand writes its token file", lambda: (
+                lambda t: t if len(t) == 48 and t != TOKEN else None)(
+                open(token_file).read().strip() if os.path.exists(token_file) else ""), 15)
+            TOKEN = fresh or ""
             wait_for("the console started by hand answers", lambda: api("/api/state"), 15)
-            driver.get(URL + "/")
+            driver.get(URL + "/?token=" + TOKEN)
             rows = wait_for("srp, edp/irb6 and ui in the table without a launcher", lambda: (
                 lambda names: names if all(n in names for n in ["srp", "edp/irb6", "ui"]) else None)(
                 process_names(driver)), 10)
@@ -511,12 +573,10 @@ def main():
                     p.kill()
             codes = [p.returncode for p in by_hand]
             check(codes == [0, 0, 0], f"SIGTERM ended srp, edp, ui started by hand: {codes}")
+            check(not os.path.exists(token_file), f"the console removed {token_file} at its end")
     finally:
         driver.quit()
         shutil.rmtree(profile, ignore_errors=True)
-        if own_ui is not None:
-            own_ui.terminate()
-            own_ui.wait(timeout=10)
         if launched.process.poll() is None:
             launched.process.terminate()
             launched.process.wait(timeout=20)

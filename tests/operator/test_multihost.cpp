@@ -1,7 +1,8 @@
 // A process set on two "computers": two network namespaces joined by a veth pair, created here
 // (inside scripts/netns-run, so nothing reaches the real network). MP, SRP and the web console
 // run on host "a", ECP and EDP on host "b", each started through `ip netns exec`; the launcher
-// runs in "a".
+// runs in "a". The console, which has no [ui] token_file, generates its API token: the test reads
+// it from the URL the console prints and asks the console for the robot's state with it.
 #include <signal.h>
 
 #include <cstdlib>
@@ -143,12 +144,35 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
       << table;
   EXPECT_TRUE(std::regex_search(table, std::regex(R"(mp +mp +a +running)"))) << table;
   EXPECT_EQ(netns_of(launch.pid_of("ui")), ns_launcher);
+  // The console's URL with its generated token, printed once on its standard output (here the
+  // launcher's); the token is nowhere else in the output (not in the SRP's messages), and in
+  // ui-8093.token in the folder the set runs in (no [launch] log_dir), for its owner only.
+  ASSERT_TRUE(launch.wait_for("?token=", 20s)) << launch.output();
+  const std::string so_far = launch.output();
+  std::smatch url;
+  ASSERT_TRUE(std::regex_search(
+      so_far, url,
+      std::regex(
+          R"(web console of set 'multihost' at http://127\.0\.0\.1:8093/\?token=([0-9a-f]{48})\n)")))
+      << so_far;
+  const std::string token = url[1];
+  const fs::path token_file = fs::current_path() / "ui-8093.token";
+  EXPECT_EQ(slurp(token_file), token + "\n");
+  EXPECT_EQ(fs::status(token_file).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write);
+  // Without the token: 401.
+  const auto [ncode, refused] =
+      run({"ip", "netns", "exec", a_, "curl", "-s", "-o", "/dev/null", "-w", "%{http_code}",
+           "--max-time", "5", "http://127.0.0.1:8093/api/state"},
+          20s);
+  EXPECT_EQ(refused, "401") << "curl exit " << ncode;
   // The web console in "a" shows the robot whose EDP runs in "b": its state crossed the veth.
   std::string console;
   for (int attempt = 0; attempt < 20; ++attempt) {
-    const auto [ccode, body] = run({"ip", "netns", "exec", a_, "curl", "-s", "-w", "\\n",
-                                    "--max-time", "5", "http://127.0.0.1:8093/api/state"},
-                                   20s);
+    const auto [ccode, body] =
+        run({"ip", "netns", "exec", a_, "curl", "-s", "-w", "\\n", "--max-time", "5", "-H",
+             "Authorization: Bearer " + token, "http://127.0.0.1:8093/api/state"},
+            20s);
     console = "curl exit " + std::to_string(ccode) + ": " + body;  // for the failure message
     if (ccode == 0 && has(console, "\"synchronised\":true")) break;
     std::this_thread::sleep_for(250ms);
@@ -162,6 +186,15 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
   EXPECT_TRUE(has(out, "on host b")) << out;
   EXPECT_TRUE(has(out, "task finished")) << out;
   EXPECT_TRUE(has(out, "[ecp/irb6]")) << out;
+  std::size_t token_seen = 0;
+  for (auto at = out.find(token); at != std::string::npos; at = out.find(token, at + 1))
+    ++token_seen;
+  EXPECT_EQ(token_seen, 1u) << "the token appears only in the printed URL";
+  EXPECT_TRUE(has(out,
+                  "web console at http://127.0.0.1:8093/ (API token required; the URL with "
+                  "it is printed on the console's standard output"))
+      << out;
+  EXPECT_FALSE(fs::exists(token_file)) << "removed when the console ended";
 
   const auto after = packets(b_, "mrroc-vb");
   std::printf("veth of host b: %ld packets received, %ld sent during the run\n",

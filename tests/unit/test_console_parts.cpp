@@ -2,15 +2,22 @@
 // (its checks, the rest-to-rest profile, the EDP's refusal, one jog at a time; through a link
 // that records what it is asked to do), teach-in (the file it writes, in a temporary folder)
 // and the HTTP API (an in-process server on a loopback port: JSON shapes, error codes for
-// malformed bodies, the token and cross-site checks).
+// malformed bodies, the token and cross-site checks), the generated token and its file, and the
+// server's limits against hostile clients (slow senders, too many connections, huge bodies).
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -19,6 +26,7 @@
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <tuple>
 #include <vector>
@@ -27,11 +35,13 @@
 #include "console/jog.hpp"
 #include "console/state.hpp"
 #include "console/teach_in.hpp"
+#include "console/token.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
 #include "mrroc/ecp/robot_image.hpp"
 
-// Last: <resolv.h>, which it includes, defines `_res`, a name Eigen's headers use.
-#include <httplib.h>
+// Last: <httplib.h>, which it includes, includes <resolv.h>, which defines `_res`, a name Eigen's
+// headers use.
+#include "console/http_server.hpp"
 
 using namespace mrroc;
 using namespace mrroc::ui;
@@ -596,10 +606,12 @@ struct PartsActions : ConsoleActions {
   }
 };
 
-/// The API on an in-process server at 127.0.0.1:<any free port>.
+constexpr const char* kToken = "0123456789abcdef-token";
+
+/// The API on an in-process server at 127.0.0.1:<any free port>; client_ sends the token.
 class ApiTest : public ::testing::Test {
  protected:
-  void start(const std::string& token = {}) {
+  void start(const std::string& token = kToken, ServerLimits limits = {}) {
     ApiSettings settings;
     settings.set_name = "demo";
     settings.config_file = "/configs/demo.toml";
@@ -607,17 +619,20 @@ class ApiTest : public ::testing::Test {
     settings.teach_dir = dir_.path();
     settings.jog_max_step_rad = 0.2;
     settings.token = token;
+    settings.token_hint = "the token is in the test's file";
     api_ = std::make_unique<HttpApi>(parts_.state, settings, actions_);
-    api_->install(server_);
-    port_ = server_.bind_to_any_port("127.0.0.1");
+    server_ = std::make_unique<ConsoleServer>(limits);
+    api_->install(*server_);
+    port_ = server_->bind_to_any_port("127.0.0.1");
     ASSERT_GT(port_, 0);
-    thread_ = std::thread([this] { server_.listen_after_bind(); });
-    for (int i = 0; i < 500 && !server_.is_running(); ++i) std::this_thread::sleep_for(2ms);
-    ASSERT_TRUE(server_.is_running());
+    thread_ = std::thread([this] { server_->listen_after_bind(); });
+    for (int i = 0; i < 500 && !server_->is_running(); ++i) std::this_thread::sleep_for(2ms);
+    ASSERT_TRUE(server_->is_running());
     client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+    client_->set_default_headers({{"Authorization", "Bearer " + token}});
   }
   void TearDown() override {
-    server_.stop();
+    if (server_) server_->stop();
     if (thread_.joinable()) thread_.join();
   }
   /// POST with the cross-site header; {status, body as JSON (null if not JSON)}.
@@ -637,7 +652,7 @@ class ApiTest : public ::testing::Test {
   TeachIn teach_{parts_.state, dir_.path(), parts_.reports.fn()};
   PartsActions actions_{parts_, teach_};
   std::unique_ptr<HttpApi> api_;
-  httplib::Server server_;
+  std::unique_ptr<ConsoleServer> server_;
   std::thread thread_;
   int port_ = 0;
   std::unique_ptr<httplib::Client> client_;
@@ -835,26 +850,107 @@ TEST_F(ApiTest, CommandsJogAndTeach) {
 }
 
 TEST_F(ApiTest, CrossSiteAndTokenChecks) {
-  start("0123456789abcdef-token");
-  EXPECT_EQ(get("/api/state").first, 401);
-  EXPECT_EQ(get("/api/state", {{"Authorization", "Bearer wrong-token-of-same-len"}}).first, 401);
-  EXPECT_EQ(get("/api/state", {{"Authorization", "Bearer 0123456789abcdef-token"}}).first, 200);
-  EXPECT_EQ(get("/api/state?token=0123456789abcdef-token").first, 200);
-  // The page itself needs no token.
-  auto page = client_->Get("/");
+  start();
+  httplib::Client bare("127.0.0.1", port_);  // sends no token
+  auto refused = bare.Get("/api/state");
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 401);
+  // The answer says how to send the token and where to find it.
+  const std::string error = json::parse(refused->body)["error"].get<std::string>();
+  EXPECT_EQ(error,
+            "missing or wrong token: send the header 'Authorization: Bearer TOKEN' or add "
+            "'?token=TOKEN' (open the page as /?token=TOKEN); the token is in the test's file");
+  EXPECT_EQ(bare.Get("/api/state", {{"Authorization", "Bearer wrong-token-of-same-len"}})->status,
+            401);
+  EXPECT_EQ(bare.Get("/api/state", {{"Authorization", "Bearer 0123456789abcdef-token"}})->status,
+            200);
+  EXPECT_EQ(bare.Get("/api/state?token=0123456789abcdef-token")->status, 200);
+  EXPECT_EQ(bare.Get("/api/state?token=0123456789abcdef-tokeN")->status, 401);
+  EXPECT_EQ(get("/api/state").first, 200) << "client_ sends the token";
+  // Every POST route wants it too, and nothing runs without it.
+  for (const char* path :
+       {"/api/estop", "/api/release", "/api/jog", "/api/teach", "/api/command/start"}) {
+    auto res = bare.Post(path, {{"X-Mrroc-Request", "1"}}, "{}", "application/json");
+    ASSERT_TRUE(res) << path;
+    EXPECT_EQ(res->status, 401) << path;
+  }
+  EXPECT_TRUE(actions_.stops.empty());
+  EXPECT_TRUE(actions_.commands.empty());
+  // The page itself needs no token (it asks for the API's with ?token= once).
+  auto page = bare.Get("/");
   ASSERT_TRUE(page);
   EXPECT_EQ(page->status, 200);
   EXPECT_TRUE(has(page->get_header_value("Content-Type"), "text/html"));
-  EXPECT_EQ(client_->Get("/no-such-file.js")->status, 404);
+  EXPECT_EQ(bare.Get("/no-such-file.js")->status, 404);
   // A POST without the cross-site header is refused before anything happens.
-  auto res = client_->Post("/api/estop", {{"Authorization", "Bearer 0123456789abcdef-token"}}, "{}",
-                           "application/json");
+  auto res = client_->Post("/api/estop", "{}", "application/json");
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 403);
   EXPECT_TRUE(actions_.stops.empty());
   EXPECT_TRUE(api_->token_ok("Bearer 0123456789abcdef-token", ""));
   EXPECT_TRUE(api_->token_ok("", "0123456789abcdef-token"));
   EXPECT_FALSE(api_->token_ok("Bearer 0123456789abcdef-tokeN", ""));
+  EXPECT_FALSE(api_->token_ok("", ""));
+}
+
+TEST(HttpApiToken, AlwaysRequired) {
+  Parts parts;
+  TempDir dir;
+  TeachIn teach{parts.state, dir.path(), parts.reports.fn()};
+  PartsActions actions{parts, teach};
+  for (const std::string token : {"", "0123456789abcde"}) {
+    ApiSettings settings;
+    settings.token = token;
+    try {
+      HttpApi api(parts.state, settings, actions);
+      FAIL() << "an API token of " << token.size() << " characters was accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "the console's API token has " + std::to_string(token.size()) +
+                    " characters, at least 16 needed (every /api request must carry one)");
+    }
+  }
+}
+
+TEST(GeneratedToken, RandomHexAndAPrivateFileRemovedAtTheEnd) {
+  const std::string a = generate_token();
+  const std::string b = generate_token();
+  EXPECT_EQ(a.size(), 2 * kTokenBytes) << a;
+  EXPECT_GE(a.size() * 4, 128u) << "at least 128 bits";
+  EXPECT_EQ(a.find_first_not_of("0123456789abcdef"), std::string::npos) << a;
+  EXPECT_NE(a, b);
+
+  TempDir dir;
+  EXPECT_EQ(generated_token_file(dir.path() / "logs", 8093), dir.path() / "logs" / "ui-8093.token");
+  EXPECT_EQ(generated_token_file("", 8080), std::filesystem::current_path() / "ui-8080.token");
+  const auto file = generated_token_file(dir.path() / "logs", 8093);
+  // A link planted where the file goes is replaced, not written through.
+  std::filesystem::create_directories(dir.path() / "logs");
+  const auto target = dir.path() / "target";
+  std::ofstream(target) << "untouched\n";
+  std::filesystem::create_symlink(target, file);
+  {
+    TokenFile written(file, a);
+    EXPECT_EQ(written.path(), file);
+    EXPECT_FALSE(std::filesystem::is_symlink(file));
+    struct stat st {};
+    ASSERT_EQ(::stat(file.c_str(), &st), 0);
+    EXPECT_EQ(st.st_mode & 0777, 0600u) << std::oct << (st.st_mode & 0777);
+    EXPECT_EQ(read_token_file(file), a) << "read back as a configured token file would be";
+    EXPECT_EQ(read_file(target), "untouched\n");
+    // No temporary file is left beside it.
+    std::size_t entries = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir.path() / "logs"))
+      ++entries;
+    EXPECT_EQ(entries, 1u);
+  }
+  EXPECT_FALSE(std::filesystem::exists(file)) << "removed at the end";
+  // A token another console wrote over it since is left alone.
+  {
+    TokenFile mine(file, a);
+    std::ofstream(file) << b << "\n";
+  }
+  EXPECT_EQ(read_token_file(file), b);
 }
 
 TEST(ReadTokenFile, NamesTheFileAndTheLength) {
@@ -942,5 +1038,298 @@ TEST_F(ApiTest, ABodyAbove64KiBIsRefused) {
   auto res = client_->Post("/api/estop", {{"X-Mrroc-Request", "1"}}, big, "application/json");
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 413);
+  EXPECT_EQ(json::parse(res->body)["error"],
+            "request body of 65537 bytes is above the limit of 65536 bytes");
   EXPECT_TRUE(actions_.stops.empty());
+}
+
+// --- Hostile clients ---------------------------------------------------------------------------
+
+namespace {
+
+/// A TCP connection to 127.0.0.1:port (closed on destruction).
+class RawConnection {
+ public:
+  explicit RawConnection(int port) : fd_(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<std::uint16_t>(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    connected_ = fd_ >= 0 && ::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+  }
+  ~RawConnection() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  RawConnection(const RawConnection&) = delete;
+  RawConnection& operator=(const RawConnection&) = delete;
+  [[nodiscard]] bool connected() const { return connected_; }
+  /// Sends all of `data` (false: the server closed the connection), adding what went out to
+  /// `*sent`.
+  bool send(std::string_view data, std::atomic<std::size_t>* sent = nullptr) const {
+    while (!data.empty()) {
+      const ssize_t n = ::send(fd_, data.data(), data.size(), MSG_NOSIGNAL);
+      if (n <= 0) return false;
+      if (sent != nullptr) *sent += static_cast<std::size_t>(n);
+      data.remove_prefix(static_cast<std::size_t>(n));
+    }
+    return true;
+  }
+  /// What arrives until the server closes the connection or `timeout` passes; `closed` tells
+  /// which.
+  std::string receive(std::chrono::milliseconds timeout, bool* closed = nullptr) const {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    std::string got;
+    if (closed != nullptr) *closed = false;
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          end - std::chrono::steady_clock::now());
+      pollfd p{fd_, POLLIN, 0};
+      if (left.count() <= 0 || ::poll(&p, 1, static_cast<int>(left.count())) <= 0) return got;
+      char buf[4096];
+      const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
+      if (n <= 0) {
+        if (closed != nullptr) *closed = true;
+        return got;
+      }
+      got.append(buf, static_cast<std::size_t>(n));
+    }
+  }
+  [[nodiscard]] int fd() const { return fd_; }
+
+ private:
+  int fd_;
+  bool connected_ = false;
+};
+
+/// Waits for `condition` (checked every millisecond) at most `timeout`.
+template <class F>
+bool wait_until(F&& condition, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() >= end) return false;
+    std::this_thread::sleep_for(1ms);
+  }
+  return true;
+}
+
+/// The resident memory of this process [KiB] (VmRSS of /proc/self/status).
+long rss_kib() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+  return -1;
+}
+
+/// Slow clients: every connection sent the start of a request and then one byte of a header
+/// every `period`, never finishing it (a "slowloris").
+class SlowClients {
+ public:
+  SlowClients(int port, int count, std::chrono::milliseconds period) {
+    for (int i = 0; i < count; ++i) {
+      connections_.push_back(std::make_unique<RawConnection>(port));
+      (void)connections_.back()->send("GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ");
+    }
+    feeder_ = std::thread([this, period] {
+      std::unique_lock lock(mutex_);
+      while (!cv_.wait_for(lock, period, [this] { return done_; }))
+        for (auto& c : connections_) (void)c->send("a");
+    });
+  }
+  ~SlowClients() {
+    {
+      std::lock_guard lock(mutex_);
+      done_ = true;
+    }
+    cv_.notify_all();
+    feeder_.join();
+  }
+  SlowClients(const SlowClients&) = delete;
+  SlowClients& operator=(const SlowClients&) = delete;
+  [[nodiscard]] const std::vector<std::unique_ptr<RawConnection>>& connections() const {
+    return connections_;
+  }
+
+ private:
+  std::vector<std::unique_ptr<RawConnection>> connections_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread feeder_;
+};
+
+}  // namespace
+
+TEST_F(ApiTest, SlowClientsCannotDelayTheEmergencyStop) {
+  start();
+  // 32 slow clients, each on a connection the server is serving (cpp-httplib's pool of 16
+  // threads, which the console used before, was full with 16 of them).
+  SlowClients slow(port_, 32, 1000ms);
+  ASSERT_TRUE(wait_until([&] { return server_->counts().open == 32; }, 5s))
+      << server_->counts().open << " of 32 slow connections served";
+  const auto sent = std::chrono::steady_clock::now();
+  const auto [status, answer] = post("/api/estop", R"({"reason": "test"})");
+  const auto answered_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - sent).count();
+  std::printf("emergency stop answered in %.1f ms beside 32 slow connections\n", answered_ms);
+  EXPECT_EQ(status, 200) << answer.dump();
+  EXPECT_LT(answered_ms, 1000.0);
+  ASSERT_EQ(actions_.stops.size(), 1u) << "the stop was sent";
+  EXPECT_EQ(actions_.stops[0], std::make_tuple(true, std::string(), std::string("test")));
+  EXPECT_GE(server_->counts().most_open, 33u);
+}
+
+TEST_F(ApiTest, ASlowRequestIsClosedAtItsDeadlineAndStopEndsSlowConnections) {
+  ServerLimits limits;
+  limits.request_deadline = 300ms;
+  start(kToken, limits);
+  {
+    // A byte every 50 ms: no single read waits long, but the request never ends.
+    SlowClients slow(port_, 4, 50ms);
+    ASSERT_TRUE(wait_until([&] { return server_->counts().open == 4; }, 5s));
+    const auto begin = std::chrono::steady_clock::now();
+    for (const auto& c : slow.connections()) {
+      bool closed = false;
+      (void)c->receive(3s, &closed);
+      EXPECT_TRUE(closed) << "the server closed the slow connection";
+    }
+    const double closed_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count();
+    std::printf("4 slow requests closed %.0f ms after they were served (deadline 300 ms)\n",
+                closed_ms);
+    EXPECT_LT(closed_ms, 1000.0);
+    EXPECT_TRUE(wait_until([&] { return server_->counts().late == 4; }, 2s))
+        << server_->counts().late;
+  }
+  // stop() does not wait for slow clients (a thread per connection is joined at the stop).
+  SlowClients slow(port_, 8, 1000ms);
+  ASSERT_TRUE(wait_until([&] { return server_->counts().open == 8; }, 5s))
+      << server_->counts().open << " open, " << server_->counts().served << " served";
+  const auto begin = std::chrono::steady_clock::now();
+  server_->stop();
+  thread_.join();
+  const double stop_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count();
+  std::printf("stop() with 8 slow connections open: %.0f ms\n", stop_ms);
+  EXPECT_LT(stop_ms, 1000.0);
+  EXPECT_EQ(server_->counts().open, 0u);
+}
+
+TEST_F(ApiTest, ConnectionsAboveTheLimitAreAnswered503AndClosed) {
+  ServerLimits limits;
+  limits.max_connections = 4;
+  start(kToken, limits);
+  std::vector<std::unique_ptr<RawConnection>> idle;
+  for (int i = 0; i < 4; ++i) idle.push_back(std::make_unique<RawConnection>(port_));
+  ASSERT_TRUE(wait_until([&] { return server_->counts().open == 4; }, 5s));
+  RawConnection fifth(port_);
+  ASSERT_TRUE(fifth.connected());
+  bool closed = false;
+  const std::string answer = fifth.receive(2s, &closed);
+  EXPECT_TRUE(closed);
+  EXPECT_TRUE(has(answer, "HTTP/1.1 503 Service Unavailable")) << answer;
+  EXPECT_TRUE(has(answer, "the console serves at most 4 connections at once")) << answer;
+  EXPECT_EQ(server_->counts().refused, 1u);
+  // A freed place serves again.
+  idle.pop_back();
+  ASSERT_TRUE(wait_until([&] { return server_->counts().open == 3; }, 5s));
+  EXPECT_EQ(get("/api/state").first, 200);
+}
+
+TEST_F(ApiTest, AHundredMegabyteBodyIsRefusedWithoutBeingRead) {
+  start();
+  ASSERT_EQ(get("/api/state").first, 200);  // every lazily made allocation is made
+  // What the clients send, allocated before the measurement (a sanitizer's allocator keeps freed
+  // blocks resident).
+  const std::string block(1 << 20, '{');
+  const long rss_before = rss_kib();
+  const std::string head = fmt::format(
+      "POST /api/estop HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nAuthorization: Bearer {}\r\n"
+      "X-Mrroc-Request: 1\r\nContent-Type: application/json\r\n",
+      port_, kToken);
+  constexpr std::size_t kHundredMb = 100'000'000;
+  struct Case {
+    std::string headers;
+    std::string status;
+    std::string error;
+  };
+  const std::vector<Case> cases = {
+      {"Content-Length: 100000000\r\n\r\n", "HTTP/1.1 413",
+       "request body of 100000000 bytes is above the limit of 65536 bytes"},
+      {"Transfer-Encoding: chunked\r\n\r\n", "HTTP/1.1 411",
+       "a request body needs a Content-Length (at most 65536 bytes); 'Transfer-Encoding: "
+       "chunked' is refused"},
+  };
+  for (const Case& c : cases) {
+    RawConnection conn(port_);
+    ASSERT_TRUE(conn.connected());
+    // The body goes out as fast as the connection takes it, while the answer is read.
+    std::atomic<std::size_t> sent{0};
+    std::thread writer([&] {
+      if (!conn.send(head + c.headers)) return;
+      const bool chunked = has(c.headers, "chunked");
+      const std::string chunk_head = fmt::format("{:x}\r\n", block.size());
+      while (sent < kHundredMb) {
+        if (chunked && !conn.send(chunk_head, &sent)) return;
+        if (!conn.send(block, &sent)) return;
+        if (chunked && !conn.send("\r\n", &sent)) return;
+      }
+    });
+    bool closed = false;
+    const std::string answer = conn.receive(5s, &closed);
+    ::shutdown(conn.fd(), SHUT_RDWR);  // ends a writer still sending
+    writer.join();
+    std::printf("%s: %zu bytes of the body sent before the server closed the connection\n",
+                c.status.c_str(), sent.load());
+    EXPECT_TRUE(closed);
+    EXPECT_EQ(answer.rfind(c.status, 0), 0u) << answer.substr(0, 200);
+    EXPECT_TRUE(has(answer, c.error)) << answer.substr(0, 400);
+    EXPECT_LT(sent.load(), kHundredMb / 4) << "the server stopped taking the body early";
+  }
+  // A client that asks first (Expect: 100-continue) is refused before it sends the body.
+  {
+    RawConnection conn(port_);
+    ASSERT_TRUE(conn.send(head + "Content-Length: 100000000\r\nExpect: 100-continue\r\n\r\n"));
+    bool closed = false;
+    const std::string answer = conn.receive(5s, &closed);
+    EXPECT_EQ(answer.rfind("HTTP/1.1 413", 0), 0u) << answer;
+    EXPECT_TRUE(closed);
+  }
+  // A length that is not a number is not guessed at.
+  {
+    RawConnection conn(port_);
+    ASSERT_TRUE(conn.send(head + "Content-Length: 12x\r\n\r\n"));
+    const std::string answer = conn.receive(5s);
+    EXPECT_EQ(answer.rfind("HTTP/1.1 400", 0), 0u) << answer;
+    EXPECT_TRUE(has(answer, "Content-Length '12x' is not a number of bytes")) << answer;
+  }
+  const long rss_after = rss_kib();
+  std::printf("resident memory: %ld KiB before, %ld KiB after (%+ld KiB)\n", rss_before, rss_after,
+              rss_after - rss_before);
+  EXPECT_GT(rss_before, 0);
+  EXPECT_LT(rss_after - rss_before, 4 * 1024) << "KiB";
+  EXPECT_TRUE(actions_.stops.empty()) << "nothing was read of the bodies, nothing ran";
+}
+
+TEST_F(ApiTest, ARequestLineWithoutEndIsCutAtTheByteLimit) {
+  start();
+  const std::string block(1 << 20, 'a');
+  const long rss_before = rss_kib();
+  RawConnection conn(port_);
+  std::atomic<std::size_t> sent{0};
+  std::thread writer([&] {
+    if (!conn.send("GET /")) return;
+    while (sent < 100'000'000 && conn.send(block, &sent)) {
+    }
+  });
+  bool closed = false;
+  (void)conn.receive(5s, &closed);
+  ::shutdown(conn.fd(), SHUT_RDWR);
+  writer.join();
+  std::printf("endless request line: %zu bytes sent before the server closed the connection\n",
+              sent.load());
+  EXPECT_TRUE(closed);
+  EXPECT_LT(sent.load(), 25'000'000u);
+  EXPECT_TRUE(wait_until([&] { return server_->counts().too_large == 1; }, 2s));
+  EXPECT_LT(rss_kib() - rss_before, 4 * 1024) << "KiB";
 }

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "console/jog.hpp"
 #include "console/state.hpp"
 #include "console/teach_in.hpp"
+#include "console/token.hpp"
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/reporter.hpp"
@@ -24,8 +26,9 @@
 #include "mrroc/robot/robot_model.hpp"
 #include "operator.hpp"
 
-// Last: <resolv.h>, which it includes, defines `_res`, a name Eigen's headers use.
-#include <httplib.h>
+// Last: <httplib.h>, which it includes, includes <resolv.h>, which defines `_res`, a name Eigen's
+// headers use.
+#include "console/http_server.hpp"
 
 namespace mrroc::ui {
 
@@ -51,10 +54,18 @@ struct Console::Impl : ConsoleActions {
   std::unique_ptr<Jogger> jogger;
   std::unique_ptr<TeachIn> teach_in;
   std::unique_ptr<HttpApi> api;
-  httplib::Server server;
+  ConsoleServer server;
+  /// The token was generated here (no [ui] token_file); its file.
+  bool token_generated = false;
+  std::filesystem::path token_path;
 
   Impl(const ProcessSetConfig& c, ConsoleOptions o)
       : config(c), options(std::move(o)), bus(c.lcm_url), state(c.name, load_robots(c)) {
+    if (options.token.empty()) {
+      options.token = generate_token();
+      token_generated = true;
+      token_path = generated_token_file(config.launch.log_dir, options.port);
+    }
     comm::enable_auth_from_file(bus, config.auth_key_file);
     const ReportFn report = [this](Severity severity, const std::string& text) {
       reporter->report(severity, 0, text);
@@ -79,6 +90,14 @@ struct Console::Impl : ConsoleActions {
     settings.teach_dir = teach_in->dir();
     settings.jog_max_step_rad = options.jog.max_step_rad;
     settings.token = options.token;
+    settings.token_hint =
+        token_generated
+            ? fmt::format(
+                  "mrroc-ui serve printed the page's URL with the token on its standard "
+                  "output and wrote the token to '{}'",
+                  token_path.string())
+            : fmt::format("the token is the first line of [ui] token_file '{}'",
+                          config.ui.token_file.string());
     // Browsers name the console by its bind address, a loopback name, or a configured name.
     if (options.bind != "0.0.0.0" && options.bind != "::") settings.hosts.push_back(options.bind);
     for (const std::string& h : config.ui.hosts) settings.hosts.push_back(h);
@@ -148,17 +167,44 @@ struct Console::Impl : ConsoleActions {
       reporter->set_state(ProcessState::failed, text);
       throw Error(text);
     }
+    // After binding: a console that cannot bind (the port is taken) leaves the file of the one
+    // that did alone.
+    std::optional<TokenFile> token_file;
+    if (token_generated) {
+      try {
+        token_file.emplace(token_path, options.token);
+      } catch (const Error& e) {
+        // The URL with the token is still printed below.
+        reporter->warning(e.what());
+        std::fprintf(stderr, "mrroc-ui: %s\n", e.what());
+      }
+    }
     feed->start_polling();
     std::atomic<bool> listening_ended{false};
     std::thread listener_thread([this, &listening_ended] {
       server.listen_after_bind();
       listening_ended.store(true);
     });
-    const std::string url = fmt::format("http://{}:{}/", options.bind, options.port);
+    const std::string host =
+        options.bind.find(':') != std::string::npos ? "[" + options.bind + "]" : options.bind;
+    const std::string url = fmt::format("http://{}:{}/", host, options.port);
     reporter->set_state(ProcessState::ready);
-    reporter->info(fmt::format("web console at {}{}", url,
-                               options.token.empty() ? "" : " (API token required)"));
-    std::printf("mrroc-ui: web console of set '%s' at %s\n", config.name.c_str(), url.c_str());
+    // The token never goes to the SRP, whose log more people may read.
+    if (token_generated) {
+      reporter->info(fmt::format(
+          "web console at {} (API token required; the URL with it is printed on the console's "
+          "standard output{})",
+          url, token_file ? fmt::format(", the token is in '{}'", token_path.string()) : ""));
+      std::printf("mrroc-ui: web console of set '%s' at %s?token=%s\n", config.name.c_str(),
+                  url.c_str(), options.token.c_str());
+      if (token_file)
+        std::printf("mrroc-ui: API token in %s (removed when the console ends)\n",
+                    token_path.c_str());
+    } else {
+      reporter->info(fmt::format("web console at {} (API token required: [ui] token_file)", url));
+      std::printf("mrroc-ui: web console of set '%s' at %s (API token: [ui] token_file %s)\n",
+                  config.name.c_str(), url.c_str(), config.ui.token_file.c_str());
+    }
     std::fflush(stdout);
     while (!stop_requested() && !listening_ended.load())
       std::this_thread::sleep_for(std::chrono::milliseconds(50));

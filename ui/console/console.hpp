@@ -19,7 +19,10 @@ namespace mrroc::ui {
 struct ConsoleOptions {
   std::string bind = UiConfig{}.bind;
   int port = UiConfig{}.port;
-  /// Every /api request must carry it (header `Authorization: Bearer TOKEN`); empty: none.
+  /// Every /api request must carry it (header `Authorization: Bearer TOKEN` or `?token=`): the
+  /// token of [ui] token_file. Empty: the console generates one at start (generate_token), prints
+  /// the page's URL with it on standard output and writes it to generated_token_file() until it
+  /// ends.
   std::string token;
   JogOptions jog;
 };
@@ -32,7 +35,8 @@ class Console {
   Console(const Console&) = delete;
   Console& operator=(const Console&) = delete;
 
-  /// Binds, reports READY as process "ui", serves until SIGINT/SIGTERM (stop_requested()).
+  /// Binds, writes a generated token's file, reports READY as process "ui", prints the URL,
+  /// serves until SIGINT/SIGTERM (stop_requested()), removes the token's file.
   /// @returns the process' exit code; @throws Error naming the address when it cannot bind.
   int run();
 

@@ -11,8 +11,9 @@
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
 
-// Last: <resolv.h>, which it includes, defines `_res`, a name Eigen's headers use.
-#include <httplib.h>
+// Last: <httplib.h>, which it includes, includes <resolv.h>, which defines `_res`, a name Eigen's
+// headers use.
+#include "console/http_server.hpp"
 
 namespace mrroc::ui {
 
@@ -182,6 +183,11 @@ json estop_json(const EstopResult& r) {
 HttpApi::HttpApi(const ConsoleState& state, ApiSettings settings, ConsoleActions& actions)
     : state_(state), settings_(std::move(settings)), actions_(actions) {
   for (std::string& h : settings_.hosts) h = lower(std::move(h));
+  if (settings_.token.size() < 16)
+    throw Error(
+        fmt::format("the console's API token has {} characters, at least 16 needed (every "
+                    "/api request must carry one)",
+                    settings_.token.size()));
 }
 
 bool HttpApi::token_ok(const std::string& authorization, const std::string& token_param) const {
@@ -336,9 +342,7 @@ std::optional<std::string> HttpApi::refuse_host(const std::string& host,
   return std::nullopt;
 }
 
-void HttpApi::install(httplib::Server& server) {
-  // A browser keeps several connections open; give them and API clients enough threads.
-  server.new_task_queue = [] { return new httplib::ThreadPool(16); };
+void HttpApi::install(ConsoleServer& server) {
   server.set_payload_max_length(kMaxBodyBytes);
   server.set_read_timeout(kIoTimeoutS, 0);
   server.set_write_timeout(kIoTimeoutS, 0);
@@ -348,7 +352,22 @@ void HttpApi::install(httplib::Server& server) {
                               {"Content-Security-Policy", "frame-ancestors 'none'"},
                               {"X-Content-Type-Options", "nosniff"},
                               {"Referrer-Policy", "no-referrer"}});
+  // A client that asks before sending its body (curl does above 1 MiB) is refused before it
+  // sends it.
+  server.set_expect_100_continue_handler([](const httplib::Request& req, httplib::Response& res) {
+    if (const auto refusal = refuse_declared_body(req, kMaxBodyBytes)) {
+      reply_json(res, json{{"error", refusal->text}}, refusal->status);
+      return refusal->status;
+    }
+    return 100;
+  });
   server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    // Before anything else, so that no body above the limit is read (the server closes the
+    // connection after this answer).
+    if (const auto refusal = refuse_declared_body(req, kMaxBodyBytes)) {
+      reply_json(res, json{{"error", refusal->text}}, refusal->status);
+      return httplib::Server::HandlerResponse::Handled;
+    }
     // DNS rebinding (a name of another site resolving to this host) and pages of other sites.
     if (const auto why =
             refuse_host(req.get_header_value("Host"), req.get_header_value("Origin"))) {
@@ -356,13 +375,13 @@ void HttpApi::install(httplib::Server& server) {
       return httplib::Server::HandlerResponse::Handled;
     }
     if (req.path.rfind("/api/", 0) != 0) return httplib::Server::HandlerResponse::Unhandled;
-    if (!settings_.token.empty() &&
-        !token_ok(req.get_header_value("Authorization"),
+    if (!token_ok(req.get_header_value("Authorization"),
                   req.has_param("token") ? req.get_param_value("token") : std::string())) {
       reply_json(res,
-                 json{{"error",
-                       "missing or wrong token: send 'Authorization: Bearer "
-                       "TOKEN' (the token of [ui] token_file)"}},
+                 json{{"error", fmt::format("missing or wrong token: send the header "
+                                            "'Authorization: Bearer TOKEN' or add '?token=TOKEN' "
+                                            "(open the page as /?token=TOKEN); {}",
+                                            settings_.token_hint)}},
                  401);
       return httplib::Server::HandlerResponse::Handled;
     }

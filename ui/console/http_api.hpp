@@ -18,11 +18,9 @@
 #include "console/teach_in.hpp"
 #include "operator.hpp"
 
-namespace httplib {
-class Server;
-}
-
 namespace mrroc::ui {
+
+class ConsoleServer;  // console/http_server.hpp
 
 /// The page's files (ui/web/), embedded at build time (generated web_assets.cpp).
 const std::map<std::string, std::string_view>& web_assets();
@@ -42,8 +40,11 @@ struct ApiSettings {
   /// port: others are refused (DNS rebinding; a page of another site). Compared in lower case.
   std::vector<std::string> hosts{"localhost", "127.0.0.1", "::1"};
   /// Every /api request must carry it (header `Authorization: Bearer TOKEN` or `?token=`);
-  /// empty: none.
+  /// at least 16 characters.
   std::string token;
+  /// Where a client finds the token, for the answer to a request without it, e.g. "it is the
+  /// first line of [ui] token_file '/etc/mrroc/ui.token'".
+  std::string token_hint;
 };
 
 /// An emergency stop or release as sent and confirmed.
@@ -84,14 +85,16 @@ nlohmann::json estop_json(const EstopResult& result);
 
 class HttpApi {
  public:
+  /// @throws Error when settings.token has fewer than 16 characters (every request needs one).
   HttpApi(const ConsoleState& state, ApiSettings settings, ConsoleActions& actions);
 
   /// Installs the routes, the Host/Origin, token and cross-site checks, the anti-framing
-  /// headers, the request limits (kMaxBodyBytes, kIoTimeoutS) and the error answers on `server`,
-  /// with a pool of 16 threads (a browser keeps several connections open).
-  void install(httplib::Server& server);
+  /// headers, the request limits (kMaxBodyBytes, kIoTimeoutS) and the error answers on `server`
+  /// (whose own limits bound connections and the time and size of a request).
+  void install(ConsoleServer& server);
 
-  /// Largest request body accepted (larger ones: 413 without reading them) [bytes].
+  /// Largest request body accepted [bytes]: a larger Content-Length gets 413 and a chunked body
+  /// 411, before any of it is read (refuse_declared_body).
   static constexpr std::size_t kMaxBodyBytes = 64 * 1024;
   /// A connection that sends or takes nothing for this long is closed [s].
   static constexpr int kIoTimeoutS = 5;

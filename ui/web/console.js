@@ -6,7 +6,8 @@ const PLOT_WINDOW_S = 20;
 const SEVERITIES = ["DEBUG", "INFO", "WARNING", "ERROR", "FATAL"];
 const COLOURS = ["#0969da", "#cf222e", "#1a7f37", "#9a6700", "#8250df", "#bc4c00", "#1b7c83"];
 
-// The token ([ui] token_file) comes once in the address (?token=...) and is kept for the tab.
+// The API token (of [ui] token_file, or the one `mrroc-ui serve` generated and printed with the
+// page's URL) comes once in the address (?token=...) and is kept for the tab.
 const params = new URLSearchParams(window.location.search);
 if (params.get("token")) {
   sessionStorage.setItem("mrroc-token", params.get("token"));
@@ -320,7 +321,8 @@ async function pollState() {
   const connection = $("connection");
   if (state.error) {
     connection.textContent = state.httpStatus === 401
-      ? "token needed: open the page with ?token=..." : "no connection to the console";
+      ? "token needed: open the URL with ?token=... that mrroc-ui serve printed"
+      : "no connection to the console";
     connection.className = "badge bad";
     return;
   }

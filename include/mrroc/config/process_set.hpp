@@ -84,15 +84,16 @@ struct LaunchConfig {
 };
 
 /// The operator console ([ui]): `mrroc-ui serve`, started by the launcher when `web = true`.
-/// True for a loopback address or name: "localhost", "::1" or any 127.x.y.z (the console needs
-/// no token there).
+/// True for a loopback address or name: "localhost", "::1" or any 127.x.y.z (there the console
+/// may generate its API token at start; elsewhere [ui] token_file is required).
 bool is_loopback(std::string_view host);
 
 struct UiConfig {
   bool web = false;  ///< the launcher starts the web console
   std::string bind = "127.0.0.1";
   int port = 8080;
-  std::filesystem::path token_file;  ///< required unless bound to a loopback address
+  std::filesystem::path token_file;  ///< required unless bound to a loopback address (then a
+                                     ///< token is generated at every start)
   std::filesystem::path teach_dir;   ///< where teach-in trajectory files go (default: ./)
   /// Names (or addresses) by which browsers reach the console, besides its bind address and the
   /// loopback names; a request naming another host is refused.

@@ -258,8 +258,8 @@ TEST(Auth, EndpointsWithTheKeyTalkAndDropStrangersWithAReport) {
 }
 
 // Two servers of one set (two robots' EDPs): a request recorded on one's channel and sent on
-// the other's is refused there, and a status or robot state that a stranger forges is not
-// acted on, while a forged SRP line is kept, marked.
+// the other's is refused there, and a status that a stranger forges is not acted on, while a
+// forged SRP line is kept, marked.
 TEST(Auth, RequestsReplayedOnAnotherChannelAndForgedStatusesAreRefused) {
   comm::Bus server_bus(kUrl);
   comm::Bus client_bus(kUrl);

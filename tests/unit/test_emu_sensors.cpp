@@ -433,18 +433,14 @@ struct Received {
   }
 };
 
-TEST(EmuSensors, PublishedSamplesCountAtTheirRatesWithoutAllocating) {
-  lcm::LCM lcm("memq://");
-  ASSERT_TRUE(lcm.good());
-  Received received;
-  lcm.subscribeFunction<mrroc_lcm::raw_sensor_t, Received*>("mrroc/raw/.*", &Received::on,
-                                                            &received);
-  CellWorld world(sensing_scene(probe_pose(0.01)));
-  SensorDevices sensors(scene_file("sensing.toml"), world);
-  RawSamplePublisher publisher(lcm, sensors, "test#1");
+namespace {
+/// Steps the world `steps` times, publishing the samples that are due after each step and
+/// delivering them; returns the allocations made while sampling and publishing.
+long publish_steps(int steps, lcm::LCM& lcm, CellWorld& world, SensorDevices& sensors,
+                   RawSamplePublisher& publisher) {
   long allocations = 0;
-  for (int i = 0; i < 1000; ++i) {
-    ASSERT_TRUE(world.step());
+  for (int i = 0; i < steps; ++i) {
+    EXPECT_TRUE(world.step());
     const std::int64_t now = wall_utime(world);
     g_heap.allocations = 0;
     g_heap.counting = true;
@@ -455,7 +451,20 @@ TEST(EmuSensors, PublishedSamplesCountAtTheirRatesWithoutAllocating) {
     while (lcm.handleTimeout(0) > 0) {
     }
   }
-  EXPECT_EQ(allocations, 0);
+  return allocations;
+}
+}  // namespace
+
+TEST(EmuSensors, PublishedSamplesCountAtTheirRatesWithoutAllocating) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  Received received;
+  lcm.subscribeFunction<mrroc_lcm::raw_sensor_t, Received*>("mrroc/raw/.*", &Received::on,
+                                                            &received);
+  CellWorld world(sensing_scene(probe_pose(0.01)));
+  SensorDevices sensors(scene_file("sensing.toml"), world);
+  RawSamplePublisher publisher(lcm, sensors, "test#1");
+  EXPECT_EQ(publish_steps(1000, lcm, world, sensors, publisher), 0);
   EXPECT_EQ(publisher.failed(), 0U);
   const std::map<std::string, int> rates = {
       {"mrroc/raw/irb6_wrist", 500}, {"mrroc/raw/irb6_range", 50}, {"mrroc/raw/table_ir", 50}};
@@ -496,20 +505,7 @@ TEST(EmuSensors, SignedSamplesVerifyOnTheirChannelWithoutAllocating) {
   CellWorld world(sensing_scene(probe_pose(0.01)));
   SensorDevices sensors(scene_file("sensing.toml"), world);
   RawSamplePublisher publisher(lcm, sensors, "test#1", &signer);
-  long allocations = 0;
-  for (int i = 0; i < 200; ++i) {
-    ASSERT_TRUE(world.step());
-    const std::int64_t now = wall_utime(world);
-    g_heap.allocations = 0;
-    g_heap.counting = true;
-    for (const std::size_t device : sensors.update(world, now))
-      (void)publisher.publish(device, sensors.sample(device), now);
-    g_heap.counting = false;
-    allocations += g_heap.allocations;
-    while (lcm.handleTimeout(0) > 0) {
-    }
-  }
-  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(publish_steps(200, lcm, world, sensors, publisher), 0);
   EXPECT_EQ(publisher.failed(), 0U);
   std::size_t checked = 0;
   for (const auto& [channel, messages] : received.by_channel) {

@@ -1,8 +1,9 @@
 // mrroc-launch: starts a process set from one config file (recorder, SRP, emulator, VSPs, EDPs,
 // ECPs, web console, then MP), on this computer or others ([[launch.host]]), waits for each
-// process to report ready, prefixes their output with their names (and writes per-process log
-// files), restarts processes by their restart policy, broadcasts the process table, and exits
-// with the task's outcome. SIGINT/SIGTERM stop everything in reverse order.
+// process to report ready, prefixes their output with the time and their names, leaving their
+// reports to the SRP while it runs (and writes per-process log files), restarts processes by
+// their restart policy, broadcasts the process table, and exits with the task's outcome.
+// SIGINT/SIGTERM stop everything in reverse order.
 // `mrroc-launch status CONFIG` prints the process table of a running set.
 #include <fmt/format.h>
 #include <unistd.h>
@@ -56,6 +57,13 @@ constexpr double kMaxBackoffS = 30.0;
 constexpr milliseconds kSilentReady{300};
 /// Operator commands to the launcher (launch_command_t; `mrroc-ui restart` sends them).
 constexpr const char* kCommandChannel = "mrroc/launch/command";
+/// The process that prints every process' reports: while it runs (from its ready on), the
+/// supervisor leaves the processes' own copies of their reports off the console.
+constexpr const char* kReportPrinter = "srp";
+
+/// "HH:MM:SS.mmm " (local time now): the start of every line the launcher prints while it runs
+/// a set, as the supervisor's lines start.
+std::string stamp() { return format_utime(now_utime()) + " "; }
 
 fs::path own_directory() {
   std::error_code ec;
@@ -179,15 +187,16 @@ class AckInbox {
 };
 
 /// The plan; `detailed` adds a line per process with its group, host, restart policy, stop
-/// signal, grace period and log file (--check).
+/// signal, grace period and log file (--check: without time stamps, nothing runs).
 void print_plan(const ProcessSetConfig& config, const std::vector<PlannedProcess>& plan,
                 bool detailed) {
-  std::cout << fmt::format("mrroc-launch: process set '{}' from {} ({} robot(s), LCM {})\n",
+  const std::string at = detailed ? std::string() : stamp();
+  std::cout << fmt::format("{}mrroc-launch: process set '{}' from {} ({} robot(s), LCM {})\n", at,
                            config.name, config.file.string(), config.robots.size(),
                            comm::resolve_lcm_url(config.lcm_url));
   for (std::size_t i = 0; i < plan.size(); ++i) {
     const PlannedProcess& p = plan[i];
-    std::cout << fmt::format("  {}. {:<12} {}\n", i + 1, p.name, quoted_command(p.spec.argv));
+    std::cout << fmt::format("{}  {}. {:<12} {}\n", at, i + 1, p.name, quoted_command(p.spec.argv));
     if (!detailed) continue;
     std::string restart = to_string(p.options.restart);
     if (p.options.restart != RestartPolicy::never)
@@ -243,12 +252,13 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   std::vector<std::string> robot_names;
   for (const auto& r : config.robots) robot_names.push_back(r.name);
   if (const auto other = launch::running_set(bus, robot_names)) {
+    const std::string at = stamp();
     std::fprintf(stderr,
-                 "mrroc-launch: refusing to start set '%s' (%s): another process set runs on LCM "
-                 "%s: %s. One process set per LCM URL: stop it first, or give this set another "
-                 "[system] lcm_url\nmrroc-launch: nothing started\n",
-                 config.name.c_str(), config.file.string().c_str(), bus.url().c_str(),
-                 other->describe().c_str());
+                 "%smrroc-launch: refusing to start set '%s' (%s): another process set runs on "
+                 "LCM %s: %s. One process set per LCM URL: stop it first, or give this set "
+                 "another [system] lcm_url\n%smrroc-launch: nothing started\n",
+                 at.c_str(), config.name.c_str(), config.file.string().c_str(), bus.url().c_str(),
+                 other->describe().c_str(), at.c_str());
     return kExitConfig;
   }
 
@@ -360,6 +370,7 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
       break;
     }
     board.update(p.name, [](launch::ProcessRow& r) { r.state = "running"; });
+    if (p.name == kReportPrinter) supervisor.set_report_printer(p.name);
     supervisor.log(fmt::format("mrroc-launch: {} ready at {} ms", p.name, since()));
   }
 
@@ -494,6 +505,7 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
           if (state && *state != ProcessState::failed) {
             rt[i].ready_deadline.reset();
             board.update(p.name, [](launch::ProcessRow& r) { r.state = "running"; });
+            if (p.name == kReportPrinter) supervisor.set_report_printer(p.name);
             supervisor.log(fmt::format("mrroc-launch: {} ready again at {} ms (restart {})", p.name,
                                        since(), rt[i].restarts));
           } else if (state || now >= *rt[i].ready_deadline) {
@@ -584,10 +596,11 @@ int main(int argc, char** argv) {
       "mrroc-launch: starts a process set from one config file (lcm-logger when recording, SRP, "
       "emulator, VSPs, EDPs, ECPs, the web console when [ui] web = true, then MP), on this "
       "computer or on the [[launch.host]]s named by each process' 'host', waits for each process "
-      "to be ready, prefixes each process' output with its name (and writes one log file per "
-      "process when [launch] log_dir is set), restarts processes by their 'restart' policy, "
-      "broadcasts the process table every second on mrroc/launch/status, and exits with the "
-      "task's outcome: 0 task finished, 1 task failed, 2 config error (nothing started), 3 a "
+      "to be ready, prints each process' output with the time and its name (a process' own "
+      "report lines only while the SRP does not run: the SRP prints every report) and writes one "
+      "log file per process when [launch] log_dir is set, restarts processes by their 'restart' "
+      "policy, broadcasts the process table every second on mrroc/launch/status, and exits with "
+      "the task's outcome: 0 task finished, 1 task failed, 2 config error (nothing started), 3 a "
       "process failed to start, 4 a required process ended for good during the task, 5 the "
       "launcher itself failed, 128+N stopped by signal N. SIGINT/SIGTERM stop every process in "
       "reverse start order (its stop_signal, then SIGKILL after its stop_grace_s).\n"
@@ -615,7 +628,7 @@ int main(int argc, char** argv) {
   try {
     return run(config, check, options);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "mrroc-launch: %s\n", e.what());
+    std::fprintf(stderr, "%smrroc-launch: %s\n", check ? "" : stamp().c_str(), e.what());
     return kExitInternal;
   }
 }

@@ -24,6 +24,7 @@
 
 #include "log_file.hpp"
 #include "mrroc/core/error.hpp"
+#include "mrroc/core/time.hpp"
 
 namespace mrroc::launch {
 
@@ -268,6 +269,7 @@ void fork_stop_guard(const ExecPlan& p) {
 
 struct Stream {
   int fd = -1;  // non-blocking read end, -1 once closed
+  bool is_stderr = false;
   std::string partial;
 };
 
@@ -305,6 +307,8 @@ struct Supervisor::Impl {
   std::vector<ChildExit> all;
   std::size_t name_width = 0;
   std::size_t next_order = 0;
+  /// The child that prints every report (the SRP), while it is not reaped; null if none.
+  const Child* report_printer = nullptr;
   bool stop = false;
   bool shutdown = false;
   int seen_signals = 0;
@@ -316,6 +320,18 @@ struct Supervisor::Impl {
   Fd life_r;
   Fd life_w;
   std::thread thread;
+
+  /// Appends "HH:MM:SS.mmm text\n" (the local time now) to `batch`.
+  static void add_line(std::string& batch, std::string_view text) {
+    fmt::format_to(std::back_inserter(batch), "{} {}\n", format_utime(now_utime()), text);
+  }
+
+  /// Writes one of the supervisor's own lines (time stamped).
+  void say(std::string_view text) {
+    std::string line;
+    add_line(line, text);
+    emit(line);
+  }
 
   void emit(std::string_view text) {
     if (text.empty()) return;
@@ -333,11 +349,13 @@ struct Supervisor::Impl {
     return stop || g_stop_signal_count.load() > 0;
   }
 
-  void format_line(const Child& c, std::string_view line, std::string& batch) const {
+  void format_line(const Child& c, const Stream& s, std::string_view line,
+                   std::string& batch) const {
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     if (c.log) c.log->write_line(line);
-    fmt::format_to(std::back_inserter(batch), "{:<{}} {}\n", fmt::format("[{}]", c.name),
-                   name_width + 2, line);
+    if (!shows_on_console(c.name, s.is_stderr, line, report_printer != nullptr)) return;
+    fmt::format_to(std::back_inserter(batch), "{} {:<{}} {}\n", format_utime(now_utime()),
+                   fmt::format("[{}]", c.name), name_width + 2, line);
   }
 
   void split_lines(const Child& c, Stream& s, std::string& batch) const {
@@ -345,18 +363,18 @@ struct Supervisor::Impl {
     for (;;) {
       const std::size_t nl = s.partial.find('\n', begin);
       if (nl == std::string::npos) break;
-      format_line(c, std::string_view(s.partial).substr(begin, nl - begin), batch);
+      format_line(c, s, std::string_view(s.partial).substr(begin, nl - begin), batch);
       begin = nl + 1;
     }
     s.partial.erase(0, begin);
     while (s.partial.size() > kMaxLine) {
-      format_line(c, std::string_view(s.partial).substr(0, kMaxLine), batch);
+      format_line(c, s, std::string_view(s.partial).substr(0, kMaxLine), batch);
       s.partial.erase(0, kMaxLine);
     }
   }
 
   void flush_partial(const Child& c, Stream& s, std::string& batch) const {
-    if (!s.partial.empty()) format_line(c, s.partial, batch);
+    if (!s.partial.empty()) format_line(c, s, s.partial, batch);
     s.partial.clear();
   }
 
@@ -403,6 +421,8 @@ struct Supervisor::Impl {
     read_stream(c, c.err, kReadAtExit, batch);
     flush_partial(c, c.out, batch);
     flush_partial(c, c.err, batch);
+    // From here on the reports are not printed by this child: every line is shown again.
+    if (report_printer == &c) report_printer = nullptr;
 
     ChildExit e;
     e.name = c.name;
@@ -410,17 +430,17 @@ struct Supervisor::Impl {
     e.forced = c.forced;
     if (!status) {
       e.exit_code = -1;
-      fmt::format_to(std::back_inserter(batch), "{} (pid {}) ended, exit status unknown\n", c.name,
-                     c.pid);
+      add_line(batch, fmt::format("{} (pid {}) ended, exit status unknown", c.name, c.pid));
     } else if (WIFEXITED(*status)) {
       e.exit_code = WEXITSTATUS(*status);
-      fmt::format_to(std::back_inserter(batch), "{} exited with code {}\n", c.name, e.exit_code);
+      add_line(batch, fmt::format("{} exited with code {}", c.name, e.exit_code));
     } else {
       e.signal = WTERMSIG(*status);
       e.exit_code = 128 + e.signal;
       if (!c.forced) {
-        fmt::format_to(std::back_inserter(batch), "{} killed by signal {} ({}){}\n", c.name,
-                       e.signal, signal_name(e.signal), WCOREDUMP(*status) ? ", core dumped" : "");
+        add_line(batch,
+                 fmt::format("{} killed by signal {} ({}){}", c.name, e.signal,
+                             signal_name(e.signal), WCOREDUMP(*status) ? ", core dumped" : ""));
       }
     }
     if (c.log) {
@@ -552,19 +572,18 @@ struct Supervisor::Impl {
     const bool leader_running = !c.reaped;
     const bool close_input = leader_running && c.input_w.get() >= 0;
     if (close_input) {
-      emit(fmt::format("stopping {} (pid {}) by closing its input\n", c.name, c.pid));
+      say(fmt::format("stopping {} (pid {}) by closing its input", c.name, c.pid));
     } else if (leader_running) {
-      emit(fmt::format(
-          "stopping {} (pid {}){}\n", c.name, c.pid,
+      say(fmt::format(
+          "stopping {} (pid {}){}", c.name, c.pid,
           c.stop_signal == SIGTERM ? std::string() : " with " + signal_name(c.stop_signal)));
     } else {
-      emit(fmt::format("stopping the remaining processes of {} (process group {})\n", c.name,
-                       c.pid));
+      say(fmt::format("stopping the remaining processes of {} (process group {})", c.name, c.pid));
     }
     auto hurry = [&] {
       if (!hurrying && g_stop_signal_count.load() > signals_at_start) {
         hurrying = true;
-        emit("another stop signal: killing the remaining processes now\n");
+        say("another stop signal: killing the remaining processes now");
       }
       return hurrying;
     };
@@ -581,16 +600,16 @@ struct Supervisor::Impl {
     const auto shown = hurrying ? waited : c.grace;
     if (!c.reaped) {
       c.forced = true;
-      emit(fmt::format("killed {} after {} ms\n", c.name, shown.count()));
+      say(fmt::format("killed {} after {} ms", c.name, shown.count()));
     } else {
-      emit(fmt::format("killed the remaining processes of {} (process group {}) after {} ms\n",
-                       c.name, c.pid, shown.count()));
+      say(fmt::format("killed the remaining processes of {} (process group {}) after {} ms", c.name,
+                      c.pid, shown.count()));
     }
     signal_child(c, SIGKILL);
     if (!wait_gone(lock, c, Clock::now() + kKillWait, {})) {
-      emit(
+      say(
           fmt::format("warning: processes of {} (process group {}) still exist {} ms after "
-                      "SIGKILL\n",
+                      "SIGKILL",
                       c.name, c.pid, kKillWait.count()));
     }
   }
@@ -744,6 +763,7 @@ pid_t Supervisor::start(const ChildSpec& spec) {
   child->input_w = std::move(input_w);
   child->out.fd = out_r.release();
   child->err.fd = err_r.release();
+  child->err.is_stderr = true;
   if (log)
     log->write_line(
         fmt::format("--- {} started (pid {}): {}", spec.name, pid, fmt::join(spec.argv, " ")));
@@ -843,15 +863,36 @@ std::vector<ChildExit> Supervisor::exits() const {
   return impl_->all;
 }
 
-void Supervisor::log(std::string_view line) {
-  std::string text(line);
-  text += '\n';
-  impl_->emit(text);
-}
+void Supervisor::log(std::string_view line) { impl_->say(line); }
 
 void Supervisor::reserve_name_width(std::size_t width) {
   std::lock_guard lock(impl_->mu);
   impl_->name_width = std::max(impl_->name_width, width);
+}
+
+void Supervisor::set_report_printer(const std::string& name) {
+  std::lock_guard lock(impl_->mu);
+  for (const auto& c : impl_->children) {
+    if (!c->reaped && c->name == name) impl_->report_printer = c.get();
+  }
+}
+
+// ---- what is shown -------------------------------------------------------------------------
+
+bool is_report_line(std::string_view process, std::string_view line) {
+  if (process.empty() || line.size() <= process.size() + 2 || !line.starts_with(process) ||
+      line.substr(process.size(), 2) != ": ")
+    return false;
+  line.remove_prefix(process.size() + 2);
+  for (const std::string_view severity : {"debug", "info", "warning", "error", "fatal"}) {
+    if (line.starts_with(severity) && line.substr(severity.size()).starts_with(": ")) return true;
+  }
+  return false;
+}
+
+bool shows_on_console(std::string_view child, bool from_stderr, std::string_view line,
+                      bool printer_running) {
+  return !(printer_running && from_stderr && is_report_line(child, line));
 }
 
 // ---- stop signals --------------------------------------------------------------------------

@@ -23,14 +23,23 @@
 /// of a child's process group. This is what lets `stop_all()` wait until a group is empty.
 /// The constructor also resets SIGCHLD to its default disposition if it was ignored.
 ///
-/// Output: complete lines are written as "[name] text" (stderr lines too, same prefix);
-/// the bracketed name is left-aligned and padded to the longest name started so far (or the
-/// width given to `reserve_name_width()`). A partial last line is written when the child
-/// exits or closes the pipe. Each write happens under one mutex, so lines never mix; the
+/// Output: every line written to the stream starts with the local wall-clock time at which the
+/// supervisor wrote it, "HH:MM:SS.mmm " (`mrroc::format_utime`, as the SRP shows times).
+/// Complete lines of a child are written as "HH:MM:SS.mmm [name] text" (stderr lines too, same
+/// prefix); the bracketed name is left-aligned and padded to the longest name started so far
+/// (or the width given to `reserve_name_width()`). A partial last line is written when the
+/// child exits or closes the pipe. Each write happens under one mutex, so lines never mix; the
 /// stream is flushed after each batch. Children that use stdio must flush (or line-buffer)
 /// their stdout themselves: a pipe makes stdio fully buffered.
 ///
-/// The supervisor's own messages (unprefixed lines) go to the same stream:
+/// One copy of each report: a process' Reporter prints each report on its stderr
+/// ("process: severity: text") and sends it to the SRP, which prints it on its stdout. Once a
+/// child is named the report printer (`set_report_printer()`, the SRP once it is ready), the
+/// children's report lines are left off the stream while that child runs; see
+/// `shows_on_console()`. They are still written to the child's log file. When the printer ends,
+/// every line is shown again (until a printer is named again).
+///
+/// The supervisor's own messages (unprefixed lines after the time) go to the same stream:
 ///   "stopping NAME (pid N)", "NAME exited with code C", "NAME killed by signal N (SIGX)",
 ///   "killed NAME after G ms" (SIGKILL after the grace period), ...
 /// Use `log()` to write further lines without mixing them with child output.
@@ -174,10 +183,29 @@ class Supervisor {
   /// it with the longest name before starting anything to keep the output aligned.
   void reserve_name_width(std::size_t width);
 
+  /// Names the running child `name` the report printer: from now until that child is reaped,
+  /// the children's report lines (`shows_on_console()`) go to their log files only. Call it
+  /// when the SRP is ready (it then prints every report), again after each restart of it.
+  /// Does nothing if no child of that name runs.
+  void set_report_printer(const std::string& name);
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// True if `line` is a report line of the process `process`, as `Reporter::report` prints it on
+/// stderr: "<process>: <severity>: <text>" with a severity of debug, info, warning, error or
+/// fatal.
+[[nodiscard]] bool is_report_line(std::string_view process, std::string_view line);
+
+/// Whether the supervisor writes a line of the child `child` to its stream: every line except a
+/// report line of the child itself (`is_report_line(child, line)`) on its stderr while a report
+/// printer runs (`printer_running`), which prints the same message. Other lines (stdout, other
+/// stderr output such as "mrroc-axis-emu: ..." or a crash message) are always shown, and so is
+/// everything while no printer runs: a report is never lost from the console.
+[[nodiscard]] bool shows_on_console(std::string_view child, bool from_stderr, std::string_view line,
+                                    bool printer_running);
 
 /// Installs handlers for SIGINT, SIGTERM and SIGHUP that make `stop_requested()` of every
 /// supervisor true and wake `wait_events()` (self-pipe; the handlers are async-signal-safe).

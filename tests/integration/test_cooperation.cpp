@@ -102,8 +102,12 @@ TEST(Cooperation, LooseConveyorStartsOnlyAfterThePlacement) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   // Order of events: released on the belt, then (and only then) the belt moves.
   const auto placed = r.output.find("object placed on the conveyor by irb6");
+  std::smatch started;  // the SRP's line of the belt ECP's report
   const auto belt_task =
-      r.output.find("[ecp/conveyor] ecp/conveyor: info: task 'visit_joint_poses' started");
+      std::regex_search(r.output, started,
+                        std::regex("ecp/conveyor +info +task 'visit_joint_poses' started"))
+          ? static_cast<std::size_t>(started.position(0))
+          : std::string::npos;
   const auto delivered = r.output.find("object delivered: conveyor at");
   ASSERT_NE(placed, std::string::npos) << r.output;
   ASSERT_NE(belt_task, std::string::npos) << r.output;

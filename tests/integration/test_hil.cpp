@@ -128,7 +128,8 @@ TEST_F(Hil, DriveFaultHoldsTheRobotAndNamesDriveAxisAndCode) {
       << r.output;
   EXPECT_TRUE(has(r.output, "the robot is held")) << r.output;
   // The task got the error.
-  EXPECT_TRUE(std::regex_search(r.output, std::regex("mp: fatal: ecp/irb6: .*EMCY 0x8611")))
+  EXPECT_TRUE(
+      std::regex_search(r.output, std::regex("\\[srp\\].* mp +fatal +ecp/irb6: .*EMCY 0x8611")))
       << r.output;
   expect_clean_shutdown(r);
 }

@@ -15,6 +15,7 @@
 #include <functional>
 #include <mutex>
 #include <optional>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -162,11 +163,40 @@ TEST(LaunchDemo, RunsToTheEndAndReachesTheTargets) {
   std::printf("demo finished in %.2f s\n", r.seconds);
 
   // Progress printed, child output prefixed with the process name.
-  for (const char* expected :
-       {"mrroc-launch: started srp", "mrroc-launch: edp/irb6 ready", "[ecp/irb6]", "[mp]",
-        "[edp/irb6]", "pose 1/3 reached", "pose 3/3 reached", "task finished"})
+  for (const char* expected : {"mrroc-launch: started srp", "mrroc-launch: edp/irb6 ready",
+                               "pose 1/3 reached", "pose 3/3 reached", "task finished"})
     EXPECT_NE(r.output.find(expected), std::string::npos) << "missing '" << expected << "'\n"
                                                           << r.output;
+  // Every line starts with the time the launcher printed it. Each report is printed once: the
+  // SRP's line (the SRP runs from before the first report to after the last), not the
+  // process' own stderr line "[ecp/irb6] ecp/irb6: info: ...".
+  const std::regex stamp(R"(\d\d:\d\d:\d\d\.\d{3} )");
+  const std::regex own_report(
+      R"(\d\d:\d\d:\d\d\.\d{3} \[([^\]]+)\] +([^ ]+): (debug|info|warning|error|fatal): .*)");
+  int ecp_started = 0;
+  int mp_started = 0;
+  std::istringstream lines(r.output);
+  for (std::string line; std::getline(lines, line);) {
+    EXPECT_TRUE(std::regex_search(line, stamp, std::regex_constants::match_continuous)) << line;
+    std::smatch m;
+    if (std::regex_match(line, m, own_report)) {
+      EXPECT_NE(m[1], m[2]) << line;
+    }
+    if (line.find("task 'visit_joint_poses' started") != std::string::npos) {
+      ++ecp_started;
+      EXPECT_TRUE(std::regex_search(
+          line, std::regex(R"(\[srp\] +\d\d:\d\d:\d\d\.\d{3} ecp/irb6 +info +task)")))
+          << line;
+    }
+    if (line.find("task 'start_and_wait' started") != std::string::npos) {
+      ++mp_started;
+      EXPECT_TRUE(
+          std::regex_search(line, std::regex(R"(\[srp\] +\d\d:\d\d:\d\d\.\d{3} mp +info +task)")))
+          << line;
+    }
+  }
+  EXPECT_EQ(ecp_started, 1) << r.output;
+  EXPECT_EQ(mp_started, 1) << r.output;
 
   // Final joints read back from the EDP's own replies.
   const auto replies = recorder.replies();
@@ -239,14 +269,20 @@ TEST(LaunchDemo, SigintMidMotionStopsEverythingInReverseOrder) {
                                                         << r.output;
   // The arm was moving: the EDP brought it to rest within its acceleration limits before it
   // exited: a planned stop (the stopping task told it no macro-step follows), for want of a next
-  // macro-step, or on its own stop request.
-  const auto standstill = r.output.find("edp/irb6: ", r.output.find("stopping mp"));
-  ASSERT_NE(standstill, std::string::npos) << r.output;
-  const auto ramp = std::min(r.output.find("brought to a standstill", standstill),
-                             r.output.find("brought to rest", standstill));
-  const auto edp_exit = r.output.find("edp/irb6 exited with code 0");
-  EXPECT_NE(ramp, std::string::npos) << r.output;
-  EXPECT_LT(ramp, edp_exit) << r.output;
+  // macro-step, or on its own stop request. The SRP shows the EDP's report of it before the
+  // EDP's last status (both in the order the EDP sent them).
+  const std::string after_stop =
+      r.output.substr(std::min(r.output.size(), r.output.find("stopping mp")));
+  std::smatch ramp;
+  ASSERT_TRUE(std::regex_search(
+      after_stop, ramp,
+      std::regex(R"(\[srp\] +[0-9:.]+ edp/irb6 +[a-z]+ +.*brought to (a standstill|rest))")))
+      << r.output;
+  std::smatch finished;
+  ASSERT_TRUE(std::regex_search(after_stop, finished,
+                                std::regex(R"(\[srp\] +[0-9:.]+ edp/irb6 +status +finished)")))
+      << r.output;
+  EXPECT_LT(ramp.position(0), finished.position(0)) << r.output;
   EXPECT_TRUE(mrroc_processes().empty()) << "left behind: " << mrroc_processes().front();
 }
 

@@ -8,8 +8,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <mutex>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -268,13 +270,11 @@ TEST_F(Operator, ASensorTaskRunsTwiceInOneSet) {
   EXPECT_TRUE(r.accepted) << r.text;
   const LaunchRun run = launch.wait();
   EXPECT_EQ(run.exit_code, 0) << run.output;
-  // Each run touched the table (the ECP's own line; the SRP repeats it).
-  const std::string touched = "ecp/irb6: info: touched: first contact";
-  std::size_t touches = 0;
-  for (auto at = run.output.find(touched); at != std::string::npos;
-       at = run.output.find(touched, at + 1))
-    ++touches;
-  EXPECT_EQ(touches, 2U) << run.output;
+  // Each run touched the table: the ECP's report, printed once (the SRP's line).
+  const std::regex touched("ecp/irb6 +info +touched: first contact");
+  const auto touches = std::distance(
+      std::sregex_iterator(run.output.begin(), run.output.end(), touched), std::sregex_iterator());
+  EXPECT_EQ(touches, 2) << run.output;
   EXPECT_FALSE(has(run.output, "did not answer")) << run.output;
   expect_nothing_left();
 }

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -32,22 +33,40 @@ double number(const std::string& text, const std::string& pattern, std::size_t g
   return std::stod(m[group]);
 }
 
-/// configs/sensing-touch.toml with absolute paths and `faults` for the emulator.
-std::string touch_with_faults(const std::string& faults) {
+/// configs/sensing-touch.toml with absolute paths, `emulator_keys` added to its [emulator]
+/// table and `tables` (more TOML tables) at its end.
+std::string touch_config(const std::string& emulator_keys, const std::string& tables = {}) {
   std::ifstream in(config("sensing-touch.toml"));
   std::stringstream s;
   s << in.rdbuf();
   std::string text = s.str();
   const std::string dir = std::string(MRROC_SOURCE_DIR);
-  text = std::regex_replace(
-      text, std::regex("scene = \"scenes/sensing.toml\""),
-      "scene = \"" + dir + "/configs/scenes/sensing.toml\"\nfaults = [" + faults + "]");
+  text =
+      std::regex_replace(text, std::regex("scene = \"scenes/sensing.toml\""),
+                         "scene = \"" + dir + "/configs/scenes/sensing.toml\"\n" + emulator_keys);
   text = std::regex_replace(text, std::regex("model = \"\\.\\./robots/irb6\""),
                             "model = \"" + dir + "/robots/irb6\"");
   const fs::path file =
       fs::temp_directory_path() / ("mrroc-sensing-" + std::to_string(getpid()) + ".toml");
-  std::ofstream(file) << text;
+  std::ofstream(file) << text << "\n" << tables;
   return file.string();
+}
+
+/// configs/sensing-touch.toml with absolute paths and `faults` for the emulator.
+std::string touch_with_faults(const std::string& faults) {
+  return touch_config("faults = [" + faults + "]");
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::size_t count_matches(const std::string& text, const std::regex& re) {
+  return static_cast<std::size_t>(
+      std::distance(std::sregex_iterator(text.begin(), text.end(), re), std::sregex_iterator()));
 }
 
 }  // namespace
@@ -112,17 +131,28 @@ TEST(Sensing, DeadVspStopsTheSet) {
 TEST(Sensing, HungVspMakesTheTaskFailNamingIt) {
   // A VSP that stops answering (SIGSTOP): the ECP's image turns invalid within 3 attempts of
   // 40 ms, the guarded move ends with SensorError, the robot holds.
-  const LaunchRun r = launch_and_kill(config("sensing-touch.toml"), "vsp/wrist_force", "zeroed",
-                                      std::chrono::milliseconds(500), SIGSTOP);
+  const fs::path logs =
+      fs::temp_directory_path() / ("mrroc-sensing-logs-" + std::to_string(getpid()));
+  fs::remove_all(logs);
+  const LaunchRun r =
+      launch_and_kill(touch_config("", "[launch]\nlog_dir = \"" + logs.string() + "\"\n"),
+                      "vsp/wrist_force", "zeroed", std::chrono::milliseconds(500), SIGSTOP);
   EXPECT_EQ(r.exit_code, 1) << r.output;
-  EXPECT_TRUE(std::regex_search(
-      r.output, std::regex("ecp/irb6: error: task 'touch': VSP 'wrist_force' did not answer")))
+  // The ECP's report is on the console once: the SRP's line (the SRP ran all the time), not the
+  // ECP's own stderr line, which its log file has.
+  EXPECT_EQ(
+      count_matches(r.output,
+                    std::regex("\\[srp\\] +[0-9:.]+ ecp/irb6 +error +(\\[[0-9]+\\] )?task 'touch': "
+                               "VSP 'wrist_force' did not answer")),
+      1U)
       << r.output;
-  EXPECT_TRUE(std::regex_search(
-      r.output, std::regex("\\[srp\\].*ecp/irb6 +error .*VSP 'wrist_force' did not answer")))
-      << r.output;
+  EXPECT_FALSE(has(r.output, "ecp/irb6: error:")) << r.output;
+  EXPECT_TRUE(has(slurp(logs / "ecp_irb6.log"),
+                  "Z ecp/irb6: error: task 'touch': VSP 'wrist_force' did not answer"))
+      << slurp(logs / "ecp_irb6.log");
   EXPECT_FALSE(has(r.output, "touched:")) << r.output;
   expect_nothing_left();
+  fs::remove_all(logs);
 }
 
 TEST(Sensing, StaleRawSensorMakesReadingsInvalidAndStopsTheMotion) {
@@ -136,7 +166,8 @@ TEST(Sensing, StaleRawSensorMakesReadingsInvalidAndStopsTheMotion) {
                            "source 'irb6_wrist' stale")))
       << r.output;
   EXPECT_TRUE(std::regex_search(
-      r.output, std::regex("mp: fatal: ecp/irb6: VSP 'wrist_force': source 'irb6_wrist' stale")))
+      r.output,
+      std::regex("\\[srp\\].* mp +fatal +ecp/irb6: VSP 'wrist_force': source 'irb6_wrist' stale")))
       << r.output;
   expect_nothing_left();
 }

@@ -108,6 +108,7 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
   for (const auto& [from, to] : {std::pair{std::string("\"mrroc-a\""), "\"" + a_ + "\""},
                                  std::pair{std::string("\"mrroc-b\""), "\"" + b_ + "\""}})
     text.replace(text.find(from), from.size(), to);
+  text.replace(text.find("[launch]\n"), 9, "[launch]\nlog_dir = \"logs\"\n");
   std::ofstream(config) << text;
 
   // The plan shows the templated command lines.
@@ -146,7 +147,7 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
   EXPECT_EQ(netns_of(launch.pid_of("ui")), ns_launcher);
   // The console's URL with its generated token, printed once on its standard output (here the
   // launcher's); the token is nowhere else in the output (not in the SRP's messages), and in
-  // ui-8093.token in the folder the set runs in (no [launch] log_dir), for its owner only.
+  // ui-8093.token in the set's [launch] log_dir, for its owner only.
   ASSERT_TRUE(launch.wait_for("?token=", 20s)) << launch.output();
   const std::string so_far = launch.output();
   std::smatch url;
@@ -156,7 +157,7 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
           R"(web console of set 'multihost' at http://127\.0\.0\.1:8093/\?token=([0-9a-f]{48})\n)")))
       << so_far;
   const std::string token = url[1];
-  const fs::path token_file = fs::current_path() / "ui-8093.token";
+  const fs::path token_file = dir / "logs" / "ui-8093.token";
   EXPECT_EQ(slurp(token_file), token + "\n");
   EXPECT_EQ(fs::status(token_file).permissions() & fs::perms::all,
             fs::perms::owner_read | fs::perms::owner_write);
@@ -185,7 +186,13 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
   EXPECT_TRUE(has(out, "started edp/irb6 (pid")) << out;
   EXPECT_TRUE(has(out, "on host b")) << out;
   EXPECT_TRUE(has(out, "task finished")) << out;
-  EXPECT_TRUE(has(out, "[ecp/irb6]")) << out;
+  // The ECP's report crossed to the SRP on host "a", which printed it (the one copy on the
+  // console); the ECP's own output, from host "b", is in its log file.
+  EXPECT_TRUE(std::regex_search(
+      out, std::regex(R"(\[srp\] +[0-9:.]+ ecp/irb6 +info +task 'visit_joint_poses' started)")))
+      << out;
+  const std::string ecp_log = slurp(dir / "logs" / "ecp_irb6.log");
+  EXPECT_TRUE(has(ecp_log, "Z ecp/irb6: info: task 'visit_joint_poses' started")) << ecp_log;
   std::size_t token_seen = 0;
   for (auto at = out.find(token); at != std::string::npos; at = out.find(token, at + 1))
     ++token_seen;

@@ -26,6 +26,8 @@
 #include <thread>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
 
@@ -67,16 +69,22 @@ class Capture {
  public:
   std::ostream& stream() { return os_; }
   [[nodiscard]] std::string text() const { return buf_.text(); }
-  /// Waits until a line "[name] content" (with any padding after the name) was written.
+  /// Waits until a line "HH:MM:SS.mmm [name] content" (with any padding after the name) was
+  /// written.
   bool wait_for_line(const std::string& name, const std::string& content,
                      milliseconds timeout = 5000ms) const {
-    const std::regex re("(^|\n)\\[" + name + "\\] +" + content + "\n");
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < deadline) {
-      if (std::regex_search(text(), re)) return true;
+      if (has_line(name, content)) return true;
       std::this_thread::sleep_for(5ms);
     }
     return false;
+  }
+  /// True if a line "HH:MM:SS.mmm [name] content" was written (`content` is a regex).
+  [[nodiscard]] bool has_line(const std::string& name, const std::string& content) const {
+    const std::regex re("(^|\n)\\d\\d:\\d\\d:\\d\\d\\.\\d{3} \\[" + name + "\\] +" + content +
+                        "\n");
+    return std::regex_search(text(), re);
   }
   /// Waits until the output contains `needle`.
   bool wait_for(const std::string& needle, milliseconds timeout = 5000ms) const {
@@ -169,13 +177,17 @@ TEST(Supervisor, PadsNamesAndNeverMixesLines) {
   EXPECT_THAT(text, HasSubstr("[a]      line 0 of a\n"));
   EXPECT_THAT(text, HasSubstr("[bb]     err 299 of bb\n"));
 
+  // Every line starts with the time it was written.
+  const std::regex stamp(R"(\d\d:\d\d:\d\d\.\d{3} )");
   const std::regex child_line(R"(\[(a|bb)\] +(line|err) \d+ of (a|bb))");
   std::istringstream lines(text);
   std::string line;
   int child_lines = 0;
   while (std::getline(lines, line)) {
-    if (line.empty() || line.front() != '[') continue;
     std::smatch m;
+    ASSERT_TRUE(std::regex_search(line, m, stamp, std::regex_constants::match_continuous)) << line;
+    line.erase(0, static_cast<std::size_t>(m.length()));
+    if (line.front() != '[') continue;
     ASSERT_TRUE(std::regex_match(line, m, child_line)) << line;
     EXPECT_EQ(m[1], m[3]) << line;
     ++child_lines;
@@ -687,6 +699,80 @@ TEST(Supervisor, WritesEachChildsLinesWithTimeStampsToItsLogFile) {
   }
   // The console output is unchanged.
   EXPECT_THAT(cap.text(), HasSubstr("[edp/x] first\n"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Supervisor, TellsReportLinesFromOtherOutput) {
+  for (const char* severity : {"debug", "info", "warning", "error", "fatal"})
+    EXPECT_TRUE(is_report_line("ecp/irb6", std::string("ecp/irb6: ") + severity + ": text"))
+        << severity;
+  EXPECT_TRUE(is_report_line("mp", "mp: fatal: ecp/irb6: VSP 'wrist_force': stale"));
+  EXPECT_TRUE(is_report_line("ecp/irb6", "ecp/irb6: info: "));  // an empty text
+  // Another process' name, a longer name, not a severity, not the Reporter's punctuation.
+  EXPECT_FALSE(is_report_line("ecp/irb6", "edp/irb6: info: driven by 'ecp/irb6#23'"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", "ecp/irb6x: info: text"));
+  EXPECT_FALSE(is_report_line("emu", "mrroc-axis-emu: error: cannot open the scene"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", "ecp/irb6: notice: text"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", "ecp/irb6: info text"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", "ecp/irb6: infos: text"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", "ecp/irb6: info:"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", "ecp/irb6:info: text"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", " ecp/irb6: info: text"));
+  EXPECT_FALSE(is_report_line("ecp/irb6", "Segmentation fault"));
+  EXPECT_FALSE(is_report_line("", ": info: text"));
+}
+
+TEST(Supervisor, HidesAChildsReportLinesOnlyWhileAReportPrinterRuns) {
+  const std::string report = "ecp/irb6: info: task 'touch' started";
+  EXPECT_FALSE(shows_on_console("ecp/irb6", true, report, true));
+  EXPECT_TRUE(shows_on_console("ecp/irb6", true, report, false));  // no printer: shown
+  EXPECT_TRUE(shows_on_console("ecp/irb6", false, report, true));  // stdout: not the Reporter's
+  EXPECT_TRUE(shows_on_console("edp/irb6", true, report, true));   // not the child's own name
+  EXPECT_TRUE(shows_on_console("emu", true, "mrroc-axis-emu: lock-step", true));
+  EXPECT_FALSE(shows_on_console("srp", true, "srp: warning: dropped a message", true));
+}
+
+TEST(Supervisor, LeavesReportsToTheReportPrinterAndTheLogFileWhileThePrinterRuns) {
+  const auto dir = temp_dir("printer");
+  Capture cap;
+  Supervisor s(cap.stream());
+  // Child "ecp/rN": its own report, the same on stdout, another program's and another
+  // process' line in the Reporter's form, on stderr.
+  auto run = [&](int n) {
+    const std::string name = fmt::format("ecp/r{}", n);
+    ChildSpec spec = sh(name,
+                        "echo \"$0: info: report\" >&2; echo \"$0: info: stdout\"; "
+                        "echo \"mrroc-x: error: other\" >&2; echo \"edp/y: info: foreign\" >&2");
+    spec.argv.push_back(name);  // $0
+    spec.log_file = dir / fmt::format("r{}.log", n);
+    s.start(spec);
+    // The exit line comes after the child's last lines.
+    EXPECT_TRUE(cap.wait_for(name + " exited with code 0")) << cap.text();
+  };
+  s.set_report_printer("srp");  // no such child: nothing changes
+  run(1);
+  const pid_t printer = s.start(sh("srp", "exec sleep 100"));
+  s.set_report_printer("srp");
+  run(2);
+  ::kill(printer, SIGTERM);
+  ASSERT_TRUE(cap.wait_for("srp killed by signal")) << cap.text();
+  run(3);
+  s.start(sh("srp", "exec sleep 100"));  // a new printer: not one until it is named
+  run(4);
+  s.stop_all();
+
+  const std::string text = cap.text();
+  for (int n = 1; n <= 4; ++n) {
+    const std::string name = fmt::format("ecp/r{}", n);
+    // Only while the printer ran is the report left off the console.
+    EXPECT_EQ(cap.has_line(name, name + ": info: report"), n != 2) << text;
+    EXPECT_TRUE(cap.has_line(name, name + ": info: stdout")) << text;
+    EXPECT_TRUE(cap.has_line(name, "mrroc-x: error: other")) << text;
+    EXPECT_TRUE(cap.has_line(name, "edp/y: info: foreign")) << text;
+    // The log file has every line.
+    EXPECT_THAT(slurp(dir / fmt::format("r{}.log", n)), HasSubstr("Z " + name + ": info: report\n"))
+        << n;
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -57,7 +57,7 @@ TEST(Kill, EdpKilledMidMotionDrivesQuickStopThroughTheirSupervision) {
        {"'column'", "'lower_arm'", "'upper_arm'", "'wrist_pitch'", "'wrist_roll'"}) {
     std::smatch m;
     // The SRP's line of the emulator's report (the SRP runs throughout).
-    const std::regex line(std::string("emu +error +(\\[[0-9]+\\] )?robot 'irb6' axis [0-9] ") +
+    const std::regex line(std::string("emu +error +(?:\\[[0-9]+\\] )?robot 'irb6' axis [0-9] ") +
                           axis +
                           ".*master lost, EMCY 0x(8130 heartbeat / life guard error|8100 "
                           "communication error \\(SYNC lost\\)): quick stop active at t = "

@@ -77,6 +77,15 @@ class Edp {
   /// macro-step's last step on (the stopping ramp and the hold after it); empty when the motion
   /// was refused or never ran.
   std::vector<std::vector<double>> move_without_successor(const std::vector<double>& q, int steps) {
+    // From rest: the reply to SYNCHRO can come a cycle before its last, tiny correction has been
+    // commanded (seen under AddressSanitizer), which would count as the macro-step's first step.
+    const auto rest_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    while (!servo_->stopped() && std::chrono::steady_clock::now() < rest_deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    if (!servo_->stopped()) {
+      ADD_FAILURE() << "the robot did not come to rest within 2 s";
+      return {};
+    }
     const std::int64_t at = servo_->latest().cycle;
     if (set_joints(q, steps, steps - 1).type != ReplyType::acknowledge) return {};
     const Reply r = query();

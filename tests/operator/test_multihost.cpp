@@ -4,8 +4,10 @@
 // runs in "a". The console, which has no [ui] token_file, generates its API token: the test reads
 // it from the URL the console prints and asks the console for the robot's state with it.
 #include <signal.h>
+#include <sys/stat.h>
 
 #include <cstdlib>
+#include <regex>
 #include <thread>
 
 #include "operator_helpers.hpp"
@@ -210,6 +212,61 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
   // (which is in "b" too); the MP's commands and everyone's status come across from "a".
   EXPECT_GT(after.second - before.second, 300);  // b -> a
   EXPECT_GT(after.first - before.first, 20);     // a -> b
+  EXPECT_EQ(leftovers(), "");
+  fs::remove_all(dir);
+}
+
+// Host "b" reached through ssh: the launcher quotes the command line, puts "--" before the
+// host, stops a process by closing its input, and the remote side sends the stop signal. There
+// is no ssh server here: a stand-in named ssh takes the words ssh would and runs the command
+// line as sshd does (sh -c, in a session of its own), inside namespace "b", its input that of
+// the connection. The EDP, started in "b", ends on SIGTERM (its status says finished) and is
+// gone when the launcher has ended.
+TEST_F(TwoHosts, AProcessOnAnSshHostStopsOnTheStopSignal) {
+  const fs::path dir = temp_dir("multihost-ssh");
+  const fs::path ssh = dir / "ssh";
+  std::ofstream(ssh) << "#!/bin/sh\n"
+                        "# ssh [options] -- DESTINATION LINE, DESTINATION a network namespace\n"
+                        "while [ \"$1\" != \"--\" ]; do shift; done\n"
+                        "exec setsid -w ip netns exec \"$2\" sh -c \"$3\"\n";
+  fs::permissions(ssh, fs::perms::owner_all);
+  fs::path config = write_config(dir, "multihost.toml", "");
+  std::string text = slurp(config);
+  text.replace(text.find("\"mrroc-a\""), 9, "\"" + a_ + "\"");
+  const std::string b_host =
+      "command = [\"ip\", \"netns\", \"exec\", \"{host}\"]\naddress = \"mrroc-b\"\nquote = false\n";
+  ASSERT_NE(text.find(b_host), std::string::npos);
+  text.replace(text.find(b_host), b_host.size(),
+               "command = [\"" + ssh.string() + "\", \"{host}\"]\naddress = \"" + b_ + "\"\n");
+  text.replace(text.find("[ui]\nweb = true"), 15, "[ui]\nweb = false");
+  std::ofstream(config) << text;
+
+  Background launch({"ip", "netns", "exec", a_, launcher(), config.string()});
+  ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
+  // The EDP's own pid, from its status (the launcher knows only the stand-in's), is in "b".
+  std::smatch ready;
+  const std::string so_far = launch.output();
+  ASSERT_TRUE(
+      std::regex_search(so_far, ready, std::regex(R"(edp/irb6 +status +ready \(pid ([0-9]+)\))")))
+      << so_far;
+  const std::string edp = ready[1];
+  std::error_code ec;
+  const std::string edp_ns = fs::read_symlink("/proc/" + edp + "/ns/net", ec).string();
+  struct stat b_ns {};
+  ASSERT_EQ(::stat(("/run/netns/" + b_).c_str(), &b_ns), 0);
+  EXPECT_EQ(edp_ns, "net:[" + std::to_string(b_ns.st_ino) + "]") << "the EDP runs in \"b\"";
+
+  EXPECT_EQ(launch.wait(120s), 0) << launch.output();
+  const std::string out = launch.output();
+  EXPECT_TRUE(std::regex_search(
+      out, std::regex(R"(stopping edp/irb6 \(pid [0-9]+\) by closing its input)")))
+      << out;
+  EXPECT_TRUE(
+      std::regex_search(out, std::regex(R"(edp/irb6 +status +finished \(pid )" + edp + R"(\))")))
+      << "the EDP did not end by its stop signal\n"
+      << out;
+  EXPECT_FALSE(has(out, "killed edp/irb6")) << out;
+  EXPECT_FALSE(fs::exists("/proc/" + edp)) << "the EDP outlived the launcher";
   EXPECT_EQ(leftovers(), "");
   fs::remove_all(dir);
 }

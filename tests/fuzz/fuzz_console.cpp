@@ -19,9 +19,9 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <chrono>
 #include <cctype>
 #include <cerrno>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -147,9 +147,9 @@ std::string exchange(const std::uint8_t* data, std::size_t size) {
       continue;
     }
     if (n < 0 && errno == EINTR) continue;
-    fuzz::expect(n == 0 || errno == ECONNRESET,
-                 fmt::format("the console did not end the connection within 5 s (errno {})",
-                             errno));
+    fuzz::expect(
+        n == 0 || errno == ECONNRESET,
+        fmt::format("the console did not end the connection within 5 s (errno {})", errno));
     break;
   }
   ::close(fd);

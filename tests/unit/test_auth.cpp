@@ -316,6 +316,13 @@ TEST(Auth, RequestsReplayedOnAnotherChannelAndForgedStatusesAreRefused) {
   client_bus.stop();
   EXPECT_EQ(right.executions, 0) << "a request signed for left/cmd was executed on right/cmd";
   EXPECT_EQ(right.server->stats().unauthenticated, 1U);
+  bool reported = false;
+  for (const auto& [code, text] : drops.get())
+    reported = reported || (code == comm::drop_code::unauthenticated &&
+                            text ==
+                                "dropped a message on 'right/cmd' from 'ecp/left#1': wrong "
+                                "authentication tag");
+  EXPECT_TRUE(reported) << "the replay on another channel was not reported";
   std::lock_guard lock(mutex);
   EXPECT_EQ(statuses, std::vector<std::string>{"signed"});
   ASSERT_EQ(lines.size(), 2U);

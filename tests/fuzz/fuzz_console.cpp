@@ -58,6 +58,10 @@ struct Recorder : ConsoleActions {
     ++actions;
     return {};
   }
+  JogResult synchronise(const std::string&) override {
+    ++actions;
+    return {};
+  }
   TeachResult teach(const std::string&, const std::string&) override {
     ++actions;
     return {};

@@ -126,6 +126,7 @@ struct RecordingLink : JogLink {
     bool timeout = false;
     bool hold = false;  // block until `hold` is false again
     bool entered = false;
+    int synchronisations = 0;
   };
   std::shared_ptr<Shared> shared = std::make_shared<Shared>();
   std::vector<double> move_joints_relative(const std::vector<double>& delta,
@@ -135,6 +136,13 @@ struct RecordingLink : JogLink {
     shared->entered = true;
     shared->cv.notify_all();
     shared->cv.wait(lock, [&] { return !shared->hold; });
+    if (!shared->refuse.empty()) throw JogRefused(shared->refuse);
+    if (shared->timeout) throw TimeoutError("no EDP irb6 answers");
+    return shared->joints_after;
+  }
+  std::vector<double> synchronise() override {
+    std::lock_guard lock(shared->mutex);
+    ++shared->synchronisations;
     if (!shared->refuse.empty()) throw JogRefused(shared->refuse);
     if (shared->timeout) throw TimeoutError("no EDP irb6 answers");
     return shared->joints_after;
@@ -492,10 +500,12 @@ TEST(Jog, OneJogOfARobotAtATime) {
     std::unique_lock lock(p.link->mutex);
     ASSERT_TRUE(p.link->cv.wait_for(lock, 5s, [&] { return p.link->entered; }));
   }
-  EXPECT_EQ(api_error([&] {
-              (void)p.jogger->jog({"irb6", 1, 0.1, 1});
-            }),
-            std::make_pair(409, std::string("jogging refused: a jog of irb6 is in progress")));
+  EXPECT_EQ(
+      api_error([&] {
+        (void)p.jogger->jog({"irb6", 1, 0.1, 1});
+      }),
+      std::make_pair(409, std::string("jogging refused: a jog or synchronisation of irb6 is in "
+                                      "progress")));
   {
     std::lock_guard lock(p.link->mutex);
     p.link->hold = false;
@@ -503,6 +513,73 @@ TEST(Jog, OneJogOfARobotAtATime) {
   }
   EXPECT_EQ(first.get().motion_steps, p.link->calls.at(0).second);
   EXPECT_EQ(p.link->calls.size(), 1u);
+}
+
+TEST(Synchronise, OnlyARobotNotYetSynchronisedAtRestWithTheMpIdle) {
+  Parts p;
+  // Already synchronised: nothing is sent, the answer says so.
+  on_state(p.state, robot_state(1));
+  JogResult r = p.jogger->synchronise("irb6");
+  EXPECT_EQ(r.text, "irb6 is already synchronised");
+  EXPECT_EQ(p.link->synchronisations, 0);
+
+  auto s = robot_state(2);
+  s.synchronised = false;
+  auto refusal = [&] { return api_error([&] { (void)p.jogger->synchronise("irb6"); }); };
+  MpStatus running;
+  running.state = "RUNNING";
+  p.state.on_mp_status(running);
+  on_state(p.state, s);
+  EXPECT_EQ(refusal(), std::make_pair(409, std::string("synchronisation refused: the MP task is "
+                                                       "RUNNING; stop it first")));
+  MpStatus idle;
+  idle.state = "IDLE";
+  p.state.on_mp_status(idle);
+  s.servo_step = 3;
+  s.estop = true;
+  on_state(p.state, s);
+  EXPECT_EQ(refusal(), std::make_pair(409, std::string("synchronisation refused: the emergency "
+                                                       "stop of irb6 is engaged; release it "
+                                                       "first")));
+  s.servo_step = 4;
+  s.estop = false;
+  s.moving = true;
+  on_state(p.state, s);
+  EXPECT_EQ(refusal(), std::make_pair(409, std::string("synchronisation refused: irb6 is moving")));
+  EXPECT_EQ(api_error([&] { (void)p.jogger->synchronise("nope"); }).first, 404);
+  EXPECT_EQ(p.link->synchronisations, 0) << "nothing was sent while refused";
+
+  // At rest, not synchronised, MP idle: SYNCHRO goes out once; the answer has the joints after.
+  s.servo_step = 5;
+  s.moving = false;
+  on_state(p.state, s);
+  p.link->joints_after = {0.0, -1.5708, 0.0, 0.0, 0.0};
+  r = p.jogger->synchronise("irb6");
+  EXPECT_EQ(p.link->synchronisations, 1);
+  EXPECT_EQ(r.q, p.link->joints_after);
+  EXPECT_TRUE(has(r.text, "irb6 synchronised at [0.0000, -1.5708")) << r.text;
+  EXPECT_TRUE(p.link->calls.empty()) << "no jog was sent";
+
+  // The EDP's refusal is the answer (409) and a warning to the SRP; silence is 504.
+  p.link->refuse = "EDP irb6 refused SYNCHRO: hardware fault on axis 2";
+  EXPECT_EQ(refusal(), std::make_pair(409, p.link->refuse));
+  EXPECT_TRUE(has(p.reports.sent.back().second,
+                  "operator synchronisation of irb6 refused: EDP irb6 refused SYNCHRO"))
+      << p.reports.sent.back().second;
+  EXPECT_EQ(p.reports.sent.back().first, Severity::warning);
+  p.link->refuse.clear();
+  p.link->timeout = true;
+  EXPECT_EQ(refusal().first, 504);
+}
+
+TEST(Synchronise, JoggingARobotNotSynchronisedPointsToTheButton) {
+  Parts p;
+  auto s = robot_state(1);
+  s.synchronised = false;
+  on_state(p.state, s);
+  const auto [status, text] = api_error([&] { (void)p.jogger->jog({"irb6", 0, 0.1, 1}); });
+  EXPECT_EQ(status, 409);
+  EXPECT_TRUE(has(text, "irb6 is not synchronised (press Synchronise")) << text;
 }
 
 // --- teach-in ----------------------------------------------------------------------------------
@@ -601,6 +678,9 @@ struct PartsActions : ConsoleActions {
     return r;
   }
   JogResult jog(const JogRequest& request) override { return parts.jogger->jog(request); }
+  JogResult synchronise(const std::string& robot) override {
+    return parts.jogger->synchronise(robot);
+  }
   TeachResult teach(const std::string& robot, const std::string& file) override {
     return teach_in.record(robot, file);
   }
@@ -760,6 +840,9 @@ TEST_F(ApiTest, MalformedBodiesAreRefusedWithTheirReason) {
       {"/api/teach", R"({"robot": "irb6", "file": "../escape.traj"})", 400,
        "not a plain file name"},
       {"/api/teach", R"({"robot": "irb6", "file": 7})", 400, "request body: "},
+      {"/api/synchronise", R"({"robot": 5})", 400, "synchronise needs a string 'robot'"},
+      {"/api/synchronise", "{}", 400, "synchronise needs a string 'robot'"},
+      {"/api/synchronise", R"({"robot": "nope"})", 404, "no robot 'nope'"},
       {"/api/release", "not json", 400, "not a JSON object"},
       {"/api/release", R"({"robot": "nope"})", 404, "no robot 'nope'"},
       {"/api/command/launch", "{}", 404, "unknown command 'launch'"},
@@ -772,6 +855,7 @@ TEST_F(ApiTest, MalformedBodiesAreRefusedWithTheirReason) {
         << path << " " << body << ": " << answer.dump();
   }
   EXPECT_TRUE(parts_.link->calls.empty()) << "nothing moved";
+  EXPECT_EQ(parts_.link->synchronisations, 0) << "nothing synchronised";
   EXPECT_TRUE(actions_.stops.empty()) << "nothing released";
   EXPECT_TRUE(actions_.commands.empty());
   EXPECT_FALSE(std::filesystem::exists(dir_.path() / "irb6.traj"));

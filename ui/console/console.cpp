@@ -153,6 +153,7 @@ struct Console::Impl : ConsoleActions {
   }
 
   JogResult jog(const JogRequest& request) override { return jogger->jog(request); }
+  JogResult synchronise(const std::string& robot) override { return jogger->synchronise(robot); }
 
   TeachResult teach(const std::string& robot, const std::string& file) override {
     return teach_in->record(robot, file);

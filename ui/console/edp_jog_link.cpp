@@ -34,6 +34,18 @@ class EdpJogLink : public JogLink {
     }
   }
 
+  std::vector<double> synchronise() override {
+    edp::Instruction c;
+    c.type = edp::InstructionType::synchro;
+    c.with_query = true;  // the reply carries the joints once the search has ended
+    try {
+      edp_.take_over_next();
+      return edp_.call(c).joints;  // answered IN_PROGRESS while the axes search their switches
+    } catch (const edp::Refused& e) {
+      throw JogRefused(e.what());
+    }
+  }
+
  private:
   edp::Client edp_;
 };

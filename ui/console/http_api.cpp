@@ -149,6 +149,12 @@ json message_json(const LogEntry& e) {
               {"text", m.text}};
 }
 
+std::vector<std::string> joint_units(const RobotModel& model) {
+  std::vector<std::string> units;
+  for (std::size_t j = 0; j < model.axes(); ++j) units.emplace_back(model.unit(j));
+  return units;
+}
+
 json jog_json(const JogResult& r) {
   return json{{"ok", true},
               {"text", r.text},
@@ -254,6 +260,7 @@ json HttpApi::state_json() const {
     const StateSnapshot::Robot& seen = snap.robots[i];
     json j{{"name", r.name},
            {"joint_names", r.model.joint_names},
+           {"units", joint_units(r.model)},
            {"lower_limits", r.model.lower_limits},
            {"upper_limits", r.model.upper_limits},
            {"max_velocity", r.model.max_velocity},
@@ -482,6 +489,13 @@ void HttpApi::install(ConsoleServer& server) {
   });
   server.Post("/api/jog", [this](const httplib::Request& req, httplib::Response& res) {
     reply_json(res, jog_json(actions_.jog(jog_request_from_json(parse_body(req.body)))));
+  });
+  server.Post("/api/synchronise", [this](const httplib::Request& req, httplib::Response& res) {
+    const json body = parse_body(req.body);
+    const auto robot = body.find("robot");
+    if (robot == body.end() || !robot->is_string())
+      throw ApiError(400, "synchronise needs a string 'robot'");
+    reply_json(res, jog_json(actions_.synchronise(robot->get<std::string>())));
   });
   server.Post("/api/teach", [this](const httplib::Request& req, httplib::Response& res) {
     const json body = parse_body(req.body);

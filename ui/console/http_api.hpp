@@ -66,6 +66,8 @@ class ConsoleActions {
                                      const std::string& reason) = 0;
   /// @throws ApiError as Jogger::jog.
   virtual JogResult jog(const JogRequest& request) = 0;
+  /// @throws ApiError as Jogger::synchronise.
+  virtual JogResult synchronise(const std::string& robot) = 0;
   /// @throws ApiError as TeachIn::record.
   virtual TeachResult teach(const std::string& robot, const std::string& file) = 0;
 };
@@ -80,6 +82,9 @@ nlohmann::json mp_json(const MpStatus& status);
 nlohmann::json robot_state_json(const RobotReading& reading, double age_s);
 nlohmann::json message_json(const LogEntry& entry);
 nlohmann::json jog_json(const JogResult& result);
+/// Per joint "rad" (revolute) or "m" (prismatic): the unit of its values, per second for its
+/// velocities.
+std::vector<std::string> joint_units(const RobotModel& model);
 nlohmann::json teach_json(const TeachResult& result);
 nlohmann::json estop_json(const EstopResult& result);
 

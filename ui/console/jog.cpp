@@ -1,6 +1,7 @@
 #include "console/jog.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <chrono>
 #include <cmath>
@@ -29,32 +30,78 @@ std::vector<double> Jogger::check(const JogRequest& request) const {
     throw ApiError(400, fmt::format("axis {} is out of range: robot {} has axes 0..{}",
                                     request.axis, robot, axes - 1));
   const double step = request.step_rad;
+  const char* unit = info.model.unit(static_cast<std::size_t>(request.axis));
   if (!std::isfinite(step) || step <= 0.0 || step > options_.max_step_rad)
-    throw ApiError(
-        400, fmt::format("jog step {} rad is outside (0, {}] rad", step, options_.max_step_rad));
+    throw ApiError(400, fmt::format("jog step {} {} is outside (0, {}] {}", step, unit,
+                                    options_.max_step_rad, unit));
+  const RobotReading reading = check_ready(index, "jogging");
+  if (!reading.state.synchronised)
+    throw ApiError(409, fmt::format("jogging refused: {} is not synchronised (press "
+                                    "Synchronise, or run a task: its ECP synchronises the robot)",
+                                    robot));
+  return reading.state.q;
+}
+
+RobotReading Jogger::check_ready(std::size_t index, const std::string& what) const {
+  const std::string& robot = state_.robots()[index].name;
   if (const auto mp = state_.mp();
       mp && (mp->state == "RUNNING" || mp->state == "PAUSED" || mp->state == "STOPPING"))
     throw ApiError(409,
-                   fmt::format("jogging refused: the MP task is {}; stop it first", mp->state));
+                   fmt::format("{} refused: the MP task is {}; stop it first", what, mp->state));
   const std::optional<RobotReading> reading = state_.reading(index);
   if (!reading || !reading->fresh())
-    throw ApiError(409, fmt::format("jogging refused: no robot_state_t from EDP {} in the "
-                                    "last {} s",
-                                    robot, kStateFreshS));
+    throw ApiError(409, fmt::format("{} refused: no robot_state_t from EDP {} in the last {} s",
+                                    what, robot, kStateFreshS));
   const auto& s = reading->state;
   if (s.estop)
-    throw ApiError(409, fmt::format("jogging refused: the emergency stop of {} is engaged; "
-                                    "release it first",
-                                    robot));
+    throw ApiError(409, fmt::format("{} refused: the emergency stop of {} is engaged; release "
+                                    "it first",
+                                    what, robot));
   if (s.fault)
     throw ApiError(409,
-                   fmt::format("jogging refused: {} has a hardware fault: {}", robot, s.error));
-  if (!s.synchronised)
-    throw ApiError(409, fmt::format("jogging refused: {} is not synchronised (run a task "
-                                    "first: its ECP synchronises the robot)",
+                   fmt::format("{} refused: {} has a hardware fault: {}", what, robot, s.error));
+  if (s.moving) throw ApiError(409, fmt::format("{} refused: {} is moving", what, robot));
+  return *reading;
+}
+
+Jogger::Link& Jogger::link_of(const std::string& robot, const std::string& what) const {
+  const auto found = links_.find(robot);
+  if (found == links_.end())
+    throw ApiError(409, fmt::format("{} refused: the console has no EDP link to {}", what, robot));
+  return *found->second;
+}
+
+JogResult Jogger::synchronise(const std::string& robot) {
+  const std::size_t index = state_.robot_index(robot);
+  const RobotReading reading = check_ready(index, "synchronisation");
+  if (reading.state.synchronised)
+    return JogResult{fmt::format("{} is already synchronised", robot), reading.state.q,
+                     reading.state.q, 0};
+  Link& link = link_of(robot, "synchronisation");
+  std::unique_lock lock(link.busy, std::try_to_lock);
+  if (!lock.owns_lock())
+    throw ApiError(409, fmt::format("synchronisation refused: a jog or synchronisation of {} is "
+                                    "in progress",
                                     robot));
-  if (s.moving) throw ApiError(409, fmt::format("jogging refused: {} is moving", robot));
-  return s.q;
+  report_(Severity::info, fmt::format("operator synchronises {}", robot));
+  std::vector<double> after;
+  SteadyClock::time_point done{};
+  try {
+    after = link.link->synchronise();
+    done = SteadyClock::now();
+  } catch (const JogRefused& e) {
+    report_(Severity::warning,
+            fmt::format("operator synchronisation of {} refused: {}", robot, e.what()));
+    throw ApiError(409, e.what());
+  } catch (const TimeoutError& e) {
+    throw ApiError(504, e.what());
+  }
+  for (int i = 0; i < 10 && !state_.at_rest_since(index, done); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const std::string text =
+      fmt::format("{} synchronised at [{:.4f}]", robot, fmt::join(after, ", "));
+  report_(Severity::info, "operator synchronisation: " + text);
+  return JogResult{text, after, reading.state.q, 0};
 }
 
 JogResult Jogger::jog(const JogRequest& request) {
@@ -62,13 +109,12 @@ JogResult Jogger::jog(const JogRequest& request) {
   const std::string& robot = request.robot;
   const std::size_t index = state_.robot_index(robot);
   const ConsoleRobot& info = state_.robots()[index];
-  const auto found = links_.find(robot);
-  if (found == links_.end())
-    throw ApiError(409, fmt::format("jogging refused: the console has no EDP link to {}", robot));
-  Link& link = *found->second;
+  Link& link = link_of(robot, "jogging");
   std::unique_lock jog_lock(link.busy, std::try_to_lock);
   if (!jog_lock.owns_lock())
-    throw ApiError(409, fmt::format("jogging refused: a jog of {} is in progress", robot));
+    throw ApiError(409, fmt::format("jogging refused: a jog or synchronisation of {} is in "
+                                    "progress",
+                                    robot));
   const auto a = static_cast<std::size_t>(request.axis);
   const double step = request.step_rad;
   const int direction = request.direction;
@@ -90,8 +136,8 @@ JogResult Jogger::jog(const JogRequest& request) {
     jog_done = SteadyClock::now();
   } catch (const JogRefused& e) {
     report_(Severity::warning,
-            fmt::format("operator jog of {} axis {} ({}) by {:+.4f} rad refused: {}", robot,
-                        request.axis, joint, direction * step, e.what()));
+            fmt::format("operator jog of {} axis {} ({}) by {:+.4f} {} refused: {}", robot,
+                        request.axis, joint, direction * step, info.model.unit(a), e.what()));
     throw ApiError(409, e.what());
   } catch (const TimeoutError& e) {
     throw ApiError(504, e.what());
@@ -100,9 +146,9 @@ JogResult Jogger::jog(const JogRequest& request) {
   for (int i = 0; i < 10 && !state_.at_rest_since(index, jog_done); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   const std::string text =
-      fmt::format("{} axis {} ({}) moved {:+.4f} rad in {} servo steps ({:.3f} s): {:.4f} rad",
-                  robot, request.axis, joint, direction * step, steps, steps * period,
-                  a < after.size() ? after[a] : std::nan(""));
+      fmt::format("{} axis {} ({}) moved {:+.4f} {} in {} servo steps ({:.3f} s): {:.4f} {}", robot,
+                  request.axis, joint, direction * step, info.model.unit(a), steps, steps * period,
+                  a < after.size() ? after[a] : std::nan(""), info.model.unit(a));
   report_(Severity::info, "operator jog: " + text);
   return JogResult{text, after, q, steps};
 }

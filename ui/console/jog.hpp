@@ -32,6 +32,10 @@ class JogLink {
   /// @throws JogRefused (the EDP's text), TimeoutError (no EDP answers).
   virtual std::vector<double> move_joints_relative(const std::vector<double>& delta,
                                                    int motion_steps) = 0;
+  /// Takes the EDP over and synchronises the robot (SYNCHRO: the EDP's own search for its
+  /// synchronisation switches, within its limits; seconds); returns the joint positions after it
+  /// [rad]. @throws JogRefused (the EDP's text), TimeoutError (no EDP answers).
+  virtual std::vector<double> synchronise() = 0;
 };
 
 /// A jog as the API asks for it.
@@ -71,6 +75,11 @@ class Jogger {
   /// robot in progress, or the EDP refused), 504 (no EDP answers).
   JogResult jog(const JogRequest& request);
 
+  /// Synchronises `robot` through its link (the console's Synchronise button) with the checks of
+  /// jog() that apply: MP idle, fresh state, stop released, no fault, at rest. A robot already
+  /// synchronised is left alone (the text says so, `motion_steps` is 0).
+  /// @throws ApiError 404 (unknown robot), 409 (refused, or the EDP refused), 504 (no EDP).
+  JogResult synchronise(const std::string& robot);
   /// The checks of jog() alone: the joint positions to start from, or the refusal.
   /// @throws ApiError as jog() (but never for a jog in progress or the EDP).
   [[nodiscard]] std::vector<double> check(const JogRequest& request) const;
@@ -82,6 +91,11 @@ class Jogger {
     std::unique_ptr<JogLink> link;
     std::mutex busy;
   };
+  /// The checks jog() and synchronise() share; `what` names the action in the refusal.
+  /// @throws ApiError 409 naming what is refused and why.
+  [[nodiscard]] RobotReading check_ready(std::size_t index, const std::string& what) const;
+  /// The robot's link. @throws ApiError 409 when the console has none.
+  [[nodiscard]] Link& link_of(const std::string& robot, const std::string& what) const;
   std::map<std::string, std::unique_ptr<Link>> links_;
   ReportFn report_;
 };

@@ -158,13 +158,23 @@ function createRobot(info) {
   const body = element.querySelector(".joints tbody");
   info.joint_names.forEach((joint, axis) => {
     const tr = document.createElement("tr");
-    tr.innerHTML = `<td>${axis}</td><td>${joint}</td><td class="num q"></td><td class="num dq"></td>` +
+    const unit = (info.units && info.units[axis]) || "rad";
+    tr.innerHTML = `<td>${axis}</td><td>${joint}</td><td class="unit">${unit}</td>` +
+      `<td class="num q"></td><td class="num dq"></td>` +
       `<td class="num qd"></td><td class="num">${fmt(info.lower_limits[axis], 2)} .. ${fmt(info.upper_limits[axis], 2)}</td>` +
       `<td><button class="jog-minus" title="jog axis ${axis} by -step">&minus;</button> ` +
       `<button class="jog-plus" title="jog axis ${axis} by +step">+</button></td>`;
     for (const [cls, direction] of [[".jog-minus", -1], [".jog-plus", 1]])
       tr.querySelector(cls).addEventListener("click", () => jog(info.name, axis, direction));
     body.appendChild(tr);
+  });
+  element.querySelector(".jog-unit").textContent =
+    [...new Set(info.units || ["rad"])].join(" or ");
+  element.querySelector(".synchronise").addEventListener("click", async () => {
+    const result = element.querySelector(".jog-result");
+    result.classList.remove("error");
+    result.textContent = "synchronising " + info.name + " ...";
+    showResult(result, await api("POST", "/api/synchronise", { robot: info.name }));
   });
   element.querySelector(".teach").addEventListener("click", async () => {
     const data = await api("POST", "/api/teach",
@@ -199,6 +209,7 @@ function updateRobot(info) {
     ? `servo step ${s.servo_step}, period ${fmt(s.servo_period_s * 1e3, 1)} ms, lateness mean ${fmt(s.lateness_mean_us, 0)} us / max ${fmt(s.lateness_max_us, 0)} us, overruns ${s.overruns}` +
       (s.age_s > 1 ? `, last state ${s.age_s.toFixed(0)} s ago` : "")
     : "";
+  e.querySelector(".synchronise").disabled = !s || !!s.synchronised;
   const rows = e.querySelectorAll(".joints tbody tr");
   rows.forEach((tr, axis) => {
     tr.querySelector(".q").textContent = s ? fmt(s.q[axis], 4) : "–";

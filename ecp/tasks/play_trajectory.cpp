@@ -1,0 +1,88 @@
+// Stock ECP task "play_trajectory": synchronises the robot (skipped when the EDP already is), then
+// plays a teach-in trajectory file back (the web console's "Record pose", or ecp::TeachInRecorder)
+// with TeachInPlaybackGenerator: one rest-to-rest segment per recorded pose, within fractions of
+// the robot's limits. The file is read when the task runs, so it may be recorded after the set
+// started. Arguments ([robot.ecp.args]):
+//   file = "irb6.traj"         the trajectory; a relative path is taken from the config file's
+//                              folder (the console writes to [ui] teach_dir)
+//   velocity_scale = 0.5       (0, 1]: fraction of the joints' velocity limits (JOINT and MOTOR
+//                              files) or of the joint velocity a Cartesian path may ask for
+//   acceleration_scale = 0.5   (0, 1]: the same for the acceleration limits
+//   motion_steps = 10          servo steps per macro-step (2..1000)
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "mrroc/ecp/generators/teach_in.hpp"
+#include "mrroc/ecp/generators/trajectory_file.hpp"
+#include "mrroc/ecp/task.hpp"
+
+namespace mrroc::ecp {
+
+namespace {
+
+double fraction(const Params& args, const std::string& key) {
+  const double value = args.get_double(key, 0.5);
+  if (!(value > 0.0 && value <= 1.0))
+    throw ConfigError(
+        args.location_of(key),
+        fmt::format("{} {} is outside (0, 1] (a fraction of the robot's limits)", key, value));
+  return value;
+}
+
+}  // namespace
+
+class PlayTrajectory : public EcpTask {
+ public:
+  explicit PlayTrajectory(TaskContext& context) : context_(context) {
+    const Params& args = context.args;
+    const SourceLocation where = args.location_of("file");
+    std::filesystem::path file = args.get_string("file");
+    if (file.empty()) throw ConfigError(where, "file is empty (a trajectory file is needed)");
+    if (file.is_relative() && !where.file.empty())
+      file = std::filesystem::path(where.file).parent_path() / file;
+    file_ = file.lexically_normal();
+    const double velocity = fraction(args, "velocity_scale");
+    const double acceleration = fraction(args, "acceleration_scale");
+    const std::int64_t steps = args.get_int("motion_steps", 10);
+    if (steps < 2 || steps > 1000)
+      throw ConfigError(args.location_of("motion_steps"),
+                        fmt::format("motion_steps {} is outside 2..1000", steps));
+    args.reject_unread("robot.ecp.args");
+    options_.interpolation.velocity_scale = velocity;
+    options_.interpolation.acceleration_scale = acceleration;
+    options_.interpolation.motion_steps = static_cast<int>(steps);
+    options_.interpolation.servo_period_s = context.servo_period_s;
+    options_.cartesian.joint_velocity_scale = velocity;
+    options_.cartesian.joint_acceleration_scale = acceleration;
+    options_.cartesian.motion_steps = static_cast<int>(steps);
+    options_.cartesian.servo_period_s = context.servo_period_s;
+  }
+
+  void main_task() override {
+    Robot& robot = context_.robot;
+    // Read and check the whole file before anything moves.
+    const TrajectoryFile trajectory = TrajectoryFile::load(file_);
+    if (trajectory.points.empty())
+      throw Error(
+          fmt::format("{}: the trajectory holds no pose (record some first)", file_.string()));
+    robot.synchronise();
+    TeachInPlaybackGenerator generator(robot.model(), trajectory, options_);
+    context_.reporter.info(fmt::format("playing {} pose(s) of {} from [{:.4f}]",
+                                       trajectory.points.size(), file_.string(),
+                                       fmt::join(robot.image().joints, ", ")));
+    Move(robot, {}, generator);
+    context_.reporter.info(fmt::format("trajectory played: joints [{:.4f}] rad",
+                                       fmt::join(robot.image().joints, ", ")));
+  }
+
+ private:
+  TaskContext& context_;
+  std::filesystem::path file_;
+  TeachInPlaybackOptions options_;
+};
+
+MRROC_REGISTER_ECP_TASK("play_trajectory", PlayTrajectory);
+
+}  // namespace mrroc::ecp

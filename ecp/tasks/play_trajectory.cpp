@@ -63,6 +63,11 @@ class PlayTrajectory : public EcpTask {
   void main_task() override {
     Robot& robot = context_.robot;
     // Read and check the whole file before anything moves.
+    if (!std::filesystem::exists(file_))
+      throw Error(
+          fmt::format("{}: error: no such trajectory file (record poses first, e.g. with "
+                      "the web console's Record pose)",
+                      file_.string()));
     const TrajectoryFile trajectory = TrajectoryFile::load(file_);
     if (trajectory.points.empty())
       throw Error(

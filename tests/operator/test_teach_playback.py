@@ -202,6 +202,16 @@ def main():
         jog(0, 0.2, -1)
         jog(0, 0.2, -1)
         jog(0, 0.2, -1)
+        # The tool frame along its approach axis, through the same EDP checks.
+        before = api("/api/state")["robots"][0]["state"]["q"]
+        tool = api("/api/jog", {"robot": "irb6", "space": "tool", "axis": 2, "step": 0.02,
+                                "direction": -1})
+        check(tool.get("ok") is True and "irb6 tool z moved -0.0200 m" in tool.get("text", "")
+              and distance(tool.get("q", before), before) > 1e-3,
+              f"tool jog z by -0.02 m: {tool.get('text') or tool.get('error')}")
+        sideways = api("/api/jog", {"robot": "irb6", "space": "tool", "axis": 1, "step": 0.02})
+        check("tool jog refused: irb6 y by +0.0200 m" in sideways.get("error", ""),
+              f"the five-axis arm cannot move its tool sideways: {sideways}")
         start_pose = api("/api/state")["robots"][0]["state"]
         p1, p2 = first["pose"], second["pose"]
         check(distance(start_pose["q"], p2) > 0.3, "the robot was jogged away from the poses")

@@ -127,6 +127,7 @@ struct RecordingLink : JogLink {
     bool hold = false;  // block until `hold` is false again
     bool entered = false;
     int synchronisations = 0;
+    std::vector<std::pair<std::vector<double>, int>> tool_calls;
   };
   std::shared_ptr<Shared> shared = std::make_shared<Shared>();
   std::vector<double> move_joints_relative(const std::vector<double>& delta,
@@ -138,6 +139,13 @@ struct RecordingLink : JogLink {
     shared->cv.wait(lock, [&] { return !shared->hold; });
     if (!shared->refuse.empty()) throw JogRefused(shared->refuse);
     if (shared->timeout) throw TimeoutError("no EDP irb6 answers");
+    return shared->joints_after;
+  }
+  std::vector<double> move_tool_relative(const std::vector<double>& delta,
+                                         int motion_steps) override {
+    std::lock_guard lock(shared->mutex);
+    shared->tool_calls.emplace_back(delta, motion_steps);
+    if (!shared->refuse.empty()) throw JogRefused(shared->refuse);
     return shared->joints_after;
   }
   std::vector<double> synchronise() override {
@@ -572,6 +580,64 @@ TEST(Synchronise, OnlyARobotNotYetSynchronisedAtRestWithTheMpIdle) {
   EXPECT_EQ(refusal().first, 504);
 }
 
+TEST(Jog, TheToolFrameAlongAndAboutItsOwnAxes) {
+  Parts p;
+  ASSERT_TRUE(p.jogger->cartesian("irb6"));
+  const std::vector<double> q{0.3, -1.4, 0.1, 0.2, 0.4};
+  on_state(p.state, robot_state(1, q));
+  p.link->joints_after = q;
+  // Along the tool's approach axis: the move the EDP makes of a relative XYZ_ANGLE_AXIS, with a
+  // duration from the joints' change within a quarter of their limits.
+  const JogResult r = p.jogger->jog({"irb6", 2, 0.01, -1, JogSpace::tool});
+  ASSERT_EQ(p.link->tool_calls.size(), 1u);
+  EXPECT_EQ(p.link->tool_calls[0].first, (std::vector<double>{0, 0, -0.01, 0, 0, 0}));
+  const int steps = p.link->tool_calls[0].second;
+  EXPECT_EQ(r.motion_steps, steps);
+  EXPECT_GE(steps, 50) << "at least the shortest jog, 100 ms";
+  EXPECT_TRUE(has(r.text, "irb6 tool z moved -0.0100 m in")) << r.text;
+  EXPECT_TRUE(p.link->calls.empty()) << "no joint jog";
+  // About the tool's own z axis (the wrist's roll).
+  (void)p.jogger->jog({"irb6", 5, 0.1, 1, JogSpace::tool});
+  ASSERT_EQ(p.link->tool_calls.size(), 2u);
+  EXPECT_EQ(p.link->tool_calls[1].first, (std::vector<double>{0, 0, 0, 0, 0, 0.1}));
+  // Bad input names the value, the unit and the limit; nothing moves.
+  EXPECT_EQ(api_error([&] {
+              (void)p.jogger->jog({"irb6", 0, 0.06, 1, JogSpace::tool});
+            }),
+            std::make_pair(400, std::string("jog step 0.06 m is outside (0, 0.05] m")));
+  EXPECT_EQ(api_error([&] {
+              (void)p.jogger->jog({"irb6", 4, 0.3, 1, JogSpace::tool});
+            }),
+            std::make_pair(400, std::string("jog step 0.3 rad is outside (0, 0.2] rad")));
+  EXPECT_EQ(api_error([&] {
+              (void)p.jogger->jog({"irb6", 6, 0.01, 1, JogSpace::tool});
+            }),
+            std::make_pair(400, std::string("tool axis 6 is out of range 0..5 (x y z rx ry rz)")));
+  EXPECT_EQ(p.link->tool_calls.size(), 2u);
+}
+
+TEST(Jog, TheToolFrameOfARobotWithoutCartesianKinematicsIsRefused) {
+  RobotModel conveyor =
+      load_robot_model(std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / "conveyor");
+  ConsoleState state{"demo", {ConsoleRobot{"conveyor", conveyor, 0.002}}};
+  Reports reports;
+  std::map<std::string, std::unique_ptr<JogLink>> links;
+  auto link = std::make_unique<RecordingLink>();
+  auto shared = link->shared;
+  links["conveyor"] = std::move(link);
+  Jogger jogger(state, JogOptions{}, std::move(links), reports.fn());
+  EXPECT_FALSE(jogger.cartesian("conveyor"));
+  RobotState s = robot_state(1, std::vector<double>(conveyor.axes(), 0.1));
+  s.robot = "conveyor";
+  on_state(state, s);
+  EXPECT_EQ(api_error([&] {
+              (void)jogger.jog({"conveyor", 0, 0.01, 1, JogSpace::tool});
+            }),
+            std::make_pair(409, std::string("tool jog refused: conveyor has no Cartesian "
+                                            "kinematics (jog its joints)")));
+  EXPECT_TRUE(shared->tool_calls.empty());
+}
+
 TEST(Synchronise, JoggingARobotNotSynchronisedPointsToTheButton) {
   Parts p;
   auto s = robot_state(1);
@@ -745,7 +811,7 @@ TEST_F(ApiTest, StateHasEveryFieldThePageReads) {
   auto [status, state] = get("/api/state");
   ASSERT_EQ(status, 200);
   for (const char* key : {"set", "config", "utime", "operator_start", "mp", "launch", "processes",
-                          "robots", "srp", "teach_dir", "jog_max_step_rad"})
+                          "robots", "srp", "teach_dir", "jog_max_step_rad", "jog_max_step_m"})
     EXPECT_TRUE(state.contains(key)) << key << " in " << state.dump();
   EXPECT_EQ(state["set"], "demo");
   EXPECT_EQ(state["mp"]["state"], "NO MP");
@@ -828,7 +894,12 @@ TEST_F(ApiTest, MalformedBodiesAreRefusedWithTheirReason) {
       {"/api/jog", R"({"robot": 5, "axis": 0, "step_rad": 0.01})", 400, "request body: "},
       {"/api/jog", R"({"robot": "irb6", "axis": "0", "step_rad": 0.01})", 400,
        "jog needs an integer 'axis'"},
-      {"/api/jog", R"({"robot": "irb6", "axis": 0})", 400, "jog needs a number 'step_rad' [rad]"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 0})", 400,
+       "jog needs a number 'step_rad' [rad or m]"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 0, "space": "tool", "step_rad": 0.01})", 400,
+       "jog needs a number 'step' [m or rad]"},
+      {"/api/jog", R"({"robot": "irb6", "axis": 0, "space": "world", "step": 0.01})", 400,
+       "jog space 'world' is neither 'joint' nor 'tool'"},
       {"/api/jog", R"({"robot": "irb6", "axis": 0, "step_rad": 0.01, "direction": 2})", 400,
        "jog direction 2 is neither +1 nor -1"},
       {"/api/jog", R"({"robot": "irb6", "axis": 0, "step_rad": 0.01, "direction": 1.5})", 400,

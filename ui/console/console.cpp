@@ -36,8 +36,11 @@ namespace {
 
 std::vector<ConsoleRobot> load_robots(const ProcessSetConfig& config) {
   std::vector<ConsoleRobot> robots;
-  for (const RobotConfig& r : config.robots)
-    robots.push_back(ConsoleRobot{r.name, load_robot_model(r.model_dir), r.edp.servo_period_s});
+  for (const RobotConfig& r : config.robots) {
+    RobotModel model = load_robot_model(r.model_dir);
+    const bool cartesian = edp::make_arm_kinematics(model)->cartesian();
+    robots.push_back(ConsoleRobot{r.name, std::move(model), r.edp.servo_period_s, cartesian});
+  }
   return robots;
 }
 
@@ -89,6 +92,7 @@ struct Console::Impl : ConsoleActions {
     settings.operator_start = config.mp_waits_for_operator;
     settings.teach_dir = teach_in->dir();
     settings.jog_max_step_rad = options.jog.max_step_rad;
+    settings.jog_max_step_m = options.jog.max_step_m;
     settings.token = options.token;
     settings.token_hint =
         token_generated

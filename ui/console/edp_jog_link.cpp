@@ -34,6 +34,25 @@ class EdpJogLink : public JogLink {
     }
   }
 
+  std::vector<double> move_tool_relative(const std::vector<double>& delta,
+                                         int motion_steps) override {
+    edp::Instruction c;
+    c.type = edp::InstructionType::set;
+    c.set = edp::item::arm;
+    c.set_arm_type = edp::ArmRepresentation::xyz_angle_axis;
+    c.motion_type = edp::MotionType::relative;
+    c.motion_steps = motion_steps;
+    c.value_in_step_no = motion_steps + 1;
+    c.arm = delta;
+    c.with_query = true;
+    try {
+      edp_.take_over_next();
+      return edp_.call(c).joints;
+    } catch (const edp::Refused& e) {
+      throw JogRefused(e.what());
+    }
+  }
+
   std::vector<double> synchronise() override {
     edp::Instruction c;
     c.type = edp::InstructionType::synchro;

@@ -100,10 +100,18 @@ JogRequest jog_request_from_json(const json& body) {
   r.robot = body.value("robot", std::string());
   if (!body.contains("axis") || !body["axis"].is_number_integer())
     throw ApiError(400, "jog needs an integer 'axis'");
-  if (!body.contains("step_rad") || !body["step_rad"].is_number())
-    throw ApiError(400, "jog needs a number 'step_rad' [rad]");
+  const std::string space = body.value("space", std::string("joint"));
+  if (space == "tool")
+    r.space = JogSpace::tool;
+  else if (space != "joint")
+    throw ApiError(400, fmt::format("jog space '{}' is neither 'joint' nor 'tool'", space));
+  // "step" in the axis' unit; "step_rad", its older name, for joint jogs.
+  const char* key = body.contains("step") || r.space == JogSpace::tool ? "step" : "step_rad";
+  if (!body.contains(key) || !body[key].is_number())
+    throw ApiError(400, fmt::format("jog needs a number '{}' [{}]", key,
+                                    r.space == JogSpace::tool ? "m or rad" : "rad or m"));
   r.axis = body["axis"].get<std::int64_t>();
-  r.step_rad = body["step_rad"].get<double>();
+  r.step = body[key].get<double>();
   if (body.contains("direction") && !body["direction"].is_number_integer())
     throw ApiError(400, "jog 'direction' must be +1 or -1");
   r.direction = body.value("direction", 1);
@@ -261,6 +269,7 @@ json HttpApi::state_json() const {
     json j{{"name", r.name},
            {"joint_names", r.model.joint_names},
            {"units", joint_units(r.model)},
+           {"cartesian", r.cartesian},
            {"lower_limits", r.model.lower_limits},
            {"upper_limits", r.model.upper_limits},
            {"max_velocity", r.model.max_velocity},
@@ -274,6 +283,7 @@ json HttpApi::state_json() const {
       {"last", snap.log_last}, {"epoch", snap.log_epoch}, {"history_loaded", snap.history_loaded}};
   out["teach_dir"] = settings_.teach_dir.string();
   out["jog_max_step_rad"] = settings_.jog_max_step_rad;
+  out["jog_max_step_m"] = settings_.jog_max_step_m;
   return out;
 }
 

@@ -36,6 +36,7 @@ struct ApiSettings {
   bool operator_start = false;  ///< the MP waits for the operator's START
   std::filesystem::path teach_dir;
   double jog_max_step_rad = JogOptions{}.max_step_rad;  ///< [rad]
+  double jog_max_step_m = JogOptions{}.max_step_m;      ///< tool translation [m]
   /// The names and addresses a request's Host (and a browser's Origin) may carry, without the
   /// port: others are refused (DNS rebinding; a page of another site). Compared in lower case.
   std::vector<std::string> hosts{"localhost", "127.0.0.1", "::1"};

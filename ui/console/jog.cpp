@@ -17,23 +17,44 @@ Jogger::Jogger(const ConsoleState& state, JogOptions options,
   for (auto& [name, link] : links) {
     auto l = std::make_unique<Link>();
     l->link = std::move(link);
+    l->kinematics = edp::make_arm_kinematics(state_.robots()[state_.robot_index(name)].model);
     links_.emplace(name, std::move(l));
   }
 }
+
+bool Jogger::cartesian(const std::string& robot) const {
+  const auto found = links_.find(robot);
+  return found != links_.end() && found->second->kinematics->cartesian();
+}
+
+namespace {
+
+constexpr const char* kToolAxes[] = {"x", "y", "z", "rx", "ry", "rz"};
+
+}  // namespace
 
 std::vector<double> Jogger::check(const JogRequest& request) const {
   const std::string& robot = request.robot;
   const std::size_t index = state_.robot_index(robot);
   const ConsoleRobot& info = state_.robots()[index];
-  const std::size_t axes = info.model.axes();
+  const bool tool = request.space == JogSpace::tool;
+  const std::size_t axes = tool ? 6 : info.model.axes();
   if (request.axis < 0 || static_cast<std::size_t>(request.axis) >= axes)
-    throw ApiError(400, fmt::format("axis {} is out of range: robot {} has axes 0..{}",
-                                    request.axis, robot, axes - 1));
-  const double step = request.step_rad;
-  const char* unit = info.model.unit(static_cast<std::size_t>(request.axis));
-  if (!std::isfinite(step) || step <= 0.0 || step > options_.max_step_rad)
-    throw ApiError(400, fmt::format("jog step {} {} is outside (0, {}] {}", step, unit,
-                                    options_.max_step_rad, unit));
+    throw ApiError(
+        400, tool ? fmt::format("tool axis {} is out of range 0..5 (x y z rx ry rz)", request.axis)
+                  : fmt::format("axis {} is out of range: robot {} has axes 0..{}", request.axis,
+                                robot, axes - 1));
+  const double step = request.step;
+  const auto a = static_cast<std::size_t>(request.axis);
+  const char* unit = tool ? (a < 3 ? "m" : "rad") : info.model.unit(a);
+  const double max_step = tool && a < 3 ? options_.max_step_m : options_.max_step_rad;
+  if (!std::isfinite(step) || step <= 0.0 || step > max_step)
+    throw ApiError(400,
+                   fmt::format("jog step {} {} is outside (0, {}] {}", step, unit, max_step, unit));
+  if (tool && !cartesian(robot))
+    throw ApiError(409, fmt::format("tool jog refused: {} has no Cartesian kinematics (jog its "
+                                    "joints)",
+                                    robot));
   const RobotReading reading = check_ready(index, "jogging");
   if (!reading.state.synchronised)
     throw ApiError(409, fmt::format("jogging refused: {} is not synchronised (press "
@@ -115,8 +136,9 @@ JogResult Jogger::jog(const JogRequest& request) {
     throw ApiError(409, fmt::format("jogging refused: a jog or synchronisation of {} is in "
                                     "progress",
                                     robot));
+  if (request.space == JogSpace::tool) return jog_tool(request, q);
   const auto a = static_cast<std::size_t>(request.axis);
-  const double step = request.step_rad;
+  const double step = request.step;
   const int direction = request.direction;
   // One macro-step from rest to rest; the EDP accelerates uniformly over its first half and
   // decelerates over its second (docs/edp.md, "Acceleration"), so the velocity peaks at 2 d / T
@@ -149,6 +171,59 @@ JogResult Jogger::jog(const JogRequest& request) {
       fmt::format("{} axis {} ({}) moved {:+.4f} {} in {} servo steps ({:.3f} s): {:.4f} {}", robot,
                   request.axis, joint, direction * step, info.model.unit(a), steps, steps * period,
                   a < after.size() ? after[a] : std::nan(""), info.model.unit(a));
+  report_(Severity::info, "operator jog: " + text);
+  return JogResult{text, after, q, steps};
+}
+
+// Called with the robot's link locked (jog()).
+JogResult Jogger::jog_tool(const JogRequest& request, const std::vector<double>& q) {
+  const std::string& robot = request.robot;
+  const std::size_t index = state_.robot_index(robot);
+  const ConsoleRobot& info = state_.robots()[index];
+  Link& link = *links_.at(robot);
+  const auto a = static_cast<std::size_t>(request.axis);
+  const double signed_step = request.direction * request.step;
+  const char* unit = a < 3 ? "m" : "rad";
+  // The move as the EDP makes it: goal = FK(end) * delta, delta in the tool frame; the joints'
+  // change sets the duration (the same rest-to-rest bound as a joint jog).
+  std::vector<double> delta(6, 0.0);
+  delta[a] = signed_step;
+  Eigen::Isometry3d move = Eigen::Isometry3d::Identity();
+  if (a < 3)
+    move.translation()[static_cast<Eigen::Index>(a)] = signed_step;
+  else
+    move.linear() =
+        Eigen::AngleAxisd(signed_step, Eigen::Vector3d::Unit(static_cast<Eigen::Index>(a - 3)))
+            .toRotationMatrix();
+  std::vector<double> goal;
+  try {
+    goal = link.kinematics->inverse(link.kinematics->forward(q) * move, q);
+  } catch (const Error& e) {
+    throw ApiError(409, fmt::format("tool jog refused: {} {} by {:+.4f} {}: {}", robot,
+                                    kToolAxes[a], signed_step, unit, e.what()));
+  }
+  std::vector<double> joint_delta(q.size());
+  for (std::size_t j = 0; j < q.size(); ++j) joint_delta[j] = goal[j] - q[j];
+  const double period = info.servo_period_s;
+  const int steps = ecp::rest_to_rest_steps(info.model, joint_delta, options_.velocity_fraction,
+                                            period, options_.min_duration_s);
+  std::vector<double> after;
+  SteadyClock::time_point done{};
+  try {
+    after = link.link->move_tool_relative(delta, steps);
+    done = SteadyClock::now();
+  } catch (const JogRefused& e) {
+    report_(Severity::warning, fmt::format("operator tool jog of {} {} by {:+.4f} {} refused: {}",
+                                           robot, kToolAxes[a], signed_step, unit, e.what()));
+    throw ApiError(409, e.what());
+  } catch (const TimeoutError& e) {
+    throw ApiError(504, e.what());
+  }
+  for (int i = 0; i < 10 && !state_.at_rest_since(index, done); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const std::string text = fmt::format(
+      "{} tool {} moved {:+.4f} {} in {} servo steps ({:.3f} s): joints [{:.4f}]", robot,
+      kToolAxes[a], signed_step, unit, steps, steps * period, fmt::join(after, ", "));
   report_(Severity::info, "operator jog: " + text);
   return JogResult{text, after, q, steps};
 }

@@ -13,6 +13,7 @@
 
 #include "console/common.hpp"
 #include "console/state.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
 
 namespace mrroc::ui {
 
@@ -36,18 +37,33 @@ class JogLink {
   /// synchronisation switches, within its limits; seconds); returns the joint positions after it
   /// [rad]. @throws JogRefused (the EDP's text), TimeoutError (no EDP answers).
   virtual std::vector<double> synchronise() = 0;
+  /// Takes the EDP over and moves the tool frame by `delta` (x y z [m], rotation vector [rad],
+  /// in the EDP's current tool frame) in one SET ARM XYZ_ANGLE_AXIS RELATIVE macro-step of
+  /// `motion_steps` servo steps, from rest to rest; returns the joint positions after it.
+  /// @throws JogRefused (the EDP's text), TimeoutError (no EDP answers).
+  virtual std::vector<double> move_tool_relative(const std::vector<double>& delta,
+                                                 int motion_steps) = 0;
+};
+
+/// What a jog moves.
+enum class JogSpace : std::int8_t {
+  joint,  ///< one joint (axis 0..axes-1), step in its unit (rad or m)
+  tool    ///< the tool frame along or about its own axis (0..2: x y z [m], 3..5: about x y z [rad])
 };
 
 /// A jog as the API asks for it.
 struct JogRequest {
   std::string robot;
   std::int64_t axis = 0;
-  double step_rad = 0.0;  ///< [rad], > 0
-  int direction = 1;      ///< +1 or -1
+  double step = 0.0;  ///< > 0, in the axis' unit (rad or m)
+  int direction = 1;  ///< +1 or -1
+  JogSpace space = JogSpace::joint;
 };
 
 struct JogOptions {
-  double max_step_rad = 0.2;  ///< largest step accepted [rad]
+  double max_step_rad =
+      0.2;  ///< largest step accepted [rad] (revolute, prismatic [m], tool rotation)
+  double max_step_m = 0.05;  ///< largest tool translation accepted [m]
   /// The motion stays within this fraction of the axis' velocity and acceleration limits.
   double velocity_fraction = 0.25;
   double min_duration_s = 0.1;  ///< shortest macro-step [s]
@@ -68,6 +84,8 @@ class Jogger {
 
   [[nodiscard]] const JogOptions& options() const { return options_; }
 
+  /// True when the robot's kinematics offer Cartesian representations (tool jogs).
+  [[nodiscard]] bool cartesian(const std::string& robot) const;
   /// Checks the request against the robot and the state, moves and answers once the robot's
   /// state shows it at rest again (at most 100 ms after the EDP's answer).
   /// @throws ApiError 404 (unknown robot), 400 (axis or step out of range), 409 (refused: the
@@ -89,8 +107,11 @@ class Jogger {
   JogOptions options_;
   struct Link {
     std::unique_ptr<JogLink> link;
-    std::mutex busy;
+    std::mutex busy;  ///< one motion at a time; also guards `kinematics`
+    /// The robot's own kinematics (no tool, model 0), for the duration of tool jogs.
+    std::unique_ptr<edp::ArmKinematics> kinematics;
   };
+  JogResult jog_tool(const JogRequest& request, const std::vector<double>& q);
   /// The checks jog() and synchronise() share; `what` names the action in the refusal.
   /// @throws ApiError 409 naming what is refused and why.
   [[nodiscard]] RobotReading check_ready(std::size_t index, const std::string& what) const;

@@ -37,6 +37,7 @@ struct ConsoleRobot {
   std::string name;
   RobotModel model;
   double servo_period_s = kDefaultServoPeriodS;  ///< the EDP's configured period [s]
+  bool cartesian = false;  ///< its kinematics offer FRAME etc. (the console's tool jogs)
 };
 
 /// One robot state as the plots need it.

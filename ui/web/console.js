@@ -168,6 +168,23 @@ function createRobot(info) {
       tr.querySelector(cls).addEventListener("click", () => jog(info.name, axis, direction));
     body.appendChild(tr);
   });
+  if (info.cartesian) {
+    const tool = element.querySelector(".tool-jog");
+    tool.hidden = false;
+    ["x", "y", "z", "rx", "ry", "rz"].forEach((name, axis) => {
+      for (const [label, direction] of [["\u2212", -1], ["+", 1]]) {
+        const button = document.createElement("button");
+        button.className = "tool-jog-button";
+        button.dataset.axis = axis;
+        button.dataset.direction = direction;
+        button.textContent = name + label;
+        button.title = (axis < 3 ? "move the tool along its own " : "turn the tool about its own ") +
+          name.slice(-1) + " axis";
+        button.addEventListener("click", () => jogTool(info.name, axis, direction));
+        tool.querySelector(".tool-buttons").appendChild(button);
+      }
+    });
+  }
   element.querySelector(".jog-unit").textContent =
     [...new Set(info.units || ["rad"])].join(" or ");
   element.querySelector(".synchronise").addEventListener("click", async () => {
@@ -194,6 +211,16 @@ async function jog(name, axis, direction) {
   result.classList.remove("error");
   result.textContent = "jogging axis " + axis + " ...";
   const data = await api("POST", "/api/jog", { robot: name, axis, direction, step_rad: step });
+  showResult(result, data);
+}
+
+async function jogTool(name, axis, direction) {
+  const robot = robots.get(name);
+  const result = robot.element.querySelector(".jog-result");
+  const step = parseFloat(robot.element.querySelector(axis < 3 ? ".tool-step-m" : ".tool-step-rad").value);
+  result.classList.remove("error");
+  result.textContent = "jogging the tool frame ...";
+  const data = await api("POST", "/api/jog", { robot: name, space: "tool", axis, direction, step });
   showResult(result, data);
 }
 

@@ -11,6 +11,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include "launch_helpers.hpp"
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/config/process_set.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "state_watch.hpp"
 
 #include <cstdio>
 #include <filesystem>
@@ -44,9 +48,10 @@ using mrroc::test::has;
 
 /// Every process ended by itself with exit code 0 when the launcher stopped it (none crashed,
 /// none needed SIGKILL).
-void expect_clean_shutdown(const RunResult& r) {
-  for (const char* p : {"emu", "edp/irb6", "ecp/irb6", "srp"})
-    EXPECT_TRUE(has(r.output, std::string(p) + " exited with code 0")) << p << "\n" << r.output;
+void expect_clean_shutdown(const RunResult& r, const std::string& robot = "irb6") {
+  for (const std::string& p :
+       {std::string("emu"), "edp/" + robot, "ecp/" + robot, std::string("srp")})
+    EXPECT_TRUE(has(r.output, p + " exited with code 0")) << p << "\n" << r.output;
   EXPECT_FALSE(has(r.output, "killed")) << r.output;
   EXPECT_FALSE(std::regex_search(r.output, std::regex("signal [0-9]+"))) << r.output;
   EXPECT_TRUE(has(r.output, "mrroc-launch: all processes stopped")) << r.output;
@@ -89,6 +94,69 @@ TEST_F(Hil, DemoRunsOverTheVirtualBusAgainstTheEmulator) {
       << r.output;
   EXPECT_TRUE(has(r.output, "task 'start_and_wait' finished")) << r.output;
   expect_clean_shutdown(r);
+}
+
+TEST_F(Hil, RntDemoRunsOnEmulatedDrivesWithinItsLimits) {
+  const fs::path file = fs::path(MRROC_SOURCE_DIR) / "configs/demo-rnt-can.toml";
+  const mrroc::ProcessSetConfig config = mrroc::load_process_set(file);
+  const mrroc::RobotConfig& rnt = config.robots.at(0);
+  const mrroc::RobotModel model = mrroc::load_robot_model(rnt.model_dir);
+  const auto poses = rnt.ecp.args.get_double_rows("poses");
+  mrroc::comm::Bus bus(config.lcm_url);
+  mrroc::test::StateWatch states(bus, "rnt");
+  bus.start();
+  const RunResult r = launch(file);
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r.output, "can: virtual:rnt for robot 'rnt': 6 drives, cycle 3 ms")) << r.output;
+  EXPECT_TRUE(has(r.output, "robot 'rnt': all drives operation enabled")) << r.output;
+  for (std::size_t i = 1; i <= poses.size(); ++i)
+    EXPECT_TRUE(has(r.output,
+                    "pose " + std::to_string(i) + "/" + std::to_string(poses.size()) + " reached"))
+        << i << "\n"
+        << r.output;
+  EXPECT_TRUE(has(r.output, "task 'start_and_wait' finished")) << r.output;
+  // Motion quality: no late macro-step, nothing refused; the commanded motion of every state
+  // within the joints' velocity and acceleration limits; the last state at the last pose.
+  EXPECT_FALSE(has(r.output, "no next macro-step")) << r.output;
+  EXPECT_FALSE(has(r.output, "refused")) << r.output;
+  const auto history = states.history();
+  ASSERT_GT(history.size(), 100u) << "robot states of the RNT's EDP";
+  const double period = rnt.edp.servo_period_s;
+  std::vector<double> previous_v;
+  std::int64_t previous_step = 0;
+  int moving = 0;
+  for (std::size_t k = 1; k < history.size(); ++k) {
+    const auto& a = history[k - 1];
+    const auto& b = history[k];
+    if (!a.synchronised || !b.synchronised || b.servo_step <= a.servo_step) {
+      previous_v.clear();
+      continue;
+    }
+    const double dt = static_cast<double>(b.servo_step - a.servo_step) * period;
+    std::vector<double> v(model.axes());
+    for (std::size_t j = 0; j < v.size(); ++j) {
+      v[j] = (b.q_desired[j] - a.q_desired[j]) / dt;
+      EXPECT_LE(std::abs(v[j]), model.max_velocity[j] * 1.0001)
+          << "joint " << j << " commanded at " << v[j] << " rad/s at servo step " << b.servo_step;
+      if (!previous_v.empty()) {
+        const double t = 0.5 * (dt + static_cast<double>(a.servo_step - previous_step) * period);
+        const double acc = (v[j] - previous_v[j]) / t;
+        EXPECT_LE(std::abs(acc), model.max_acceleration[j] * 1.0001)
+            << "joint " << j << " commanded acceleration " << acc << " rad/s^2 at servo step "
+            << b.servo_step;
+      }
+    }
+    if (b.max_speed > 1e-3) ++moving;
+    previous_v = v;
+    previous_step = a.servo_step;
+  }
+  EXPECT_GT(moving, 100) << "states of the RNT in motion";
+  const auto& last = history.back().q_desired;
+  ASSERT_EQ(last.size(), poses.back().size());
+  for (std::size_t j = 0; j < last.size(); ++j)
+    EXPECT_NEAR(last[j], poses.back()[j], 1e-3) << "joint " << j;
+  expect_clean_shutdown(r, "rnt");
 }
 
 TEST_F(Hil, DemoRunsLockStep) {

@@ -129,6 +129,13 @@ Reply CommandInterpreter::accept(const Instruction& in) {
                        fmt::format("GET of items {:#x} is not possible (GET takes ARM, TOOL, "
                                    "MODEL, SERVO, INPUTS, TIMING)",
                                    in.get & ~gettable));
+  if (((sets && (in.set & item::outputs) != 0) || (gets && (in.get & item::inputs) != 0)) &&
+      !servo_.hardware().binary_io())
+    throw CommandError(
+        error_code::not_supported,
+        fmt::format("{} refused: plugin '{}' has no binary inputs or outputs",
+                    sets && (in.set & item::outputs) != 0 ? "SET OUTPUTS" : "GET INPUTS",
+                    servo_.hardware().name()));
   if (gets && (in.get & item::arm) != 0 && in.get_arm_type != ArmRepresentation::joint) {
     if (!servo_.synchronised())
       throw CommandError(error_code::not_synchronised,

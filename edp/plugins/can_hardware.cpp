@@ -20,6 +20,8 @@
 /// (parameters.toml [robot.transmission] coupling, default identity): targets are sent as a = M q
 /// and positions read back as q = M^-1 a. Positions are incremental (zero at the drives' power-on);
 /// the EDP's SYNCHRO finds the offset by the home switch each drive reports in its TPDO.
+/// No binary I/O: the drives' digital inputs and outputs (CiA 402 0x60FD, 0x60FE) are not
+/// mapped, so the EDP refuses SET OUTPUTS and GET INPUTS with not_supported.
 /// Emergency stop sends the drives quick stop (they decelerate at the robot's largest
 /// acceleration, in drive coordinates, and hold); release re-enables them where they stand.
 #include <Eigen/Dense>

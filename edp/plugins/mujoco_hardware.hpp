@@ -112,6 +112,7 @@ class MujocoHardware : public Hardware {
 
   /// Emulated I/O: inputs 0..15 are the axes' synchronisation switches, inputs 16..31 read back
   /// outputs 0..15.
+  [[nodiscard]] bool binary_io() const override { return true; }
   void write_outputs(std::uint32_t values) override { outputs_ = values; }
   [[nodiscard]] std::uint32_t read_inputs() const override;
 

@@ -537,6 +537,42 @@ TEST_F(EdpTest, UnreachableOrientationAndModelSelection) {
   EXPECT_EQ(query().kinematic_model_no, 1);
 }
 
+TEST(EdpWithoutBinaryIo, OutputsAndInputsAreRefusedNotIgnored) {
+  // The mock plugin (as the `can` plugin) has no binary lines: SET OUTPUTS and GET INPUTS are
+  // refused as not supported, naming the plugin, and nothing else of the instruction is done.
+  const RobotModel model = test::stock_model("irb6");
+  auto hardware = test::configured_hardware(model, "mock", kPeriod);
+  ASSERT_FALSE(hardware->binary_io());
+  auto kinematics = make_arm_kinematics(model);
+  ServoLoop servo(*hardware, model, kPeriod);
+  servo.start();
+  CommandInterpreter interpreter(servo, model, *kinematics, kPeriod);
+  Instruction io;
+  io.type = InstructionType::set_get;
+  io.set = item::outputs | item::servo;
+  io.get = item::arm;
+  io.output_values = 0x1;
+  io.servo_algorithm.assign(model.axes(), 0);
+  io.servo_parameters_no.assign(model.axes(), 0);
+  Reply r = interpreter.execute(io);
+  EXPECT_EQ(r.type, ReplyType::error);
+  EXPECT_EQ(r.error_code, error_code::not_supported);
+  EXPECT_EQ(r.error_text, "SET OUTPUTS refused: plugin 'mock' has no binary inputs or outputs");
+  Instruction in;
+  in.type = InstructionType::get;
+  in.get = item::inputs;
+  r = interpreter.execute(in);
+  EXPECT_EQ(r.error_code, error_code::not_supported);
+  EXPECT_EQ(r.error_text, "GET INPUTS refused: plugin 'mock' has no binary inputs or outputs");
+  // The rest of the protocol goes on: a GET of the arm is answered.
+  in.get = item::arm;
+  EXPECT_EQ(interpreter.execute(in).type, ReplyType::acknowledge);
+  Instruction q;
+  q.type = InstructionType::query;
+  EXPECT_EQ(interpreter.execute(q).type, ReplyType::data);
+  servo.stop();
+}
+
 TEST_F(EdpTest, ServoParameterSetsChangeTheStiffnessAndIoLoopsBack) {
   ASSERT_EQ(synchronise().type, ReplyType::data);
   // Outputs 0b1010 come back on inputs 16..19; inputs 0..4 are the synchronisation switches.

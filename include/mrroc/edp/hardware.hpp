@@ -70,6 +70,10 @@ class Hardware {
   /// advances simulated time by one servo period. `setpoints.size() == axis_count()`.
   virtual CycleStatus write(std::span<const double> setpoints) = 0;
 
+  /// True when write_outputs() and read_inputs() reach the controller's binary lines. Otherwise
+  /// the EDP refuses SET OUTPUTS and GET INPUTS (error not_supported) instead of ignoring the
+  /// outputs and answering inputs that are always 0.
+  [[nodiscard]] virtual bool binary_io() const { return false; }
   /// Binary outputs of the robot controller (bit i = line i). Called from the servo thread.
   virtual void write_outputs(std::uint32_t values) { (void)values; }
   /// Binary inputs of the robot controller (bit i = line i). Called from the servo thread.

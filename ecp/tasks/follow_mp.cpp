@@ -42,7 +42,9 @@ class SetOutputs : public EcpTask {
     c.get = edp::item::inputs;
     c.output_values = static_cast<std::uint32_t>(outputs_);
     context_.robot.execute();
-    context_.reporter.info(fmt::format("outputs set to {:#x}", outputs_));
+    // The inputs as the EDP read them in the cycle before the outputs changed.
+    context_.reporter.info(fmt::format("outputs set to {:#x}; inputs {:#x}", outputs_,
+                                       context_.robot.image().inputs.value_or(0)));
   }
 
  private:

@@ -35,7 +35,7 @@ edp::Reply Robot::exchange(const edp::Instruction& instruction) {
   return client_.call(instruction);
 }
 
-void Robot::update_image(const edp::Reply& reply) {
+void Robot::update_image(const edp::Reply& reply, std::uint8_t asked) {
   image_.synchronised = reply.synchronised;
   image_.joints = reply.joints;
   image_.desired_joints = reply.desired_joints;
@@ -45,6 +45,39 @@ void Robot::update_image(const edp::Reply& reply) {
   image_.servo_cycle = reply.servo_cycle;
   image_.arm_type = reply.arm_type;
   image_.arm = reply.arm;
+  if ((asked & edp::item::tool) != 0 && !reply.tool.empty()) {
+    image_.tool = kinematics::from_vector(reply.tool, reply.tool_type);
+    kinematics_->set_tool(*image_.tool);
+  }
+  if ((asked & edp::item::model) != 0) {
+    image_.kinematic_model_no = reply.kinematic_model_no;
+    image_.corrector_no = reply.corrector_no;
+    kinematics_->select_model(reply.kinematic_model_no, reply.corrector_no);
+  }
+  if ((asked & edp::item::servo) != 0) {
+    image_.servo_algorithm = reply.servo_algorithm;
+    image_.servo_parameters_no = reply.servo_parameters_no;
+  }
+  if ((asked & edp::item::inputs) != 0) image_.inputs = reply.input_values;
+  if ((asked & edp::item::timing) != 0)
+    image_.timing =
+        ServoTiming{reply.servo_cycles,    reply.servo_overruns,  reply.servo_period_us,
+                    reply.lateness_p50_us, reply.lateness_p99_us, reply.lateness_max_us};
+}
+
+void Robot::follow_settings(const edp::Instruction& sent) {
+  const bool sets =
+      sent.type == edp::InstructionType::set || sent.type == edp::InstructionType::set_get;
+  if (!sets) return;
+  if ((sent.set & edp::item::tool) != 0) {
+    image_.tool = kinematics::from_vector(sent.tool, sent.tool_type);
+    kinematics_->set_tool(*image_.tool);
+  }
+  if ((sent.set & edp::item::model) != 0) {
+    kinematics_->select_model(sent.kinematic_model_no, sent.corrector_no);
+    image_.kinematic_model_no = sent.kinematic_model_no;
+    image_.corrector_no = sent.corrector_no;
+  }
 }
 
 void Robot::request_stop() {
@@ -87,24 +120,32 @@ std::vector<double> Robot::pose(edp::ArmRepresentation representation, bool desi
 }
 
 void Robot::execute() {
-  if (!separate_query_ && image_.command.type != edp::InstructionType::query) {
-    edp::Instruction command = image_.command;
-    command.with_query = true;
-    update_image(exchange(command));
+  const edp::Instruction& command = image_.command;
+  const bool gets =
+      command.type == edp::InstructionType::get || command.type == edp::InstructionType::set_get;
+  const std::uint8_t asked = gets ? command.get : 0;
+  if (!separate_query_ && command.type != edp::InstructionType::query) {
+    edp::Instruction with_query = command;
+    with_query.with_query = true;
+    const edp::Reply reply = exchange(with_query);
+    follow_settings(with_query);  // accepted: the EDP uses them from now on
+    update_image(reply, asked);
     return;
   }
-  exchange(image_.command);
+  const edp::Instruction sent = command;
+  exchange(sent);
+  follow_settings(sent);
   edp::Instruction query;
   query.type = edp::InstructionType::query;
-  update_image(exchange(query));
+  update_image(exchange(query), asked);
 }
 
 namespace {
-/// GET ARM in JOINT coordinates.
+/// GET ARM in JOINT coordinates, with the EDP's tool and model (so that pose() uses them).
 edp::Instruction get_joints() {
   edp::Instruction get;
   get.type = edp::InstructionType::get;
-  get.get = edp::item::arm;
+  get.get = edp::item::arm | edp::item::tool | edp::item::model;
   get.get_arm_type = edp::ArmRepresentation::joint;
   return get;
 }

@@ -76,6 +76,17 @@ TEST_F(TaskErrors, NonFatalErrorsLetTheMpGoOn) {
       << r.output;
 }
 
+TEST_F(TaskErrors, EverythingAGetReturnsReachesTheTask) {
+  // The task (tests/integration/test_tasks.cpp, "edp_settings") checks the image itself and
+  // fails naming any mismatch.
+  const RunResult r = launch(config("start_and_wait", "", "edp_settings"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("edp settings read back: tool z 0.2500 m, model 1, inputs 0x5"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("not as expected"), std::string::npos) << r.output;
+}
+
 TEST_F(TaskErrors, FatalErrorAbortsTheTask) {
   const RunResult r = launch(
       config("retry", "arguments = \"class = 'fatal'\\ntimes = 5\\n\"\nattempts = 3", "follow_mp"));

@@ -9,6 +9,8 @@
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generators/joint_poses.hpp"
 #include "mrroc/ecp/task.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
+#include "mrroc/kinematics/pose.hpp"
 #include "mrroc/mp/task.hpp"
 
 namespace {
@@ -81,6 +83,82 @@ class Fail : public ecp::EcpTask {
   std::int64_t times_;
 };
 MRROC_REGISTER_ECP_TASK("fail", Fail);
+
+/// ECP task "edp_settings": what a GET returns reaches the task. Sets the gripper as the tool
+/// (0.25 m along the flange's z axis), kinematic model 1 and outputs 0x5, then reads TOOL, MODEL,
+/// SERVO, INPUTS and TIMING back into the robot image, and checks that pose() uses the tool and
+/// the model the EDP uses. Any mismatch is a fatal error naming it.
+class EdpSettings : public ecp::EcpTask {
+ public:
+  explicit EdpSettings(ecp::TaskContext& context) : context_(context) {}
+  void main_task() override {
+    ecp::Robot& robot = context_.robot;
+    robot.synchronise();
+    const ecp::RobotImage& image = robot.image();
+    expect(image.tool.has_value() && image.tool->isApprox(Eigen::Isometry3d::Identity()),
+           "the first reading holds the EDP's tool (none)");
+    expect(image.kinematic_model_no == 0, "the first reading holds the EDP's model (0)");
+    const std::vector<double> flange = robot.pose(edp::ArmRepresentation::frame);
+
+    Eigen::Isometry3d gripper = Eigen::Isometry3d::Identity();
+    gripper.translation() = Eigen::Vector3d(0.0, 0.0, 0.25);
+    edp::Instruction& c = robot.image().command;
+    c = edp::Instruction{};
+    c.type = edp::InstructionType::set_get;
+    c.set = edp::item::tool | edp::item::model | edp::item::outputs;
+    c.get = edp::item::arm | edp::item::servo | edp::item::timing;
+    c.tool_type = edp::ArmRepresentation::frame;
+    c.tool = kinematics::to_vector(gripper, edp::ArmRepresentation::frame);
+    c.kinematic_model_no = 1;
+    c.corrector_no = 0;
+    c.output_values = 0x5;
+    robot.execute();
+    expect(image.servo_algorithm && image.servo_algorithm->size() == robot.model().axes(),
+           "GET SERVO: one algorithm per axis");
+    expect(image.timing && image.timing->cycles > 0 && image.timing->period_us == 2000.0,
+           "GET TIMING: servo cycles counted, period 2000 us");
+    // The outputs take effect in the next servo cycle: read the inputs (16..19 are wired back
+    // to outputs 0..3 in the MuJoCo plugin) after it, with the tool and model.
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    c = edp::Instruction{};
+    c.type = edp::InstructionType::get;
+    c.get = edp::item::arm | edp::item::tool | edp::item::model | edp::item::inputs;
+    robot.execute();
+    expect(image.inputs && ((*image.inputs >> 16U) & 0xFU) == 0x5U,
+           fmt::format("GET INPUTS: lines 16..19 show the outputs 0x5 (inputs {:#x})",
+                       image.inputs.value_or(0)));
+    expect(image.tool && image.tool->translation().isApprox(gripper.translation(), 1e-9),
+           "GET TOOL: the gripper");
+    expect(image.kinematic_model_no == 1 && image.corrector_no == 0, "GET MODEL: model 1");
+
+    // pose(): the same frame as the robot's kinematics with that tool and model.
+    auto k = edp::make_arm_kinematics(robot.model());
+    k->select_model(1, 0);
+    k->set_tool(gripper);
+    const std::vector<double> expected =
+        kinematics::to_vector(k->forward(image.joints), edp::ArmRepresentation::frame);
+    const std::vector<double> got = robot.pose(edp::ArmRepresentation::frame);
+    double worst = 0.0;
+    for (std::size_t i = 0; i < got.size(); ++i)
+      worst = std::max(worst, std::abs(got[i] - expected[i]));
+    expect(got.size() == expected.size() && worst < 1e-9,
+           fmt::format("pose() uses the tool and model 1 (largest difference {:.2e})", worst));
+    const double moved = std::hypot(got[3] - flange[3], got[7] - flange[7], got[11] - flange[11]);
+    expect(std::abs(moved - 0.25) < 0.01,
+           fmt::format("the tool point is 0.25 m from the flange ({:.4f} m)", moved));
+    context_.reporter.info(fmt::format(
+        "edp settings read back: tool z {:.4f} m, model {}, inputs {:#x}, {} servo cycles",
+        image.tool->translation().z(), *image.kinematic_model_no, *image.inputs,
+        image.timing->cycles));
+  }
+
+ private:
+  static void expect(bool ok, const std::string& what) {
+    if (!ok) throw ecp::FatalError("not as expected: " + what, 210);
+  }
+  ecp::TaskContext& context_;
+};
+MRROC_REGISTER_ECP_TASK("edp_settings", EdpSettings);
 
 /// MP task "retry": runs the ECP sub-task "fail" until it succeeds; goes on after non-fatal
 /// errors, aborts on the others.

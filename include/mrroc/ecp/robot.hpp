@@ -35,7 +35,9 @@ class Robot {
   [[nodiscard]] const RobotImage& image() const { return image_; }
 
   /// The image's measured (or desired) arm pose in any representation, converted by the library
-  /// from the joint coordinates (frames are the tool frame in the robot's base frame).
+  /// from the joint coordinates (frames are the tool frame in the robot's base frame) with the
+  /// tool, kinematic model and corrector the EDP uses: those the task SET, or the EDP's own as
+  /// the last GET of TOOL / MODEL returned (read_state and synchronise read them).
   /// @throws CommandError when the robot has no Cartesian kinematics and a frame is asked for.
   [[nodiscard]] std::vector<double> pose(edp::ArmRepresentation representation,
                                          bool desired = false) const;
@@ -81,7 +83,10 @@ class Robot {
 
  private:
   edp::Reply exchange(const edp::Instruction& instruction);
-  void update_image(const edp::Reply& reply);
+  /// `asked`: the GET items of the instruction the reply answers.
+  void update_image(const edp::Reply& reply, std::uint8_t asked);
+  /// After the EDP accepted `sent`: the tool and model it set, as pose() must use them.
+  void follow_settings(const edp::Instruction& sent);
 
   std::string name_;
   RobotModel model_;

@@ -5,7 +5,10 @@
 /// (ecp::Robot, mrroc/ecp/robot.hpp, fills the image in through its EDP client, edp::Client).
 
 #include <cstdint>
+#include <optional>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/client.hpp"
@@ -24,6 +27,16 @@ class Robot;
 int rest_to_rest_steps(const RobotModel& model, const std::vector<double>& delta, double fraction,
                        double period_s, double min_s = 0.0);
 
+/// The servo loop's timing, as GET TIMING returns it.
+struct ServoTiming {
+  std::int64_t cycles = 0;
+  std::int64_t overruns = 0;  ///< cycles woken more than one period late
+  double period_us = 0;
+  double lateness_p50_us = 0;
+  double lateness_p99_us = 0;
+  double lateness_max_us = 0;
+};
+
 /// What generators see of a robot. Joint values in rad.
 struct RobotImage {
   bool synchronised = false;
@@ -38,6 +51,16 @@ struct RobotImage {
   /// The last reading in the representation the command asked for (GET ARM), e.g. a frame.
   edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
   std::vector<double> arm;
+
+  /// What the latest GET of each item returned; empty until an instruction asked for it (a
+  /// task's first reading, Robot::read_state and synchronise, asks for TOOL and MODEL).
+  std::optional<Eigen::Isometry3d> tool;  ///< GET TOOL: the tool frame in the flange frame [m]
+  std::optional<int> kinematic_model_no;  ///< GET MODEL: 0 = nominal
+  std::optional<int> corrector_no;        ///< GET MODEL: 0 = none
+  std::optional<std::vector<std::int8_t>> servo_algorithm;      ///< GET SERVO, per axis
+  std::optional<std::vector<std::int8_t>> servo_parameters_no;  ///< GET SERVO, per axis
+  std::optional<std::uint32_t> inputs;                          ///< GET INPUTS: bit i = line i
+  std::optional<ServoTiming> timing;                            ///< GET TIMING
 
   /// The instruction the next exchange sends (a generator fills it in each step).
   edp::Instruction command;

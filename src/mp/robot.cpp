@@ -4,13 +4,18 @@
 
 #include <fmt/format.h>
 
+#include <chrono>
+#include <cmath>
 #include <exception>
+#include <optional>
 #include <thread>
 
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/links.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/mp/task.hpp"
+#include "mrroc/msg/robot_state.hpp"
 
 namespace mrroc::mp {
 
@@ -25,9 +30,18 @@ struct Robot::Links {
                 channels::ecp_reply(robot_name)),
         control(bus, "mp-control", "ECP " + robot_name, channels::ecp_command(robot_name),
                 channels::ecp_reply(robot_name),
-                comm::ClientOptions{std::chrono::milliseconds(100), 10, {}}) {}
+                comm::ClientOptions{std::chrono::milliseconds(100), 10, {}}),
+        states(bus, channels::robot_state(robot_name),
+               [this](const RobotState& s, const comm::Received& in) {
+                 if (!in.authentic()) return;
+                 std::lock_guard lock(mutex);
+                 if (!latest || s.servo_step >= latest->servo_step) latest = s;
+               }) {}
   comm::EcpClient command;  ///< START_TASK, NEXT_STATE, NEXT_POSE, END_MOTION
   comm::EcpClient control;  ///< STOP, PAUSE, RESUME (never queued behind a running task)
+  std::mutex mutex;
+  std::optional<RobotState> latest;  ///< the newest state of the EDP's broadcast
+  comm::Subscriber<RobotState> states;
 };
 
 Robot::Robot(comm::Bus& bus, const std::string& robot_name)
@@ -80,6 +94,22 @@ ecp::EcpReply Robot::control(ecp::MpCommandType type) {
   const ecp::EcpReply reply = links_->control.call(c);
   if (reply.type == ecp::EcpReplyType::error) throw EcpFailed(image_.name, reply);
   return reply;
+}
+
+bool Robot::refresh_state() {
+  std::optional<RobotState> s;
+  {
+    std::lock_guard lock(links_->mutex);
+    s = links_->latest;
+  }
+  if (!s) return false;
+  image_.synchronised = s->synchronised;
+  image_.moving = s->moving;
+  image_.joints = s->q;
+  image_.desired_joints = s->q_desired;
+  image_.joint_velocities = s->dq;
+  image_.state_servo_step = s->servo_step;
+  return true;
 }
 
 void Robot::stop() { control(ecp::MpCommandType::stop); }
@@ -145,6 +175,86 @@ void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& ge
     throw;
   }
   parallel(robots, [](Robot& r) { r.end_motion(); });
+}
+
+void Wait(const RobotList& robots, const ecp::SensorList& sensors, Condition& condition,
+          double period_s, double timeout_s) {
+  ImageList images;
+  for (Robot* r : robots) images.push_back(&r->image());
+  const auto start = std::chrono::steady_clock::now();
+  for (;;) {
+    if (stopping()) throw ecp::TaskStopped("MP stopped on request");
+    refresh(sensors);
+    for (Robot* r : robots) r->refresh_state();
+    if (condition.check(images, sensors)) return;
+    const double waited =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (waited >= timeout_s)
+      throw TimeoutError(fmt::format("MP Wait: the condition did not hold within {} s", timeout_s));
+    std::this_thread::sleep_for(std::chrono::duration<double>(period_s));
+  }
+}
+
+Running::Running(const RobotList& robots, std::function<void(Robot&)> action) {
+  slots_.resize(robots.size());
+  for (std::size_t i = 0; i < robots.size(); ++i) slots_[i].robot = robots[i];
+  threads_.reserve(robots.size());
+  for (std::size_t i = 0; i < robots.size(); ++i)
+    threads_.emplace_back([this, i, action] {
+      std::exception_ptr error;
+      try {
+        action(*slots_[i].robot);
+      } catch (...) {
+        error = std::current_exception();
+      }
+      std::lock_guard lock(mutex_);
+      slots_[i].done = true;
+      slots_[i].error = error;
+      order_.push_back(i);
+      ended_.notify_all();
+    });
+}
+
+Running::~Running() {
+  for (auto& t : threads_)
+    if (t.joinable()) t.join();
+}
+
+Robot& Running::wait_any(double timeout_s) {
+  std::unique_lock lock(mutex_);
+  const auto next = [&]() -> Slot* {
+    for (std::size_t i : order_)
+      if (!slots_[i].returned) return &slots_[i];
+    return nullptr;
+  };
+  bool all_returned = true;
+  for (const Slot& s : slots_) all_returned = all_returned && s.returned;
+  if (all_returned) throw Error("mp::Running::wait_any: every robot's function already ended");
+  const auto ready = [&] { return next() != nullptr; };
+  if (std::isinf(timeout_s)) {
+    ended_.wait(lock, ready);
+  } else if (!ended_.wait_for(lock, std::chrono::duration<double>(timeout_s), ready)) {
+    throw TimeoutError(
+        fmt::format("mp::Running: no robot's function ended within {} s", timeout_s));
+  }
+  Slot* slot = next();
+  slot->returned = true;
+  if (slot->error) std::rethrow_exception(slot->error);
+  return *slot->robot;
+}
+
+void Running::wait_all() {
+  for (auto& t : threads_)
+    if (t.joinable()) t.join();
+  std::lock_guard lock(mutex_);
+  std::exception_ptr first;
+  for (std::size_t i : order_) {
+    Slot& s = slots_[i];
+    if (s.returned) continue;
+    s.returned = true;
+    if (s.error && !first) first = s.error;
+  }
+  if (first) std::rethrow_exception(first);
 }
 
 void Wait(const ecp::SensorList& sensors, ecp::Condition& condition, double period_s) {

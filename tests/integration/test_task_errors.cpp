@@ -87,6 +87,35 @@ TEST_F(TaskErrors, EverythingAGetReturnsReachesTheTask) {
   EXPECT_EQ(r.output.find("not as expected"), std::string::npos) << r.output;
 }
 
+TEST_F(TaskErrors, TheMpHearsTheFirstEcpAndWaitsOnRobotImages) {
+  // Two robots: "quick" visits one pose, "slow" three; the MP (test task "first_then_rest")
+  // starts both, reports the first to finish, then Waits on the MP level until both stand still.
+  const fs::path file = dir_ / "first.toml";
+  std::ofstream out(file);
+  out << "[system]\nname = \"first\"\nlcm_url = \"udpm://239.255.76.67:7667?ttl=0\"\n"
+      << "[mp]\ntask = \"first_then_rest\"\nlibrary = \"" << MRROC_TEST_TASKS << "\"\n";
+  for (const auto& [name, poses] :
+       {std::pair<std::string, std::string>{"quick", "[[0.1, -1.5708, 0.0, 0.0, 0.0]]"},
+        {"slow",
+         "[[0.6, -1.35, 0.15, 0.5, 1.0], [-0.5, -1.8, -0.2, -0.6, -1.2], "
+         "[0.0, -1.5708, 0.0, 0.0, 0.0]]"}})
+    out << "[[robot]]\nname = \"" << name << "\"\nmodel = \"" << MRROC_SOURCE_DIR
+        << "/robots/irb6\"\n[robot.edp]\nplugin = \"mujoco\"\n[robot.ecp]\n"
+        << "task = \"visit_joint_poses\"\n[robot.ecp.args]\nposes = " << poses << "\n";
+  out.close();
+  const RunResult r = launch(file.string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const auto first = r.output.find("first to finish: quick");
+  const auto rest = r.output.find("every robot at rest after");
+  const auto slow_done = r.output.find("pose 3/3 reached");
+  ASSERT_NE(first, std::string::npos) << r.output;
+  ASSERT_NE(rest, std::string::npos) << r.output;
+  ASSERT_NE(slow_done, std::string::npos) << r.output;
+  EXPECT_LT(first, slow_done) << "the MP heard the quick robot before the slow one ended\n"
+                              << r.output;
+  EXPECT_NE(r.output.find("every robot's task ended"), std::string::npos) << r.output;
+}
+
 TEST_F(TaskErrors, FatalErrorAbortsTheTask) {
   const RunResult r = launch(
       config("retry", "arguments = \"class = 'fatal'\\ntimes = 5\\n\"\nattempts = 3", "follow_mp"));

@@ -229,4 +229,48 @@ class PauseResume : public mp::MpTask {
 };
 MRROC_REGISTER_MP_TASK("pause_resume", PauseResume);
 
+/// MP-level Wait over robots: every robot synchronised and at rest, from the images the EDPs'
+/// state broadcasts keep current.
+class AllAtRest : public mp::Condition {
+ public:
+  bool check(const mp::ImageList& robots, const ecp::SensorList&) override {
+    ++checks;
+    for (const mp::RobotImage* r : robots) {
+      if (r->state_servo_step < 0 || !r->synchronised || r->moving) return false;
+      for (double v : r->joint_velocities)
+        if (std::abs(v) > 1e-3) return false;
+    }
+    return true;
+  }
+  int checks = 0;
+};
+
+/// MP task "first_then_rest": starts every robot's ECP task at once, reports the robot whose
+/// task ended first, then Waits on the MP level until every robot stands still (the others'
+/// motions end while the MP polls their images), and collects the rest.
+class FirstThenRest : public mp::MpTask {
+ public:
+  explicit FirstThenRest(mp::TaskContext& context) : context_(context) {}
+  void main_task() override {
+    mp::Running tasks(context_.robots, [](mp::Robot& r) { r.start_task(); });
+    const mp::Robot& first = tasks.wait_any(60.0);
+    context_.reporter.info("first to finish: " + first.name());
+    std::vector<std::int64_t> steps_before;
+    for (const mp::Robot* r : context_.robots) steps_before.push_back(r->image().state_servo_step);
+    AllAtRest rest;
+    mp::Wait(context_.robots, {}, rest, 0.02, 30.0);
+    for (std::size_t i = 0; i < context_.robots.size(); ++i)
+      if (context_.robots[i]->image().state_servo_step <= steps_before[i])
+        throw Error(fmt::format("{}: the MP's image was not refreshed from the EDP's states",
+                                context_.robots[i]->name()));
+    context_.reporter.info(fmt::format("every robot at rest after {} checks", rest.checks));
+    tasks.wait_all();
+    context_.reporter.info("every robot's task ended");
+  }
+
+ private:
+  mp::TaskContext& context_;
+};
+MRROC_REGISTER_MP_TASK("first_then_rest", FirstThenRest);
+
 }  // namespace

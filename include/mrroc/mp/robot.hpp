@@ -6,9 +6,15 @@
 /// coordination), and the sporadic commands (START_TASK, NEXT_STATE) run whole ECP tasks.
 /// No LCM here: the links to the ECP live behind a pointer, in src/mp/robot.cpp.
 
+#include <condition_variable>
+#include <cstdint>
+#include <exception>
 #include <functional>
+#include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "mrroc/ecp/generator.hpp"
@@ -28,6 +34,11 @@ struct RobotImage {
   std::vector<double> desired_joints;  ///< commanded, from the last ECP reply
   edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
   std::vector<double> arm;  ///< the last NEXT_POSE reading, in arm_type
+  /// From the EDP's robot_state_t broadcast (every 20 ms), copied in by Robot::refresh_state
+  /// (mp::Wait does it each period): also while the ECP runs a task of its own.
+  bool moving = false;
+  std::vector<double> joint_velocities;  ///< measured [rad/s]
+  std::int64_t state_servo_step = -1;    ///< servo step of the state copied in; -1: none yet
 
   /// The NEXT_POSE the MP sends this macro-step; a generator sets `commanded` to include the
   /// robot in the step.
@@ -70,6 +81,10 @@ class Robot {
   void stop();
   void pause();
   void resume();
+  /// Copies the newest authentic robot_state_t of the robot's EDP into the image (joints,
+  /// desired joints, velocities, synchronised, moving). Thread-safe with respect to the bus;
+  /// call it from the task's thread. @returns false when no state has arrived yet.
+  bool refresh_state();
 
  private:
   ecp::EcpReply checked(const ecp::EcpReply& reply);
@@ -99,11 +114,63 @@ class Generator {
 /// robot first: their EDPs finish the macro-step they run and hold).
 void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator);
 
+/// An MP-level condition (paper, section 4): decides from the images of several robots and the
+/// sensor images.
+class Condition {
+ public:
+  virtual ~Condition() = default;
+  virtual bool check(const ImageList& robots, const ecp::SensorList& sensors) = 0;
+};
+
 /// Wait on the MP level: refreshes the sensor images until `condition` holds.
 void Wait(const ecp::SensorList& sensors, ecp::Condition& condition, double period_s = 0.01);
+
+/// Wait on the MP level over robots and sensors: every `period_s` refreshes the sensor images and
+/// each robot's image from its EDP's state broadcast (Robot::refresh_state), until `condition`
+/// holds. @throws TimeoutError after `timeout_s` [s] naming it; ecp::TaskStopped on STOP.
+void Wait(const RobotList& robots, const ecp::SensorList& sensors, Condition& condition,
+          double period_s = 0.02, double timeout_s = std::numeric_limits<double>::infinity());
 
 /// Runs one function per robot at the same time and rethrows the first error after all ended
 /// (e.g. `parallel(robots, [](Robot& r) { r.start_task(); })`).
 void parallel(const RobotList& robots, const std::function<void(Robot&)>& action);
+
+/// One function per robot running at the same time, the MP waiting for the first to end (the
+/// paper's MP hears each ECP as it answers), e.g. two robots' tasks, the one done first given
+/// the next job while the other goes on:
+///
+///   mp::Running tasks(robots, [](mp::Robot& r) { r.start_task(); });
+///   mp::Robot& first = tasks.wait_any();   // rethrows the error of the one that failed
+///   ...
+///   tasks.wait_all();
+///
+/// The destructor waits for every function (their ECP commands end by themselves or on STOP).
+class Running {
+ public:
+  Running(const RobotList& robots, std::function<void(Robot&)> action);
+  ~Running();
+  Running(const Running&) = delete;
+  Running& operator=(const Running&) = delete;
+
+  /// The next robot whose function ended (in the order they ended; each once).
+  /// @throws what that function threw; Error when every robot was already returned;
+  /// TimeoutError after `timeout_s` [s].
+  Robot& wait_any(double timeout_s = std::numeric_limits<double>::infinity());
+  /// Waits for every function not yet returned by wait_any; rethrows the first error among them.
+  void wait_all();
+
+ private:
+  struct Slot {
+    Robot* robot = nullptr;
+    bool done = false;
+    bool returned = false;
+    std::exception_ptr error;
+  };
+  std::mutex mutex_;
+  std::condition_variable ended_;
+  std::vector<Slot> slots_;
+  std::vector<std::size_t> order_;  ///< indices of the slots in the order they ended
+  std::vector<std::thread> threads_;
+};
 
 }  // namespace mrroc::mp

@@ -22,6 +22,7 @@ void write_png(const std::filesystem::path& file, const std::vector<std::uint8_t
   image.width = static_cast<png_uint_32>(width);
   image.height = static_cast<png_uint_32>(height);
   image.format = PNG_FORMAT_RGB;
+  image.flags = PNG_IMAGE_FLAG_FAST;  // quicker compression, somewhat larger files
   if (png_image_write_to_file(&image, file.c_str(), 0, rgb.data(), width * 3, nullptr) == 0) {
     const std::string reason = image.message;
     png_image_free(&image);

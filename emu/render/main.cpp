@@ -58,9 +58,17 @@ struct Options {
 class Track {
  public:
   explicit Track(const mrroc::plot::RobotSeries& series) : samples_(series.samples) {
+    // A state with a joint that is not a number cannot be drawn: left out (and counted).
+    const auto bad = std::remove_if(samples_.begin(), samples_.end(), [](const auto& s) {
+      return !std::all_of(s.q.begin(), s.q.end(), [](double v) { return std::isfinite(v); });
+    });
+    dropped_ = static_cast<std::size_t>(samples_.end() - bad);
+    samples_.erase(bad, samples_.end());
     std::stable_sort(samples_.begin(), samples_.end(),
                      [](const auto& a, const auto& b) { return a.t_s < b.t_s; });
   }
+  [[nodiscard]] bool empty() const { return samples_.empty(); }
+  [[nodiscard]] std::size_t dropped() const { return dropped_; }
   [[nodiscard]] double begin() const { return samples_.front().t_s; }
   [[nodiscard]] double end() const { return samples_.back().t_s; }
   /// q at time t [s since the log's first state]: held before the first and after the last.
@@ -80,6 +88,7 @@ class Track {
 
  private:
   std::vector<mrroc::plot::StateSample> samples_;
+  std::size_t dropped_ = 0;
 };
 
 std::optional<std::array<double, 3>> parse_point(const std::string& text) {
@@ -178,6 +187,18 @@ int run(const Options& options) {
                       robot, options.log, series.n_joints, set.name, cell.axis_count(*k)));
     }
     Track track(series);
+    if (track.dropped() > 0) {
+      std::fprintf(stderr,
+                   "mrroc-render: robot '%s': %zu states with a joint position that is not a "
+                   "number left out\n",
+                   robot.c_str(), track.dropped());
+    }
+    if (track.empty()) {
+      throw Error(
+          fmt::format("robot '{}': none of its {} states in '{}' has finite joint "
+                      "positions",
+                      robot, series.samples.size(), options.log));
+    }
     begin = std::min(begin, track.begin());
     end = std::max(end, track.end());
     tracks.emplace_back(*k, std::move(track));

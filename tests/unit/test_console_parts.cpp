@@ -223,7 +223,13 @@ TEST(ConsoleState, KeepsTheLatestRobotStateAndItsSamples) {
   wrong.q.resize(3);
   on_state(state, wrong);
   EXPECT_EQ(state.reading(0)->state.servo_step, 20);
-  // A step not above the last one: the EDP started again; the old samples go.
+  // The same step again (the EDP's state thread ran while its servo loop stalled, as on a busy
+  // host) or a slightly older one: the reading, but no new sample, and the samples stay.
+  on_state(state, robot_state(20));
+  on_state(state, robot_state(15));
+  EXPECT_EQ(state.samples_after(0, 0).size(), 2u);
+  // Far behind the last sample: the EDP started again; the old samples go.
+  on_state(state, robot_state(20 + kRestartSteps));
   on_state(state, robot_state(5));
   const auto after_restart = state.samples_after(0, -1);
   ASSERT_EQ(after_restart.size(), 1u);

@@ -363,6 +363,73 @@ TEST(Interpolation, WaypointsDurationsDwellsAndRelativeMoves) {
   }
 }
 
+TEST(PlannedMotion, ResumeRejoinsThePlanAtTheEndOfTheInterruptedSegment) {
+  // A late macro-step: the EDP's stopping ramp left the robot off the plan, at rest, and the
+  // planned continuation was refused. resume() moves the robot from rest to rest back to the end
+  // of the segment it was in (JOINT, within half of the limits) and the plan goes on unchanged.
+  const RobotModel& m = model();
+  ecp::InterpolationOptions options;
+  const double dt = options.motion_steps * options.servo_period_s;
+  const std::vector<double> a = {0.4, -1.4, 0.1, 0.2, 0.5};
+  const std::vector<double> b = {-0.2, -1.6, -0.1, 0.0, 0.0};
+  ecp::InterpolationGenerator g(m, {ecp::Waypoint{a}, ecp::Waypoint{b}}, options);
+  const ecp::MotionPlan original = g.plan_from(synchro());
+  const std::size_t first_segment = original.segments.at(0).macro_steps;
+  ASSERT_GT(first_segment, 10U);
+
+  FakeEdp edp;
+  ecp::RobotImage image;
+  image.desired_joints = synchro();
+  image.joints = synchro();
+  ASSERT_TRUE(g.first_step(image, {}));
+  for (std::size_t k = 0; k < first_segment / 2; ++k) {
+    edp.execute(image);
+    ASSERT_TRUE(g.next_step(image, {}));
+  }
+  // The command now waiting was "refused"; the ramp stopped the robot a little past the last
+  // target it reached.
+  std::vector<double> stopped = image.desired_joints;
+  for (std::size_t j = 0; j < stopped.size(); ++j)
+    stopped[j] += 0.5 * image.joint_velocities[j] * dt;
+  image.desired_joints = stopped;
+  image.joints = stopped;
+  image.joint_velocities.assign(stopped.size(), 0.0);
+  ASSERT_TRUE(g.resume(image, {}));
+
+  // The move back: every command up to the one whose target is the segment's end, `a`.
+  std::vector<edp::Instruction> commands;
+  std::vector<std::vector<double>> rejoin;
+  bool rejoining = true;
+  bool more = true;
+  while (more) {
+    commands.push_back(image.command);
+    edp.execute(image);
+    if (rejoining) rejoin.push_back(image.desired_joints);
+    rejoining = rejoining && commands.back().arm != a;
+    more = g.next_step(image, {});
+  }
+  ASSERT_GE(rejoin.size(), 2U) << "a rest-to-rest move of at least two macro-steps";
+  EXPECT_EQ(rejoin.back(), a) << "back exactly at the end of the interrupted segment";
+  const Ratios r = rate_ratios(stopped, rejoin, dt, m.max_velocity, m.max_acceleration);
+  EXPECT_LE(r.velocity, 0.5 + 1e-9);
+  EXPECT_LE(r.acceleration, 0.5 + 1e-9) << "quintic within half the limits";
+  std::printf("rejoin: %zu macro-steps, velocity %.3f and acceleration %.3f of the limits\n",
+              rejoin.size(), r.velocity, r.acceleration);
+  // The second segment as planned, target by target.
+  ASSERT_EQ(commands.size() - rejoin.size(), original.size() - first_segment);
+  for (std::size_t k = rejoin.size(); k < commands.size(); ++k)
+    EXPECT_EQ(commands[k].arm, original.targets[first_segment + k - rejoin.size()]);
+  EXPECT_EQ(image.desired_joints, b);
+  EXPECT_EQ(commands.back().value_in_step_no, options.motion_steps + 1) << "the last reads at rest";
+
+  // Nothing sent yet, or everything sent: nothing to resume.
+  ecp::InterpolationGenerator fresh(m, {ecp::Waypoint{a}}, options);
+  ecp::RobotImage idle;
+  idle.desired_joints = synchro();
+  EXPECT_FALSE(fresh.resume(idle, {}));
+  EXPECT_FALSE(g.resume(image, {}));
+}
+
 TEST(Interpolation, RefusesTargetsAndPathsOutsideTheLimitsBeforeMoving) {
   const RobotModel& m = model();
   try {

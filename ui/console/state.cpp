@@ -43,8 +43,12 @@ void ConsoleState::on_robot_state(std::size_t index, const RobotState& s, std::i
   std::lock_guard lock(mutex_);
   RobotData& data = data_[index];
   data.reading = RobotReading{s, utime, received};
-  if (!data.samples.empty() && data.samples.back().step >= s.servo_step)
-    data.samples.clear();  // the EDP started again
+  if (!data.samples.empty() && data.samples.back().step >= s.servo_step) {
+    // The same step again (the EDP's state thread ran while its servo loop stalled) or a state
+    // overtaken by a newer one: not a new sample. Far behind: the EDP started again.
+    if (data.samples.back().step - s.servo_step < kRestartSteps) return;
+    data.samples.clear();
+  }
   data.samples.push_back(
       Sample{s.servo_step, utime, s.q, s.dq, s.lateness_mean_us, s.lateness_max_us});
   while (data.samples.size() > kMaxSamples) data.samples.pop_front();

@@ -25,9 +25,12 @@ namespace mrroc::ui {
 using SteadyClock = std::chrono::steady_clock;
 
 inline constexpr std::size_t kMaxSamples = 1500;  ///< robot states kept: 30 s at 50 Hz
-inline constexpr std::size_t kMaxLog = 5000;      ///< SRP messages kept
-inline constexpr double kStateFreshS = 1.0;       ///< a robot state older than this is stale [s]
-inline constexpr double kLaunchFreshS = 3.0;      ///< the launcher broadcasts every second [s]
+/// A robot state this many servo steps or more behind the newest sample means the EDP started
+/// again (its samples are dropped); a state less far behind is a repeat and is not a sample.
+inline constexpr std::int64_t kRestartSteps = 1000;
+inline constexpr std::size_t kMaxLog = 5000;  ///< SRP messages kept
+inline constexpr double kStateFreshS = 1.0;   ///< a robot state older than this is stale [s]
+inline constexpr double kLaunchFreshS = 3.0;  ///< the launcher broadcasts every second [s]
 
 /// [s] from `t` to now.
 double seconds_since(SteadyClock::time_point t);

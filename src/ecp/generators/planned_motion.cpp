@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "mrroc/core/error.hpp"
 
@@ -25,13 +27,74 @@ bool PlannedMotionGenerator::first_step(RobotImage& robot, const SensorList&) {
   MotionPlan plan = plan_from(robot.desired_joints);
   plan_ = std::move(plan);
   sent_ = 0;
+  rejoin_.clear();
+  rejoin_sent_ = 0;
   if (plan_.targets.empty()) return false;
   command(robot);
   return true;
 }
 
 bool PlannedMotionGenerator::next_step(RobotImage& robot, const SensorList&) {
-  if (sent_ >= plan_.targets.size()) return false;
+  if (rejoin_sent_ >= rejoin_.size() && sent_ >= plan_.targets.size()) return false;
+  command(robot);
+  return true;
+}
+
+bool PlannedMotionGenerator::resume(RobotImage& robot, const SensorList&) {
+  const std::size_t n = plan_.targets.size();
+  if (sent_ == 0 || n == 0 || robot.desired_joints.size() != model_.axes()) return false;
+  if (rejoin_sent_ < rejoin_.size()) {
+    // Interrupted while rejoining: rejoin again from here to the same segment end.
+  } else if (sent_ >= n) {
+    return false;
+  }
+  // The segment of the last plan target sent; it ends at rest at its last target.
+  const std::size_t last = sent_ - 1;
+  std::size_t end = n - 1;
+  for (const PlannedSegment& s : plan_.segments)
+    if (last >= s.first_macro_step && last < s.first_macro_step + s.macro_steps) {
+      end = s.first_macro_step + s.macro_steps - 1;
+      break;
+    }
+  const std::vector<double>& from = robot.desired_joints;
+  const std::vector<double>& to = plan_.joints.at(end);
+  // The slowest axis sets the duration: axis j moving by d_j needs ds/dt <= f v_j / d_j and
+  // d2s/dt2 <= f a_j / d_j.
+  constexpr double kFraction = 0.5;
+  double max_sv = std::numeric_limits<double>::infinity();
+  double max_sa = std::numeric_limits<double>::infinity();
+  for (std::size_t j = 0; j < from.size(); ++j) {
+    const double d = std::abs(to[j] - from[j]);
+    if (d < 1e-12) continue;
+    max_sv = std::min(max_sv, kFraction * model_.max_velocity[j] / d);
+    max_sa = std::min(max_sa, kFraction * model_.max_acceleration[j] / d);
+  }
+  rejoin_.clear();
+  rejoin_sent_ = 0;
+  if (std::isfinite(max_sv)) {
+    const MotionProfile profile = MotionProfile::fastest(ProfileShape::quintic, max_sv, max_sa);
+    const double macro_s = plan_.macro_step_s();
+    const auto steps =
+        std::max<std::size_t>(2, static_cast<std::size_t>(std::ceil(profile.duration() / macro_s)));
+    const MotionProfile timed = MotionProfile::with_duration(ProfileShape::quintic, max_sv, max_sa,
+                                                             static_cast<double>(steps) * macro_s);
+    std::vector<double> previous = from;
+    for (std::size_t k = 1; k <= steps; ++k) {
+      const double s = timed.position(static_cast<double>(k) * macro_s);
+      std::vector<double> q(from.size());
+      for (std::size_t j = 0; j < q.size(); ++j) q[j] = from[j] + (to[j] - from[j]) * s;
+      if (k == steps) q = to;
+      try {
+        detail::check_macro_step_path(*kinematics_, previous, q, plan_.motion_steps);
+      } catch (...) {
+        detail::rethrow_with_context("move back onto the planned path: ");
+      }
+      previous = q;
+      rejoin_.push_back(std::move(q));
+    }
+  }
+  sent_ = end + 1;
+  if (rejoin_.empty() && sent_ >= n) return false;
   command(robot);
   return true;
 }
@@ -39,6 +102,17 @@ bool PlannedMotionGenerator::next_step(RobotImage& robot, const SensorList&) {
 void PlannedMotionGenerator::command(RobotImage& robot) {
   edp::Instruction& c = robot.command;
   c = edp::Instruction{};
+  if (rejoin_sent_ < rejoin_.size()) {
+    c.type = edp::InstructionType::set;
+    c.set = edp::item::arm;
+    c.set_arm_type = edp::ArmRepresentation::joint;
+    c.motion_type = edp::MotionType::absolute;
+    c.motion_steps = plan_.motion_steps;
+    const bool last = rejoin_sent_ + 1 == rejoin_.size() && sent_ >= plan_.targets.size();
+    c.value_in_step_no = last ? plan_.motion_steps + 1 : early_reading_step(plan_.motion_steps);
+    c.arm = rejoin_[rejoin_sent_++];
+    return;
+  }
   c.type = edp::InstructionType::set;
   c.set = edp::item::arm;
   c.set_arm_type = plan_.representation;

@@ -67,6 +67,13 @@ class PlannedMotionGenerator : public Generator {
   ///   image has no desired joint position; see each generator's `make_plan`.
   bool first_step(RobotImage& robot, const SensorList& sensors) final;
   bool next_step(RobotImage& robot, const SensorList& sensors) final;
+  /// After a PAUSE or a late macro-step left the robot off the plan (Move calls it with the
+  /// robot image read again): a joint-space rest-to-rest move (quintic, within half of every
+  /// joint's velocity and acceleration limits) from where the robot stands to the end of the
+  /// segment it was in (every segment ends at rest), then the rest of the plan as planned.
+  /// false when nothing was sent yet or everything was; @throws CommandError when that move
+  /// would leave the limits.
+  bool resume(RobotImage& robot, const SensorList& sensors) final;
 
   /// The plan first_step would make from `start_joints` [rad], without commanding anything.
   /// @throws as first_step.
@@ -98,6 +105,9 @@ class PlannedMotionGenerator : public Generator {
   std::unique_ptr<edp::ArmKinematics> kinematics_;
   MotionPlan plan_;
   std::size_t sent_ = 0;
+  /// JOINT targets of the move back onto the plan (resume), sent before plan target `sent_`.
+  std::vector<std::vector<double>> rejoin_;
+  std::size_t rejoin_sent_ = 0;
 };
 
 namespace detail {

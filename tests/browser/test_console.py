@@ -12,9 +12,17 @@ and, through the page's buttons:
   IRb-6's velocity and deceleration limits and the servo period; Release;
   jog one axis, Record pose twice (the file parses with the library's trajectory parser);
   Terminate -> the set ends (launcher exit code 0) and no mrroc process is left.
-Screenshots of every stage: <artifacts>/NN-stage.png.
+The 3D view: it loads the IRb-6 from its URDF (GET /api/robots/irb6/urdf, which needs the token;
+its libraries come from the console's /vendor/), draws it visibly, and while the robot moves its
+drawn pose (read back with window.mrrocView) changes, is updated with at least VIEW_MIN_RATE robot
+states and frames per second (VIEW_MIN_RATE_BUSY on a machine loaded beyond VIEW_BUSY_LOAD),
+shows the joint values of the robot state of the same servo step within VIEW_Q_TOL, its links
+stand where the URDF's forward kinematics (urdf_fk.py, computed here) puts them within
+VIEW_POSE_TOL, and the commanded pose's ghost shows q_desired of that state.
+Screenshots of every stage: <artifacts>/NN-stage.png (and view-running.png, the 3D view alone).
 """
 import argparse
+import http.client
 import json
 import math
 import os
@@ -33,6 +41,8 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
+import urdf_fk
+
 URL = "http://127.0.0.1:8080"
 # The console's API token, read from the URL it prints (set in main()).
 TOKEN = ""
@@ -40,6 +50,15 @@ URL_WITH_TOKEN = re.compile(r"web console of set 'console-demo' at "
                             r"http://127\.0\.0\.1:8080/\?token=([0-9a-f]{48})$", re.M)
 STANDSTILL_DQ = 0.01   # rad/s: every |dq| below this is a standstill
 PAUSE_STILL_DQ = 0.01  # rad/s while paused
+VIEW_Q_TOL = 1e-6      # rad: a drawn joint value vs. the robot state of the same servo step
+VIEW_POSE_TOL = 1e-6   # m, and rotation matrix elements: a drawn link vs. the URDF's kinematics
+VIEW_MIN_RATE = 30     # robot states drawn per second (and frames) while the robot moves
+# The page draws on the CPU here (SwiftShader): on a machine whose load average exceeds
+# VIEW_BUSY_LOAD per CPU, the browser gets too little of it for 30 frames per second, and the
+# bound is VIEW_MIN_RATE_BUSY (said in the output).
+VIEW_BUSY_LOAD = 1.5
+VIEW_MIN_RATE_BUSY = 15
+VIEW_MIN_TRAVEL = 0.05  # m: the drawn wrist moves at least this far while watched
 
 failures = []
 
@@ -125,6 +144,148 @@ def check_hostile_estop():
               f"POST /api/estop {data!r}: HTTP {got}, stops every robot: {answer.get('error')}")
     state = api("/api/state")["robots"][0]["state"]
     check(state["estop"], "the emergency stop is still engaged")
+
+
+def get_text(path, token=True):
+    """GET path (with the token unless not `token`); returns (HTTP status, content type, text)."""
+    connection = http.client.HTTPConnection("127.0.0.1", 8080, timeout=5)
+    headers = {"Authorization": "Bearer " + TOKEN} if token else {}
+    connection.request("GET", path, headers=headers)
+    response = connection.getresponse()
+    result = response.status, response.getheader("Content-Type", ""), response.read().decode()
+    connection.close()
+    return result
+
+
+def view(driver, expression):
+    return driver.execute_script("return window.mrrocView && " + expression)
+
+
+def drawn_pose_error(urdf, joint_names, drawn):
+    """The largest differences between the drawn links and the URDF's forward kinematics at the
+    drawn joint values: (position [m], rotation [-])."""
+    fk = urdf.link_poses(dict(zip(joint_names, drawn["j"]["q"])))
+    errors = [urdf_fk.pose_error(fk[link], drawn["p"][link]) for link in urdf.links]
+    return max(e[0] for e in errors), max(e[1] for e in errors)
+
+
+READ_VIEW = ("const v = window.mrrocView; return {j: v.jointValues('irb6'), "
+             "p: v.linkPoses('irb6'), s: v.stats()};")
+
+
+def check_view_loaded(driver, source_dir):
+    """The 3D view has the IRb-6 from its URDF, drawn visibly, where the kinematics put it; the
+    routes it uses keep the token rules; its libraries are the console's own."""
+    ready = wait_for("the 3D view loaded the IRb-6 and draws its robot state", lambda: view(
+        driver, "window.mrrocView.ready && window.mrrocView.jointValues('irb6').step !== null"), 30)
+    if not ready:
+        print("3D view: " + driver.find_element(By.ID, "view-note").text, flush=True)
+        return None
+    check(view(driver, "window.mrrocView.robots()") == ["irb6"], "the 3D view draws the set's robot")
+    urdf_text = open(os.path.join(source_dir, "robots", "irb6", "irb6.urdf")).read()
+    status, kind, text = get_text("/api/robots/irb6/urdf")
+    check(status == 200 and "xml" in kind and text == urdf_text,
+          f"GET /api/robots/irb6/urdf: HTTP {status} {kind}, the text of robots/irb6/irb6.urdf")
+    status, _, _ = get_text("/api/robots/irb6/urdf", token=False)
+    check(status == 401, f"the URDF without the token: 401 (got {status})")
+    status, _, text = get_text("/api/robots/nope/urdf")
+    check(status == 404 and "nope" in text, f"the URDF of an unknown robot: 404 (got {status})")
+    status, kind, text = get_text("/vendor/three/build/three.module.js", token=False)
+    check(status == 200 and "javascript" in kind and "REVISION" in text,
+          f"three.js is served by the console itself: HTTP {status} {kind}, {len(text)} bytes")
+    for bad in ["/vendor/../CMakeLists.txt", "/vendor/three/%2e%2e/%2e%2e/package.json",
+                "/vendor/.hidden", "/vendor/three/build/none.js"]:
+        status, _, _ = get_text(bad, token=False)
+        check(status in (400, 404), f"GET {bad}: refused, 400 or 404 (got {status})")
+    pixels = view(driver, "window.mrrocView.visiblePixels()")
+    share = pixels["coloured"] / max(1, pixels["width"] * pixels["height"])
+    check(share > 0.01, f"the robot is visible in the 3D view: {pixels['coloured']} coloured "
+          f"pixels of {pixels['width']}x{pixels['height']} ({share:.1%} > 1%)")
+    urdf = urdf_fk.Urdf(urdf_text)
+    names = api("/api/state")["robots"][0]["joint_names"]
+    drawn = driver.execute_script(READ_VIEW)
+    dp, dr = drawn_pose_error(urdf, names, drawn)
+    check(dp <= VIEW_POSE_TOL and dr <= VIEW_POSE_TOL,
+          f"at rest the drawn links stand where the URDF's kinematics puts them: {dp:.1e} m, "
+          f"{dr:.1e} <= {VIEW_POSE_TOL}")
+    return urdf, names
+
+
+def watch_view(driver, urdf, names, seconds):
+    """Reads the drawn pose every 100 ms for `seconds` while /api/joints is polled alongside;
+    checks what was drawn against the robot states."""
+    joints = {}  # servo step -> (q, q_desired), from /api/joints
+    stop = threading.Event()
+
+    def poll():
+        while not stop.is_set():
+            try:
+                r = api("/api/joints")["robots"][0]
+                if r["step"] is not None:
+                    joints[r["step"]] = (r["q"], r["q_desired"])
+            except Exception:
+                pass
+            time.sleep(0.012)
+    poller = threading.Thread(target=poll, daemon=True)
+    poller.start()
+    records = []
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        records.append(driver.execute_script(READ_VIEW))
+        time.sleep(0.1)
+    stop.set()
+    poller.join()
+    steps = [r["j"]["step"] for r in records]
+    samples = {s["step"]: s["q"] for s in samples_after(min(steps) - 1)}
+    matched = [r for r in records if r["j"]["step"] in samples]
+    q_error = max((abs(a - b) for r in matched
+                   for a, b in zip(r["j"]["q"], samples[r["j"]["step"]])), default=math.inf)
+    check(len(matched) >= 0.9 * len(records) and q_error <= VIEW_Q_TOL,
+          f"3D view: {len(matched)} of {len(records)} drawn poses read back found in the robot "
+          f"states of their servo step; drawn joints differ from them by at most {q_error:.1e} "
+          f"rad <= {VIEW_Q_TOL}")
+    if len(matched) < len(records):
+        missing = sorted(r["j"]["step"] for r in records if r["j"]["step"] not in samples)
+        print(f"3D view: drawn servo steps not among the console's samples {missing}; samples "
+              f"{min(samples, default=None)}..{max(samples, default=None)} ({len(samples)})",
+              flush=True)
+    pose_errors = [drawn_pose_error(urdf, names, r) for r in records]
+    dp = max(e[0] for e in pose_errors)
+    dr = max(e[1] for e in pose_errors)
+    check(dp <= VIEW_POSE_TOL and dr <= VIEW_POSE_TOL,
+          f"3D view: every drawn link stands where the URDF's kinematics puts it for the drawn "
+          f"joints: {dp:.1e} m, {dr:.1e} <= {VIEW_POSE_TOL}")
+    wrist = [r["p"]["roll_link"]["position"] for r in records]
+    travel = max(math.dist(w, wrist[0]) for w in wrist)
+    check(len(set(steps)) >= 10 and travel >= VIEW_MIN_TRAVEL,
+          f"3D view: the drawn pose changes: {len(set(steps))} robot states drawn in {seconds} s, "
+          f"the drawn wrist moved up to {travel:.3f} m >= {VIEW_MIN_TRAVEL} m")
+    source = [st for st in joints if min(steps) <= st <= max(steps)]
+    print(f"3D view: the console had {len(source)} robot states in the window (read from "
+          f"/api/joints every 12 ms), the page polled {records[-1]['s']['polls'] - records[0]['s']['polls']} times",
+          flush=True)
+    later = records[len(records) // 3:]  # the rates count the last second
+    states = sorted(r["s"]["states_per_s"]["irb6"] for r in later)
+    frames = sorted(r["s"]["frames_per_s"] for r in later)
+    print(f"3D view: robot states drawn per second {states}, frames per second {frames}",
+          flush=True)
+    load = os.getloadavg()[0]
+    cpus = os.cpu_count() or 1
+    bound = VIEW_MIN_RATE if load <= VIEW_BUSY_LOAD * cpus else VIEW_MIN_RATE_BUSY
+    why = ("" if bound == VIEW_MIN_RATE else
+           f" (the machine is busy: load average {load:.1f} on {cpus} CPUs > {VIEW_BUSY_LOAD} per "
+           f"CPU, the bound is {VIEW_MIN_RATE_BUSY} instead of {VIEW_MIN_RATE})")
+    check(states[len(states) // 2] >= bound and frames[len(frames) // 2] >= bound,
+          f"3D view: median {states[len(states) // 2]} robot states and "
+          f"{frames[len(frames) // 2]} frames drawn per second >= {bound}{why}")
+    ghosts = [r for r in records if r["j"]["ghost_visible"] and r["j"]["step"] in joints]
+    ghost_error = max((abs(a - b) for r in ghosts
+                       for a, b in zip(r["j"]["q_desired"], joints[r["j"]["step"]][1])),
+                      default=math.inf)
+    check(len(ghosts) >= 3 and ghost_error <= VIEW_Q_TOL,
+          f"3D view: the commanded pose's ghost shown in {len(ghosts)} readings whose robot state "
+          f"was also read from /api/joints; its joints differ from q_desired by at most "
+          f"{ghost_error:.1e} rad <= {VIEW_Q_TOL}")
 
 
 def wait_for(what, predicate, timeout_s, period_s=0.05):
@@ -347,7 +508,9 @@ def main():
     for flag in ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
                  "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", f"--user-data-dir={profile}",
-                 "--window-size=1500,1300"]:
+                 "--window-size=1500,1300",
+                 # WebGL for the 3D view, rendered on the CPU (SwiftShader): no GPU here.
+                 "--enable-unsafe-swiftshader", "--use-angle=swiftshader"]:
         options.add_argument(flag)
     driver = webdriver.Chrome(service=Service(args.chromedriver), options=options)
     try:
@@ -365,6 +528,7 @@ def main():
               "the log shows the EDP's start message from the SRP's history")
         check("token" not in driver.current_url,
               f"the page took the token out of the address bar: {driver.current_url}")
+        view_model = check_view_loaded(driver, args.source_dir)
         screenshot(driver, "idle")
         check_hostile_requests()
         # The command line: STATUS answers, RESUME while IDLE is refused (exit 1).
@@ -380,6 +544,10 @@ def main():
         click(driver, "cmd-start")
         started = time.monotonic()
         wait_for("MP RUNNING shown", lambda: mp_state(driver) == "RUNNING", 5)
+        if check(view_model is not None, "the 3D view is there to watch"):
+            watch_view(driver, *view_model, 3.0)
+            driver.find_element(By.ID, "view-panel").screenshot(
+                os.path.join(args.artifacts, "view-running.png"))
         wait_for("the joints change on the page",
                  lambda: any(a is not None and b is not None and abs(a - b) > 0.05
                              for a, b in zip(joint_cells(driver, "q"), q0)), 15)
@@ -394,6 +562,12 @@ def main():
         run_s = time.monotonic() - started
         check(run_s > 5.0, f"the run took {run_s:.1f} s (six poses)")
         time.sleep(1.0)  # a few plot samples at rest
+        if view_model is not None:
+            rest = driver.execute_script(READ_VIEW)["j"]
+            now = api("/api/joints")["robots"][0]
+            error = max(abs(a - b) for a, b in zip(rest["q"], now["q"]))
+            check(not rest["ghost_visible"] and error <= 1e-4,
+                  f"3D view at rest: no ghost, the drawn joints are the robot's ({error:.1e} rad)")
         screenshot(driver, "finished")
 
         # --- Pause and resume ----------------------------------------------------------------------

@@ -5,8 +5,10 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <optional>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -93,6 +95,16 @@ struct Console::Impl : ConsoleActions {
     settings.teach_dir = teach_in->dir();
     settings.jog_max_step_rad = options.jog.max_step_rad;
     settings.jog_max_step_m = options.jog.max_step_m;
+    settings.vendor_dir = default_vendor_dir();
+    for (const RobotConfig& r : config.robots) settings.robot_base[r.name] = r.base;
+    // The page works without them, but its 3D view stays empty: say why.
+    if (std::error_code ec; !std::filesystem::is_regular_file(
+            settings.vendor_dir / "three" / "build" / "three.module.js", ec))
+      reporter->warning(fmt::format(
+          "the 3D view's libraries are missing in '{}': the console's page shows no 3D view "
+          "(install them with `npm ci --prefix ui/vendor` in the source tree and build mrroc-ui "
+          "again)",
+          settings.vendor_dir.string()));
     settings.token = options.token;
     settings.token_hint =
         token_generated

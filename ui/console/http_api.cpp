@@ -6,6 +6,8 @@
 #include <cctype>
 #include <exception>
 #include <fstream>
+#include <sstream>
+#include <system_error>
 
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
@@ -31,6 +33,9 @@ std::string content_type(const std::string& name) {
   if (ends(".js")) return "application/javascript; charset=utf-8";
   if (ends(".svg")) return "image/svg+xml";
   if (ends(".png")) return "image/png";
+  if (ends(".urdf") || ends(".xml")) return "application/xml; charset=utf-8";
+  if (ends(".json")) return "application/json";
+  if (ends("LICENSE")) return "text/plain; charset=utf-8";
   return "application/octet-stream";
 }
 
@@ -49,6 +54,39 @@ void serve_asset(const std::string& name, httplib::Response& res) {
   }
   res.set_header("Cache-Control", "no-cache");
   res.set_content(std::string(it->second), content_type(name).c_str());
+}
+
+/// The text of `file`, nothing when it cannot be read.
+std::optional<std::string> read_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) return std::nullopt;
+  return std::move(text).str();
+}
+
+/// A file of the 3D view's libraries: `path` is relative to `dir`, made of names of letters,
+/// digits, '_', '-' and '.' that do not start with '.' (the route's pattern), so it stays in `dir`.
+void serve_vendor(const std::filesystem::path& dir, const std::string& path,
+                  httplib::Response& res) {
+  const std::filesystem::path file = dir / path;
+  std::error_code ec;
+  std::optional<std::string> text;
+  // No folder set (a console without the view's libraries): nothing, not the current folder's.
+  if (!dir.empty() && std::filesystem::is_regular_file(file, ec)) text = read_file(file);
+  if (!text) {
+    res.status = 404;
+    res.set_content(
+        fmt::format("no file '{}' among the 3D view's libraries ('{}' cannot be read): install "
+                    "them with `npm ci --prefix ui/vendor` in the source tree, then build "
+                    "mrroc-ui again",
+                    path, file.string()),
+        "text/plain");
+    return;
+  }
+  res.set_header("Cache-Control", "no-cache");
+  res.set_content(*text, content_type(path).c_str());
 }
 
 std::int64_t integer_param(const httplib::Request& req, const char* name, std::int64_t fallback) {
@@ -70,6 +108,16 @@ std::string lower(std::string text) {
 }
 
 }  // namespace
+
+std::filesystem::path default_vendor_dir() {
+#ifndef MRROC_UI_VENDOR_DIR
+#define MRROC_UI_VENDOR_DIR "../share/mrroc/ui-vendor"
+#endif
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::filesystem::path bin = ec ? std::filesystem::current_path() : exe.parent_path();
+  return (bin / MRROC_UI_VENDOR_DIR).lexically_normal();
+}
 
 std::string read_token_file(const std::filesystem::path& file) {
   require_private_file(file, "UI token file");
@@ -275,6 +323,9 @@ json HttpApi::state_json() const {
            {"max_velocity", r.model.max_velocity},
            {"max_acceleration", r.model.max_acceleration},
            {"servo_period_s", r.servo_period_s}};
+    j["prismatic"] = r.model.prismatic;
+    const auto base = settings_.robot_base.find(r.name);
+    j["base"] = base == settings_.robot_base.end() ? std::array<double, 6>{} : base->second;
     j["state"] = seen.reading ? robot_state_json(*seen.reading, seen.age_s) : json();
     robots.push_back(std::move(j));
   }
@@ -285,6 +336,34 @@ json HttpApi::state_json() const {
   out["jog_max_step_rad"] = settings_.jog_max_step_rad;
   out["jog_max_step_m"] = settings_.jog_max_step_m;
   return out;
+}
+
+json HttpApi::joints_json() const {
+  json robots = json::array();
+  for (std::size_t i = 0; i < state_.robots().size(); ++i) {
+    json j{{"name", state_.robots()[i].name}};
+    if (const auto reading = state_.reading(i)) {
+      const RobotState& s = reading->state;
+      j["step"] = s.servo_step;
+      j["utime"] = reading->utime;
+      j["age_s"] = seconds_since(reading->received);
+      j["q"] = s.q;
+      j["q_desired"] = s.q_desired;
+    } else {
+      j["step"] = nullptr;
+    }
+    robots.push_back(std::move(j));
+  }
+  return json{{"utime", now_utime()}, {"robots", robots}};
+}
+
+std::string HttpApi::model_text(const std::string& robot, const std::string& kind) const {
+  const RobotModel& model = state_.robot(robot).model;
+  const std::filesystem::path& file = kind == "mjcf" ? model.mjcf : model.urdf;
+  if (file.empty()) throw ApiError(404, fmt::format("robot '{}' has no {} file", robot, kind));
+  if (auto text = read_file(file)) return std::move(*text);
+  throw ApiError(
+      500, fmt::format("cannot read the {} file of robot '{}': '{}'", kind, robot, file.string()));
 }
 
 json HttpApi::samples_json(const std::string& robot, std::int64_t after) const {
@@ -431,6 +510,17 @@ void HttpApi::install(ConsoleServer& server) {
       "/", [](const httplib::Request&, httplib::Response& res) { serve_asset("index.html", res); });
   server.Get(R"(/([A-Za-z0-9_.-]+))", [](const httplib::Request& req, httplib::Response& res) {
     serve_asset(req.matches[1], res);
+  });
+  server.Get(R"(/vendor/((?:[A-Za-z0-9_-][A-Za-z0-9_.-]*/)*[A-Za-z0-9_-][A-Za-z0-9_.-]*))",
+             [this](const httplib::Request& req, httplib::Response& res) {
+               serve_vendor(settings_.vendor_dir, req.matches[1], res);
+             });
+  server.Get("/api/joints", [this](const httplib::Request&, httplib::Response& res) {
+    reply_json(res, joints_json());
+  });
+  server.Get(R"(/api/robots/([a-z][a-z0-9_]*)/(urdf|mjcf))", [this](const httplib::Request& req,
+                                                                    httplib::Response& res) {
+    res.set_content(model_text(req.matches[1], req.matches[2]), "application/xml; charset=utf-8");
   });
   server.Get("/api/state", [this](const httplib::Request&, httplib::Response& res) {
     reply_json(res, state_json());

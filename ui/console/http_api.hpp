@@ -4,6 +4,7 @@
 // status, the token and the cross-site check (docs/operating.md, "JSON API"). It reads a
 // ConsoleState and hands every POST to ConsoleActions, so that it runs without a bus.
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -46,7 +47,18 @@ struct ApiSettings {
   /// Where a client finds the token, for the answer to a request without it, e.g. "it is the
   /// first line of [ui] token_file '/etc/mrroc/ui.token'".
   std::string token_hint;
+  /// Where the 3D view's browser libraries are (three.js, urdf-loader: ui/vendor.cmake copies
+  /// them there at build time; default_vendor_dir()); GET /vendor/<path> serves its files.
+  std::filesystem::path vendor_dir;
+  /// Each robot's base in the cell, as [[robot]] base gives it: x, y, z [m] and a rotation
+  /// vector [rad]; a robot not named here stands at the origin.
+  std::map<std::string, std::array<double, 6>> robot_base;
 };
+
+/// The folder of the 3D view's browser libraries next to the running program:
+/// <folder of /proc/self/exe>/MRROC_UI_VENDOR_DIR (a path relative to the programs' folder, set by
+/// ui/CMakeLists.txt; in the build tree and in an install alike).
+std::filesystem::path default_vendor_dir();
 
 /// An emergency stop or release as sent and confirmed.
 struct EstopResult {
@@ -115,6 +127,12 @@ class HttpApi {
 
   /// GET /api/state.
   [[nodiscard]] nlohmann::json state_json() const;
+  /// GET /api/joints: every robot's latest measured and commanded joints (the 3D view polls it).
+  [[nodiscard]] nlohmann::json joints_json() const;
+  /// GET /api/robots/<robot>/urdf and /mjcf: the text of the robot's URDF or MJCF (`kind`),
+  /// the files its model folder's parameters.toml names.
+  /// @throws ApiError 404 for an unknown robot, 500 naming the file when it cannot be read.
+  [[nodiscard]] std::string model_text(const std::string& robot, const std::string& kind) const;
   /// GET /api/robots/<robot>/samples?after=STEP. @throws ApiError 404 for an unknown robot.
   [[nodiscard]] nlohmann::json samples_json(const std::string& robot, std::int64_t after) const;
   /// GET /api/srp. @throws ApiError 400 for a severity outside 0..4 or max outside 1..5000.

@@ -24,7 +24,13 @@ foreach(f ${files})
   endif()
 endforeach()
 if(missing)
-  list(JOIN missing ", " missing_text)
+  list(LENGTH missing n_missing)
+  list(LENGTH files n_files)
+  if(n_missing EQUAL n_files)
+    set(missing_text "all of them (none is installed)")
+  else()
+    list(JOIN missing ", " missing_text)
+  endif()
   message(FATAL_ERROR "The web console's 3D view needs three.js and urdf-loader from the npm "
     "registry, and ${SOURCE}/node_modules lacks ${missing_text}. Install them with\n"
     "  npm ci --prefix ${SOURCE}\n"

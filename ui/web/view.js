@@ -278,7 +278,7 @@ function frameCamera() {
   framedBox = framedBox ? framedBox.union(box) : box;
   const centre = framedBox.getCenter(new THREE.Vector3());
   const radius = Math.max(0.5, framedBox.getSize(new THREE.Vector3()).length() / 2);
-  const distance = radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2)) * 0.95;
+  const distance = radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2)) * 0.9;
   const direction = new THREE.Vector3(0.62, -0.85, 0.45).normalize();
   controls.target.copy(centre);
   camera.position.copy(centre).addScaledVector(direction, distance);

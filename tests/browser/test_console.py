@@ -41,7 +41,8 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
-import urdf_fk
+sys.dont_write_bytecode = True  # importing urdf_fk leaves no __pycache__ in the source tree
+import urdf_fk  # noqa: E402 (beside this file)
 
 URL = "http://127.0.0.1:8080"
 # The console's API token, read from the URL it prints (set in main()).
@@ -181,7 +182,8 @@ def check_view_loaded(driver, source_dir):
     if not ready:
         print("3D view: " + driver.find_element(By.ID, "view-note").text, flush=True)
         return None
-    check(view(driver, "window.mrrocView.robots()") == ["irb6"], "the 3D view draws the set's robot")
+    check(view(driver, "window.mrrocView.robots()") == ["irb6"],
+          "the 3D view draws the set's robot")
     urdf_text = open(os.path.join(source_dir, "robots", "irb6", "irb6.urdf")).read()
     status, kind, text = get_text("/api/robots/irb6/urdf")
     check(status == 200 and "xml" in kind and text == urdf_text,
@@ -212,7 +214,7 @@ def check_view_loaded(driver, source_dir):
 
 
 def watch_view(driver, urdf, names, seconds):
-    """Reads the drawn pose every 100 ms for `seconds` while /api/joints is polled alongside;
+    """Reads the drawn pose every 150 ms for `seconds` while /api/joints is polled alongside;
     checks what was drawn against the robot states."""
     joints = {}  # servo step -> (q, q_desired), from /api/joints
     stop = threading.Event()
@@ -225,14 +227,14 @@ def watch_view(driver, urdf, names, seconds):
                     joints[r["step"]] = (r["q"], r["q_desired"])
             except Exception:
                 pass
-            time.sleep(0.012)
+            time.sleep(0.025)
     poller = threading.Thread(target=poll, daemon=True)
     poller.start()
     records = []
     end = time.monotonic() + seconds
     while time.monotonic() < end:
         records.append(driver.execute_script(READ_VIEW))
-        time.sleep(0.1)
+        time.sleep(0.15)
     stop.set()
     poller.join()
     steps = [r["j"]["step"] for r in records]
@@ -257,13 +259,14 @@ def watch_view(driver, urdf, names, seconds):
           f"joints: {dp:.1e} m, {dr:.1e} <= {VIEW_POSE_TOL}")
     wrist = [r["p"]["roll_link"]["position"] for r in records]
     travel = max(math.dist(w, wrist[0]) for w in wrist)
-    check(len(set(steps)) >= 10 and travel >= VIEW_MIN_TRAVEL,
-          f"3D view: the drawn pose changes: {len(set(steps))} robot states drawn in {seconds} s, "
+    check(len(set(steps)) >= 8 and travel >= VIEW_MIN_TRAVEL,
+          f"3D view: the drawn pose changes: {len(set(steps))} different poses read back in "
+          f"{seconds} s, "
           f"the drawn wrist moved up to {travel:.3f} m >= {VIEW_MIN_TRAVEL} m")
     source = [st for st in joints if min(steps) <= st <= max(steps)]
+    polled = records[-1]["s"]["polls"] - records[0]["s"]["polls"]
     print(f"3D view: the console had {len(source)} robot states in the window (read from "
-          f"/api/joints every 12 ms), the page polled {records[-1]['s']['polls'] - records[0]['s']['polls']} times",
-          flush=True)
+          f"/api/joints every 25 ms), the page polled {polled} times", flush=True)
     later = records[len(records) // 3:]  # the rates count the last second
     states = sorted(r["s"]["states_per_s"]["irb6"] for r in later)
     frames = sorted(r["s"]["frames_per_s"] for r in later)
@@ -593,9 +596,17 @@ def main():
         wait_for("RUNNING after Resume", lambda: mp_state(driver) == "RUNNING", 5)
 
         # --- Emergency stop during a motion ---------------------------------------------------------
-        moving = wait_for("the robot moves fast (max |dq| > 0.3 rad/s)",
-                          lambda: (lambda s: s if max(abs(v) for v in s["dq"]) > 0.3 else None)(
-                              api("/api/state")["robots"][0]["state"]), 15, 0.02)
+        # Early in a motion (fast and still speeding up), so that it still moves when the stop
+        # arrives after the page's click on a busy machine (a few hundred ms).
+        speeds = []
+
+        def speeding_up():
+            state = api("/api/state")["robots"][0]["state"]
+            speeds.append(max(abs(v) for v in state["dq"]))
+            return state if speeds[-1] > 0.3 and len(speeds) >= 3 and \
+                speeds[-3] < speeds[-2] < speeds[-1] else None
+        moving = wait_for("the robot moves fast (max |dq| > 0.3 rad/s) and speeds up",
+                          speeding_up, 15, 0.02)
         click(driver, "estop")
         text = wait_for("the estop's answer shown",
                         lambda: (lambda t: t if "servo step" in t else None)(

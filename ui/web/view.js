@@ -27,7 +27,8 @@ function say(text, bad) {
 async function get(path, as) {
   const headers = token ? { Authorization: "Bearer " + token } : {};
   const response = await fetch(path, { headers });
-  if (!response.ok) throw new Error(`GET ${path}: HTTP ${response.status}: ${await response.text()}`);
+  if (!response.ok)
+    throw new Error(`GET ${path}: HTTP ${response.status}: ${await response.text()}`);
   return as === "text" ? response.text() : response.json();
 }
 
@@ -37,8 +38,8 @@ try {
   ({ OrbitControls } = await import("three/examples/jsm/controls/OrbitControls.js"));
   URDFLoader = (await import("urdf-loader")).default;
 } catch (e) {
-  say("3D view unavailable: the console does not serve three.js and urdf-loader (install them with " +
-      "`npm ci --prefix ui/vendor` in the source tree and build mrroc-ui again): " + e, true);
+  say("3D view unavailable: the console does not serve three.js and urdf-loader (install them " +
+      "with `npm ci --prefix ui/vendor` in the source tree and build mrroc-ui again): " + e, true);
   throw e;
 }
 
@@ -110,7 +111,8 @@ new ResizeObserver(resize).observe(panel);
 resize();
 
 // --- robots -------------------------------------------------------------------------------------
-const robots = new Map();  // name -> {name, jointNames, group, model, ghost, step, utime, q, qDesired}
+// name -> {name, jointNames, group, model, ghost, step, utime, q, qDesired, applied}
+const robots = new Map();
 
 function styleModel(model, ghost) {
   let index = 0;
@@ -214,7 +216,8 @@ async function loadRobot(info) {
   loader.parseCollision = false;
   const parse = () => {
     const m = loader.parse(urdf);
-    for (const joint of Object.values(m.joints)) joint.ignoreLimits = true;  // draw what is measured
+    // Draw what is measured, also beyond a limit.
+    for (const joint of Object.values(m.joints)) joint.ignoreLimits = true;
     return m;
   };
   const model = parse();
@@ -355,8 +358,10 @@ function rate(times) {
 
 function showStatus() {
   const parts = [...robots.values()].map((r) =>
-    `${r.name}: step ${r.step ?? "–"}, ${rate(r.applied)} states/s${r.ghost.visible ? ", commanded pose shown" : ""}`);
-  say(`${parts.join("; ")}; ${rate(frames)} frames/s${software ? " (drawn on the CPU)" : ""}. Solid: measured joints; translucent blue: ` +
+    `${r.name}: step ${r.step ?? "–"}, ${rate(r.applied)} states/s` +
+    (r.ghost.visible ? ", commanded pose shown" : ""));
+  say(`${parts.join("; ")}; ${rate(frames)} frames/s${software ? " (drawn on the CPU)" : ""}. ` +
+      "Solid: measured joints; translucent blue: " +
       "the commanded pose. Drag to turn, wheel to zoom, right-drag to pan.");
 }
 
@@ -410,7 +415,7 @@ window.mrrocView = {
   },
 };
 
-// --- start ----------------------------------------------------------------------------------------
+// --- start -------------------------------------------------------------------------------------
 say("3D view: loading the robots' models…");
 for (;;) {
   try {

@@ -17,6 +17,12 @@
 // headers use.
 #include "console/http_server.hpp"
 
+// The 3D view's libraries relative to the programs' folder: ui/CMakeLists.txt sets it from the
+// install layout (the build tree has the same); a build without it (the fuzzer) uses the default.
+#ifndef MRROC_UI_VENDOR_DIR
+#define MRROC_UI_VENDOR_DIR "../share/mrroc/ui-vendor"
+#endif
+
 namespace mrroc::ui {
 
 namespace {
@@ -78,10 +84,12 @@ void serve_vendor(const std::filesystem::path& dir, const std::string& path,
   if (!text) {
     res.status = 404;
     res.set_content(
-        fmt::format("no file '{}' among the 3D view's libraries ('{}' cannot be read): install "
+        // Without the folder's path: this answer needs no token (the console's start names the
+        // folder when the libraries are missing).
+        fmt::format("no file '{}' among the 3D view's libraries (when they are missing, install "
                     "them with `npm ci --prefix ui/vendor` in the source tree, then build "
-                    "mrroc-ui again",
-                    path, file.string()),
+                    "mrroc-ui again)",
+                    path),
         "text/plain");
     return;
   }
@@ -110,9 +118,6 @@ std::string lower(std::string text) {
 }  // namespace
 
 std::filesystem::path default_vendor_dir() {
-#ifndef MRROC_UI_VENDOR_DIR
-#define MRROC_UI_VENDOR_DIR "../share/mrroc/ui-vendor"
-#endif
   std::error_code ec;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
   const std::filesystem::path bin = ec ? std::filesystem::current_path() : exe.parent_path();

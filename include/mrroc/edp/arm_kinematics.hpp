@@ -60,9 +60,9 @@ class ArmKinematics {
   int corrector_no_ = 0;
 };
 
-/// Makes the kinematics named by the robot's parameters.toml (`kinematics = "irb6"`, ...;
-/// robots without the key get joint-only kinematics: motor = joint, no Cartesian representations).
-/// @throws ConfigError naming the unknown kinematics and the file.
+/// Kinematics named by [robot.kinematics] solver ("irb6", ...; built in: "urdf", "joint-only");
+/// none named: "urdf" (kinematics/urdf_arm.hpp) given the joints' serial chain, else joint-only.
+/// @throws ConfigError naming the unknown kinematics and the file, or the URDF's problem ("urdf").
 std::unique_ptr<ArmKinematics> make_arm_kinematics(const RobotModel& model);
 
 using ArmKinematicsFactory = std::function<std::unique_ptr<ArmKinematics>(const RobotModel&)>;

@@ -6,6 +6,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <exception>
+#include <string>
+#include <system_error>
 #include <utility>
 
 #include <urdf_parser/urdf_parser.h>
@@ -77,6 +80,11 @@ std::pair<Eigen::Vector3d, double> chain_extent(const urdf::ModelInterface& urdf
 
 std::optional<SerialChain> find_serial_chain(const RobotModel& model, std::string& why_not) {
   why_not.clear();
+  std::error_code ec;
+  if (model.urdf.empty() || !fs::exists(model.urdf, ec)) {
+    why_not = fmt::format("URDF file '{}' not found", model.urdf.string());
+    return std::nullopt;
+  }
   urdf::ModelInterfaceSharedPtr urdf;
   try {
     urdf = urdf::parseURDFFile(model.urdf.string());

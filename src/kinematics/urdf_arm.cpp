@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <string>
 #include <system_error>
@@ -57,8 +58,9 @@ std::vector<urdf::JointConstSharedPtr> joints_to(const urdf::ModelInterface& urd
 
 bool movable(const urdf::Joint& joint) { return joint.type != urdf::Joint::FIXED; }
 
-/// Point of the first movable joint's axis (fixed in the base frame) and the largest distance
-/// of `tip` from it: the sum of the joint origins' offsets after that joint [m].
+/// The first movable joint's origin at q = 0 in the base frame (a point of its axis, fixed for a
+/// revolute joint) and a bound of the distance of `tip` from it over all joint values: the sum of
+/// the joint origins' offsets after that joint and of every prismatic joint's largest travel [m].
 std::pair<Eigen::Vector3d, double> chain_extent(const urdf::ModelInterface& urdf,
                                                 const std::string& tip) {
   Eigen::Isometry3d to_first = Eigen::Isometry3d::Identity();
@@ -72,6 +74,8 @@ std::pair<Eigen::Vector3d, double> chain_extent(const urdf::ModelInterface& urdf
       to_first = to_first * origin;
       after_first = movable(*joint);
     }
+    if (joint->type == urdf::Joint::PRISMATIC && joint->limits)
+      reach += std::max(std::abs(joint->limits->lower), std::abs(joint->limits->upper));
   }
   return {to_first.translation(), reach};
 }

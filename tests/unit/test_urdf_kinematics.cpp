@@ -135,6 +135,20 @@ TEST(UrdfKinematicsSelection, TheConveyorWithoutItsKeyWouldGetTheGenericKinemati
   EXPECT_NEAR(f.translation().z(), 0.75, 1e-12);
   const std::vector<double> q = k->inverse(f, std::vector<double>{0.0});
   EXPECT_NEAR(q[0], 0.3, 1e-9);
+  // Off the belt's line: refused, within the 2.0 m the belt travels from its origin.
+  Eigen::Isometry3d off = f;
+  off.translation().y() = 0.5;
+  try {
+    (void)k->inverse(off, std::vector<double>{0.0});
+    ADD_FAILURE() << "a frame off the belt's line was accepted";
+  } catch (const CommandError& e) {
+    EXPECT_EQ(e.code(), error_code::out_of_limits);
+    EXPECT_NE(std::string(e.what()).find("its belt_link is 0.5831 m from the first joint, within "
+                                         "the arm's reach 2.0000 m, but no configuration "
+                                         "reaches it; inverse kinematics did not converge"),
+              std::string::npos)
+        << e.what();
+  }
   fs::remove_all(dir.parent_path());
 }
 

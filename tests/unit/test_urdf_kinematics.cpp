@@ -338,6 +338,42 @@ TEST(UrdfKinematicsInverse, ToolAndCorrectorAreApplied) {
   fs::remove_all(dir.parent_path());
 }
 
+TEST(UrdfKinematicsInverse, KinematicModelsAreTheUrdfsOfTheModelsList) {
+  // Model 1: a calibrated unit whose upper arm is 2 mm longer (a copy of the URDF).
+  const fs::path dir = robot_copy("arm6", "models", [](std::string s) {
+    return s + "\n[robot.kinematics]\nmodels = [\"arm6.urdf\", \"arm6_calibrated.urdf\"]\n";
+  });
+  write(dir / "arm6_calibrated.urdf",
+        std::regex_replace(read(dir / "arm6.urdf"),
+                           std::regex(R"(<origin xyz="0 0 0.36" rpy="0 0 0"/>)"),
+                           R"(<origin xyz="0 0 0.362" rpy="0 0 0"/>)"));
+  const RobotModel model = load_robot_model(dir);
+  auto k = make_arm_kinematics(model);
+  ASSERT_EQ(k->model_count(), 2);
+  const std::vector<double> q = model.synchro_joint_positions;  // upper arm vertical
+  const Eigen::Isometry3d nominal = k->forward(q);
+  k->select_model(1, 0);
+  const Eigen::Isometry3d calibrated = k->forward(q);
+  EXPECT_LT(
+      (calibrated.translation() - nominal.translation() - Eigen::Vector3d(0, 0, 0.002)).norm(),
+      1e-12);
+  // The same frame needs other joints under model 1; its inverse reaches it under model 1.
+  const std::vector<double> solved = k->inverse(nominal, q);
+  EXPECT_LT((k->forward(solved).translation() - nominal.translation()).norm(), 1e-6);
+  EXPECT_GT(std::abs(solved[1] - q[1]) + std::abs(solved[2] - q[2]), 1e-4);
+  // A model whose chain carries other joints is refused when the kinematics is made.
+  write(dir / "arm6_calibrated.urdf",
+        std::regex_replace(read(dir / "arm6.urdf"), std::regex("forearm_roll"), "forearm_twist"));
+  try {
+    (void)make_arm_kinematics(load_robot_model(dir));
+    ADD_FAILURE() << "a model with other joints was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("arm6_calibrated.urdf"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("forearm_twist"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir.parent_path());
+}
+
 TEST(UrdfKinematicsInverse, UnreachableTargetIsRefusedNamingDistanceAndReach) {
   const RobotModel model = test::stock_model("arm6");
   auto k = make_arm_kinematics(model);

@@ -25,22 +25,6 @@ Range range_if(bool limited, const mjtNum* pair) {
   return limited ? Range{pair[0], pair[1]} : Range{};
 }
 
-/// Loads MJCF text through a MuJoCo virtual file system (no temporary file).
-sim::ModelPtr load_from_memory(const std::string& text, std::string& error) {
-  const char* const file = "cell.xml";
-  auto vfs = std::make_unique<mjVFS>();  // large (file name table): not on the stack
-  mj_defaultVFS(vfs.get());
-  if (mj_makeEmptyFileVFS(vfs.get(), file, static_cast<int>(text.size())) != 0) {
-    error = "cannot make the virtual file";
-    return nullptr;
-  }
-  const int slot = mj_findFileVFS(vfs.get(), file);
-  std::memcpy(vfs->filedata[slot], text.data(), text.size());
-  sim::ModelPtr model = sim::load_mjcf(file, vfs.get(), error);
-  mj_deleteVFS(vfs.get());
-  return model;
-}
-
 /// The name (without NUL) as a NUL-terminated string in `buffer`; false when it does not fit.
 bool terminated(std::string_view name, std::array<char, 256>& buffer) noexcept {
   if (name.size() >= buffer.size()) return false;
@@ -60,7 +44,7 @@ void CellWorld::build(const Scene& scene) {
   ComposedScene composed = compose_scene(scene);
   xml_ = std::move(composed.xml);
   std::string error;
-  model_ = load_from_memory(xml_, error);
+  model_ = sim::load_mjcf_text(xml_, error);
   if (!model_) {
     throw ConfigError(scene.where, fmt::format("MuJoCo cannot load the composed scene: {}", error));
   }

@@ -128,21 +128,6 @@ std::string dressed(const std::string& composed) {
   return printer.CStr();
 }
 
-sim::ModelPtr load_text(const std::string& text, std::string& error) {
-  const char* const file = "cell.xml";
-  auto vfs = std::make_unique<mjVFS>();  // large (file name table): not on the stack
-  mj_defaultVFS(vfs.get());
-  if (mj_makeEmptyFileVFS(vfs.get(), file, static_cast<int>(text.size())) != 0) {
-    error = "cannot make the virtual file";
-    return nullptr;
-  }
-  const int slot = mj_findFileVFS(vfs.get(), file);
-  std::memcpy(vfs->filedata[slot], text.data(), text.size());
-  sim::ModelPtr model = sim::load_mjcf(file, vfs.get(), error);
-  mj_deleteVFS(vfs.get());
-  return model;
-}
-
 }  // namespace
 
 CellView::CellView(const ProcessSetConfig& set) {
@@ -151,7 +136,7 @@ CellView::CellView(const ProcessSetConfig& set) {
   const emu::CellWorld world(scene);
   name_ = scene.name;
   std::string error;
-  model_ = load_text(dressed(world.composed_xml()), error);
+  model_ = sim::load_mjcf_text(dressed(world.composed_xml()), error);
   if (!model_) {
     throw Error(
         fmt::format("MuJoCo cannot load the cell '{}' dressed for drawing: {}", name_, error));

@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <memory>
 
 namespace mrroc::sim {
 
@@ -16,6 +18,21 @@ ModelPtr load_mjcf(const std::string& file, const mjVFS* vfs, std::string& error
     std::replace(error.begin(), error.end(), '\n', ' ');
     while (!error.empty() && error.back() == ' ') error.pop_back();
   }
+  return model;
+}
+
+ModelPtr load_mjcf_text(const std::string& text, std::string& error) {
+  const char* const file = "model.xml";
+  auto vfs = std::make_unique<mjVFS>();  // large (file name table): not on the stack
+  mj_defaultVFS(vfs.get());
+  if (mj_makeEmptyFileVFS(vfs.get(), file, static_cast<int>(text.size())) != 0) {
+    error = "cannot make the virtual file";
+    return nullptr;
+  }
+  const int slot = mj_findFileVFS(vfs.get(), file);
+  std::memcpy(vfs->filedata[slot], text.data(), text.size());
+  ModelPtr model = load_mjcf(file, vfs.get(), error);
+  mj_deleteVFS(vfs.get());
   return model;
 }
 

@@ -73,50 +73,6 @@ int count_of(const std::string& text, const std::string& what) {
   return n;
 }
 
-struct MotionCheck {
-  int states = 0;
-  double worst_velocity_share = 0.0;      ///< largest |v| / limit over joints and states
-  double worst_acceleration_share = 0.0;  ///< largest |a| / limit
-};
-
-/// Commanded joint velocities and accelerations between the synchronised states the EDP
-/// broadcast, against the model's limits.
-MotionCheck check_motion(const std::vector<StateWatch::Sample>& states, const RobotModel& model,
-                         double period_s) {
-  MotionCheck out;
-  std::vector<double> previous;
-  double previous_dt = 0.0;
-  for (std::size_t k = 1; k < states.size(); ++k) {
-    const auto& a = states[k - 1];
-    const auto& b = states[k];
-    if (!a.synchronised || !b.synchronised || b.servo_step <= a.servo_step) {
-      previous.clear();
-      continue;
-    }
-    const double dt = static_cast<double>(b.servo_step - a.servo_step) * period_s;
-    std::vector<double> v(model.axes());
-    for (std::size_t j = 0; j < v.size(); ++j) {
-      v[j] = (b.q_desired[j] - a.q_desired[j]) / dt;
-      const double share = std::abs(v[j]) / model.max_velocity[j];
-      out.worst_velocity_share = std::max(out.worst_velocity_share, share);
-      EXPECT_LE(share, 1.0001) << "joint " << j << " commanded at " << v[j] << " rad/s, limit "
-                               << model.max_velocity[j] << " rad/s, servo step " << b.servo_step;
-      if (!previous.empty()) {
-        const double acc = (v[j] - previous[j]) / (0.5 * (dt + previous_dt));
-        const double acc_share = std::abs(acc) / model.max_acceleration[j];
-        out.worst_acceleration_share = std::max(out.worst_acceleration_share, acc_share);
-        EXPECT_LE(acc_share, 1.0001)
-            << "joint " << j << " commanded acceleration " << acc << " rad/s^2, limit "
-            << model.max_acceleration[j] << " rad/s^2, servo step " << b.servo_step;
-      }
-    }
-    previous = v;
-    previous_dt = dt;
-    ++out.states;
-  }
-  return out;
-}
-
 }  // namespace
 
 TEST(UrdfArm, WritesInFrameRepresentationSmoothlyAndEndsAtTheLastStroke) {
@@ -157,7 +113,7 @@ TEST(UrdfArm, WritesInFrameRepresentationSmoothlyAndEndsAtTheLastStroke) {
   EXPECT_EQ(count_of(run.output, "no next macro-step from the ECP in time"), 0) << run.output;
 
   // Velocities and accelerations within the limits, over the whole run.
-  const MotionCheck motion = check_motion(states.history(), model, period_s);
+  const test::MotionCheck motion = test::check_commanded_motion(states.history(), model, period_s);
   EXPECT_GT(motion.states, 200) << "too few states from the EDP";
   std::printf("%d states: velocity up to %.0f %%, acceleration up to %.0f %% of the limits\n",
               motion.states, motion.worst_velocity_share * 100,

@@ -1,6 +1,8 @@
 #pragma once
 // The robot states an EDP broadcasts (robot_state_t on <robot>/edp/state), as the operator's
 // console sees them: the last one, the fastest commanded motion, every one with its arrival time.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -16,6 +18,7 @@
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/robot/robot_model.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 
 namespace mrroc::test {
@@ -105,5 +108,49 @@ class StateWatch {
   std::vector<double> max_rate_;
   std::vector<Sample> history_;
 };
+
+struct MotionCheck {
+  int states = 0;
+  double worst_velocity_share = 0.0;      ///< largest |v| / limit over joints and states
+  double worst_acceleration_share = 0.0;  ///< largest |a| / limit
+};
+
+/// Commanded joint velocities and accelerations between the synchronised states the EDP
+/// broadcast, against the model's limits (a gtest failure per state and joint beyond them).
+inline MotionCheck check_commanded_motion(const std::vector<StateWatch::Sample>& states,
+                                          const RobotModel& model, double period_s) {
+  MotionCheck out;
+  std::vector<double> previous;
+  double previous_dt = 0.0;
+  for (std::size_t k = 1; k < states.size(); ++k) {
+    const auto& a = states[k - 1];
+    const auto& b = states[k];
+    if (!a.synchronised || !b.synchronised || b.servo_step <= a.servo_step) {
+      previous.clear();
+      continue;
+    }
+    const double dt = static_cast<double>(b.servo_step - a.servo_step) * period_s;
+    std::vector<double> v(model.axes());
+    for (std::size_t j = 0; j < v.size(); ++j) {
+      v[j] = (b.q_desired[j] - a.q_desired[j]) / dt;
+      const double share = std::abs(v[j]) / model.max_velocity[j];
+      out.worst_velocity_share = std::max(out.worst_velocity_share, share);
+      EXPECT_LE(share, 1.0001) << "joint " << j << " commanded at " << v[j] << " rad/s, limit "
+                               << model.max_velocity[j] << " rad/s, servo step " << b.servo_step;
+      if (!previous.empty()) {
+        const double acc = (v[j] - previous[j]) / (0.5 * (dt + previous_dt));
+        const double acc_share = std::abs(acc) / model.max_acceleration[j];
+        out.worst_acceleration_share = std::max(out.worst_acceleration_share, acc_share);
+        EXPECT_LE(acc_share, 1.0001)
+            << "joint " << j << " commanded acceleration " << acc << " rad/s^2, limit "
+            << model.max_acceleration[j] << " rad/s^2, servo step " << b.servo_step;
+      }
+    }
+    previous = v;
+    previous_dt = dt;
+    ++out.states;
+  }
+  return out;
+}
 
 }  // namespace mrroc::test

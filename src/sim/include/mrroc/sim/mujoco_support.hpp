@@ -27,6 +27,8 @@ using DataPtr = std::unique_ptr<mjData, DataDeleter>;
 /// Loads an MJCF file (from `vfs` when it holds `file`, else from disk). On failure returns
 /// nullptr and sets `error` to MuJoCo's message on one line ("unknown MuJoCo error" when empty).
 ModelPtr load_mjcf(const std::string& file, const mjVFS* vfs, std::string& error);
+/// Loads MJCF text through a MuJoCo virtual file system (no temporary file); as load_mjcf.
+ModelPtr load_mjcf_text(const std::string& text, std::string& error);
 
 /// A number in a message, with enough digits to tell 0.0025 from 0.002 ("%.9g").
 std::string format_number(double value);

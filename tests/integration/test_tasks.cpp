@@ -118,12 +118,16 @@ class EdpSettings : public ecp::EcpTask {
     expect(image.timing && image.timing->cycles > 0 && image.timing->period_us == 2000.0,
            "GET TIMING: servo cycles counted, period 2000 us");
     // The outputs take effect in the next servo cycle: read the inputs (16..19 are wired back
-    // to outputs 0..3 in the MuJoCo plugin) after it, with the tool and model.
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    c = edp::Instruction{};
-    c.type = edp::InstructionType::get;
-    c.get = edp::item::arm | edp::item::tool | edp::item::model | edp::item::inputs;
-    robot.execute();
+    // to outputs 0..3 in the MuJoCo plugin) until a cycle has passed (at most 2 s: a slow,
+    // instrumented build), with the tool and model.
+    for (int attempt = 0; attempt < 100; ++attempt) {
+      c = edp::Instruction{};
+      c.type = edp::InstructionType::get;
+      c.get = edp::item::arm | edp::item::tool | edp::item::model | edp::item::inputs;
+      robot.execute();
+      if (image.inputs && ((*image.inputs >> 16U) & 0xFU) == 0x5U) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
     expect(image.inputs && ((*image.inputs >> 16U) & 0xFU) == 0x5U,
            fmt::format("GET INPUTS: lines 16..19 show the outputs 0x5 (inputs {:#x})",
                        image.inputs.value_or(0)));

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generator.hpp"
@@ -33,14 +34,14 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
       // sub-task or macro-step goes to the worker), one thread hand-off less than a queue.
       server_(bus, process_, channels::ecp_command(config.name), channels::ecp_reply(config.name),
               [this](comm::EcpServer::Incoming in) { serve(std::move(in)); }) {
-  // Build the configured task once now, so that a wrong name or argument fails before "ready".
+  // Build the configured task once now, so that a wrong name or argument fails before "ready"
+  // (every error found; `mrroc-ecp --check-config` runs this constructor too).
   TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s,
                       &bus_,  process_};
-  try {
-    (void)make_ecp_task(config_.ecp.name, context);
-  } catch (const ConfigError& e) {
-    throw e.at(config_.ecp.where);  // an argument's own location, else the [robot.ecp] table's
-  }
+  ConfigErrorList errors;
+  // An argument's own location, else the [robot.ecp] table's.
+  errors.add(check_ecp_task(config_.ecp.name, context, config_.ecp.name_where, config_.ecp.where));
+  errors.throw_if_any();
   worker_ = std::thread([this] { worker_loop(); });
 }
 

@@ -14,6 +14,7 @@
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/command_line.hpp"
 #include "mrroc/core/plugin_library.hpp"
@@ -70,6 +71,46 @@ void refuse_if_another_edp(mrroc::comm::Bus& bus, const std::string& robot,
         robot, bus.url(), seen.sender, channel, seen.servo_step, config_file));
 }
 
+/// What the EDP builds from its config before its servo loop starts, at start and for
+/// --check-config: the robot model, the plugin library, the configured hardware
+/// (edp::make_configured_hardware; with `open_devices` false a real plugin is not configured)
+/// and the arm kinematics.
+struct Prepared {
+  mrroc::RobotModel model;
+  std::unique_ptr<mrroc::edp::Hardware> hardware;
+  std::unique_ptr<mrroc::edp::ArmKinematics> kinematics;
+};
+Prepared prepare(const mrroc::RobotConfig& robot, bool open_devices) {
+  using namespace mrroc;
+  Prepared p;
+  p.model = load_robot_model(robot.model_dir);
+  if (!robot.edp.library.empty()) load_plugin_library(robot.edp.library, robot.edp.where);
+  ConfigErrorList errors;
+  errors.run(robot.edp.where,
+             [&] { p.hardware = edp::make_configured_hardware(robot, p.model, open_devices); });
+  errors.run(SourceLocation::whole_file((robot.model_dir / "parameters.toml").string()),
+             [&] { p.kinematics = edp::make_arm_kinematics(p.model); });
+  errors.throw_if_any();
+  return p;
+}
+
+/// --check-config: the process set's errors and this EDP's (prepare), one per line on stderr;
+/// nothing is started, no device opened, nothing sent.
+int check(const std::string& config_path, const std::string& robot_name) {
+  using namespace mrroc;
+  const ProcessSetCheck set = check_process_set(config_path);
+  ConfigErrorList errors;
+  errors.add(set.errors);
+  if (!set.broken_process("edp/" + robot_name)) {
+    errors.run(SourceLocation::whole_file(set.config.file.string()),
+               [&] { (void)prepare(set.config.robot(robot_name), false); });
+  }
+  for (const auto& error : errors.errors()) std::fprintf(stderr, "%s\n", error.what());
+  if (!errors.empty()) return kExitConfigErrors;
+  std::printf("mrroc-edp: edp/%s: config is valid\n", robot_name.c_str());
+  return 0;
+}
+
 int run(const std::string& config_path, const std::string& robot_name) {
   using namespace mrroc;
   const ProcessSetConfig config = load_process_set(config_path);
@@ -88,30 +129,12 @@ int run(const std::string& config_path, const std::string& robot_name) {
   refuse_if_another_edp(bus, robot.name, config.file.string());
   Reporter reporter(bus, process, robot.name);
   try {
-    const RobotModel model = load_robot_model(robot.model_dir);
-    if (!robot.edp.library.empty()) load_plugin_library(robot.edp.library, robot.edp.where);
-    std::unique_ptr<edp::Hardware> hardware;
-    try {
-      hardware = edp::make_hardware(robot.edp.plugin);
-    } catch (const ConfigError& e) {
-      throw e.at(robot.edp.where);
-    }
-    if (robot.edp.lock_step && !hardware->simulated())
-      throw ConfigError(
-          robot.edp.where,
-          fmt::format("lock_step = true needs simulated hardware; plugin '{}' drives its axes in "
-                      "real time (for emulated drives, set lock_step in [emulator] instead)",
-                      hardware->name()));
-    edp::HardwareSetup setup;
-    setup.robot = robot.name;
-    setup.model_dir = robot.model_dir;
-    setup.servo_period_s = robot.edp.servo_period_s;
-    setup.synchro_positions = model.synchro_joint_positions;
-    setup.params = robot.edp.params;
-    hardware->configure(setup);
+    Prepared prepared = prepare(robot, true);
+    const RobotModel& model = prepared.model;
+    const std::unique_ptr<edp::Hardware> hardware = std::move(prepared.hardware);
+    const std::unique_ptr<edp::ArmKinematics> kinematics = std::move(prepared.kinematics);
 
     const std::string memory = lock_memory();
-    const std::unique_ptr<edp::ArmKinematics> kinematics = edp::make_arm_kinematics(model);
     edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
     servo.set_limit_guard(kinematics.get());
     if (robot.edp.lock_step) servo.set_lock_step(true);
@@ -339,8 +362,10 @@ int run(const std::string& config_path, const std::string& robot_name) {
     report_timing();
     reporter.set_state(ProcessState::finished);
   } catch (const std::exception& e) {
-    reporter.report(Severity::fatal, 0, e.what());
-    reporter.set_state(ProcessState::failed, e.what());
+    ConfigErrorList errors;  // every error of a ConfigErrors, one report each
+    errors.add(e, {});
+    for (const auto& error : errors.errors()) reporter.report(Severity::fatal, 0, error.what());
+    reporter.set_state(ProcessState::failed, errors.errors().front().what());
     return 1;
   }
   return 0;
@@ -358,9 +383,17 @@ int main(int argc, char** argv) {
   std::string robot;
   cli.option("-c,--config", config, "process-set config file (TOML)").required();
   cli.option("-r,--robot", robot, "name of the robot ([[robot]] name in the config)").required();
+  bool check_config = false;
+  cli.flag("--check-config", check_config,
+           "check the config as the EDP does at start (robot model, plugin library, plugin name, "
+           "[robot.edp.params], the plugin's model files, kinematics), print every error as "
+           "file:line and exit (0 valid, 2 errors); nothing is started, no device is opened (a "
+           "plugin of real devices is not configured) and nothing is sent (mrroc-launch --check "
+           "runs it)");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   mrroc::install_stop_handlers();
   try {
+    if (check_config) return check(config, robot);
     return run(config, robot);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mrroc-edp: %s\n", e.what());

@@ -6,9 +6,12 @@
 // SIGINT/SIGTERM stop everything in reverse order.
 // `mrroc-launch status CONFIG` prints the process table of a running set.
 #include <fmt/format.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -20,7 +23,10 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <regex>
+#include <set>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -31,6 +37,7 @@
 #include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/command_line.hpp"
 #include "mrroc/core/time.hpp"
@@ -214,25 +221,134 @@ void print_plan(const ProcessSetConfig& config, const std::vector<PlannedProcess
   std::cout.flush();
 }
 
+/// True for the processes that check their own part of the config (`--check-config`).
+bool checks_own_config(const PlannedProcess& p) {
+  return p.name == "mp" || p.name.rfind("edp/", 0) == 0 || p.name.rfind("ecp/", 0) == 0 ||
+         p.name.rfind("vsp/", 0) == 0;
+}
+
+/// Runs `argv` here and returns its exit code and what it printed (stdout and stderr).
+std::pair<int, std::string> run_captured(const std::vector<std::string>& argv) {
+  std::string command;
+  for (const auto& w : argv) command += launch::shell_quote(w) + " ";
+  command += "2>&1 </dev/null";
+  std::string output;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, std::string("cannot run: ") + std::strerror(errno)};
+  std::array<char, 4096> buffer{};
+  std::size_t n = 0;
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    output.append(buffer.data(), n);
+  const int status = ::pclose(pipe);
+  const int code = status == -1          ? -1
+                   : WIFEXITED(status)   ? WEXITSTATUS(status)
+                   : WIFSIGNALED(status) ? 128 + WTERMSIG(status)
+                                         : -1;
+  return {code, output};
+}
+
+/// The errors of a check, each once, ordered by file and line (errors without a location last).
+class ErrorReport {
+ public:
+  void add(const std::string& line) {
+    if (line.empty() || !seen_.insert(line).second) return;
+    static const std::regex located(R"(^(.*?):(-?\d+): error: )");
+    static const std::regex whole_file(R"(^(.*?): error: )");
+    std::smatch m;
+    Entry e{line, "", 0, order_++};
+    if (std::regex_search(line, m, located)) {
+      e.file = m[1];
+      e.line = std::stoi(m[2]);
+    } else if (std::regex_search(line, m, whole_file)) {
+      e.file = m[1];
+      e.line = -1;
+    } else {
+      e.file = "\x7f";  // after every file name
+    }
+    entries_.push_back(std::move(e));
+  }
+  void add(const std::vector<ConfigError>& errors) {
+    for (const auto& e : errors) add(std::string(e.what()));
+  }
+  [[nodiscard]] bool empty() const { return entries_.empty(); }
+  [[nodiscard]] std::size_t size() const { return entries_.size(); }
+  void print(std::FILE* out) {
+    std::stable_sort(entries_.begin(), entries_.end(), [](const Entry& a, const Entry& b) {
+      return std::tie(a.file, a.line, a.order) < std::tie(b.file, b.line, b.order);
+    });
+    for (const auto& e : entries_) std::fprintf(out, "%s\n", e.text.c_str());
+  }
+
+ private:
+  struct Entry {
+    std::string text;
+    std::string file;
+    int line;
+    int order;
+  };
+  std::set<std::string> seen_;
+  std::vector<Entry> entries_;
+  int order_ = 0;
+};
+
+/// --check: every process that checks its own config (EDPs, ECPs, VSPs, MP) runs its
+/// `--check-config` here, the same code it runs at start (docs/configs.md, "When each part is
+/// checked"); their errors join `report`.
+void check_processes(const ProcessSetCheck& set, const std::vector<PlannedProcess>& plan,
+                     ErrorReport& report) {
+  for (const auto& p : plan) {
+    if (!checks_own_config(p) || set.broken_process(p.name)) continue;
+    if (!program_exists(p.command[0])) continue;  // reported already
+    std::vector<std::string> argv = p.command;
+    argv.emplace_back("--check-config");
+    const auto [code, output] = run_captured(argv);
+    bool any = false;
+    std::size_t start = 0;
+    while (start < output.size()) {
+      std::size_t end = output.find('\n', start);
+      if (end == std::string::npos) end = output.size();
+      const std::string line = output.substr(start, end - start);
+      start = end + 1;
+      if (line.find(": error: ") != std::string::npos) {
+        report.add(line);
+        any = true;
+      }
+    }
+    if (code != 0 && !any)
+      report.add(fmt::format("mrroc-launch: {}: '{} --check-config' ended with code {}: {}", p.name,
+                             p.command[0], code, output));
+  }
+}
+
 int run(const std::string& config_path, bool check_only, const launch::PlanOptions& options) {
-  ProcessSetConfig config;
+  const ProcessSetCheck set = check_process_set(config_path);
+  const ProcessSetConfig& config = set.config;
+  ErrorReport report;
+  report.add(set.errors);
   std::vector<PlannedProcess> plan;
   try {
-    config = load_process_set(config_path);
     plan = launch::make_plan(config, options);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s\nmrroc-launch: nothing started\n", e.what());
-    return kExitConfig;
+    if (set.ok()) report.add(std::string(e.what()));  // else reported already (unknown host)
   }
   for (const auto& p : plan) {
     for (const std::string* program : {&p.spec.argv[0], &p.command[0]}) {
       if (!program_exists(*program)) {
-        std::fprintf(stderr, "mrroc-launch: executable '%s' of %s not found%s\n", program->c_str(),
-                     p.name.c_str(),
-                     program->find('/') != std::string::npos ? " (use --bin-dir)" : " in PATH");
-        return kExitConfig;
+        report.add(
+            fmt::format("mrroc-launch: executable '{}' of {} not found{}", *program, p.name,
+                        program->find('/') != std::string::npos ? " (use --bin-dir)" : " in PATH"));
       }
     }
+  }
+  // What the processes check at start: only for --check (a start finds it the same way).
+  if (check_only) check_processes(set, plan, report);
+  if (!report.empty()) {
+    report.print(stderr);
+    if (check_only && report.size() > 1)
+      std::fprintf(stderr, "mrroc-launch: %zu errors; nothing started\n", report.size());
+    else
+      std::fprintf(stderr, "mrroc-launch: nothing started\n");
+    return kExitConfig;
   }
 
   print_plan(config, plan, check_only);

@@ -15,6 +15,7 @@
 #include "mrroc/comm/links.hpp"
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/comm/request_reply.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/command_line.hpp"
 #include "mrroc/core/plugin_library.hpp"
@@ -42,7 +43,11 @@ class MpShell {
       robots_.push_back(std::make_unique<mp::Robot>(bus, robot.name));
       context_.robots.push_back(robots_.back().get());
     }
-    (void)make_task();  // an unknown task name or bad arguments fail before "ready"
+    // An unknown task name or bad arguments fail before "ready", every error found (an
+    // argument's own location, else the [mp] table's); `mrroc-mp --check-config` runs this too.
+    ConfigErrorList errors;
+    errors.add(mp::check_mp_task(config.mp.name, context_, config.mp.name_where, config.mp.where));
+    errors.throw_if_any();
   }
 
   MpShell(const MpShell&) = delete;
@@ -281,6 +286,14 @@ class MpShell {
   bool terminate_ = false;
 };
 
+/// What the MP builds before it reports ready, at start and for --check-config: the task
+/// library, the robots' links and the task, built once (every error found).
+std::unique_ptr<MpShell> prepare(const ProcessSetConfig& config, comm::Bus& bus,
+                                 Reporter& reporter) {
+  if (!config.mp.library.empty()) load_plugin_library(config.mp.library, config.mp.where);
+  return std::make_unique<MpShell>(config, bus, reporter);
+}
+
 int run(const std::string& config_path) {
   const ProcessSetConfig config = load_process_set(config_path);
   apply_cpu_affinity(config.mp.options.cpus);
@@ -293,17 +306,37 @@ int run(const std::string& config_path) {
   if (scheduling.rfind("SCHED_OTHER (", 0) == 0)
     reporter.warning(fmt::format("runs {}", scheduling));
   try {
-    if (!config.mp.library.empty()) load_plugin_library(config.mp.library, config.mp.where);
-    MpShell shell(config, bus, reporter);
-    const int code = shell.run();
+    const std::unique_ptr<MpShell> shell = prepare(config, bus, reporter);
+    const int code = shell->run();
     if (config.mp_waits_for_operator)
       reporter.set_state(code == 0 ? ProcessState::finished : ProcessState::failed);
     return code;
   } catch (const std::exception& e) {
-    reporter.report(Severity::fatal, 0, e.what());
-    reporter.set_state(ProcessState::failed, e.what());
+    ConfigErrorList errors;
+    errors.add(e, {});
+    for (const auto& error : errors.errors()) reporter.report(Severity::fatal, 0, error.what());
+    reporter.set_state(ProcessState::failed, errors.errors().front().what());
     return 1;
   }
+}
+
+/// --check-config: the process set's errors and the MP's (prepare), one per line on stderr,
+/// nothing started and nothing sent beyond the process (kCheckLcmUrl).
+int check(const std::string& config_path) {
+  const ProcessSetCheck set = check_process_set(config_path);
+  ConfigErrorList errors;
+  errors.add(set.errors);
+  if (!set.broken_process("mp")) {
+    errors.run(SourceLocation::whole_file(set.config.file.string()), [&] {
+      comm::Bus bus(kCheckLcmUrl);
+      Reporter reporter(bus, "mp");
+      (void)prepare(set.config, bus, reporter);
+    });
+  }
+  for (const auto& error : errors.errors()) std::fprintf(stderr, "%s\n", error.what());
+  if (!errors.empty()) return kExitConfigErrors;
+  std::printf("mrroc-mp: mp: config is valid\n");
+  return 0;
 }
 
 }  // namespace
@@ -318,10 +351,16 @@ int main(int argc, char** argv) {
       "code: 0 when the (last) run finished or none ran, 1 when it failed or was stopped, 2 on "
       "a config error or a bad command line. Normally started by mrroc-launch.");
   std::string config;
+  bool check_config = false;
   cli.option("-c,--config", config, "process-set config file (TOML)").required();
+  cli.flag("--check-config", check_config,
+           "check the config as the MP does at start (task library, task name and every "
+           "argument), print every error as file:line and exit (0 valid, 2 errors); nothing is "
+           "started and nothing is sent (mrroc-launch --check runs it)");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   mrroc::install_stop_handlers();
   try {
+    if (check_config) return check(config);
     return run(config);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mrroc-mp: %s\n", e.what());

@@ -24,11 +24,7 @@ Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
               channels::vsp_reply(config.name)),
       received_(config.sources.size(), false),
       last_sample_utime_(config.sources.size(), 0) {
-  SensorSetup setup;
-  setup.name = config.name;
-  setup.sources = config.sources;
-  setup.params = config.params;
-  plugin_->configure(setup);
+  configure_sensor(*plugin_, config);
   for (std::size_t i = 0; i < config.sources.size(); ++i) {
     const std::string channel = channels::raw_sensor(config.sources[i]);
     if (!source_of_channel_.emplace(channel, i).second)

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/ecp/generators/joint_poses.hpp"
 #include "mrroc/ecp/task.hpp"
 
@@ -18,12 +19,17 @@ class VisitJointPoses : public EcpTask {
     options_.motion_steps = static_cast<int>(args.get_int("motion_steps", 10));
     options_.servo_period_s = context.servo_period_s;
     args.reject_unread("robot.ecp.args");
-    // Validate every pose and option before anything moves, naming where they were written.
-    try {
-      JointPosesGenerator check(context.robot.model(), poses_, options_);
-    } catch (const Error& e) {
-      throw ConfigError(args.location_of("poses"), e.what());
-    }
+    // Validate every pose and option before anything moves, naming where they were written:
+    // the options, each pose on its own (arity, joint limits), then the paths between them.
+    ConfigErrorList errors;
+    const SourceLocation at = args.location_of("poses");
+    const RobotModel& model = context.robot.model();
+    errors.run(at, [&] { JointPosesGenerator options_only(model, {}, options_); });
+    for (std::size_t i = 0; i < poses_.size(); ++i)
+      errors.run(
+          at, [&] { model.check_joint_limits(poses_[i], fmt::format("pose {}", i + 1).c_str()); });
+    if (errors.empty()) errors.run(at, [&] { JointPosesGenerator check(model, poses_, options_); });
+    errors.throw_if_any();
   }
 
   void main_task() override {

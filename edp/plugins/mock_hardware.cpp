@@ -27,7 +27,7 @@ class MockHardware : public Hardware {
   bool simulated() const override { return true; }
 
   void configure(const HardwareSetup& setup) override {
-    const Params params = setup.params;
+    const Params& params = setup.params;  // not a copy: a check's sink of unknown keys is kept
     configure_params(params);
     params.reject_unread("robot.edp.params");
     if (setup.synchro_positions.empty())

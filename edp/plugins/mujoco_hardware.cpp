@@ -43,8 +43,8 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
   release();
   fault_[0] = '\0';
 
-  // The plugin's own parameters; a copy so that unread keys can be checked here.
-  const Params params = setup.params;
+  // The plugin's own parameters (not a copy: a check collecting every unknown key sees them).
+  const Params& params = setup.params;
   const bool gravity_compensation = params.get_bool("gravity_compensation", true);
   const std::string mjcf_param = params.get_string("mjcf", "");
   sim::PowerOnRequest power_on_request;

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include "mrroc/config/check.hpp"
+
 namespace mrroc {
 
 void Params::set(const std::string& key, ParamValue value, SourceLocation where) {
@@ -116,8 +118,15 @@ std::vector<std::string> Params::unread_keys() const {
 }
 
 void Params::reject_unread(const std::string& table_name) const {
-  for (const auto& key : unread_keys())
+  for (const auto& key : unread_keys()) {
+    if (sink_.list != nullptr) {
+      sink_.list->add(
+          ConfigError(location_of(key), fmt::format("unknown key '{}' in [{}]", key, table_name)));
+      read_[key] = true;  // reported once
+      continue;
+    }
     throw ConfigError(location_of(key), fmt::format("unknown key '{}' in [{}]", key, table_name));
+  }
 }
 
 }  // namespace mrroc

@@ -1,5 +1,7 @@
 #include "mrroc/config/process_set.hpp"
 
+#include "mrroc/config/check.hpp"
+
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <netinet/in.h>
@@ -7,6 +9,7 @@
 
 #include <algorithm>
 #include <csignal>
+#include <functional>
 
 #include <toml++/toml.h>
 #include <regex>
@@ -24,7 +27,27 @@ constexpr int kMaxProcessPriority = 79;
 
 class Reader {
  public:
-  explicit Reader(fs::path file) : file_(std::move(file)) {}
+  /// `sink`: collect every error there (each table read on its own, `check_process_set`);
+  /// null: throw at the first. `broken`: the processes whose tables had an error go there.
+  explicit Reader(fs::path file, ConfigErrorList* sink = nullptr,
+                  std::set<std::string>* broken = nullptr)
+      : file_(std::move(file)), sink_(sink), broken_(broken) {}
+
+  /// Runs `f`, which reads one table (or part of one). Without a sink its error is thrown; with
+  /// one it is collected and false returned, so that the reading goes on with the next table.
+  template <class F>
+  bool guard(F&& f) const {
+    if (sink_ == nullptr) {
+      f();
+      return true;
+    }
+    return sink_->run(SourceLocation{}, std::forward<F>(f));
+  }
+
+  /// Marks `process` as one whose table had an error (collecting only).
+  void mark_broken(const std::string& process) const {
+    if (broken_ != nullptr) broken_->insert(process);
+  }
 
   SourceLocation where(const toml::node& node) const {
     return SourceLocation{file_.string(), static_cast<int>(node.source().begin.line)};
@@ -59,8 +82,10 @@ class Reader {
       if (!known) {
         std::string list;
         for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-        fail(node,
-             fmt::format("unknown key '{}' in [{}] (allowed: {})", key.str(), table_name, list));
+        const std::string text =
+            fmt::format("unknown key '{}' in [{}] (allowed: {})", key.str(), table_name, list);
+        if (sink_ == nullptr) fail(node, text);
+        sink_->add(ConfigError(where(node), text));  // and the other keys are read as usual
       }
     }
   }
@@ -284,6 +309,7 @@ class Reader {
     TaskConfig c;
     c.where = where(t);
     c.name = string(t, "task", table_name);
+    c.name_where = where(*t.get("task"));
     set_path(t, "library", table_name, c.library);
     if (!c.library.empty()) require_path(*t.get("library"), c.library, Kind::any, "task library");
     c.args = table_params(t, "args", table_name + ".args");
@@ -503,36 +529,41 @@ class Reader {
                             "stale_after_ms", "params"}));
     VspConfig c;
     c.where = where(t);
-    c.name = string(t, "name", "vsp");
-    if (!std::regex_match(c.name, process_name_re()))
-      fail(*t.get("name"), fmt::format("VSP name '{}' must match [a-z][a-z0-9_]* and have at "
-                                       "most 31 characters",
-                                       c.name));
-    if (!names.insert(c.name).second)
-      fail(*t.get("name"), fmt::format("VSP name '{}' is used twice", c.name));
-    c.plugin = string(t, "plugin", "vsp");
-    set_path(t, "library", "vsp", c.library);
-    if (!c.library.empty())
-      require_path(*t.get("library"), c.library, Kind::any, "sensor plugin library");
-    const toml::node* sources = t.get("sources");
-    if (sources == nullptr)
-      throw ConfigError(where(t), fmt::format("missing key 'sources' in [[vsp]] '{}' (the raw "
-                                              "sensor devices that feed it)",
-                                              c.name));
-    const toml::array* arr = sources->as_array();
-    if (arr == nullptr || arr->empty() || !arr->is_homogeneous(toml::node_type::string))
-      fail(*sources, "'sources' must be a non-empty list of raw sensor device names");
-    for (const auto& s : *arr) c.sources.emplace_back(**s.as_string());
-    if (const toml::node* node = t.get("mode")) {
-      const std::string mode = string(t, "mode", "vsp");
-      if (mode != "on_demand" && mode != "periodic")
-        fail(*node, fmt::format("mode '{}' must be \"on_demand\" or \"periodic\"", mode));
-      c.periodic = mode == "periodic";
-    }
-    set_ms(t, "period_ms", c.period_s, 1.0, 10000.0);
-    set_ms(t, "stale_after_ms", c.stale_after_s, 1.0, 60000.0);
-    c.params = table_params(t, "params", "vsp.params");
-    c.options = options(t, "vsp");
+    if (!guard([&] {
+          c.name = string(t, "name", "vsp");
+          if (!std::regex_match(c.name, process_name_re()))
+            fail(*t.get("name"), fmt::format("VSP name '{}' must match [a-z][a-z0-9_]* and have at "
+                                             "most 31 characters",
+                                             c.name));
+          if (!names.insert(c.name).second)
+            fail(*t.get("name"), fmt::format("VSP name '{}' is used twice", c.name));
+          c.plugin = string(t, "plugin", "vsp");
+          c.plugin_where = where(*t.get("plugin"));
+          set_path(t, "library", "vsp", c.library);
+          if (!c.library.empty())
+            require_path(*t.get("library"), c.library, Kind::any, "sensor plugin library");
+          const toml::node* sources = t.get("sources");
+          if (sources == nullptr)
+            throw ConfigError(where(t),
+                              fmt::format("missing key 'sources' in [[vsp]] '{}' (the raw "
+                                          "sensor devices that feed it)",
+                                          c.name));
+          const toml::array* arr = sources->as_array();
+          if (arr == nullptr || arr->empty() || !arr->is_homogeneous(toml::node_type::string))
+            fail(*sources, "'sources' must be a non-empty list of raw sensor device names");
+          for (const auto& s : *arr) c.sources.emplace_back(**s.as_string());
+          if (const toml::node* node = t.get("mode")) {
+            const std::string mode = string(t, "mode", "vsp");
+            if (mode != "on_demand" && mode != "periodic")
+              fail(*node, fmt::format("mode '{}' must be \"on_demand\" or \"periodic\"", mode));
+            c.periodic = mode == "periodic";
+          }
+          set_ms(t, "period_ms", c.period_s, 1.0, 10000.0);
+          set_ms(t, "stale_after_ms", c.stale_after_s, 1.0, 60000.0);
+          c.params = table_params(t, "params", "vsp.params");
+          c.options = options(t, "vsp");
+        }))
+      mark_broken("vsp/" + c.name);
     return c;
   }
 
@@ -565,29 +596,40 @@ class Reader {
     return out;
   }
 
-  /// One [[robot]]; `names`: the robot names so far.
+  /// One [[robot]]; `names`: the robot names so far. Collecting, an error in the robot's own
+  /// keys marks its EDP and ECP broken, one in [robot.edp] or [robot.ecp] that process only.
   RobotConfig robot(const toml::table& t, std::set<std::string>& names) const {
     only_keys(t, "robot", {"name", "model", "base", "edp", "ecp"});
     RobotConfig c;
     c.where = where(t);
-    c.name = string(t, "name", "robot");
-    if (!std::regex_match(c.name, process_name_re()))
-      fail(*t.get("name"), fmt::format("robot name '{}' must match [a-z][a-z0-9_]* and have at "
-                                       "most 31 characters",
-                                       c.name));
-    if (!names.insert(c.name).second)
-      fail(*t.get("name"), fmt::format("robot name '{}' is used twice", c.name));
-    c.model_dir = resolve(string(t, "model", "robot"));
-    require_path(*t.get("model"), c.model_dir, Kind::folder, "robot model folder");
-    if (const toml::node* base = t.get("base")) {
-      const toml::array* values = base->as_array();
-      if (values == nullptr || values->size() != 6)
-        fail(*base, "'base' must be [x, y, z, rx, ry, rz] (m, rotation vector in rad)");
-      const std::vector<double> v = numbers(*values, "base");
-      std::copy(v.begin(), v.end(), c.base.begin());
-    }
-    c.edp = edp(table(t, "edp", "robot"));
-    c.ecp = task(table(t, "ecp", "robot"), "robot.ecp", "ecp");
+    bool own = guard([&] {
+      c.name = string(t, "name", "robot");
+      if (!std::regex_match(c.name, process_name_re()))
+        fail(*t.get("name"), fmt::format("robot name '{}' must match [a-z][a-z0-9_]* and have at "
+                                         "most 31 characters",
+                                         c.name));
+      if (!names.insert(c.name).second)
+        fail(*t.get("name"), fmt::format("robot name '{}' is used twice", c.name));
+    });
+    own = guard([&] {
+            c.model_dir = resolve(string(t, "model", "robot"));
+            require_path(*t.get("model"), c.model_dir, Kind::folder, "robot model folder");
+          }) &&
+          own;
+    own = guard([&] {
+            if (const toml::node* base = t.get("base")) {
+              const toml::array* values = base->as_array();
+              if (values == nullptr || values->size() != 6)
+                fail(*base, "'base' must be [x, y, z, rx, ry, rz] (m, rotation vector in rad)");
+              const std::vector<double> v = numbers(*values, "base");
+              std::copy(v.begin(), v.end(), c.base.begin());
+            }
+          }) &&
+          own;
+    if (!guard([&] { c.edp = edp(table(t, "edp", "robot")); }) || !own)
+      mark_broken("edp/" + c.name);
+    if (!guard([&] { c.ecp = task(table(t, "ecp", "robot"), "robot.ecp", "ecp"); }) || !own)
+      mark_broken("ecp/" + c.name);
     return c;
   }
 
@@ -599,6 +641,7 @@ class Reader {
     EdpConfig c;
     c.where = where(t);
     c.plugin = string(t, "plugin", "robot.edp");
+    c.plugin_where = where(*t.get("plugin"));
     set_path(t, "library", "robot.edp", c.library);
     if (!c.library.empty())
       require_path(*t.get("library"), c.library, Kind::any, "hardware plugin library");
@@ -638,6 +681,8 @@ class Reader {
 
  private:
   fs::path file_;
+  ConfigErrorList* sink_;
+  std::set<std::string>* broken_;
 };
 
 }  // namespace
@@ -753,21 +798,25 @@ void check_hosts(const ProcessSetConfig& config) {
   }
 }
 
-ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path& file) {
+/// Reads the tables of `root`; `sink` and `broken` as for Reader (null: throw at the first error).
+ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path& file,
+                                        ConfigErrorList* sink = nullptr,
+                                        std::set<std::string>* broken = nullptr) {
   ProcessSetConfig config;
   config.file = file;
-  const Reader r(config.file);
+  const Reader r(config.file, sink, broken);
   r.only_keys(root, "top level",
               {"system", "srp", "emulator", "vsp", "mp", "robot", "ui", "launch"});
-  r.system(root, config);
-  config.srp = r.srp(root.get("srp"));
-  config.ui = r.ui(root.get("ui"));
-  config.launch = r.launch(root.get("launch"));
-  if (const toml::node* emu = root.get("emulator")) config.emulator = r.emulator(*emu);
-  if (const toml::node* vsps = root.get("vsp")) config.vsps = r.vsps(*vsps);
-  r.mp(root, config);
-  config.robots = r.robots(root);
-  check_hosts(config);
+  r.guard([&] { r.system(root, config); });
+  r.guard([&] { config.srp = r.srp(root.get("srp")); });
+  r.guard([&] { config.ui = r.ui(root.get("ui")); });
+  r.guard([&] { config.launch = r.launch(root.get("launch")); });
+  if (const toml::node* emu = root.get("emulator"))
+    if (!r.guard([&] { config.emulator = r.emulator(*emu); })) r.mark_broken("emu");
+  if (const toml::node* vsps = root.get("vsp")) r.guard([&] { config.vsps = r.vsps(*vsps); });
+  if (!r.guard([&] { r.mp(root, config); })) r.mark_broken("mp");
+  r.guard([&] { config.robots = r.robots(root); });
+  r.guard([&] { check_hosts(config); });
   return config;
 }
 
@@ -802,6 +851,49 @@ ProcessSetConfig parse_process_set(std::string_view text, const fs::path& path) 
     throw_parse_error(file, e);
   }
   return process_set_from_table(root, file);
+}
+
+}  // namespace mrroc
+
+namespace mrroc {
+
+namespace {
+
+ProcessSetCheck check_parsed(const std::function<toml::table()>& parse, const fs::path& file) {
+  ProcessSetCheck out;
+  out.config.file = file;
+  ConfigErrorList errors;
+  toml::table root;
+  try {
+    root = parse();
+  } catch (const toml::parse_error& e) {
+    out.errors.emplace_back(SourceLocation{file.string(), static_cast<int>(e.source().begin.line)},
+                            std::string(e.description()));
+    return out;
+  }
+  out.config = process_set_from_table(root, file, &errors, &out.broken);
+  out.errors = errors.errors();
+  return out;
+}
+
+}  // namespace
+
+ProcessSetCheck check_process_set(const fs::path& path) {
+  if (std::error_code ec; !fs::exists(path, ec)) {
+    ProcessSetCheck out;
+    out.config.file = path;
+    out.errors.emplace_back(
+        SourceLocation::whole_file(path.string()),
+        fmt::format("config file not found{}", ec ? " (" + ec.message() + ")" : std::string{}));
+    return out;
+  }
+  const fs::path file = fs::absolute(path).lexically_normal();
+  return check_parsed([&] { return toml::parse_file(file.string()); }, file);
+}
+
+ProcessSetCheck check_process_set_text(std::string_view text, const fs::path& path) {
+  const fs::path file = fs::absolute(path).lexically_normal();
+  return check_parsed([&] { return toml::parse(text, file.string()); }, file);
 }
 
 }  // namespace mrroc

@@ -1,5 +1,6 @@
 // The name -> factory registry of ECP tasks, and the virtual sensors of an ECP task.
 #include "../core/registry.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/ecp/task.hpp"
 
 namespace mrroc {
@@ -16,6 +17,22 @@ void ecp::register_ecp_task(const std::string& name, EcpTaskFactory factory) {
 }
 std::unique_ptr<ecp::EcpTask> ecp::make_ecp_task(const std::string& name, TaskContext& context) {
   return ecp_registry().get(name)(context);
+}
+
+std::vector<ConfigError> ecp::check_ecp_task(const std::string& name, const TaskContext& context,
+                                             const SourceLocation& name_where,
+                                             const SourceLocation& where) {
+  ConfigErrorList errors;
+  EcpTaskFactory factory;
+  if (!errors.run(name_where, [&] { factory = ecp_registry().get(name); })) return errors.errors();
+  // A copy of the arguments that collects every unknown key instead of throwing at the first.
+  Params args = context.args;
+  args.collect_unknown_keys(&errors);
+  TaskContext built{context.robot,          context.reporter, args,
+                    context.servo_period_s, context.bus,      context.process};
+  errors.run(where, [&] { (void)factory(built); });
+  args.collect_unknown_keys(nullptr);
+  return errors.errors();
 }
 
 }  // namespace mrroc

@@ -1,6 +1,11 @@
 // Registry of EDP hardware plugins.
+#include <fmt/format.h>
+
 #include "../core/registry.hpp"
+#include "mrroc/config/check.hpp"
+#include "mrroc/config/process_set.hpp"
 #include "mrroc/edp/hardware.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::edp {
 
@@ -18,5 +23,35 @@ void register_hardware(const std::string& name, HardwareFactory factory) {
 std::unique_ptr<Hardware> make_hardware(const std::string& name) { return registry().get(name)(); }
 
 std::vector<std::string> hardware_names() { return registry().names(); }
+
+std::unique_ptr<Hardware> make_configured_hardware(const RobotConfig& robot,
+                                                   const RobotModel& model, bool open_devices) {
+  std::unique_ptr<Hardware> hardware;
+  try {
+    hardware = make_hardware(robot.edp.plugin);
+  } catch (const ConfigError& e) {
+    throw e.at(robot.edp.plugin_where.known() ? robot.edp.plugin_where : robot.edp.where);
+  }
+  ConfigErrorList errors;
+  if (robot.edp.lock_step && !hardware->simulated())
+    errors.add(ConfigError(
+        robot.edp.where,
+        fmt::format("lock_step = true needs simulated hardware; plugin '{}' drives its axes in "
+                    "real time (for emulated drives, set lock_step in [emulator] instead)",
+                    hardware->name())));
+  if (open_devices || hardware->simulated()) {
+    HardwareSetup setup;
+    setup.robot = robot.name;
+    setup.model_dir = robot.model_dir;
+    setup.servo_period_s = robot.edp.servo_period_s;
+    setup.synchro_positions = model.synchro_joint_positions;
+    setup.params = robot.edp.params;
+    setup.params.collect_unknown_keys(&errors);  // every unknown key, and the other checks too
+    errors.run(robot.edp.where, [&] { hardware->configure(setup); });
+    setup.params.collect_unknown_keys(nullptr);
+  }
+  errors.throw_if_any();
+  return hardware;
+}
 
 }  // namespace mrroc::edp

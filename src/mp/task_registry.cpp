@@ -2,6 +2,7 @@
 #include <fmt/format.h>
 
 #include "../core/registry.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 #include "mrroc/mp/task.hpp"
 
@@ -29,6 +30,21 @@ void mp::register_mp_task(const std::string& name, MpTaskFactory factory) {
 }
 std::unique_ptr<mp::MpTask> mp::make_mp_task(const std::string& name, TaskContext& context) {
   return mp_registry().get(name)(context);
+}
+
+std::vector<ConfigError> mp::check_mp_task(const std::string& name, const TaskContext& context,
+                                           const SourceLocation& name_where,
+                                           const SourceLocation& where) {
+  ConfigErrorList errors;
+  MpTaskFactory factory;
+  if (!errors.run(name_where, [&] { factory = mp_registry().get(name); })) return errors.errors();
+  // A copy of the arguments that collects every unknown key instead of throwing at the first.
+  Params args = context.args;
+  args.collect_unknown_keys(&errors);
+  TaskContext built{context.robots, context.reporter, args, context.config, context.bus};
+  errors.run(where, [&] { (void)factory(built); });
+  args.collect_unknown_keys(nullptr);
+  return errors.errors();
 }
 
 }  // namespace mrroc

@@ -378,6 +378,15 @@ TEST(LaunchDemo, UnknownPluginFailsBeforeTheTaskStarts) {
                  "\"" + (kSource / "robots/irb6").string() + "\"");
   const fs::path file = dir / "plugin.toml";
   std::ofstream(file) << config;
+  // --check finds it before anything starts: the EDP's own check (--check-config), at the line
+  // of `plugin`.
+  const RunResult check = run({launcher(), "--check", file.string()}, 20.0);
+  EXPECT_EQ(check.exit_code, 2) << check.output;
+  EXPECT_NE(check.output.find(file.string() + ":19: error: unknown hardware plugin 'mujocoo' "
+                                              "(known: can, faulty, mock, mujoco)"),
+            std::string::npos)
+      << check.output;
+  EXPECT_EQ(check.output.find("config is valid"), std::string::npos) << check.output;
   const RunResult r = run({launcher(), file.string()}, 30.0);
   fs::remove_all(dir);
   EXPECT_EQ(r.exit_code, 3) << r.output;

@@ -16,6 +16,8 @@
 
 namespace mrroc {
 
+class ConfigErrorList;
+
 /// One parameter value. Lists of numbers and lists of lists of numbers cover poses and pose lists.
 using ParamValue = std::variant<bool, std::int64_t, double, std::string, std::vector<double>,
                                 std::vector<std::vector<double>>, std::vector<std::string>>;
@@ -56,7 +58,14 @@ class Params {
   /// Keys present in the table but never read by any getter.
   [[nodiscard]] std::vector<std::string> unread_keys() const;
   /// @throws ConfigError naming the first unread key ("unknown key 'x' in [robot.edp.params]").
+  /// With a sink (`collect_unknown_keys`) it adds every unread key to it and returns.
   void reject_unread(const std::string& table_name) const;
+
+  /// Makes `reject_unread` add every unknown key to `sink` instead of throwing at the first, so
+  /// that a check reports them all and goes on with the other checks (null: throw, the
+  /// default). A copy of the table does not collect: the sink belongs to the check that set it,
+  /// and a copy kept beyond it (by a plugin, say) throws as usual.
+  void collect_unknown_keys(ConfigErrorList* sink) const { sink_.list = sink; }
 
   [[nodiscard]] const std::map<std::string, ParamValue>& values() const { return values_; }
 
@@ -73,6 +82,18 @@ class Params {
   std::map<std::string, ParamValue> values_;
   std::map<std::string, SourceLocation> where_;
   mutable std::map<std::string, bool> read_;
+  /// The sink of `collect_unknown_keys`; a copy of it is null.
+  struct Sink {
+    ConfigErrorList* list = nullptr;
+    Sink() = default;
+    Sink(const Sink& /*other*/) noexcept {}
+    Sink& operator=(const Sink& /*other*/) noexcept {
+      list = nullptr;
+      return *this;
+    }
+    ~Sink() = default;
+  };
+  mutable Sink sink_;
 };
 
 }  // namespace mrroc

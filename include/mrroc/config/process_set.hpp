@@ -11,6 +11,7 @@
 #include <array>
 #include <filesystem>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -119,6 +120,7 @@ inline constexpr int kMaxLookahead = 64;
 
 struct EdpConfig {
   std::string plugin;             ///< hardware plugin name, e.g. "mujoco"
+  SourceLocation plugin_where;    ///< where `plugin` was given (for errors)
   std::filesystem::path library;  ///< shared library registering the plugin (optional)
   double servo_period_s = kDefaultServoPeriodS;  ///< servo period [s]
   /// Macro-steps queued ahead of the servo loop (1..kMaxLookahead; 1: the paper's one successor,
@@ -135,6 +137,7 @@ struct EdpConfig {
 /// A task (MP or ECP): a name registered by a task plugin, its optional library, its arguments.
 struct TaskConfig {
   std::string name;
+  SourceLocation name_where;      ///< where `task` was given (for errors)
   std::filesystem::path library;  ///< shared library to load before looking the name up (optional)
   Params args;                    ///< the task's own arguments ([...args])
   ProcessOptions options;
@@ -165,6 +168,7 @@ struct EmulatorConfig {
 struct VspConfig {
   std::string name;                  ///< e.g. "wrist_force"; channels vsp/<name>/...
   std::string plugin;                ///< sensor plugin name, e.g. "force_torque"
+  SourceLocation plugin_where;       ///< where `plugin` was given (for errors)
   std::filesystem::path library;     ///< shared library registering the plugin (optional)
   std::vector<std::string> sources;  ///< raw sensor devices feeding it (mrroc/raw/<device>)
   bool periodic = false;             ///< readings made every period (else on INITIATE_READING)
@@ -204,6 +208,31 @@ Params params_from_toml(const std::string& text, const std::string& origin);
 
 /// Loads and validates a process-set file. @throws ConfigError ("file:line: error: ...").
 ProcessSetConfig load_process_set(const std::filesystem::path& file);
+
+/// What `check_process_set` found: the config as far as it could be read, and every error.
+struct ProcessSetCheck {
+  /// Every table that could be read; a table with an error is read up to it (the rest keeps
+  /// its defaults).
+  ProcessSetConfig config;
+  /// Every error of the file, each with its `file:line`, in the order found.
+  std::vector<ConfigError> errors;
+  /// The processes whose own tables have an error ("edp/irb6", "ecp/irb6", "vsp/camera", "mp",
+  /// "emu"): their own checks (`--check-config`) are left out, the error is reported already.
+  std::set<std::string> broken;
+
+  [[nodiscard]] bool ok() const { return errors.empty(); }
+  [[nodiscard]] bool broken_process(const std::string& process) const {
+    return broken.count(process) != 0;
+  }
+};
+
+/// Validates a process-set file as `load_process_set` does, with the same code, but reports
+/// every error instead of the first: each table is read on its own (an error ends the reading
+/// of its table, not of the file) and every unknown key is an error of its own. Never throws a
+/// ConfigError (a file that does not parse as TOML is one error).
+ProcessSetCheck check_process_set(const std::filesystem::path& file);
+/// The same for `text` as the content of `file` (as `parse_process_set`).
+ProcessSetCheck check_process_set_text(std::string_view text, const std::filesystem::path& file);
 
 /// Validates `text` as if it were the content of the process-set file `file`, exactly as
 /// `load_process_set` does: `file` names the errors and relative paths resolve against its folder,

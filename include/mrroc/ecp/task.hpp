@@ -46,6 +46,15 @@ void register_ecp_task(const std::string& name, EcpTaskFactory factory);
 /// @throws ConfigError listing the known task names.
 std::unique_ptr<EcpTask> make_ecp_task(const std::string& name, TaskContext& context);
 
+/// What the ECP checks of its task before it reports ready, and what `mrroc-ecp --check-config`
+/// (run by `mrroc-launch --check`) checks: the task `name` is built once with `context` (no
+/// motion, no request). Returns every error found: an unknown name (at `name_where`), every
+/// unknown key of the arguments, and the first other error the task's constructor throws (types,
+/// ranges, poses against the limits), each at its own location, else at `where`.
+std::vector<ConfigError> check_ecp_task(const std::string& name, const TaskContext& context,
+                                        const SourceLocation& name_where,
+                                        const SourceLocation& where);
+
 namespace detail {
 struct EcpTaskRegistrar {
   EcpTaskRegistrar(const char* name, EcpTaskFactory f) { register_ecp_task(name, std::move(f)); }

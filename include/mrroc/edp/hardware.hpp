@@ -25,6 +25,11 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/core/time.hpp"
 
+namespace mrroc {
+struct RobotConfig;
+struct RobotModel;
+}  // namespace mrroc
+
 namespace mrroc::edp {
 
 /// Result of one servo-cycle call into a plugin.
@@ -115,6 +120,16 @@ void register_hardware(const std::string& name, HardwareFactory factory);
 /// @throws ConfigError listing the known plugins when `name` is unknown.
 std::unique_ptr<Hardware> make_hardware(const std::string& name);
 std::vector<std::string> hardware_names();
+
+/// The hardware of `robot` as mrroc-edp makes it at start, and as `mrroc-edp --check-config`
+/// (run by `mrroc-launch --check`) checks it: the plugin named in [robot.edp] (unknown: an error
+/// at `plugin`), `lock_step` only for simulated hardware, then `configure()` with the robot's
+/// setup (its [robot.edp.params], every unknown key reported, and the plugin's model files).
+/// With `open_devices` false (the check) a plugin that drives real devices (`simulated()`
+/// false) is made but not configured: its configure() opens them.
+/// @throws ConfigError, or ConfigErrors with every error found.
+std::unique_ptr<Hardware> make_configured_hardware(const RobotConfig& robot,
+                                                   const RobotModel& model, bool open_devices);
 
 namespace detail {
 struct HardwareRegistrar {

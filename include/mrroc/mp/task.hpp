@@ -55,6 +55,15 @@ void register_mp_task(const std::string& name, MpTaskFactory factory);
 /// @throws ConfigError listing the known task names.
 std::unique_ptr<MpTask> make_mp_task(const std::string& name, TaskContext& context);
 
+/// What the MP checks of its task before it reports ready, and what `mrroc-mp --check-config`
+/// (run by `mrroc-launch --check`) checks: the task `name` is built once with `context`.
+/// Returns every error found: an unknown name (at `name_where`), every unknown key of the
+/// arguments, and the first other error the constructor throws, at its own location, else at
+/// `where`.
+std::vector<ConfigError> check_mp_task(const std::string& name, const TaskContext& context,
+                                       const SourceLocation& name_where,
+                                       const SourceLocation& where);
+
 namespace detail {
 struct MpTaskRegistrar {
   MpTaskRegistrar(const char* name, MpTaskFactory f) { register_mp_task(name, std::move(f)); }

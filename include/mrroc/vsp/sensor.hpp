@@ -21,6 +21,10 @@
 #include "mrroc/config/params.hpp"
 #include "mrroc/msg/sensor_reading.hpp"
 
+namespace mrroc {
+struct VspConfig;
+}  // namespace mrroc
+
 namespace mrroc::vsp {
 
 struct SensorSetup {
@@ -52,6 +56,14 @@ void register_sensor(const std::string& name, SensorFactory factory);
 /// @throws ConfigError listing the known plugins when `name` is unknown.
 std::unique_ptr<SensorPlugin> make_sensor(const std::string& name);
 std::vector<std::string> sensor_names();
+
+/// The sensor plugin of a [[vsp]] as mrroc-vsp makes it at start, and as `mrroc-vsp
+/// --check-config` (run by `mrroc-launch --check`) checks it: made by its name (unknown: an error
+/// at `plugin`). @throws ConfigError.
+std::unique_ptr<SensorPlugin> make_sensor(const VspConfig& vsp);
+/// Configures `plugin` with the VSP's name, sources and [vsp.params], every unknown key of the
+/// parameters reported. @throws ConfigError, or ConfigErrors with every error found.
+void configure_sensor(SensorPlugin& plugin, const VspConfig& vsp);
 
 namespace detail {
 struct SensorRegistrar {

@@ -1,0 +1,45 @@
+#include "mrroc/config/check.hpp"
+
+namespace mrroc {
+
+namespace {
+std::string joined(const std::vector<ConfigError>& errors) {
+  std::string text;
+  for (const auto& e : errors) text += (text.empty() ? "" : "\n") + std::string(e.what());
+  return text;
+}
+}  // namespace
+
+ConfigErrors::ConfigErrors(std::vector<ConfigError> errors)
+    : ConfigError(errors.empty() ? ConfigError("no error") : errors.front()),
+      errors_(std::move(errors)),
+      text_(joined(errors_)) {
+  if (errors_.empty()) errors_.push_back(ConfigError("no error"));
+}
+
+void ConfigErrorList::add(const ConfigError& error, const SourceLocation& where) {
+  errors_.push_back(where.known() ? error.at(where) : error);
+}
+
+void ConfigErrorList::add(const std::exception& error, const SourceLocation& where) {
+  if (const auto* many = dynamic_cast<const ConfigErrors*>(&error)) {
+    for (const auto& e : many->errors()) add(e, where);
+  } else if (const auto* one = dynamic_cast<const ConfigError*>(&error)) {
+    add(*one, where);
+  } else if (where.known()) {
+    errors_.emplace_back(where, error.what());
+  } else {
+    errors_.emplace_back(std::string(error.what()));
+  }
+}
+
+void ConfigErrorList::add(const std::vector<ConfigError>& errors) {
+  errors_.insert(errors_.end(), errors.begin(), errors.end());
+}
+
+void ConfigErrorList::throw_if_any() const {
+  if (errors_.size() == 1) throw errors_.front();
+  if (!errors_.empty()) throw ConfigErrors(errors_);
+}
+
+}  // namespace mrroc

@@ -1,0 +1,173 @@
+// mrroc-launch --check validates what the processes will: every EDP, ECP, VSP and the MP run
+// their own start-up checks (--check-config) on the config, and every error of the file is
+// reported in one run with its file:line (docs/configs.md, "When each part is checked").
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kBin = MRROC_BIN_DIR;
+const fs::path kSource = MRROC_SOURCE_DIR;
+
+/// Runs `command` (shell words, already quoted), returns its exit code and output (both streams).
+std::pair<int, std::string> run(const std::string& command) {
+  std::string output;
+  FILE* pipe = ::popen((command + " 2>&1 </dev/null").c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::array<char, 4096> buffer{};
+  std::size_t n = 0;
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    output.append(buffer.data(), n);
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+std::string launcher() { return (kBin / "mrroc-launch").string(); }
+
+/// A config with one mistake per marked line; `line_of` finds the line (1-based) of a marker.
+struct BrokenConfig {
+  std::vector<std::string> lines;
+  fs::path file;
+
+  [[nodiscard]] int line_of(const std::string& marker) const {
+    for (std::size_t i = 0; i < lines.size(); ++i)
+      if (lines[i].find(marker) != std::string::npos) return static_cast<int>(i + 1);
+    ADD_FAILURE() << "no line with " << marker;
+    return 0;
+  }
+};
+
+BrokenConfig write_broken_config() {
+  BrokenConfig c;
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-check-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  c.file = dir / "broken.toml";
+  const std::string irb6 = (kSource / "robots/irb6").string();
+  c.lines = {
+      "[system]",
+      "name = \"broken\"",
+      "",
+      "[mp]",
+      "task = \"start_and_wait\"",
+      "[mp.args]",
+      "extra = 1",  // unknown key in the MP task's arguments
+      "",
+      "[[vsp]]",
+      "name = \"wrist\"",
+      "plugin = \"force_torgue\"",  // unknown sensor plugin
+      "sources = [\"wrist_ft\"]",
+      "",
+      "[[robot]]",
+      "name = \"irb6\"",
+      "model = \"" + irb6 + "\"",
+      "[robot.edp]",
+      "plugin = \"mujoko\"",  // unknown hardware plugin
+      "[robot.ecp]",
+      "task = \"visit_joint_poses\"",
+      "[robot.ecp.args]",
+      // 4 values for a 5-axis arm; 9 rad beyond the column's limit
+      "poses = [[0.6, -1.35, 0.15, 0.5], [9.0, -1.8, -0.2, -0.6, -1.2]]",
+      "motion_stepz = 10",  // misspelt task argument
+      "",
+      "[[robot]]",
+      "name = \"second\"",
+      "model = \"" + irb6 + "\"",
+      "[robot.edp]",
+      "plugin = \"mujoco\"",
+      "servo_period_sm = 2.0",  // unknown key of the schema
+      "[robot.edp.params]",
+      "gravity_compensaton = true",  // unknown key of the plugin
+      "[robot.ecp]",
+      "task = \"visit_joint_posez\"",  // unknown ECP task
+      "",
+      "[[robot]]",
+      "name = \"third\"",
+      "model = \"" + (kSource / "robots/no_such_robot").string() + "\"",  // missing model folder
+      "[robot.edp]",
+      "plugin = \"mujoco\"",
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+  };
+  std::ofstream out(c.file);
+  for (const auto& l : c.lines) out << l << "\n";
+  return c;
+}
+
+TEST(ConfigCheck, ReportsEveryMistakeOfTheFileWithItsLineAndExits2) {
+  const BrokenConfig c = write_broken_config();
+  const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  const std::string f = c.file.string();
+  const std::string irb6 = (kSource / "robots").string();
+  const std::vector<std::pair<std::string, std::string>> expected = {
+      {"extra = 1", "unknown key 'extra' in [mp.args]"},
+      {"force_torgue", "unknown sensor plugin 'force_torgue' (known: "},
+      {"mujoko", "unknown hardware plugin 'mujoko' (known: "},
+      {"poses = ", "pose 1 has 4 joint values, robot 'irb6' has 5 axes"},
+      {"poses = ", "joint 0 (column) pose 2 9.000000 rad exceeds upper limit"},
+      {"motion_stepz", "unknown key 'motion_stepz' in [robot.ecp.args]"},
+      {"servo_period_sm", "unknown key 'servo_period_sm' in [robot.edp] (allowed: "},
+      {"gravity_compensaton", "unknown key 'gravity_compensaton' in [robot.edp.params]"},
+      {"visit_joint_posez", "unknown ECP task 'visit_joint_posez' (known: "},
+      {"no_such_robot", "robot model folder '" + irb6 + "/no_such_robot' not found"},
+  };
+  for (const auto& [marker, message] : expected) {
+    const std::string line = f + ":" + std::to_string(c.line_of(marker)) + ": error: " + message;
+    EXPECT_NE(out.find(line), std::string::npos) << "expected: " << line << "\n" << out;
+  }
+  EXPECT_NE(out.find(std::to_string(expected.size()) + " errors; nothing started"),
+            std::string::npos)
+      << "each error once, nothing else\n"
+      << out;
+  EXPECT_EQ(out.find("config is valid"), std::string::npos) << out;
+  EXPECT_EQ(out.find("mrroc-launch: started"), std::string::npos) << out;
+
+  // A process' own check is the one --check ran: the ECP of irb6 alone names its three errors.
+  const auto [ecp_code, ecp_out] =
+      run((kBin / "mrroc-ecp").string() + " --check-config -c '" + f + "' -r irb6");
+  EXPECT_EQ(ecp_code, 2) << ecp_out;
+  EXPECT_NE(ecp_out.find(f + ":" + std::to_string(c.line_of("motion_stepz")) + ": error: "),
+            std::string::npos)
+      << ecp_out;
+  EXPECT_NE(ecp_out.find("pose 1 has 4 joint values"), std::string::npos) << ecp_out;
+  fs::remove_all(c.file.parent_path());
+}
+
+TEST(ConfigCheck, EveryStockConfigPasses) {
+  int checked = 0;
+  for (const auto& entry : fs::directory_iterator(kSource / "configs")) {
+    if (entry.path().extension() != ".toml") continue;
+    const auto [code, out] = run(launcher() + " --check '" + entry.path().string() + "'");
+    EXPECT_EQ(code, 0) << entry.path() << "\n" << out;
+    EXPECT_NE(out.find("mrroc-launch: config is valid (--check: nothing started)"),
+              std::string::npos)
+        << entry.path() << "\n"
+        << out;
+    ++checked;
+  }
+  EXPECT_GE(checked, 10);
+}
+
+TEST(ConfigCheck, AProcessChecksOnlyWhatItsOwnTablesAllow) {
+  // A robot whose model folder is missing: its EDP and ECP do not add follow-on errors.
+  const BrokenConfig c = write_broken_config();
+  const auto [code, out] =
+      run((kBin / "mrroc-edp").string() + " --check-config -c '" + c.file.string() + "' -r third");
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_EQ(out.find("parameters.toml"), std::string::npos) << out;
+  EXPECT_NE(out.find("no_such_robot' not found"), std::string::npos) << out;
+  fs::remove_all(c.file.parent_path());
+}
+
+}  // namespace

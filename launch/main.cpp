@@ -5,7 +5,9 @@
 // their restart policy, broadcasts the process table, and exits with the task's outcome.
 // SIGINT/SIGTERM stop everything in reverse order.
 // `mrroc-launch status CONFIG` prints the process table of a running set.
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <poll.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -227,21 +229,63 @@ bool checks_own_config(const PlannedProcess& p) {
          p.name.rfind("vsp/", 0) == 0;
 }
 
-/// Runs `argv` here and returns its exit code and what it printed (stdout and stderr).
-std::pair<int, std::string> run_captured(const std::vector<std::string>& argv) {
-  std::string command;
-  for (const auto& w : argv) command += launch::shell_quote(w) + " ";
-  command += "2>&1 </dev/null";
+/// The longest a process' --check-config may take (it loads models, no network).
+constexpr std::chrono::seconds kCheckTimeout{60};
+
+/// Runs `argv` here (stdin from /dev/null) and returns its exit code (128+N for signal N, -1
+/// when it could not be started) and what it printed (stdout and stderr). A program still
+/// running after `timeout` is killed (exit code 128+SIGKILL, the output says so).
+std::pair<int, std::string> run_captured(const std::vector<std::string>& argv,
+                                         std::chrono::milliseconds timeout) {
+  int out[2];
+  if (::pipe2(out, O_CLOEXEC) != 0) return {-1, std::string("pipe: ") + std::strerror(errno)};
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(out[0]);
+    ::close(out[1]);
+    return {-1, std::string("fork: ") + std::strerror(errno)};
+  }
+  if (pid == 0) {
+    const int null = ::open("/dev/null", O_RDONLY);
+    if (null >= 0) ::dup2(null, STDIN_FILENO);
+    ::dup2(out[1], STDOUT_FILENO);
+    ::dup2(out[1], STDERR_FILENO);
+    ::execvp(args[0], args.data());
+    std::fprintf(stderr, "cannot run %s: %s\n", args[0], std::strerror(errno));
+    ::_exit(127);
+  }
+  ::close(out[1]);
   std::string output;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return {-1, std::string("cannot run: ") + std::strerror(errno)};
-  std::array<char, 4096> buffer{};
-  std::size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-    output.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  const int code = status == -1          ? -1
-                   : WIFEXITED(status)   ? WEXITSTATUS(status)
+  const auto deadline = Clock::now() + timeout;
+  bool killed = false;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<milliseconds>(deadline - Clock::now()).count();
+    if (left <= 0) {
+      ::kill(pid, SIGKILL);
+      killed = true;
+      break;
+    }
+    pollfd p{out[0], POLLIN, 0};
+    const int ready = ::poll(&p, 1, static_cast<int>(std::min<long long>(left, 100)));
+    if (ready < 0 && errno != EINTR) break;
+    if (ready <= 0) continue;
+    std::array<char, 4096> buffer{};
+    const ssize_t n = ::read(out[0], buffer.data(), buffer.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;  // end of output: the program ended (or closed it)
+    output.append(buffer.data(), static_cast<std::size_t>(n));
+  }
+  ::close(out[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (killed)
+    output += fmt::format("\n(killed after {} s)",
+                          std::chrono::duration_cast<std::chrono::seconds>(timeout).count());
+  const int code = WIFEXITED(status)     ? WEXITSTATUS(status)
                    : WIFSIGNALED(status) ? 128 + WTERMSIG(status)
                                          : -1;
   return {code, output};
@@ -301,7 +345,7 @@ void check_processes(const ProcessSetCheck& set, const std::vector<PlannedProces
     if (!program_exists(p.command[0])) continue;  // reported already
     std::vector<std::string> argv = p.command;
     argv.emplace_back("--check-config");
-    const auto [code, output] = run_captured(argv);
+    const auto [code, output] = run_captured(argv, kCheckTimeout);
     bool any = false;
     std::size_t start = 0;
     while (start < output.size()) {

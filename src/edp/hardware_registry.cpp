@@ -32,13 +32,14 @@ std::unique_ptr<Hardware> make_configured_hardware(const RobotConfig& robot,
   } catch (const ConfigError& e) {
     throw e.at(robot.edp.plugin_where.known() ? robot.edp.plugin_where : robot.edp.where);
   }
-  ConfigErrorList errors;
+  // Before configure(), which opens the devices of real hardware.
   if (robot.edp.lock_step && !hardware->simulated())
-    errors.add(ConfigError(
+    throw ConfigError(
         robot.edp.where,
         fmt::format("lock_step = true needs simulated hardware; plugin '{}' drives its axes in "
                     "real time (for emulated drives, set lock_step in [emulator] instead)",
-                    hardware->name())));
+                    hardware->name()));
+  ConfigErrorList errors;
   if (open_devices || hardware->simulated()) {
     HardwareSetup setup;
     setup.robot = robot.name;

@@ -9,9 +9,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "mrroc/config/process_set.hpp"
 
 namespace {
 
@@ -142,6 +145,44 @@ TEST(ConfigCheck, ReportsEveryMistakeOfTheFileWithItsLineAndExits2) {
       << ecp_out;
   EXPECT_NE(ecp_out.find("pose 1 has 4 joint values"), std::string::npos) << ecp_out;
   fs::remove_all(c.file.parent_path());
+}
+
+TEST(ConfigCheck, TheReaderReportsEveryErrorOfEveryTableAndWhichProcessesTheyConcern) {
+  const std::string model = (kSource / "robots/irb6").string();
+  const std::string text =
+      "[system]\n"                   // 1
+      "name = \"x\"\n"               // 2
+      "ready_timeout_s = \"10\"\n"   // 3: not a number
+      "[mp]\n"                       // 4
+      "task = \"start_and_wait\"\n"  // 5
+      "[[robot]]\n"                  // 6
+      "name = \"irb6\"\n"            // 7
+      "model = \"" +
+      model +
+      "\"\n"                     // 8
+      "[robot.edp]\n"            // 9
+      "plugin = \"mujoco\"\n"    // 10
+      "servo_period_sm = 2\n"    // 11: unknown key
+      "lookahead = 0\n"          // 12: out of range
+      "extra = true\n"           // 13: unknown key
+      "[robot.ecp]\n"            // 14
+      "task = \"follow_mp\"\n";  // 15
+  const mrroc::ProcessSetCheck check = mrroc::check_process_set_text(text, "/tmp/set.toml");
+  std::string all;
+  for (const auto& e : check.errors) all += std::string(e.what()) + "\n";
+  ASSERT_EQ(check.errors.size(), 4U) << all;
+  std::set<int> lines;
+  for (const auto& e : check.errors) lines.insert(e.where().line);
+  EXPECT_EQ(lines, (std::set<int>{3, 11, 12, 13})) << all;
+  EXPECT_NE(all.find("'lookahead' = 0 macro-steps is outside 1..64"), std::string::npos) << all;
+  // [robot.edp] had an error of its own: the EDP's own check is left out, the ECP's is not.
+  EXPECT_TRUE(check.broken_process("edp/irb6"));
+  EXPECT_FALSE(check.broken_process("ecp/irb6"));
+  EXPECT_FALSE(check.broken_process("mp"));
+  EXPECT_EQ(check.config.robots.size(), 1U);
+  EXPECT_EQ(check.config.robots[0].ecp.name, "follow_mp");
+  // load_process_set reads the same tables and stops at the first error.
+  EXPECT_THROW((void)mrroc::parse_process_set(text, "/tmp/set.toml"), mrroc::ConfigError);
 }
 
 TEST(ConfigCheck, EveryStockConfigPasses) {

@@ -249,7 +249,7 @@ std::pair<int, std::string> run_captured(const std::vector<std::string>& argv,
     return {-1, std::string("fork: ") + std::strerror(errno)};
   }
   if (pid == 0) {
-    const int null = ::open("/dev/null", O_RDONLY);
+    const int null = ::open("/dev/null", O_RDONLY | O_CLOEXEC);
     if (null >= 0) ::dup2(null, STDIN_FILENO);
     ::dup2(out[1], STDOUT_FILENO);
     ::dup2(out[1], STDERR_FILENO);

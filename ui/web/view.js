@@ -70,7 +70,9 @@ try {
   say("3D view unavailable: this browser gives the page no WebGL: " + e, true);
   throw e;
 }
-renderer.setPixelRatio(window.devicePixelRatio || 1);
+// A CPU renderer draws every pixel in software: at most one pixel per CSS pixel there.
+renderer.setPixelRatio(software ? Math.min(1, window.devicePixelRatio || 1)
+                                : window.devicePixelRatio || 1);
 panel.appendChild(renderer.domElement);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.target.set(0, 0, 0.6);
@@ -125,9 +127,12 @@ function styleModel(model, ghost) {
       // The ghost's shapes a little smaller, about their centres: where it coincides with the
       // robot it stays inside it, so only the parts ahead of the robot show.
       if (ghost) object.scale.multiplyScalar(GHOST_SHRINK);
-      object.material = new THREE.MeshPhongMaterial({
+      // On a CPU renderer, lighting per vertex (Lambert) instead of per pixel (Phong): about
+      // half the cost of a frame, so the view keeps up with the robot states.
+      const Material = software ? THREE.MeshLambertMaterial : THREE.MeshPhongMaterial;
+      object.material = new Material({
         color: ghost ? colour : (own ?? colour),
-        shininess: 40,
+        ...(software ? {} : { shininess: 40 }),
         transparent: ghost,
         opacity: ghost ? 0.3 : 1,
         depthWrite: !ghost,
@@ -163,8 +168,8 @@ function mjcfGeom(element) {
   else if (type === "sphere") geometry = new THREE.SphereGeometry(size[0], 24, 16);
   else if (type === "cylinder" || type === "capsule") {
     geometry = type === "cylinder"
-      ? new THREE.CylinderGeometry(size[0], size[0], 2 * size[1], 32)
-      : new THREE.CapsuleGeometry(size[0], 2 * size[1], 8, 24);
+      ? new THREE.CylinderGeometry(size[0], size[0], 2 * size[1], software ? 16 : 32)
+      : new THREE.CapsuleGeometry(size[0], 2 * size[1], software ? 4 : 8, software ? 12 : 24);
     geometry.rotateX(Math.PI / 2);  // MJCF's cylinders run along z, three.js' along y
   } else return null;  // planes, meshes, height fields: not drawn
   const mesh = new THREE.Mesh(geometry);

@@ -96,20 +96,19 @@ ecp::EcpReply Robot::control(ecp::MpCommandType type) {
   return reply;
 }
 
-bool Robot::refresh_state() {
-  std::optional<RobotState> s;
-  {
-    std::lock_guard lock(links_->mutex);
-    s = links_->latest;
-  }
-  if (!s) return false;
-  image_.synchronised = s->synchronised;
-  image_.moving = s->moving;
-  image_.joints = s->q;
-  image_.desired_joints = s->q_desired;
-  image_.joint_velocities = s->dq;
-  image_.state_servo_step = s->servo_step;
-  return true;
+RobotImage Robot::state_image() const {
+  RobotImage image;
+  image.name = image_.name;  // set once, in the constructor
+  std::lock_guard lock(links_->mutex);
+  if (!links_->latest) return image;
+  const RobotState& s = *links_->latest;
+  image.synchronised = s.synchronised;
+  image.moving = s.moving;
+  image.joints = s.q;
+  image.desired_joints = s.q_desired;
+  image.joint_velocities = s.dq;
+  image.state_servo_step = s.servo_step;
+  return image;
 }
 
 void Robot::stop() { control(ecp::MpCommandType::stop); }
@@ -179,13 +178,14 @@ void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& ge
 
 void Wait(const RobotList& robots, const ecp::SensorList& sensors, Condition& condition,
           double period_s, double timeout_s) {
+  std::vector<RobotImage> states(robots.size());
   ImageList images;
-  for (Robot* r : robots) images.push_back(&r->image());
+  for (RobotImage& s : states) images.push_back(&s);
   const auto start = std::chrono::steady_clock::now();
   for (;;) {
     if (stopping()) throw ecp::TaskStopped("MP stopped on request");
     refresh(sensors);
-    for (Robot* r : robots) r->refresh_state();
+    for (std::size_t i = 0; i < robots.size(); ++i) states[i] = robots[i]->state_image();
     if (condition.check(images, sensors)) return;
     const double waited =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

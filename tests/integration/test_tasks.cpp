@@ -260,11 +260,12 @@ class FirstThenRest : public mp::MpTask {
     const mp::Robot& first = tasks.wait_any(60.0);
     context_.reporter.info("first to finish: " + first.name());
     std::vector<std::int64_t> steps_before;
-    for (const mp::Robot* r : context_.robots) steps_before.push_back(r->image().state_servo_step);
+    for (const mp::Robot* r : context_.robots)
+      steps_before.push_back(r->state_image().state_servo_step);
     AllAtRest rest;
     mp::Wait(context_.robots, {}, rest, 0.02, 30.0);
     for (std::size_t i = 0; i < context_.robots.size(); ++i)
-      if (context_.robots[i]->image().state_servo_step <= steps_before[i])
+      if (context_.robots[i]->state_image().state_servo_step <= steps_before[i])
         throw Error(fmt::format("{}: the MP's image was not refreshed from the EDP's states",
                                 context_.robots[i]->name()));
     context_.reporter.info(fmt::format("every robot at rest after {} checks", rest.checks));

@@ -34,8 +34,8 @@ struct RobotImage {
   std::vector<double> desired_joints;  ///< commanded, from the last ECP reply
   edp::ArmRepresentation arm_type = edp::ArmRepresentation::joint;
   std::vector<double> arm;  ///< the last NEXT_POSE reading, in arm_type
-  /// From the EDP's robot_state_t broadcast (every 20 ms), copied in by Robot::refresh_state
-  /// (mp::Wait does it each period): also while the ECP runs a task of its own.
+  /// From the EDP's robot_state_t broadcast (every 20 ms), in the images Robot::state_image makes
+  /// (mp::Wait hands them to its condition): also while the ECP runs a task of its own.
   bool moving = false;
   std::vector<double> joint_velocities;  ///< measured [rad/s]
   std::int64_t state_servo_step = -1;    ///< servo step of the state copied in; -1: none yet
@@ -81,10 +81,11 @@ class Robot {
   void stop();
   void pause();
   void resume();
-  /// Copies the newest authentic robot_state_t of the robot's EDP into the image (joints,
-  /// desired joints, velocities, synchronised, moving). Thread-safe with respect to the bus;
-  /// call it from the task's thread. @returns false when no state has arrived yet.
-  bool refresh_state();
+  /// An image of the robot from the newest authentic robot_state_t of its EDP (name, joints,
+  /// desired joints, velocities, synchronised, moving, servo step); `state_servo_step` -1 and no
+  /// joints when none has arrived yet. Thread-safe: image() belongs to the thread that sends the
+  /// robot's commands, which may be running a task while the MP waits (mp::Running).
+  [[nodiscard]] RobotImage state_image() const;
 
  private:
   ecp::EcpReply checked(const ecp::EcpReply& reply);
@@ -126,8 +127,9 @@ class Condition {
 void Wait(const ecp::SensorList& sensors, ecp::Condition& condition, double period_s = 0.01);
 
 /// Wait on the MP level over robots and sensors: every `period_s` refreshes the sensor images and
-/// each robot's image from its EDP's state broadcast (Robot::refresh_state), until `condition`
-/// holds. @throws TimeoutError after `timeout_s` [s] naming it; ecp::TaskStopped on STOP.
+/// hands `condition` an image of each robot from its EDP's state broadcast (Robot::state_image;
+/// the robots' own image() are left to their command threads), until it holds.
+/// @throws TimeoutError after `timeout_s` [s] naming it; ecp::TaskStopped on STOP.
 void Wait(const RobotList& robots, const ecp::SensorList& sensors, Condition& condition,
           double period_s = 0.02, double timeout_s = std::numeric_limits<double>::infinity());
 

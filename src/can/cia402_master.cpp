@@ -160,7 +160,12 @@ void Cia402Master::heartbeat_if_due() noexcept {
   const auto now = std::chrono::steady_clock::now();
   if (now < next_heartbeat_) return;
   (void)bus_.send(canopen::heartbeat_frame(options_.master_node, canopen::NmtState::operational));
-  next_heartbeat_ = now + std::chrono::milliseconds(options_.master_heartbeat_ms);
+  // On a fixed grid: scheduled from the time it was due, not the cycle that sent it (that made
+  // the period one cycle longer on average, 12 instead of 10 ms at a 2 ms cycle). After a stall
+  // the grid restarts from now, without a burst of heartbeats.
+  const auto period = std::chrono::milliseconds(options_.master_heartbeat_ms);
+  next_heartbeat_ += period;
+  if (next_heartbeat_ <= now) next_heartbeat_ = now + period;
 }
 
 void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets) {

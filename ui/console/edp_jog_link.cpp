@@ -15,42 +15,12 @@ class EdpJogLink : public JogLink {
 
   std::vector<double> move_joints_relative(const std::vector<double>& delta,
                                            int motion_steps) override {
-    edp::Instruction c;
-    c.type = edp::InstructionType::set;
-    c.set = edp::item::arm;
-    c.set_arm_type = edp::ArmRepresentation::joint;
-    c.motion_type = edp::MotionType::relative;
-    c.motion_steps = motion_steps;
-    c.value_in_step_no = motion_steps + 1;
-    c.arm = delta;
-    c.with_query = true;  // the reply carries the joints at the end of the macro-step
-    try {
-      // The console drives the EDP only after an explicit take-over, which the EDP accepts only
-      // while the robot is at rest (the jog checked that the MP is idle).
-      edp_.take_over_next();
-      return edp_.call(c).joints;
-    } catch (const edp::Refused& e) {
-      throw JogRefused(e.what());
-    }
+    return move_relative(edp::ArmRepresentation::joint, delta, motion_steps);
   }
 
   std::vector<double> move_tool_relative(const std::vector<double>& delta,
                                          int motion_steps) override {
-    edp::Instruction c;
-    c.type = edp::InstructionType::set;
-    c.set = edp::item::arm;
-    c.set_arm_type = edp::ArmRepresentation::xyz_angle_axis;
-    c.motion_type = edp::MotionType::relative;
-    c.motion_steps = motion_steps;
-    c.value_in_step_no = motion_steps + 1;
-    c.arm = delta;
-    c.with_query = true;
-    try {
-      edp_.take_over_next();
-      return edp_.call(c).joints;
-    } catch (const edp::Refused& e) {
-      throw JogRefused(e.what());
-    }
+    return move_relative(edp::ArmRepresentation::xyz_angle_axis, delta, motion_steps);
   }
 
   std::vector<double> synchronise() override {
@@ -66,6 +36,28 @@ class EdpJogLink : public JogLink {
   }
 
  private:
+  /// One SET ARM RELATIVE macro-step from rest to rest; the joints at its end.
+  std::vector<double> move_relative(edp::ArmRepresentation representation,
+                                    const std::vector<double>& delta, int motion_steps) {
+    edp::Instruction c;
+    c.type = edp::InstructionType::set;
+    c.set = edp::item::arm;
+    c.set_arm_type = representation;
+    c.motion_type = edp::MotionType::relative;
+    c.motion_steps = motion_steps;
+    c.value_in_step_no = motion_steps + 1;
+    c.arm = delta;
+    c.with_query = true;  // the reply carries the joints at the end of the macro-step
+    try {
+      // The console drives the EDP only after an explicit take-over, which the EDP accepts only
+      // while the robot is at rest (the jog checked that the MP is idle).
+      edp_.take_over_next();
+      return edp_.call(c).joints;
+    } catch (const edp::Refused& e) {
+      throw JogRefused(e.what());
+    }
+  }
+
   edp::Client edp_;
 };
 

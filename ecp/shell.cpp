@@ -135,7 +135,9 @@ EcpReply EcpShell::run_task(const std::string& name, const Params& args) {
   // A run (task or sub-task) drives the robot from its first instruction, whoever drove it last
   // (the console's jogs between runs, which it makes only while the MP is idle; docs/edp.md).
   robot_.take_over_next();
-  TaskContext context{robot_, reporter_, args, config_.edp.servo_period_s, &bus_, process_};
+  follow_.reset();  // a new run: the MP's poses pass unchanged unless this task says otherwise
+  TaskContext context{robot_, reporter_, args,    config_.edp.servo_period_s,
+                      &bus_,  process_,  &follow_};
   std::unique_ptr<EcpTask> task = make_ecp_task(name, context);
   reporter_.info(fmt::format("task '{}' started", name));
   task->main_task();
@@ -147,23 +149,31 @@ EcpReply EcpShell::next_pose(const MpCommand& command) {
   if (robot_.stop_requested()) throw TaskStopped("task stopped on request");
   robot_.wait_while_paused();
   if (!robot_.image().synchronised) robot_.synchronise();
+  MpCommand pose = command;
+  if (follow_) {
+    const SensorList sensors = follow_->sensors();
+    for (Sensor* s : sensors) s->initiate_reading();
+    for (Sensor* s : sensors) s->get_reading();
+    follow_->correct(pose, robot_.image(), sensors);
+  }
   edp::Instruction& c = robot_.image().command;
   c = edp::Instruction{};
   c.type = edp::InstructionType::set_get;
   c.set = edp::item::arm;
   c.get = edp::item::arm;
-  c.set_arm_type = command.arm_type;
-  c.get_arm_type = command.arm_type;
-  c.motion_type = command.motion_type;
-  c.motion_steps = command.motion_steps;
-  c.value_in_step_no = command.value_in_step_no;
-  c.arm = command.arm;
+  c.set_arm_type = pose.arm_type;
+  c.get_arm_type = pose.arm_type;
+  c.motion_type = pose.motion_type;
+  c.motion_steps = pose.motion_steps;
+  c.value_in_step_no = pose.value_in_step_no;
+  c.arm = pose.arm;
   robot_.execute();
   return state_reply(EcpReplyType::acknowledge);
 }
 
 EcpReply EcpShell::end_motion() {
   robot_.read_state();
+  if (follow_) follow_->end_motion(robot_.image());
   return state_reply(EcpReplyType::acknowledge);
 }
 

@@ -67,6 +67,9 @@ class EcpShell {
   Reporter& reporter_;
   std::string process_;
   Robot robot_;
+  /// The running task's corrector of NEXT_POSE commands (TaskContext::follow_mp_with); used and
+  /// replaced on the worker thread only.
+  std::unique_ptr<FollowGenerator> follow_;
 
   std::mutex mutex_;
   std::condition_variable cv_;

@@ -8,6 +8,11 @@
 //                   check the force stayed within `force_tolerance` of the set force;
 //   pick_when_seen  Wait until the camera sees the part inside the pick region, then move the
 //                   probe above it (the start of a pick), and report where the part was.
+//   follow_mp_compliant
+//                   hybrid control (paper, section 2): the MP generates the tool's path, and
+//                   this ECP corrects every NEXT_POSE along the tool axis from its wrist force
+//                   (an admittance), so the probe presses with a set force where the MP's path
+//                   goes into a surface (a FollowGenerator installed by the task).
 //
 // The wrist sensor is a VSP (force_torque) whose image Move and Wait refresh every macro-step;
 // each INITIATE_READING carries the sensor's orientation for the tool's gravity compensation.
@@ -24,6 +29,10 @@
 // follow_surface also: force = 10 [N] set force, force_tolerance = 3 [N], direction = [1, 0, 0],
 //   length = 0.1 [m], follow_speed = 0.02 [m/s], gain = 2e-5 [m/N per macro-step],
 //   settle = 0.6 [s] (force errors before this are not counted), motion_steps = 20 (per macro-step)
+// follow_mp_compliant: sensor = "wrist_force", tool = 0.15 [m], force = 5 [N] largest force the
+//   probe presses with along the tool axis, gain = 3e-4 [m/s per N] of force error,
+//   max_speed = 0.02 [m/s] and max_acceleration = 0.2 [m/s^2] of the correction, max_offset =
+//   0.01 [m] largest correction back along the tool axis (it never pushes beyond the MP's pose).
 // pick_when_seen: camera = "camera" VSP, region = [xmin, xmax, ymin, ymax] (world, m) where a part
 //   may be picked, above = 0.1 [m] above the part, tool = 0.15, timeout = 30 [s],
 //   base = [x, y, z] the robot's base position in the world (rotation: none) [m].
@@ -37,6 +46,7 @@
 
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generators/cartesian_path.hpp"
+#include "mrroc/ecp/generators/errors.hpp"
 #include "mrroc/ecp/generators/guarded_move.hpp"
 #include "mrroc/ecp/generators/joint_poses.hpp"
 #include "mrroc/ecp/task.hpp"
@@ -321,6 +331,130 @@ class FollowSurface : public Touching {
   Eigen::Vector3d direction_;
 };
 
+/// The ECP half of hybrid control: every NEXT_POSE of the MP (an ABSOLUTE Cartesian tool frame)
+/// moves back along the tool's z axis by `offset`, which follows the force error:
+///   v = gain * (pressing - force), limited to max_speed and max_acceleration,
+///   offset += v * dt, within [0, max_offset] (braking before either end),
+/// dt being the macro-step. In free space (pressing 0) the offset returns to 0: the MP's path.
+class ForceCompliance : public FollowGenerator {
+ public:
+  struct Settings {
+    double force, gain, max_speed, max_acceleration, max_offset, servo_period_s;
+  };
+  ForceCompliance(Robot& robot, Reporter& reporter, std::unique_ptr<VirtualSensor> vsp,
+                  std::unique_ptr<edp::ArmKinematics> flange, const Settings& settings)
+      : reporter_(reporter),
+        vsp_(std::move(vsp)),
+        flange_(std::move(flange)),
+        wrist_(*vsp_, robot, *flange_),
+        s_(settings) {}
+
+  SensorList sensors() override { return {&wrist_}; }
+
+  void correct(MpCommand& command, const RobotImage&, const SensorList&) override {
+    if (command.arm_type == edp::ArmRepresentation::joint ||
+        command.arm_type == edp::ArmRepresentation::motor ||
+        command.motion_type != edp::MotionType::absolute)
+      throw GeneratorError(fmt::format(
+          "follow_mp_compliant corrects ABSOLUTE Cartesian poses; the MP sent a {} {} pose",
+          command.motion_type == edp::MotionType::absolute ? "ABSOLUTE" : "RELATIVE",
+          to_string(command.arm_type)));
+    const double dt = command.motion_steps * s_.servo_period_s;
+    const double pressing = wrist_.pressing();
+    double v = std::clamp(s_.gain * (pressing - s_.force), -s_.max_speed, s_.max_speed);
+    v = std::clamp(v, speed_ - s_.max_acceleration * dt, speed_ + s_.max_acceleration * dt);
+    // Brake before either end of [0, max_offset].
+    const double up = std::sqrt(2.0 * s_.max_acceleration * std::max(0.0, s_.max_offset - offset_));
+    const double down = std::sqrt(2.0 * s_.max_acceleration * std::max(0.0, offset_));
+    v = std::clamp(v, -down, up);
+    offset_ = std::clamp(offset_ + v * dt, 0.0, s_.max_offset);
+    speed_ = v;
+    Eigen::Isometry3d pose = kinematics::from_vector(command.arm, command.arm_type);
+    pose = pose * Eigen::Translation3d(0.0, 0.0, -offset_);
+    command.arm = kinematics::to_vector(pose, command.arm_type);
+    ++steps_;
+    largest_force_ = std::max(largest_force_, pressing);
+    largest_offset_ = std::max(largest_offset_, offset_);
+    if (offset_ > 0.0) {
+      pressed_sum_ += pressing;
+      ++pressed_;
+    }
+  }
+
+  void end_motion(const RobotImage&) override {
+    reporter_.info(fmt::format(
+        "corrected {} poses of the MP: largest force {:.2f} N (set {:.1f} N), mean force while "
+        "corrected {:.2f} N in {} macro-steps, largest correction {:.3f} mm",
+        steps_, largest_force_, s_.force, pressed_ > 0 ? pressed_sum_ / pressed_ : 0.0, pressed_,
+        largest_offset_ * 1e3));
+    steps_ = pressed_ = 0;
+    largest_force_ = largest_offset_ = pressed_sum_ = 0.0;
+  }
+
+ private:
+  Reporter& reporter_;
+  std::unique_ptr<VirtualSensor> vsp_;
+  std::unique_ptr<edp::ArmKinematics> flange_;
+  WristSensor wrist_;
+  Settings s_;
+  double offset_ = 0.0, speed_ = 0.0;
+  int steps_ = 0, pressed_ = 0;
+  double largest_force_ = 0.0, largest_offset_ = 0.0, pressed_sum_ = 0.0;
+};
+
+/// follow_mp_compliant: synchronises, sets the tool, zeroes the wrist sensor and leaves a
+/// ForceCompliance to correct the MP's poses.
+class FollowMpCompliant : public EcpTask {
+ public:
+  explicit FollowMpCompliant(TaskContext& context) : context_(context) {
+    const Params& a = context.args;
+    sensor_name_ = a.get_string("sensor", "wrist_force");
+    tool_length_ = positive(a, "tool", 0.15, "m");
+    settings_.force = positive(a, "force", 5.0, "N");
+    settings_.gain = positive(a, "gain", 3e-4, "m/s per N");
+    settings_.max_speed = positive(a, "max_speed", 0.02, "m/s");
+    settings_.max_acceleration = positive(a, "max_acceleration", 0.2, "m/s^2");
+    settings_.max_offset = positive(a, "max_offset", 0.01, "m");
+    settings_.servo_period_s = context.servo_period_s;
+    a.reject_unread("robot.ecp.args");
+  }
+
+  void main_task() override {
+    Robot& robot = context_.robot;
+    robot.synchronise();
+    Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+    tool.translation() = Eigen::Vector3d(0, 0, tool_length_);
+    edp::Instruction& c = robot.image().command;
+    c = edp::Instruction{};
+    c.type = edp::InstructionType::set;
+    c.set = edp::item::tool;
+    c.tool_type = edp::ArmRepresentation::frame;
+    const auto t = kinematics::frame_to_values(tool);
+    c.tool.assign(t.begin(), t.end());
+    robot.execute();
+    auto vsp = context_.sensor(sensor_name_);
+    auto flange = edp::make_arm_kinematics(robot.model());
+    {
+      // In free space: what the sensor feels is the tool's weight and its own offsets.
+      WristSensor wrist(*vsp, robot, *flange);
+      wrist.initiate_reading();
+      wrist.get_reading();
+      vsp->configure("zero = true");
+    }
+    context_.follow_mp_with(std::make_unique<ForceCompliance>(
+        robot, context_.reporter, std::move(vsp), std::move(flange), settings_));
+    context_.reporter.info(fmt::format(
+        "wrist sensor '{}' zeroed; following the MP, pressing at most {:.1f} N along the tool",
+        sensor_name_, settings_.force));
+  }
+
+ private:
+  TaskContext& context_;
+  std::string sensor_name_;
+  double tool_length_;
+  ForceCompliance::Settings settings_{};
+};
+
 /// True when the camera sees the part inside the pick region.
 class PartInRegion : public Condition {
  public:
@@ -425,5 +559,6 @@ class PickWhenSeen : public EcpTask {
 MRROC_REGISTER_ECP_TASK("touch", Touch);
 MRROC_REGISTER_ECP_TASK("follow_surface", FollowSurface);
 MRROC_REGISTER_ECP_TASK("pick_when_seen", PickWhenSeen);
+MRROC_REGISTER_ECP_TASK("follow_mp_compliant", FollowMpCompliant);
 
 }  // namespace mrroc::ecp

@@ -44,4 +44,10 @@ std::unique_ptr<VirtualSensor> TaskContext::sensor(const std::string& vsp) const
   return std::make_unique<VirtualSensor>(*bus, vsp, process.empty() ? "ecp" : process);
 }
 
+void TaskContext::follow_mp_with(std::unique_ptr<FollowGenerator> generator) const {
+  if (follow_slot == nullptr)
+    throw Error("this task context cannot follow the MP: no ECP shell serves the MP here");
+  *follow_slot = std::move(generator);
+}
+
 }  // namespace mrroc::ecp

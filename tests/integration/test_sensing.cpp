@@ -3,6 +3,8 @@
 //   touch           the guarded move stops within 2 mm of the first contact, at the table;
 //   follow_surface  the contact force stays within 4 N of 10 N along 10 cm of table;
 //   pick_when_seen  the pick starts only with the part in the pick region, and ends above it;
+//   hybrid control  the MP's path goes 3 mm into the table and the ECP corrects it from its wrist
+//                   force: the probe presses with about 5 N, not 60, and the robot never stops;
 //   a VSP killed, or its raw sensor falling silent, mid-approach: the task stops with an error
 //   naming the VSP (and the source), the SRP shows it, nothing is left behind.
 #include <gtest/gtest.h>
@@ -16,6 +18,9 @@
 #include <string>
 
 #include "launch_helpers.hpp"
+#include "motion_checks.hpp"
+#include "mrroc/comm/bus.hpp"
+#include "state_watch.hpp"
 
 namespace fs = std::filesystem;
 using namespace mrroc::test;
@@ -95,6 +100,34 @@ TEST(Sensing, ForceCompliantMotionKeepsTheContactForce) {
   EXPECT_NEAR(number(r.output, followed, 1), 0.1, 0.005);
   EXPECT_NEAR(number(r.output, followed, 2), 10.0, 1.0);
   EXPECT_LE(number(r.output, followed, 4), 4.0);
+}
+
+TEST(Sensing, HybridControlPressesWithTheSetForceWhereTheMpPathGoesIntoTheTable) {
+  const mrroc::RobotModel model =
+      mrroc::load_robot_model(fs::path(MRROC_SOURCE_DIR) / "robots/irb6");
+  mrroc::comm::Bus bus(mrroc::comm::kDefaultLcmUrl);
+  bus.start();
+  StateWatch watch(bus, "irb6");
+  const LaunchRun r = launch_and_kill(config("sensing-hybrid.toml"));
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(count_matches(r.output, std::regex("no next macro-step from the ECP in time")), 0u)
+      << r.output;
+  const std::string corrected =
+      "corrected ([0-9]+) poses of the MP: largest force ([0-9.]+) N \\(set 5.0 N\\), mean force "
+      "while corrected ([0-9.]+) N in ([0-9]+) macro-steps, largest correction ([0-9.]+) mm";
+  // Uncorrected, the path 3 mm into the table would press with 60 N (the contact spring is
+  // 20 N/mm). The largest force comes as the probe meets the table, before the correction has
+  // caught up (17-19 N measured beside three compilers, load 6.7).
+  EXPECT_LE(number(r.output, corrected, 2), 25.0);
+  EXPECT_NEAR(number(r.output, corrected, 3), 5.0, 1.5);
+  EXPECT_GE(number(r.output, corrected, 4), 100.0);  // of the 196 macro-steps of the path
+  // Physics: the probe stops 5 N / (20 N/mm) = 0.25 mm into the table, so the correction is the
+  // path's 3 mm less that (measured 2.62 mm: the arm's own servo compliance takes the rest).
+  EXPECT_NEAR(number(r.output, corrected, 5), 2.75, 0.35);
+  EXPECT_TRUE(has(r.output, "tool path of 5 points done")) << r.output;
+  EXPECT_GT(check_motion(watch.history(), model, 0.002, "irb6"), 200);
+  expect_nothing_left();
 }
 
 TEST(Sensing, PickStartsWhenTheCameraSeesThePartInTheRegion) {

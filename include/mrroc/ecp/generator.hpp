@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "mrroc/ecp/robot_image.hpp"
+#include "mrroc/msg/mp_command.hpp"
 
 namespace mrroc::ecp {
 
@@ -60,6 +61,25 @@ class Condition {
   virtual ~Condition() = default;
   /// True when the waiting is over.
   virtual bool check(const SensorList& sensors) = 0;
+};
+
+/// The generator of an ECP that follows the MP (tight coordination, paper section 2; the stock
+/// task `follow_mp_compliant` in docs/sensors.md): the ECP shell hands it every NEXT_POSE of the
+/// MP, after refreshing its sensors, before the command goes to the EDP. It may correct the
+/// command in place, e.g. move the commanded tool frame back along a force a wrist sensor feels;
+/// the EDP checks the corrected command against every limit, as any other. A task installs one
+/// with TaskContext::follow_mp_with(); it stays until the next START_TASK or NEXT_STATE.
+class FollowGenerator {
+ public:
+  virtual ~FollowGenerator() = default;
+  /// The sensors whose images the shell refreshes before each correct() (default: none).
+  [[nodiscard]] virtual SensorList sensors() { return {}; }
+  /// `command`: the MP's NEXT_POSE (representation, motion type, steps, arm values), to correct
+  /// in place. `robot`: the image after the previous macro-step. Throw (GeneratorError) to refuse
+  /// the command: the MP gets the error and nothing moves.
+  virtual void correct(MpCommand& command, const RobotImage& robot, const SensorList& sensors) = 0;
+  /// The MP ended the continuous motion (END_MOTION); `robot` holds the state just read.
+  virtual void end_motion(const RobotImage& /*robot*/) {}
 };
 
 /// Runs a motion. After a PAUSE, and when the EDP refuses a macro-step as too fast after it had

@@ -12,6 +12,7 @@
 
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/config/params.hpp"
+#include "mrroc/ecp/generator.hpp"
 #include "mrroc/ecp/robot.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
 
@@ -28,10 +29,17 @@ struct TaskContext {
   double servo_period_s;     ///< the EDP's servo period [s]
   comm::Bus* bus = nullptr;  ///< the ECP's LCM connection (for virtual sensors)
   std::string process;       ///< the ECP's process name, e.g. "ecp/irb6"
+  /// Where the shell keeps the generator that corrects the MP's NEXT_POSE commands (null where
+  /// no MP drives this robot, e.g. when a config is checked).
+  std::unique_ptr<FollowGenerator>* follow_slot = nullptr;
 
   /// The image of the VSP named `vsp` ([[vsp]] name): a client of it, for Move and Wait.
   /// @throws Error when the context has no bus.
   [[nodiscard]] std::unique_ptr<VirtualSensor> sensor(const std::string& vsp) const;
+  /// From now on, every NEXT_POSE of the MP passes through `generator` before it goes to the
+  /// EDP (FollowGenerator), until the next START_TASK or NEXT_STATE. Typically the last thing a
+  /// task's main_task() does. @throws Error where the shell gave no slot (follow_slot).
+  void follow_mp_with(std::unique_ptr<FollowGenerator> generator) const;
 };
 
 class EcpTask {

@@ -1,0 +1,165 @@
+// Stock MP task "tool_path": the MP generates one robot's tool frame every macro-step along a
+// path of points (straight segments, each rest to rest with a quintic time law) at a fixed
+// orientation, and sends it as NEXT_POSE (tight coordination, paper section 2). The robot's ECP
+// runs `follow_mp` (the poses go to the EDP as they are) or `follow_mp_compliant` (it corrects
+// each pose from its wrist force: hybrid control, configs/sensing-hybrid.toml).
+//
+// [mp.args]: robot = "name", path = [[x, y, z], ...] (tool position in the robot's base frame
+// [m]), rotation = [rx, ry, rz] (the tool's orientation, a rotation vector [rad]), speed [m/s]
+// (peak, at most 0.5) or speeds = [...] (one per segment), motion_steps (servo steps per
+// macro-step, 4..1000).
+#include <fmt/format.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+#include "mrroc/ecp/generator.hpp"
+#include "mrroc/kinematics/pose.hpp"
+#include "mrroc/mp/task.hpp"
+
+namespace mrroc::mp {
+
+namespace {
+
+class ToolPathGenerator : public Generator {
+ public:
+  ToolPathGenerator(const Eigen::Matrix3d& orientation, std::vector<Eigen::Vector3d> path,
+                    std::vector<double> speeds, int motion_steps, double servo_period_s)
+      : orientation_(orientation),
+        path_(std::move(path)),
+        speeds_(std::move(speeds)),
+        steps_(motion_steps),
+        period_(servo_period_s) {}
+
+  bool first_step(const ImageList& robots, const ecp::SensorList&) override {
+    // To the path's first point in one long macro-step (2 s), then half a second at rest there.
+    command(robots, path_.front(), 1000, 1001);
+    approaching_ = true;
+    return true;
+  }
+
+  bool next_step(const ImageList& robots, const ecp::SensorList&) override {
+    if (approaching_) {
+      approaching_ = false;
+      command(robots, path_.front(), 250, 251);
+      segment_ = 0;
+      return begin_segment();
+    }
+    if (macro_ >= segment_macros_) {
+      ++segment_;
+      if (!begin_segment()) return false;
+    }
+    ++macro_;
+    const double tau = static_cast<double>(macro_) / segment_macros_;
+    const double s = tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+    const bool last = segment_ + 2 == path_.size() && macro_ == segment_macros_;
+    // Read a third of the macro-step early: the next pose passes the ECP (and its sensors, when
+    // it corrects the pose) before it is queued in the EDP.
+    command(robots, from_ + (to_ - from_) * s, steps_,
+            last ? steps_ + 1 : ecp::early_reading_step(steps_));
+    return true;
+  }
+
+  [[nodiscard]] int macro_steps() const { return macro_total_; }
+
+ private:
+  bool begin_segment() {
+    if (segment_ + 1 >= path_.size()) return false;
+    from_ = path_[segment_];
+    to_ = path_[segment_ + 1];
+    // Peak speed of the quintic law: 1.875 times the mean.
+    const double duration = 1.875 * (to_ - from_).norm() / speeds_[segment_];
+    segment_macros_ = std::max(1, static_cast<int>(std::ceil(duration / (steps_ * period_))));
+    macro_ = 0;
+    return true;
+  }
+
+  void command(const ImageList& robots, const Eigen::Vector3d& position, int steps, int value) {
+    Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+    tool.linear() = orientation_;
+    tool.translation() = position;
+    ecp::MpCommand& c = robots[0]->command;
+    c.arm_type = edp::ArmRepresentation::frame;
+    c.motion_type = edp::MotionType::absolute;
+    c.motion_steps = steps;
+    c.value_in_step_no = value;
+    c.arm = kinematics::to_vector(tool, edp::ArmRepresentation::frame);
+    robots[0]->commanded = true;
+    ++macro_total_;
+  }
+
+  Eigen::Matrix3d orientation_;
+  std::vector<Eigen::Vector3d> path_;
+  std::vector<double> speeds_;  ///< peak speed of each segment [m/s]
+  int steps_;
+  double period_;
+  bool approaching_ = true;
+  std::size_t segment_ = 0;
+  int macro_ = 0;
+  int segment_macros_ = 1;
+  int macro_total_ = 0;
+  Eigen::Vector3d from_, to_;
+};
+
+}  // namespace
+
+class ToolPath : public MpTask {
+ public:
+  explicit ToolPath(TaskContext& context) : context_(context) {
+    const Params& args = context.args;
+    robot_ = &context.robot(args.get_string("robot"));
+    for (const auto& p : args.get_double_rows("path")) {
+      if (p.size() != 3)
+        throw ConfigError(args.location_of("path"), "every 'path' point is [x, y, z] (m)");
+      path_.emplace_back(p[0], p[1], p[2]);
+    }
+    if (path_.size() < 2)
+      throw ConfigError(args.location_of("path"), "'path' needs at least two points");
+    const std::vector<double> r = args.get_doubles("rotation", {0.0, 0.0, 0.0});
+    if (r.size() != 3)
+      throw ConfigError(args.location_of("rotation"),
+                        "'rotation' is a rotation vector [rx, ry, rz] (rad)");
+    const Eigen::Vector3d axis(r[0], r[1], r[2]);
+    orientation_ = axis.norm() > 0.0
+                       ? Eigen::AngleAxisd(axis.norm(), axis.normalized()).toRotationMatrix()
+                       : Eigen::Matrix3d::Identity();
+    const double speed = args.get_double("speed", 0.02);
+    speeds_ = args.get_doubles("speeds", std::vector<double>(path_.size() - 1, speed));
+    const char* key = args.has("speeds") ? "speeds" : "speed";
+    if (speeds_.size() != path_.size() - 1)
+      throw ConfigError(args.location_of(key), fmt::format("'speeds' has {} values for {} segments",
+                                                           speeds_.size(), path_.size() - 1));
+    for (double v : speeds_)
+      if (!(v > 0.0 && v <= 0.5))
+        throw ConfigError(args.location_of(key),
+                          fmt::format("{} {} m/s is outside (0, 0.5] m/s", key, v));
+    motion_steps_ = static_cast<int>(args.get_int("motion_steps", 10));
+    args.reject_unread("mp.args");
+    if (motion_steps_ < 4 || motion_steps_ > 1000)
+      throw ConfigError(
+          args.location_of("motion_steps"),
+          fmt::format("motion_steps {} is outside 4..1000 servo steps", motion_steps_));
+  }
+
+  void main_task() override {
+    robot_->start_task();  // the ECP's task: synchronise (and, when compliant, zero its sensor)
+    ToolPathGenerator generator(orientation_, path_, speeds_, motion_steps_,
+                                context_.config.robot(robot_->name()).edp.servo_period_s);
+    Move(RobotList{robot_}, {}, generator);
+    context_.reporter.info(fmt::format("tool path of {} points done in {} macro-steps",
+                                       path_.size(), generator.macro_steps()));
+  }
+
+ private:
+  TaskContext& context_;
+  Robot* robot_ = nullptr;
+  std::vector<Eigen::Vector3d> path_;
+  Eigen::Matrix3d orientation_;
+  std::vector<double> speeds_;
+  int motion_steps_ = 10;
+};
+
+MRROC_REGISTER_MP_TASK("tool_path", ToolPath);
+
+}  // namespace mrroc::mp

@@ -67,11 +67,30 @@ void Move(Robot& robot, const SensorList& sensors, Generator& generator) {
   if (promised) robot.announce_no_successor();
 }
 
+bool RobotCondition::check(const SensorList&) {
+  throw Error(
+      "a RobotCondition decides from the robot image too: use it in Wait or a guarded move, "
+      "which call holds(robot, sensors)");
+}
+
 void Wait(Robot& robot, const SensorList& sensors, Condition& condition, double period_s) {
+  auto* on_robot = dynamic_cast<RobotCondition*>(&condition);
   for (;;) {
     check_stop(robot);
     refresh(sensors);
-    if (condition.check(sensors)) return;
+    if (on_robot != nullptr) {
+      RobotImage& image = robot.image();
+      const edp::Instruction saved = image.command;
+      image.command = edp::Instruction{};
+      image.command.type = edp::InstructionType::get;
+      image.command.get = on_robot->items();
+      image.command.get_arm_type = edp::ArmRepresentation::joint;
+      robot.execute();
+      image.command = saved;
+      if (on_robot->holds(image, sensors)) return;
+    } else if (condition.check(sensors)) {
+      return;
+    }
     std::this_thread::sleep_for(std::chrono::duration<double>(period_s));
   }
 }

@@ -117,17 +117,22 @@ class EdpSettings : public ecp::EcpTask {
            "GET SERVO: one algorithm per axis");
     expect(image.timing && image.timing->cycles > 0 && image.timing->period_us == 2000.0,
            "GET TIMING: servo cycles counted, period 2000 us");
-    // The outputs take effect in the next servo cycle: read the inputs (16..19 are wired back
-    // to outputs 0..3 in the MuJoCo plugin) until a cycle has passed (at most 2 s: a slow,
-    // instrumented build), with the tool and model.
-    for (int attempt = 0; attempt < 100; ++attempt) {
-      c = edp::Instruction{};
-      c.type = edp::InstructionType::get;
-      c.get = edp::item::arm | edp::item::tool | edp::item::model | edp::item::inputs;
-      robot.execute();
-      if (image.inputs && ((*image.inputs >> 16U) & 0xFU) == 0x5U) break;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
+    // The outputs take effect in the next servo cycle: Wait on the inputs (16..19 are wired back
+    // to outputs 0..3 in the MuJoCo plugin), reading them with the tool and model before each
+    // check, at most 100 times 20 ms (2 s: a slow, instrumented build).
+    class InputsShow : public ecp::RobotCondition {
+     public:
+      [[nodiscard]] std::uint8_t items() const override {
+        return edp::item::arm | edp::item::tool | edp::item::model | edp::item::inputs;
+      }
+      bool holds(const ecp::RobotImage& robot, const ecp::SensorList&) override {
+        return (robot.inputs && ((*robot.inputs >> 16U) & 0xFU) == 0x5U) || ++checks_ >= 100;
+      }
+
+     private:
+      int checks_ = 0;
+    } inputs_show_outputs;
+    ecp::Wait(robot, {}, inputs_show_outputs, 0.02);
     expect(image.inputs && ((*image.inputs >> 16U) & 0xFU) == 0x5U,
            fmt::format("GET INPUTS: lines 16..19 show the outputs 0x5 (inputs {:#x})",
                        image.inputs.value_or(0)));

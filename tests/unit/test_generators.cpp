@@ -819,6 +819,36 @@ TEST(GuardedMove, JointMoveStopsWithinOneMacroStepOfTheCondition) {
   }
 }
 
+TEST(GuardedMove, ARobotConditionReadsTheImageOfTheMacroStepJustDone) {
+  // The column's commanded position passing 0.12 rad ends the move: the condition reads it from
+  // the robot image the generator hands it, not from a copy the test keeps.
+  class ColumnPast : public ecp::RobotCondition {
+   public:
+    explicit ColumnPast(double q) : q_(q) {}
+    bool holds(const ecp::RobotImage& robot, const ecp::SensorList&) override {
+      ++checks;
+      return !robot.desired_joints.empty() && robot.desired_joints[0] >= q_;
+    }
+    int checks = 0;
+
+   private:
+    double q_;
+  };
+  const RobotModel& m = model();
+  const ecp::GuardedMotion motion{0.1, 0.5, 0.3};  // rad/s, rad/s^2, rad
+  ColumnPast past(0.12);
+  auto g = ecp::GuardedMoveGenerator::along_axes(m, {1.0, 0.0, 0.0, 0.0, 0.0}, motion, past);
+  const Executed r = run(g, synchro());
+  EXPECT_TRUE(g.condition_met());
+  ASSERT_GE(r.joints.size(), 2U);
+  EXPECT_GE(r.joints.back()[0], 0.12);
+  EXPECT_LT(r.joints[r.joints.size() - 2][0], 0.12);
+  // Checked before the first command and after every macro-step.
+  EXPECT_EQ(past.checks, static_cast<int>(r.joints.size()) + 1);
+  // Without the robot image it cannot decide, and says so.
+  EXPECT_THROW((void)past.check({}), mrroc::Error);
+}
+
 TEST(GuardedMove, StopsRightAfterTheMacroStepInWhichTheConditionBecameTrue) {
   const RobotModel& m = model();
   for (const std::size_t true_after : {1U, 7U, 20U}) {

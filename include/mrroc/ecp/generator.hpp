@@ -9,6 +9,7 @@
 ///   while (next_step);
 /// Errors are exceptions thrown from anywhere; the shell handles them.
 
+#include <cstdint>
 #include <vector>
 
 #include "mrroc/ecp/robot_image.hpp"
@@ -82,13 +83,30 @@ class FollowGenerator {
   virtual void end_motion(const RobotImage& /*robot*/) {}
 };
 
+/// A condition on the robot image as well as on the sensor images (paper, section 3: initial and
+/// terminal conditions are predicates on the images). Wait reads the robot from its EDP (a GET of
+/// `items()`) before each check; a guarded move hands it the image of the macro-step just done.
+/// Example: `image.inputs` shows a part present; a joint passed a value; the robot stands still.
+class RobotCondition : public Condition {
+ public:
+  /// What Wait reads from the EDP before each check: edp::item bits (default: the arm, in
+  /// joints; add edp::item::inputs for the binary inputs).
+  [[nodiscard]] virtual std::uint8_t items() const { return edp::item::arm; }
+  /// True when the waiting (or the guarded move) is over.
+  virtual bool holds(const RobotImage& robot, const SensorList& sensors) = 0;
+  /// @throws Error: a RobotCondition decides from the robot image too; Wait and guarded moves
+  /// call holds().
+  bool check(const SensorList& sensors) final;
+};
+
 /// Runs a motion. After a PAUSE, and when the EDP refuses a macro-step as too fast after it had
 /// to stop the robot (a late macro-step), the generator's `resume` re-plans from where the robot
 /// stands (at most 3 refusals in a row). @throws whatever the generator, the EDP link or a stop
 /// request throws.
 void Move(Robot& robot, const SensorList& sensors, Generator& generator);
 
-/// Waits until `condition` holds, refreshing the sensor images every `period_s` [s].
+/// Waits until `condition` holds, refreshing the sensor images every `period_s` [s], and for a
+/// RobotCondition reading its `items()` from the EDP before each check.
 void Wait(Robot& robot, const SensorList& sensors, Condition& condition, double period_s = 0.01);
 
 }  // namespace mrroc::ecp

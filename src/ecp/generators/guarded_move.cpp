@@ -94,13 +94,13 @@ GuardedMoveGenerator GuardedMoveGenerator::along_line(const RobotModel& model,
 }
 
 bool GuardedMoveGenerator::first_step(RobotImage& robot, const SensorList& sensors) {
-  condition_met_ = condition_(sensors);
+  condition_met_ = condition_(robot, sensors);
   if (condition_met_) return false;
   return motion_->first_step(robot, sensors);
 }
 
 bool GuardedMoveGenerator::next_step(RobotImage& robot, const SensorList& sensors) {
-  condition_met_ = condition_(sensors);
+  condition_met_ = condition_(robot, sensors);
   if (condition_met_) return false;
   if (motion_->next_step(robot, sensors)) return true;
   const double travelled = distance();

@@ -32,7 +32,8 @@ struct is_std_function<std::function<R(A...)>> : std::true_type {};
 }  // namespace detail
 
 /// A terminal condition: any callable returning bool (`std::function<bool()>`, a lambda), or a
-/// `Condition` (checked with the Move's sensor list; it must outlive the generator).
+/// `Condition` (checked with the Move's sensor list; a RobotCondition also with the image of the
+/// macro-step just done; it must outlive the generator).
 class TerminalCondition {
  public:
   /// @throws Error for an empty std::function or a null function pointer.
@@ -42,16 +43,24 @@ class TerminalCondition {
   TerminalCondition(F f) {  // NOLINT(google-explicit-constructor): converts like std::function
     if constexpr (std::is_pointer_v<F> || detail::is_std_function<F>::value)
       if (!static_cast<bool>(f)) throw Error("guarded move: empty terminal condition");
-    check_ = [f = std::move(f)](const SensorList&) mutable { return static_cast<bool>(f()); };
+    check_ = [f = std::move(f)](const RobotImage&, const SensorList&) mutable {
+      return static_cast<bool>(f());
+    };
   }
   // clang-format on
   TerminalCondition(Condition& condition)  // NOLINT(google-explicit-constructor)
-      : check_([&condition](const SensorList& sensors) { return condition.check(sensors); }) {}
+      : check_([&condition](const RobotImage& robot, const SensorList& sensors) {
+          if (auto* on_robot = dynamic_cast<RobotCondition*>(&condition))
+            return on_robot->holds(robot, sensors);
+          return condition.check(sensors);
+        }) {}
 
-  [[nodiscard]] bool operator()(const SensorList& sensors) const { return check_(sensors); }
+  [[nodiscard]] bool operator()(const RobotImage& robot, const SensorList& sensors) const {
+    return check_(robot, sensors);
+  }
 
  private:
-  std::function<bool(const SensorList&)> check_;
+  std::function<bool(const RobotImage&, const SensorList&)> check_;
 };
 
 /// Speed, acceleration and reach of a guarded move. Units: rad, rad/s, rad/s^2 along the

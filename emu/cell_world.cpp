@@ -51,14 +51,18 @@ void CellWorld::build(const Scene& scene) {
   convert_spring_contacts(scene);
   const mjModel* m = model_.get();
   const ComposedRobot& last = composed.robots.back();
+  std::size_t grasp_total = 0;
+  for (const SceneObject& object : scene.objects) grasp_total += object.grasps.size();
   if (last.first_actuator + last.actuator_count != m->nu ||
-      last.first_equality + last.equality_count != m->neq) {
+      last.first_equality + last.equality_count != composed.first_grasp_equality ||
+      composed.first_grasp_equality + static_cast<int>(grasp_total) != m->neq) {
     throw HardwareError(
         fmt::format("cell '{}': the composed model has {} actuators and {} "
-                    "equality constraints, its robots {} and {}",
+                    "equality constraints, its robots {} and {}, its grasps {}",
                     name_, m->nu, m->neq, last.first_actuator + last.actuator_count,
-                    last.first_equality + last.equality_count));
+                    last.first_equality + last.equality_count, grasp_total));
   }
+  setup_grasps(scene, composed.first_grasp_equality);
 
   joint_robot_.assign(index(m->njnt), -1);
   joint_axis_.assign(index(m->njnt), -1);
@@ -247,6 +251,241 @@ void CellWorld::convert_spring_contacts(const Scene& scene) {
   }
 }
 
+void CellWorld::setup_grasps(const Scene& scene, int first_equality) {
+  mjModel* m = model_.get();
+  int equality = first_equality;
+  for (const SceneObject& object : scene.objects) {
+    if (object.grasps.empty()) continue;
+    HeldObject held;
+    held.name = object.name;
+    for (std::size_t i = 0; i < object.grasps.size(); ++i, ++equality) {
+      const SceneGrasp& source = object.grasps[i];
+      GraspState g;
+      g.info.object = object.name;
+      g.info.gripper = source.gripper();
+      g.info.held = held_.size();
+      g.info.equality = equality;
+      g.info.engage_distance = source.engage_distance;
+      g.info.engage_angle = source.engage_angle;
+      g.info.engage_speed = source.engage_speed;
+      g.info.stiffness = source.stiffness;
+      g.info.damping = source.damping;
+      g.gripper_body = m->eq_obj1id[equality];
+      g.object_body = m->eq_obj2id[equality];
+      const int joint = m->body_jntadr[g.object_body];
+      if (m->body_jntnum[g.object_body] != 1 || m->jnt_type[joint] != mjJNT_FREE) {
+        throw ConfigError(source.where, fmt::format("grasp of object '{}': the object is not a "
+                                                    "free body",
+                                                    object.name));
+      }
+      g.object_dof = m->jnt_dofadr[joint];
+      if (!source.site.empty()) {
+        const int site = mj_name2id(m, mjOBJ_SITE, source.site.c_str());
+        std::copy(m->site_pos + 3 * index(site), m->site_pos + 3 * index(site) + 3,
+                  g.frame_pos.begin());
+        std::copy(m->site_quat + 4 * index(site), m->site_quat + 4 * index(site) + 4,
+                  g.frame_quat.begin());
+      } else {
+        g.frame_pos = source.position;
+        const double angle = mju_norm3(source.rotation.data());
+        if (angle > 0.0) {
+          std::array<double, 3> axis = source.rotation;
+          mju_scl3(axis.data(), axis.data(), 1.0 / angle);
+          mju_axisAngle2Quat(g.frame_quat.data(), axis.data(), angle);
+        }
+      }
+      g.at_pos = source.at;
+      const double at_angle = mju_norm3(source.at_rotation.data());
+      if (at_angle > 0.0) {
+        std::array<double, 3> axis = source.at_rotation;
+        mju_scl3(axis.data(), axis.data(), 1.0 / at_angle);
+        mju_axisAngle2Quat(g.at_quat.data(), axis.data(), at_angle);
+      }
+      // The weld (MuJoCo 2.2): data[0..2] its point in body2 (the object), data[3..5] in body1
+      // (the gripper's body), data[6..9] the relative orientation q1^-1 q2 that it holds,
+      // data[10] the torque scale. Held: q_body q_frame = q_object q_at.
+      mjtNum* data = m->eq_data + mjNEQDATA * index(equality);
+      std::copy(g.at_pos.begin(), g.at_pos.end(), data);
+      std::copy(g.frame_pos.begin(), g.frame_pos.end(), data + 3);
+      std::array<double, 4> at_inverse{};
+      mju_negQuat(at_inverse.data(), g.at_quat.data());
+      mju_mulQuat(data + 6, g.frame_quat.data(), at_inverse.data());
+      data[10] = 1.0;
+      // Stiffness and damping as for contact springs (convert_spring_contacts): each row's static
+      // force is -solref[0] / ((1 - d) w) * r, its damping -solref[1] / ((1 - d) w), w being the
+      // solver's approximation of the row's inverse mass (the two bodies' translational mean
+      // inverse weights for the translational rows); the regularisation adds the inertia
+      // d / ((1 - d) w) = kSpringContactAddedMass / w.
+      const double w = m->body_invweight0[2 * index(g.gripper_body)] +
+                       m->body_invweight0[2 * index(g.object_body)];
+      const double d =
+          std::clamp(kSpringContactAddedMass / (1.0 + kSpringContactAddedMass), mjMINIMP, mjMAXIMP);
+      mjtNum* solref = m->eq_solref + mjNREF * index(equality);
+      mjtNum* solimp = m->eq_solimp + mjNIMP * index(equality);
+      solref[0] = -source.stiffness * (1.0 - d) * w;
+      solref[1] = -source.damping * (1.0 - d) * w;
+      solimp[0] = solimp[1] = d;
+      solimp[2] = 0.001;
+      solimp[3] = 0.5;
+      solimp[4] = 2.0;
+      m->eq_active[equality] = 0;
+      held.grasps.push_back(grasps_.size());
+      grasps_.push_back(g);
+    }
+    held_.push_back(std::move(held));
+  }
+}
+
+void CellWorld::grasp_frames(const GraspState& g, double gripper[3], double target[3],
+                             double& angle) const noexcept {
+  const mjData* d = data_.get();
+  const std::size_t b = index(g.gripper_body);
+  const std::size_t o = index(g.object_body);
+  std::array<double, 3> offset{};
+  mju_rotVecMat(offset.data(), g.frame_pos.data(), d->xmat + 9 * b);
+  mju_add3(gripper, d->xpos + 3 * b, offset.data());
+  mju_rotVecMat(offset.data(), g.at_pos.data(), d->xmat + 9 * o);
+  mju_add3(target, d->xpos + 3 * o, offset.data());
+  std::array<double, 4> gripper_quat{};
+  std::array<double, 4> target_quat{};
+  std::array<double, 4> inverse{};
+  std::array<double, 4> difference{};
+  mju_mulQuat(gripper_quat.data(), d->xquat + 4 * b, g.frame_quat.data());
+  mju_mulQuat(target_quat.data(), d->xquat + 4 * o, g.at_quat.data());
+  mju_negQuat(inverse.data(), gripper_quat.data());
+  mju_mulQuat(difference.data(), inverse.data(), target_quat.data());
+  angle = 2.0 * std::atan2(mju_norm3(difference.data() + 1), std::abs(difference[0]));
+}
+
+void CellWorld::engage_grasps() noexcept {
+  mjModel* m = model_.get();
+  const mjData* d = data_.get();
+  for (GraspState& g : grasps_) {
+    if (g.engaged) continue;
+    std::array<double, 3> gripper{};
+    std::array<double, 3> target{};
+    double angle = 0.0;
+    grasp_frames(g, gripper.data(), target.data(), angle);
+    std::array<double, 3> gap{};
+    mju_sub3(gap.data(), gripper.data(), target.data());
+    if (mju_norm3(gap.data()) > g.info.engage_distance || angle > g.info.engage_angle) continue;
+    // Velocities of the gripper point on either body (world frame): v + w x (p - x).
+    std::array<double, 3> speed{};
+    for (const int body : {g.gripper_body, g.object_body}) {
+      std::array<double, 6> v{};
+      mj_objectVelocity(m, d, mjOBJ_BODY, body, v.data(), 0);
+      std::array<double, 3> arm{};
+      std::array<double, 3> turn{};
+      mju_sub3(arm.data(), gripper.data(), d->xpos + 3 * index(body));
+      mju_cross(turn.data(), v.data(), arm.data());
+      const double sign = body == g.gripper_body ? 1.0 : -1.0;
+      for (std::size_t k = 0; k < 3; ++k) speed[k] += sign * (v[3 + k] + turn[k]);
+    }
+    if (mju_norm3(speed.data()) > g.info.engage_speed) continue;
+    g.engaged = true;
+    g.engaged_at = d->time;
+    m->eq_active[g.info.equality] = 1;
+  }
+}
+
+void CellWorld::measure_grasps() noexcept {
+  if (grasps_.empty()) return;
+  const mjModel* m = model_.get();
+  const mjData* d = data_.get();
+  const bool sparse = mj_isSparse(m) != 0;
+  const std::size_t nv = index(m->nv);
+  for (GraspState& g : grasps_) {
+    g.force = {};
+    if (!g.engaged) continue;
+    // The weld's rows, through their Jacobian onto the object's translational dofs (world).
+    for (int r = 0; r < d->nefc; ++r) {
+      if (d->efc_type[r] != mjCNSTR_EQUALITY || d->efc_id[r] != g.info.equality) continue;
+      const double f = d->efc_force[r];
+      if (sparse) {
+        const int adr = d->efc_J_rowadr[r];
+        for (int e = 0; e < d->efc_J_rownnz[r]; ++e) {
+          const int column = d->efc_J_colind[adr + e] - g.object_dof;
+          if (column >= 0 && column < 3) g.force[index(column)] += d->efc_J[adr + e] * f;
+        }
+      } else {
+        for (std::size_t k = 0; k < 3; ++k)
+          g.force[k] += d->efc_J[index(r) * nv + index(g.object_dof) + k] * f;
+      }
+    }
+  }
+  for (HeldObject& held : held_) {
+    held.internal = 0.0;
+    std::array<double, 3> mean{};
+    std::size_t n = 0;
+    for (const std::size_t k : held.grasps) {
+      if (!grasps_[k].engaged) continue;
+      ++n;
+      mju_addTo3(mean.data(), grasps_[k].force.data());
+    }
+    if (n < 2) continue;
+    mju_scl3(mean.data(), mean.data(), 1.0 / static_cast<double>(n));
+    for (const std::size_t k : held.grasps) {
+      if (!grasps_[k].engaged) continue;
+      std::array<double, 3> difference{};
+      mju_sub3(difference.data(), grasps_[k].force.data(), mean.data());
+      held.internal = std::max(held.internal, mju_norm3(difference.data()));
+    }
+    if (held.internal > held.peak) {
+      held.peak = held.internal;
+      held.peak_at = d->time;
+    }
+  }
+}
+
+bool CellWorld::grasp_engaged(std::size_t g) const noexcept {
+  return g < grasps_.size() && grasps_[g].engaged;
+}
+
+double CellWorld::grasp_engaged_at(std::size_t g) const noexcept {
+  return g < grasps_.size() ? grasps_[g].engaged_at : -1.0;
+}
+
+std::array<double, 3> CellWorld::grasp_force(std::size_t g) const noexcept {
+  return g < grasps_.size() ? grasps_[g].force : std::array<double, 3>{};
+}
+
+double CellWorld::grasp_offset(std::size_t g) const noexcept {
+  if (g >= grasps_.size()) return 0.0;
+  std::array<double, 3> gripper{};
+  std::array<double, 3> target{};
+  double angle = 0.0;
+  grasp_frames(grasps_[g], gripper.data(), target.data(), angle);
+  mju_subFrom3(gripper.data(), target.data());
+  return mju_norm3(gripper.data());
+}
+
+const std::string& CellWorld::held_object(std::size_t i) const noexcept {
+  static const std::string none;
+  return i < held_.size() ? held_[i].name : none;
+}
+
+std::size_t CellWorld::held_object_index(std::string_view object) const {
+  std::string known;
+  for (std::size_t i = 0; i < held_.size(); ++i) {
+    if (held_[i].name == object) return i;
+    known += (i == 0 ? "" : ", ") + held_[i].name;
+  }
+  throw Error(fmt::format("cell '{}': no grasped object named '{}' (objects with grasps: {})",
+                          name_, object, known.empty() ? "none" : known));
+}
+
+double CellWorld::internal_force(std::size_t i) const noexcept {
+  return i < held_.size() ? held_[i].internal : 0.0;
+}
+
+double CellWorld::peak_internal_force(std::size_t i) const noexcept {
+  return i < held_.size() ? held_[i].peak : 0.0;
+}
+
+double CellWorld::peak_internal_force_time(std::size_t i) const noexcept {
+  return i < held_.size() ? held_[i].peak_at : -1.0;
+}
+
 std::size_t CellWorld::robot_index(std::string_view robot_name) const {
   std::string known;
   for (std::size_t k = 0; k < robots_.size(); ++k) {
@@ -265,6 +504,16 @@ void CellWorld::reset() noexcept {
     for (std::size_t i = 0; i < robot.axes.size(); ++i)
       d->ctrl[robot.axes.actuator[i]] = d->qpos[robot.axes.qpos_adr[i]];
     std::fill(robot.feed_forward.begin(), robot.feed_forward.end(), 0.0);
+  }
+  for (GraspState& g : grasps_) {
+    model_->eq_active[g.info.equality] = 0;
+    g.engaged = false;
+    g.engaged_at = -1.0;
+    g.force = {};
+  }
+  for (HeldObject& held : held_) {
+    held.internal = held.peak = 0.0;
+    held.peak_at = -1.0;
   }
   mj_forward(m, d);
   for (const int v : compensated_dofs_) d->qfrc_applied[v] = d->qfrc_bias[v];
@@ -313,7 +562,9 @@ bool CellWorld::step() noexcept {
   // readings between steps.
   apply_feed_forward();
   mj_step2(m, d);
+  measure_grasps();  // efc_force and efc_J belong to the same state until mj_step1
   mj_step1(m, d);
+  engage_grasps();
   return check_stable();
 }
 

@@ -34,10 +34,24 @@
 /// the contact's inverse mass, body_invweight0, the friction cone, the contact dimension and
 /// impratio), with kSpringContactAddedMass.
 ///
+/// Grasps (scene.hpp, [[scene.object.grasp]]): each is a weld equality constraint between the
+/// gripper's body and a free object, inactive until step() finds the gripper frame within the
+/// grasp's engage distance and angle of its grasp frame on the object and moving relative to it
+/// no faster than its engage speed; from then on (until reset()) the weld binds the object at its
+/// grasp frame, with the grasp's stiffness [N/m] and damping [N s/m] on its translational rows
+/// (converted at construction into MuJoCo's per-unit-mass solref and a constant solimp, as for
+/// contact springs, with kSpringContactAddedMass and the two bodies' mean inverse weights
+/// body_invweight0). step() measures each engaged weld's force on the object (its constraint
+/// rows' efc_force through their Jacobian onto the object's translational degrees of freedom)
+/// and, for each grasped object, its internal force: with n >= 2 engaged grasps of forces F_k,
+/// max_k |F_k - (1/n) sum_j F_j| (for two grasps |F_1 - F_2| / 2: the squeeze, stretch or shear
+/// between them, zero when the grippers only share the object's weight and inertia); with fewer,
+/// 0. Its peak since reset() is kept.
+///
 /// Real time: set_targets, set_velocity_feed_forward, step, solve_constraint_forces, every read
-/// (`time`, `actuator_*`, `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`) and
-/// `reset` neither allocate nor throw. A CellWorld is not thread-safe: call it from one thread (or
-/// guard it).
+/// (`time`, `actuator_*`, `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`,
+/// `grasp_*`, `internal_force`, `peak_*`) and `reset` neither allocate nor throw. A CellWorld is
+/// not thread-safe: call it from one thread (or guard it).
 
 #include <array>
 #include <cstddef>
@@ -91,6 +105,19 @@ struct CellRobot {
   std::vector<double> damping;         ///< actuator joints' viscous damping [N m s/rad or N s/m]
 
   [[nodiscard]] std::size_t axis_count() const noexcept { return axis_names.size(); }
+};
+
+/// One grasp of the cell (fixed after construction).
+struct CellGrasp {
+  std::string object;            ///< the grasped object
+  std::string gripper;           ///< its site or body, as the scene names it
+  std::size_t held = 0;          ///< index of the object among the grasped objects (held_object())
+  int equality = -1;             ///< its weld in the MuJoCo model
+  double engage_distance = 0.0;  ///< [m]
+  double engage_angle = 0.0;     ///< [rad]
+  double engage_speed = 0.0;     ///< [m/s]
+  double stiffness = 0.0;        ///< [N/m]
+  double damping = 0.0;          ///< [N s/m]
 };
 
 class CellWorld {
@@ -194,6 +221,31 @@ class CellWorld {
   [[nodiscard]] FramePose body_pose(std::string_view body_name) const;
   [[nodiscard]] FramePose site_pose(std::string_view site_name) const;
 
+  // ---- Grasps (real time) ----
+  [[nodiscard]] std::size_t grasp_count() const noexcept { return grasps_.size(); }
+  /// Grasp g (g < grasp_count()), in scene order.
+  [[nodiscard]] const CellGrasp& grasp(std::size_t g) const { return grasps_.at(g).info; }
+  /// Whether grasp g's gripper holds its object (false for an unknown g).
+  [[nodiscard]] bool grasp_engaged(std::size_t g) const noexcept;
+  /// When grasp g engaged [s of time()]; -1 while it is not engaged.
+  [[nodiscard]] double grasp_engaged_at(std::size_t g) const noexcept;
+  /// Force [N, world frame] grasp g's gripper exerted on its object in the last step (zeros
+  /// while not engaged or for an unknown g).
+  [[nodiscard]] std::array<double, 3> grasp_force(std::size_t g) const noexcept;
+  /// Distance [m] of grasp g's gripper frame from its grasp frame on the object now.
+  [[nodiscard]] double grasp_offset(std::size_t g) const noexcept;
+  /// Objects with grasps, in scene order.
+  [[nodiscard]] std::size_t held_object_count() const noexcept { return held_.size(); }
+  /// Name of grasped object i ("" for an unknown i).
+  [[nodiscard]] const std::string& held_object(std::size_t i) const noexcept;
+  /// Index of the grasped object named `object`. @throws Error listing them when unknown.
+  [[nodiscard]] std::size_t held_object_index(std::string_view object) const;
+  /// Internal force [N] of grasped object i in the last step (see the file comment).
+  [[nodiscard]] double internal_force(std::size_t i) const noexcept;
+  /// Its largest value since reset() [N], and when [s] (-1: never above 0).
+  [[nodiscard]] double peak_internal_force(std::size_t i) const noexcept;
+  [[nodiscard]] double peak_internal_force_time(std::size_t i) const noexcept;
+
   // ---- Faults ----
   [[nodiscard]] bool faulted() const noexcept { return faulted_; }
   /// Why the simulation is unstable (empty when it is not), e.g. "cell 'two-irb6' unstable at
@@ -213,7 +265,41 @@ class CellWorld {
     mutable std::vector<double> scratch;  ///< per axis
   };
 
+  /// A grasp with what step() needs.
+  struct GraspState {
+    CellGrasp info;
+    int gripper_body = 0;
+    int object_body = 0;
+    int object_dof = 0;                 ///< first (translational) dof of the object's free joint
+    std::array<double, 3> frame_pos{};  ///< gripper frame in its body [m]
+    std::array<double, 4> frame_quat{1.0, 0.0, 0.0, 0.0};
+    std::array<double, 3> at_pos{};  ///< grasp frame in the object [m]
+    std::array<double, 4> at_quat{1.0, 0.0, 0.0, 0.0};
+    bool engaged = false;
+    double engaged_at = -1.0;
+    std::array<double, 3> force{};
+  };
+  /// A grasped object.
+  struct HeldObject {
+    std::string name;
+    std::vector<std::size_t> grasps;
+    double internal = 0.0;
+    double peak = 0.0;
+    double peak_at = -1.0;
+  };
+
   void build(const Scene& scene);
+  /// The grasps' welds: their data (grasp frames), solref and solimp. @throws ConfigError for a
+  /// grasped object without a free joint.
+  void setup_grasps(const Scene& scene, int first_equality);
+  /// After mj_step2: the engaged welds' forces on their objects and the internal forces.
+  void measure_grasps() noexcept;
+  /// After mj_step1: grippers that arrived at their grasp frames engage.
+  void engage_grasps() noexcept;
+  /// World position of grasp g's gripper frame and of its grasp frame, and the angle between
+  /// them [rad].
+  void grasp_frames(const GraspState& g, double gripper[3], double target[3],
+                    double& angle) const noexcept;
   /// Converts the objects' stiffness solrefs (N/m, N s/m) into MuJoCo's per-unit-mass form, in
   /// the model and in xml_. @throws ConfigError for a stiffness solref on an object that does
   /// not move.
@@ -238,6 +324,8 @@ class CellWorld {
   std::vector<int> plain_dofs_;        ///< robot dofs without it (qfrc_applied = 0)
   std::vector<int> joint_robot_;       ///< per model joint: robot index, -1 for objects
   std::vector<int> joint_axis_;        ///< per model joint: axis index, -1 for passive joints
+  std::vector<GraspState> grasps_;
+  std::vector<HeldObject> held_;
   int warnings_at_reset_ = 0;
   bool faulted_ = false;
   std::array<char, 512> fault_{};

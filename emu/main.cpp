@@ -151,6 +151,7 @@ class Emulator {
           robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit);
     }
     setup_sensors();
+    grips_reported_.assign(world_.grasp_count(), false);
     for (const std::string& text : options_.faults) {
       Scheduled s;
       s.spec = emu::parse_fault(text);
@@ -193,6 +194,14 @@ class Emulator {
       run_lock_step();
     else
       run_real_time();
+  }
+
+  /// The grasped objects' peak internal forces (emu/cell_world.hpp, "Grasps").
+  void print_grips() const {
+    for (std::size_t i = 0; i < world_.held_object_count(); ++i)
+      std::cout << fmt::format(
+          "mrroc-axis-emu: object '{}': peak internal force {:.2f} N at t = {:.3f} s\n",
+          world_.held_object(i), world_.peak_internal_force(i), world_.peak_internal_force_time(i));
   }
 
   [[nodiscard]] std::uint64_t steps() const { return steps_; }
@@ -277,6 +286,13 @@ class Emulator {
     }
     ++steps_;
     const double now = world_.time();
+    for (std::size_t g = 0; g < world_.grasp_count(); ++g) {
+      if (grips_reported_[g] || !world_.grasp_engaged(g)) continue;
+      grips_reported_[g] = true;
+      std::cout << fmt::format("mrroc-axis-emu: object '{}' grasped by '{}' at t = {:.3f} s\n",
+                               world_.grasp(g).object, world_.grasp(g).gripper, now)
+                << std::flush;
+    }
     for (std::size_t k = 0; k < robots_.size(); ++k) {
       sample(k);
       RobotRun& r = robots_[k];
@@ -436,6 +452,7 @@ class Emulator {
   std::mt19937 random_{12345};
   std::uniform_real_distribution<double> uniform_{0.0, 1.0};
   bool world_fault_reported_ = false;
+  std::vector<bool> grips_reported_;  ///< per grasp: its engagement was printed
   std::uint64_t steps_ = 0;
 };
 
@@ -555,6 +572,7 @@ int main(int argc, char** argv) {
     }
     real_time_priority();
     emulator.run();
+    emulator.print_grips();
     std::cout << fmt::format("mrroc-axis-emu: stopped after {} physics steps, {} raw samples\n",
                              emulator.steps(), emulator.samples_published());
     if (reporter) reporter->set_state(ProcessState::finished);

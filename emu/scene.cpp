@@ -137,17 +137,19 @@ class TableReader {
   std::string name_;
 };
 
-/// The tables of an array of tables ([[scene.robot]]).
-std::vector<const toml::table*> table_list(const TableReader& scene, const char* key) {
+/// The tables of an array of tables ([[scene.robot]]); `full` names it in messages (default
+/// "scene.<key>").
+std::vector<const toml::table*> table_list(const TableReader& scene, const char* key,
+                                           const std::string& full = {}) {
   std::vector<const toml::table*> out;
   const toml::node* node = scene.find(key);
   if (node == nullptr) return out;
+  const std::string name = full.empty() ? fmt::format("scene.{}", key) : full;
   const toml::array* array = node->as_array();
-  if (array == nullptr)
-    scene.fail(*node, fmt::format("'{}' must be [[scene.{}]] tables", key, key));
+  if (array == nullptr) scene.fail(*node, fmt::format("'{}' must be [[{}]] tables", key, name));
   for (const toml::node& element : *array) {
     if (!element.is_table())
-      scene.fail(element, fmt::format("'{}' must be [[scene.{}]] tables", key, key));
+      scene.fail(element, fmt::format("'{}' must be [[{}]] tables", key, name));
     out.push_back(element.as_table());
   }
   return out;
@@ -236,10 +238,46 @@ void read_contact(const TableReader& r, SceneObject& object) {
   }
 }
 
+SceneGrasp read_grasp(const fs::path& file, const toml::table& table, const std::string& object) {
+  const TableReader r(file, table, "scene.object.grasp");
+  r.reject_unknown({"site", "body", "pos", "rotation", "at", "at_rotation", "engage_distance",
+                    "engage_angle", "engage_speed", "stiffness", "damping"});
+  SceneGrasp grasp;
+  grasp.where = r.at(table);
+  grasp.site = r.text("site").value_or("");
+  grasp.body = r.text("body").value_or("");
+  if (grasp.site.empty() == grasp.body.empty()) {
+    r.fail(table, fmt::format("grasp of object '{}': give exactly one of 'site' (a site of a "
+                              "robot, e.g. \"left/flange\") or 'body' (a body of a robot)",
+                              object));
+  }
+  if (!grasp.site.empty()) {
+    for (const char* key : {"pos", "rotation"}) {
+      if (const toml::node* node = r.find(key))
+        r.fail(*node, fmt::format("'{}' goes with 'body', not with 'site'", key));
+    }
+  }
+  grasp.position = r.fixed<3>("pos", "[x, y, z] (m, in the body)").value_or(grasp.position);
+  grasp.rotation = r.fixed<3>("rotation", "[rx, ry, rz] (rotation vector in rad, in the body)")
+                       .value_or(grasp.rotation);
+  const auto at = r.fixed<3>("at", "[x, y, z] (m, in the object's frame)");
+  if (!at) r.fail_missing("at", "the gripper frame's origin in the object's frame [m]");
+  grasp.at = *at;
+  grasp.at_rotation = r.fixed<3>("at_rotation", "[rx, ry, rz] (rotation vector in rad)")
+                          .value_or(grasp.at_rotation);
+  grasp.engage_distance =
+      r.number("engage_distance", 1e-5, 0.1, "m").value_or(grasp.engage_distance);
+  grasp.engage_angle = r.number("engage_angle", 1e-4, 1.0, "rad").value_or(grasp.engage_angle);
+  grasp.engage_speed = r.number("engage_speed", 1e-5, 1.0, "m/s").value_or(grasp.engage_speed);
+  grasp.stiffness = r.number("stiffness", 1.0, 1e7, "N/m").value_or(grasp.stiffness);
+  grasp.damping = r.number("damping", 0.0, 1e5, "N s/m").value_or(grasp.damping);
+  return grasp;
+}
+
 SceneObject read_object(const fs::path& file, const toml::table& table) {
   const TableReader r(file, table, "scene.object");
   r.reject_unknown({"name", "type", "size", "pos", "rotation", "mass", "rgba", "attach", "contact",
-                    "solref", "friction"});
+                    "solref", "friction", "grasp"});
   SceneObject object;
   object.where = r.at(table);
   object.name = r.name("name");
@@ -287,6 +325,14 @@ SceneObject read_object(const fs::path& file, const toml::table& table) {
     r.fail(*r.find("attach"), "'attach' must name a body (or \"world\")");
   }
   read_contact(r, object);
+  for (const toml::table* grasp : table_list(r, "grasp", "scene.object.grasp")) {
+    object.grasps.push_back(read_grasp(file, *grasp, object.name));
+  }
+  if (!object.grasps.empty() && !object.attach.empty()) {
+    r.fail(*r.find("attach"), fmt::format("object '{}' is attached to '{}': only a free object "
+                                          "(without 'attach') can be grasped",
+                                          object.name, object.attach));
+  }
   return object;
 }
 
@@ -483,6 +529,8 @@ class SceneComposer {
       out.robots.push_back(std::move(robot));
     }
     for (const SceneObject& object : scene_.objects) add_object(object);
+    out.first_grasp_equality = equalities;
+    for (const SceneObject& object : scene_.objects) add_grasps(object);
     for (xml::XMLElement* section : children(root_)) {
       if (section->NoChildren() && section->FirstAttribute() == nullptr)
         root_->DeleteChild(section);
@@ -845,6 +893,59 @@ class SceneComposer {
     geom->SetAttribute("rgba", fmt::format("{} {} {} {}", object.rgba[0], object.rgba[1],
                                            object.rgba[2], object.rgba[3])
                                    .c_str());
+  }
+
+  /// A site's body: the <body> element holding the <site> named `site`; empty when none.
+  std::string site_body(const std::string& site) const {
+    std::vector<xml::XMLElement*> all;
+    collect(root_, all);
+    for (xml::XMLElement* e : all) {
+      const char* own = e->Attribute("name");
+      if (std::string_view(e->Name()) != "site" || own == nullptr || site != own) continue;
+      const xml::XMLElement* parent = e->Parent()->ToElement();
+      const char* body = parent != nullptr ? parent->Attribute("name") : nullptr;
+      if (parent != nullptr && std::string_view(parent->Name()) == "worldbody") return "world";
+      return body != nullptr ? body : "";
+    }
+    return {};
+  }
+
+  /// The grasps' welds: inactive, between the gripper's body and the object (CellWorld sets
+  /// their data).
+  void add_grasps(const SceneObject& object) {
+    for (std::size_t i = 0; i < object.grasps.size(); ++i) {
+      const SceneGrasp& grasp = object.grasps[i];
+      std::string body = grasp.body;
+      if (!grasp.site.empty()) {
+        body = site_body(grasp.site);
+        if (body.empty()) {
+          throw ConfigError(grasp.where,
+                            fmt::format("grasp of object '{}': site '{}' is not in the scene (a "
+                                        "robot's sites are named '<robot>/<site>', e.g. "
+                                        "'left/flange')",
+                                        object.name, grasp.site));
+        }
+      } else if (find_body(sections_["worldbody"], body) == nullptr) {
+        throw ConfigError(grasp.where,
+                          fmt::format("grasp of object '{}': body '{}' is not in the scene (a "
+                                      "robot's bodies are named '<robot>/<body>', e.g. "
+                                      "'left/roll_link')",
+                                      object.name, body));
+      }
+      bool robot = false;
+      for (const SceneRobot& r : scene_.robots) robot = robot || body.rfind(r.name + "/", 0) == 0;
+      if (!robot) {
+        throw ConfigError(grasp.where,
+                          fmt::format("grasp of object '{}': '{}' is on body '{}', which is not "
+                                      "a robot's (a gripper is a robot's body)",
+                                      object.name, grasp.gripper(), body));
+      }
+      xml::XMLElement* weld = sections_["equality"]->InsertNewChildElement("weld");
+      weld->SetAttribute("name", fmt::format("{}/grasp{}", object.name, i).c_str());
+      weld->SetAttribute("body1", body.c_str());
+      weld->SetAttribute("body2", object.name.c_str());
+      weld->SetAttribute("active", "false");
+    }
   }
 
   const Scene& scene_;

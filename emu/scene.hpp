@@ -36,6 +36,20 @@
 ///                                     #   coefficients (1 to 3 numbers; MuJoCo's defaults
 ///                                     #   1, 0.005, 0.0001 for those not given)
 ///
+///     [[scene.object.grasp]]          # optional, free objects only: where a gripper holds it
+///     site = "left/flange"            # the gripper frame: a site of a robot (or `body`, a
+///                                     #   body, with optional `pos` [m] and `rotation` [rad]
+///                                     #   of the frame in that body)
+///     at = [-0.2, 0.0, 0.0]           # m, the gripper frame's origin in the object's frame
+///                                     #   when it holds the object
+///     at_rotation = [0.0, 1.5708, 0.0]  # optional: its rotation vector [rad], same frame
+///     engage_distance = 0.01          # optional [m], default 0.01: the gripper closes when its
+///     engage_angle = 0.1              #   frame is this near its grasp frame, turned by at most
+///     engage_speed = 0.01             #   this [rad], moving relative to the object at most
+///                                     #   this fast [m/s] (it has arrived)
+///     stiffness = 1e5                 # optional [N/m], default 1e5: the grip's spring
+///     damping = 600.0                 # optional [N s/m], default 600
+///
 /// Contacts. An object's geom collides with every other contact-capable geom (other objects, the
 /// floor) but not with robot links (their geoms are visual only). An object attached to a robot
 /// body (a tool, a probe) moves with the robot and is gravity-compensated with it.
@@ -58,6 +72,19 @@
 ///
 ///     [[scene.sensor]]                # optional: raw sensor devices, read by the emulator
 ///                                     #   (emu/sensors.hpp), not by load_scene()
+///
+/// Grasps. A grasp is a MuJoCo weld equality constraint "<object>/grasp<i>" between the gripper's
+/// body and the object, inactive until the gripper engages (CellWorld::step: the conditions
+/// above), then active until reset(). It binds the object at its grasp frame `at`: a
+/// self-centring gripper, whose jaws pull the object to where its geometry says the gripper holds
+/// it (engaging pulls the object by up to engage_distance). Two grippers that disagree about
+/// where the object is strain it: a grip k whose frame is off its grasp frame by r pulls with
+/// stiffness * r (+ damping * dr/dt) on its translational rows, the static force exactly (the
+/// cell world converts the stiffness into MuJoCo's per-unit-mass solref of the weld, as for
+/// contact springs, with the bodies' mean inverse weights; its rotational rows get the same
+/// solref). A recorded relative pose (a grip that engages unstrained wherever it closes) would
+/// absorb a robot's calibration error when it grasps, and a carry by translations would never
+/// show it.
 ///
 /// The base pose uses the same convention as `[[robot]] base` of process-set configs (position
 /// and rotation vector of the robot's base frame in the cell). Robot and object names must be
@@ -92,6 +119,25 @@ struct SceneRobot {
 
 enum class ObjectShape { box, sphere, cylinder, capsule };
 
+/// Where a gripper holds an object ([[scene.object.grasp]]).
+struct SceneGrasp {
+  std::string site;                     ///< the gripper frame is this site, or:
+  std::string body;                     ///< this body's frame moved by position, rotation
+  std::array<double, 3> position{};     ///< [m] in `body`
+  std::array<double, 3> rotation{};     ///< rotation vector [rad] in `body`
+  std::array<double, 3> at{};           ///< [m] the gripper frame in the object's frame
+  std::array<double, 3> at_rotation{};  ///< rotation vector [rad], same frame
+  double engage_distance = 0.01;        ///< [m]
+  double engage_angle = 0.1;            ///< [rad]
+  double engage_speed = 0.01;           ///< [m/s]
+  double stiffness = 1e5;               ///< [N/m]
+  double damping = 600.0;               ///< [N s/m]
+  SourceLocation where;                 ///< of the [[scene.object.grasp]] table
+
+  /// The gripper's name as the scene gives it (its site or body).
+  [[nodiscard]] const std::string& gripper() const noexcept { return site.empty() ? body : site; }
+};
+
 /// One object of the cell: a rigid body with one geom.
 struct SceneObject {
   std::string name;
@@ -107,8 +153,9 @@ struct SceneObject {
   /// -damping N s/m] (negative; see the file comment); none: MuJoCo's default.
   std::optional<std::array<double, 2>> solref;
   std::vector<double> friction;  ///< 0 to 3 coefficients (empty: MuJoCo's defaults)
-  SourceLocation where;          ///< of the [[scene.object]] table
-  SourceLocation solref_where;   ///< of `solref` (when given)
+  std::vector<SceneGrasp> grasps;
+  SourceLocation where;         ///< of the [[scene.object]] table
+  SourceLocation solref_where;  ///< of `solref` (when given)
 
   /// True when `solref` is the stiffness form (negative numbers).
   [[nodiscard]] bool spring_contact() const noexcept { return solref && (*solref)[0] < 0.0; }
@@ -148,6 +195,9 @@ struct ComposedScene {
   std::string xml;        ///< the MJCF text (load it with MuJoCo; print it for debugging)
   double timestep = 0.0;  ///< [s]
   std::vector<ComposedRobot> robots;  ///< in scene order
+  /// The grasps' welds are equality constraints first_grasp_equality, ... in scene order (objects,
+  /// then their grasps).
+  int first_grasp_equality = 0;
 };
 
 /// Builds one MJCF document (MuJoCo 2.2) from the robots' MJCF files and the objects:
@@ -176,11 +226,13 @@ struct ComposedScene {
 /// false); a free object has a free joint of the same name. An object's `solref`, `friction`
 /// become its geom's, with priority="1"; a stiffness solref is written as given (negative N/m,
 /// N s/m): CellWorld converts it to MuJoCo's form and sets its solimp after compiling, in the
-/// model and in its composed_xml().
+/// model and in its composed_xml(). Each grasp becomes an inactive <weld name="<object>/grasp<i>">
+/// between the gripper's body and the object, after every robot's equality constraints (its
+/// data, solref and solimp are set by CellWorld).
 /// @throws ConfigError "scene:line: error: robot 'x': ..." naming the robot's file and the problem
 ///   (a file that MuJoCo cannot load alone, disagreeing <compiler>/<option>, an unsupported
 ///   element such as <include> or <composite>, a missing parameters.toml, an `attach` naming no
-///   body).
+///   body, a grasp naming no site or body of a robot).
 ComposedScene compose_scene(const Scene& scene);
 
 /// The name of a shape in scene files ("box", ...).

@@ -22,8 +22,9 @@ using Matrix3 = Eigen::Matrix3d;
 using Vector3 = Eigen::Vector3d;
 using RowMajor3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
-constexpr std::array<const char*, 4> kTypeNames = {"strain_gauges", "range", "encoder", "camera"};
-constexpr std::array<double, 4> kDefaultRates = {500.0, 50.0, 500.0, 30.0};
+constexpr std::array<const char*, 5> kTypeNames = {"strain_gauges", "range", "encoder", "camera",
+                                                   "grasp"};
+constexpr std::array<double, 5> kDefaultRates = {500.0, 50.0, 500.0, 30.0, 500.0};
 
 std::size_t at(int i) { return static_cast<std::size_t>(i); }
 
@@ -138,11 +139,14 @@ const std::vector<std::string>& known_keys(SensorType type) {
                                                    "seed", "robot", "axis"};
   static const std::vector<std::string> camera = {"name", "type",    "rate_hz", "noise",
                                                   "seed", "objects", "region",  "latency_ms"};
+  static const std::vector<std::string> grasp = {"name",  "type", "rate_hz",
+                                                 "noise", "seed", "object"};
   switch (type) {
     case SensorType::strain_gauges: return gauges;
     case SensorType::range: return range;
     case SensorType::encoder: return encoder;
     case SensorType::camera: return camera;
+    case SensorType::grasp: return grasp;
   }
   return gauges;
 }
@@ -247,6 +251,17 @@ void read_camera(const SensorReader& r, const CellWorld& world, SensorConfig& c)
   c.latency_s = r.number("latency_ms", 0.0, 10000.0, "ms").value_or(50.0) * 1e-3;
 }
 
+void read_grasp(const SensorReader& r, const CellWorld& world, SensorConfig& c) {
+  const std::optional<std::string> object = r.text("object");
+  if (!object) r.fail_missing("object", "an object with [[scene.object.grasp]] entries");
+  try {
+    (void)world.held_object_index(*object);
+  } catch (const Error& e) {
+    r.fail(*r.find("object"), e.what());
+  }
+  c.object = *object;
+}
+
 SensorConfig read_sensor(const fs::path& file, const toml::table& table, const CellWorld& world) {
   SensorReader r(file, table);
   SensorConfig c;
@@ -261,7 +276,7 @@ SensorConfig read_sensor(const fs::path& file, const toml::table& table, const C
   c.name = *name;
   r.set_device(c.name);
   const std::optional<std::string> type = r.text("type");
-  if (!type) r.fail_missing("type", "strain_gauges, range, encoder or camera");
+  if (!type) r.fail_missing("type", "strain_gauges, range, encoder, camera or grasp");
   bool known = false;
   for (std::size_t t = 0; t < kTypeNames.size(); ++t) {
     if (*type == kTypeNames[t]) {
@@ -271,7 +286,8 @@ SensorConfig read_sensor(const fs::path& file, const toml::table& table, const C
   }
   if (!known) {
     r.fail(*r.find("type"),
-           fmt::format("'type' = \"{}\" is not strain_gauges, range, encoder or camera", *type));
+           fmt::format("'type' = \"{}\" is not strain_gauges, range, encoder, camera or grasp",
+                       *type));
   }
   r.reject_unknown(known_keys(c.type), *type);
   const double physics_rate = 1.0 / world.timestep();
@@ -303,6 +319,7 @@ SensorConfig read_sensor(const fs::path& file, const toml::table& table, const C
       break;
     case SensorType::encoder: read_encoder(r, world, c); break;
     case SensorType::camera: read_camera(r, world, c); break;
+    case SensorType::grasp: read_grasp(r, world, c); break;
   }
   return c;
 }
@@ -396,6 +413,11 @@ struct SensorDevices::Device {
   std::size_t count = 0;
   std::int64_t latency_us = 0;
 
+  // Grasp: the object and its grasps (CellWorld indices).
+  std::size_t held = 0;
+  int object_body = 0;
+  std::vector<std::size_t> grasps;
+
   double noise() noexcept { return config.noise > 0.0 ? config.noise * normal(random) : 0.0; }
 
   /// Sensor frame in the world: rotation and origin.
@@ -415,6 +437,8 @@ SensorDevices::~SensorDevices() = default;
 SensorDevices::SensorDevices(std::vector<SensorConfig> configs, const CellWorld& world)
     : timestep_(world.timestep()) {
   const mjModel* m = world.model();
+  for (std::size_t g = 0; g < world.grasp_count(); ++g)
+    world_grippers_.push_back(world.grasp(g).gripper);
   for (SensorConfig& c : configs) {
     auto dev = std::make_unique<Device>();
     Device& d = *dev;
@@ -482,6 +506,25 @@ SensorDevices::SensorDevices(std::vector<SensorConfig> configs, const CellWorld&
         d.sample.units = {"m", "m", "m", "", "", "", ""};
         break;
       }
+      case SensorType::grasp: {
+        try {
+          d.held = world.held_object_index(c.object);
+        } catch (const Error& e) {
+          fail(e.what());
+        }
+        d.object_body = world.body_id(c.object);
+        d.sample.names = {"internal", "x", "y", "z"};
+        d.sample.units = {"N", "m", "m", "m"};
+        for (std::size_t g = 0; g < world.grasp_count(); ++g) {
+          if (world.grasp(g).object != c.object) continue;
+          const std::size_t i = d.grasps.size();
+          d.grasps.push_back(g);
+          for (const char* value : {"engaged", "fx", "fy", "fz"})
+            d.sample.names.push_back(fmt::format("{}{}", value, i));
+          d.sample.units.insert(d.sample.units.end(), {"", "N", "N", "N"});
+        }
+        break;
+      }
     }
     d.sample.values.assign(d.sample.names.size(), 0.0);
     d.config = std::move(c);
@@ -528,6 +571,13 @@ std::string SensorDevices::describe(std::size_t i) const {
           "{}..{} m, {} Hz, latency {} ms{} -> {}",
           c.name, fmt::join(c.objects, ", "), c.region[0], c.region[1], c.region[2], c.region[3],
           c.region[4], c.region[5], c.rate_hz, c.latency_s * 1e3, noise, channel);
+    case SensorType::grasp: {
+      std::vector<std::string> grippers;
+      for (const std::size_t g : devices_[i]->grasps) grippers.push_back(world_grippers_[g]);
+      return fmt::format(
+          "sensor '{}': grip on object '{}' by {} (internal force, N), {} Hz{} -> {}", c.name,
+          c.object, fmt::join(grippers, ", "), c.rate_hz, noise, channel);
+    }
   }
   return c.name;
 }
@@ -687,6 +737,18 @@ std::span<const std::size_t> SensorDevices::update(CellWorld& world,
         (void)world.actuator_positions(dev.robot, dev.positions);
         s.values[0] = dev.positions[c.axis] + dev.noise();
         break;
+      case SensorType::grasp: {
+        const mjData* d = world.data();
+        s.values[0] = world.internal_force(dev.held) + dev.noise();
+        for (std::size_t k = 0; k < 3; ++k) s.values[1 + k] = d->xpos[3 * at(dev.object_body) + k];
+        for (std::size_t j = 0; j < dev.grasps.size(); ++j) {
+          const std::size_t g = dev.grasps[j];
+          const std::array<double, 3> f = world.grasp_force(g);
+          s.values[4 + 4 * j] = world.grasp_engaged(g) ? 1.0 : 0.0;
+          for (std::size_t k = 0; k < 3; ++k) s.values[5 + 4 * j + k] = f[k] + dev.noise();
+        }
+        break;
+      }
       case SensorType::camera: break;
     }
     ready_.push_back(i);

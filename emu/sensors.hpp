@@ -6,7 +6,7 @@
 ///
 ///     [[scene.sensor]]
 ///     name = "irb6_wrist"           # device name (channel mrroc/raw/<name>), unique
-///     type = "strain_gauges"        # strain_gauges | range | encoder | camera
+///     type = "strain_gauges"        # strain_gauges | range | encoder | camera | grasp
 ///     rate_hz = 500                 # optional: samples per second of simulated time
 ///     noise = 0.0002                # optional: std of Gaussian noise, in the values' unit
 ///     seed = 7                      # optional: noise seed (default: from the name)
@@ -21,6 +21,7 @@
 ///     objects = ["part"]            # camera: bodies it looks for, in order
 ///     region = [x0, x1, y0, y1, z0, z1]  # its field of view in the world [m]
 ///     latency_ms = 50               #   publication delay [ms]
+///     object = "bar"                # grasp: an object with [[scene.object.grasp]] entries
 ///
 /// The devices, their values and units:
 ///   - strain_gauges (default 500 Hz): a 6-axis wrist force/torque sensor of six strain-gauge
@@ -43,6 +44,11 @@
 ///     z [m] (+ noise), qw, qx, qy, qz of the first listed object whose body origin is inside
 ///     `region`; valid = 0 (values 0 and the identity) when none is. Each sample is published
 ///     latency_ms of simulated time after it was taken.
+///   - grasp (default 500 Hz): the grip on an object held by grippers (scene.hpp, "Grasps"):
+///     values "internal" [N], the object's internal force (CellWorld::internal_force, + noise);
+///     "x", "y", "z" [m], its position in the world; then for each of its grasps i (scene
+///     order) "engaged<i>" (1 or 0) and "fx<i>", "fy<i>", "fz<i>" [N] (+ noise), the force its
+///     gripper exerts on the object, world frame. Values of the last physics step.
 /// sample_no counts each device's samples from 0. sample_utime is the wall clock when the sample
 /// is taken (= when it is published), for the camera the publication time minus the latency.
 /// Rates count simulated time (so they hold in lock-step too); a device samples at the first
@@ -73,7 +79,7 @@ class Authenticator;
 
 namespace mrroc::emu {
 
-enum class SensorType { strain_gauges, range, encoder, camera };
+enum class SensorType { strain_gauges, range, encoder, camera, grasp };
 
 /// "strain_gauges", ...
 const char* sensor_type_name(SensorType type) noexcept;
@@ -102,6 +108,7 @@ struct SensorConfig {
   std::vector<std::string> objects;  ///< camera
   std::array<double, 6> region{};    ///< camera: xmin xmax ymin ymax zmin zmax [m]
   double latency_s = 0.05;           ///< camera
+  std::string object;                ///< grasp
   SourceLocation where;              ///< of the [[scene.sensor]] table
 };
 
@@ -150,6 +157,7 @@ class SensorDevices {
   struct Device;
   std::vector<std::unique_ptr<Device>> devices_;
   std::vector<std::size_t> ready_;
+  std::vector<std::string> world_grippers_;  ///< per grasp of the world: its gripper
   double timestep_ = 0.001;
 };
 

@@ -600,6 +600,139 @@ TEST(SceneFile, TheRobotsMjcfCanBeOverridden) {
   EXPECT_DOUBLE_EQ(world.robot(0).target_ranges[0].upper, 2.0);
 }
 
+// ---- Grasps ----
+
+/// carry_bar's grip of robot k (0 left, 1 right) for the bar centre `centre`, in the robot's
+/// base frame (mp/tasks/carry_bar.cpp), as joints.
+std::vector<double> grip_joints(const CellWorld& world, std::size_t k,
+                                const Eigen::Vector3d& centre, double shift_x = 0.0) {
+  const double side = k == 0 ? 1.0 : -1.0;
+  Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();
+  grip.linear().col(0) = Eigen::Vector3d(0, 0, -1);
+  grip.linear().col(2) = Eigen::Vector3d(side, 0, 0);
+  grip.linear().col(1) = grip.linear().col(2).cross(grip.linear().col(0));
+  grip.translation() =
+      centre - side * 0.2 * Eigen::Vector3d::UnitX() + shift_x * Eigen::Vector3d::UnitX();
+  const Eigen::Isometry3d base = mrroc::kinematics::from_values(
+      world.robot(k).base, mrroc::edp::ArmRepresentation::xyz_angle_axis);
+  mrroc::robots::irb6::JointPosition seed{0.0, -1.5, 0.0, 0.0, 0.0};
+  const auto q = mrroc::robots::irb6::inverse_kinematics(base.inverse() * grip, seed);
+  return {q.begin(), q.end()};
+}
+
+TEST(CellWorld, GraspsHoldTheBarUnstrainedAndAnOffsetStrainsItAsTheStiffnessSays) {
+  Scene scene = mrroc::emu::load_scene(scene_file("two-irb6.toml"));
+  ASSERT_EQ(scene.objects.at(1).grasps.size(), 2U);
+  const double stiffness = scene.objects[1].grasps[0].stiffness;
+  // Power on with both flanges at their grips of the bar 5 mm above where it lies: both grips
+  // close at once and lift it off the table.
+  const Eigen::Vector3d centre(1.0, 0.0, 1.105);
+  {
+    const CellWorld probe(scene);
+    for (std::size_t k = 0; k < 2; ++k)
+      scene.robots[k].initial_joint_positions = grip_joints(probe, k, centre);
+  }
+  CellWorld world(scene);
+  ASSERT_EQ(world.grasp_count(), 2U);
+  EXPECT_EQ(world.grasp(0).gripper, "left/flange");
+  EXPECT_EQ(world.grasp(1).object, "bar");
+  ASSERT_EQ(world.held_object_count(), 1U);
+  EXPECT_EQ(world.held_object_index("bar"), 0U);
+  EXPECT_THROW((void)world.held_object_index("table"), mrroc::Error);
+  EXPECT_FALSE(world.grasp_engaged(0));
+  EXPECT_NEAR(world.grasp_offset(0), 0.005, 2e-4) << "the bar lies 5 mm below the grip";
+  const std::vector<double> left = actuators(world, 0);
+  const std::vector<double> right = actuators(world, 1);
+  g_heap.allocations = 0;
+  g_heap.counting = true;
+  bool ok = true;
+  for (int s = 0; s < 1000; ++s) ok = ok && world.step();
+  g_heap.counting = false;
+  ASSERT_TRUE(ok) << world.fault_text();
+  EXPECT_EQ(g_heap.allocations.load(), 0) << "grasps allocated in step()";
+  ASSERT_TRUE(world.grasp_engaged(0) && world.grasp_engaged(1));
+  EXPECT_LT(world.grasp_engaged_at(0), 0.01);
+  // Held 5 mm above the table, the weight shared: each grip pulls half of it up, nothing else.
+  EXPECT_NEAR(world.body_pose("bar").position[2], centre.z(), 2e-4);
+  const double weight = 9.81 * 1.0;
+  for (std::size_t g = 0; g < 2; ++g) {
+    const auto f = world.grasp_force(g);
+    std::printf("grip %zu holding the bar: force [%.4f, %.4f, %.4f] N, offset %.2e m\n", g, f[0],
+                f[1], f[2], world.grasp_offset(g));
+    EXPECT_NEAR(f[2], weight / 2, 0.05) << g;
+    EXPECT_NEAR(f[0], 0.0, 0.5) << g;
+    EXPECT_NEAR(world.grasp_offset(g), weight / 2 / stiffness, 2e-5) << g;
+  }
+  const double unstrained = world.internal_force(0);
+  std::printf("internal force, unstrained: %.4f N (peak %.4f N while closing)\n", unstrained,
+              world.peak_internal_force(0));
+  EXPECT_LT(unstrained, 0.5);  // 0.35 N: the arms' sag under the bar, mirrored along x
+  // The right robot's grip moved along x by 1 and 2 mm towards the left one: both grips squeeze
+  // the bar; each is off its grasp frame by about half the offset (the arms are far stiffer).
+  std::vector<double> forces;
+  for (const double offset : {0.001, 0.002}) {
+    ASSERT_TRUE(world.set_targets(1, grip_joints(world, 1, centre, -offset)));
+    for (int s = 0; s < 1000; ++s) ASSERT_TRUE(world.step()) << world.fault_text();
+    const double internal = world.internal_force(0);
+    const double predicted = stiffness * offset / 2;
+    const auto f = world.grasp_force(0);
+    std::printf(
+        "right grip %.0f mm off: internal force %.1f N (stiffness * offset / 2 = %.1f N), left "
+        "grip force x %.1f N, grips off their frames %.3f and %.3f mm\n",
+        offset * 1e3, internal, predicted, f[0], world.grasp_offset(0) * 1e3,
+        world.grasp_offset(1) * 1e3);
+    EXPECT_NEAR(internal, predicted, 0.25 * predicted) << offset;
+    // Statically exact: each grip's force is its stiffness times how far it is off its frame.
+    EXPECT_NEAR(std::abs(f[0]), stiffness * world.grasp_offset(0), 0.02 * std::abs(f[0]));
+    EXPECT_GT(f[0], 0.0) << "the left grip pushes the bar back towards +x";
+    forces.push_back(internal);
+  }
+  EXPECT_NEAR(forces[1] / forces[0], 2.0, 0.1) << "linear in the offset";
+  EXPECT_GE(world.peak_internal_force(0), forces[1]);
+  // reset() opens the grips.
+  world.reset();
+  EXPECT_FALSE(world.grasp_engaged(0));
+  EXPECT_EQ(world.peak_internal_force(0), 0.0);
+  (void)left;
+  (void)right;
+}
+
+TEST(SceneFile, GraspErrorsNameTheKeyAndTheLimit) {
+  const ScratchDir dir;
+  const std::string irb6 = (source_dir() / "robots" / "irb6").string();
+  const std::string head = "[scene]\n[[scene.robot]]\nname = \"left\"\nmodel = \"" + irb6 +
+                           "\"\n[[scene.object]]\nname = \"bar\"\ntype = \"box\"\nsize = [0.2, "
+                           "0.02, 0.02]\npos = [1, 0, 1]\nmass = 1.0\n";
+  const auto error = [&](const std::string& text) -> std::string {
+    try {
+      const CellWorld world(dir.write("scene.toml", head + text));
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return {};
+  };
+  EXPECT_NE(error("[[scene.object.grasp]]\nat = [0, 0, 0]\n").find("give exactly one of 'site'"),
+            std::string::npos);
+  EXPECT_NE(error("[[scene.object.grasp]]\nsite = \"left/hand\"\nat = [0, 0, 0]\n")
+                .find("site 'left/hand' is not in the scene"),
+            std::string::npos);
+  EXPECT_NE(error("[[scene.object.grasp]]\nbody = \"bar\"\nat = [0, 0, 0]\n")
+                .find("which is not a robot's"),
+            std::string::npos);
+  EXPECT_NE(error("[[scene.object.grasp]]\nsite = \"left/flange\"\n").find("missing key 'at'"),
+            std::string::npos);
+  EXPECT_NE(error("[[scene.object.grasp]]\nsite = \"left/flange\"\nat = [0, 0, 0]\nstiffness = "
+                  "-5\n")
+                .find("'stiffness' = -5 N/m is outside the accepted range"),
+            std::string::npos);
+  EXPECT_NE(error("[[scene.object.grasp]]\nsite = \"left/flange\"\nat = [0, 0, 0]\ngrip = 1\n")
+                .find("unknown key 'grip' in [scene.object.grasp]"),
+            std::string::npos);
+  EXPECT_EQ(error("[[scene.object.grasp]]\nbody = \"left/roll_link\"\npos = [0.19, 0, 0]\nat = "
+                  "[0, 0, 0]\n"),
+            "");
+}
+
 // ---- Performance (printed, not asserted) ----
 
 TEST(CellWorld, StepTime) {

@@ -43,10 +43,10 @@
 ///     at = [-0.2, 0.0, 0.0]           # m, the gripper frame's origin in the object's frame
 ///                                     #   when it holds the object
 ///     at_rotation = [0.0, 1.5708, 0.0]  # optional: its rotation vector [rad], same frame
-///     engage_distance = 0.01          # optional [m], default 0.01: the gripper closes when its
-///     engage_angle = 0.1              #   frame is this near its grasp frame, turned by at most
-///     engage_speed = 0.01             #   this [rad], moving relative to the object at most
-///                                     #   this fast [m/s] (it has arrived)
+///     engage_distance = 0.01          # optional (these are the defaults): the gripper closes
+///     engage_angle = 0.1              #   when its frame is this near its grasp frame [m],
+///     engage_speed = 0.002            #   turned by at most this [rad], moving relative to the
+///                                     #   object at most this fast [m/s] (it has arrived)
 ///     stiffness = 1e5                 # optional [N/m], default 1e5: the grip's spring
 ///     damping = 600.0                 # optional [N s/m], default 600
 ///
@@ -129,7 +129,7 @@ struct SceneGrasp {
   std::array<double, 3> at_rotation{};  ///< rotation vector [rad], same frame
   double engage_distance = 0.01;        ///< [m]
   double engage_angle = 0.1;            ///< [rad]
-  double engage_speed = 0.01;           ///< [m/s]
+  double engage_speed = 0.002;          ///< [m/s]
   double stiffness = 1e5;               ///< [N/m]
   double damping = 600.0;               ///< [N s/m]
   SourceLocation where;                 ///< of the [[scene.object.grasp]] table

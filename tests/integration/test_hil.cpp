@@ -101,9 +101,10 @@ class GripWatch {
   std::vector<Sample> held_;
 };
 
-/// Bound of the bar's internal force during the carry [N] (measured: see
-/// TwoRobotsCarryTheBarInOneEmulatedWorld).
-constexpr double kGripForceBound = 20.0;
+/// Bound of the bar's internal force while both grips hold it [N]. Measured on this cell: about
+/// 10 N during the whole hold (the two arms' grips disagree by some 0.2 mm: the homing of ten
+/// axes), 19 N for a moment when the second grip closes; with one robot 5 mm off, above 200 N.
+constexpr double kGripForceBound = 30.0;
 
 struct Carry {
   RunResult run;

@@ -651,7 +651,7 @@ TEST(CellWorld, GraspsHoldTheBarUnstrainedAndAnOffsetStrainsItAsTheStiffnessSays
   ASSERT_TRUE(ok) << world.fault_text();
   EXPECT_EQ(g_heap.allocations.load(), 0) << "grasps allocated in step()";
   ASSERT_TRUE(world.grasp_engaged(0) && world.grasp_engaged(1));
-  EXPECT_LT(world.grasp_engaged_at(0), 0.01);
+  EXPECT_LT(world.grasp_engaged_at(0), 0.05);  // once the arms have settled at power-on
   // Held 5 mm above the table, the weight shared: each grip pulls half of it up, nothing else.
   EXPECT_NEAR(world.body_pose("bar").position[2], centre.z(), 2e-4);
   const double weight = 9.81 * 1.0;

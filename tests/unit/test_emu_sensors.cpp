@@ -651,6 +651,10 @@ TEST(EmuSensors, ConfigErrorsNameTheFileLineAndDevice) {
   has(error("type = \"encoder\"\nrobot = \"irb6\"\naxis = 0\n[[scene.sensor]]\nname = \"s\"\n"
             "type = \"encoder\"\nrobot = \"irb6\"\naxis = 1\n"),
       "s.toml:10: error: duplicate sensor name 's' (first used at ");
+  has(error("type = \"grasp\"\nobject = \"irb6/roll_link\"\n"),
+      "s.toml:8: error: sensor 's': cell 'world': no grasped object named 'irb6/roll_link' "
+      "(objects with grasps: none)");
+  has(error("type = \"grasp\"\n"), "s.toml:5: error: sensor 's': missing key 'object'");
   // A device on the world is fine (it sees every geom, the floor included).
   const fs::path ok = dir.write("ok.toml", head +
                                                "type = \"range\"\nbody = \"world\"\npos = [2, "
@@ -662,6 +666,36 @@ TEST(EmuSensors, ConfigErrorsNameTheFileLineAndDevice) {
   }
   EXPECT_TRUE(on_world.sample(0).valid);
   EXPECT_NEAR(on_world.sample(0).values[0], 1.0, 1e-9);  // down to the floor
+}
+
+TEST(EmuSensors, GraspDeviceIsTheBarsGripAsTheCellWorldMeasuresIt) {
+  // two-irb6.toml's bar_grip, its arms at power-on (nowhere near the bar): open grips.
+  CellWorld world(scene_file("two-irb6.toml"));
+  SensorDevices sensors(scene_file("two-irb6.toml"), world);
+  const std::size_t i = sensors.index("bar_grip");
+  EXPECT_EQ(sensors.config(i).type, mrroc::emu::SensorType::grasp);
+  EXPECT_EQ(sensors.config(i).rate_hz, 500.0);
+  EXPECT_NE(sensors.describe(i).find("grip on object 'bar' by left/flange, right/flange"),
+            std::string::npos)
+      << sensors.describe(i);
+  const std::vector<std::string> names = {"internal", "x",   "y",        "z",   "engaged0", "fx0",
+                                          "fy0",      "fz0", "engaged1", "fx1", "fy1",      "fz1"};
+  EXPECT_EQ(sensors.sample(i).names, names);
+  EXPECT_EQ(sensors.sample(i).units[0], "N");
+  int published = 0;
+  for (int s = 0; s < 100; ++s) {
+    ASSERT_TRUE(world.step()) << world.fault_text();
+    for (const std::size_t ready : sensors.update(world, wall_utime(world)))
+      published += ready == i ? 1 : 0;
+  }
+  EXPECT_EQ(published, 50);  // 500 Hz for 0.1 s
+  const auto& v = sensors.sample(i).values;
+  EXPECT_EQ(v[0], 0.0);
+  EXPECT_NEAR(v[1], 1.0, 1e-3);  // the bar on its table
+  EXPECT_NEAR(v[3], 1.10, 1e-3);
+  EXPECT_EQ(v[4], 0.0);
+  EXPECT_EQ(v[8], 0.0);
+  EXPECT_EQ(v[7], 0.0) << "an open grip exerts no force";
 }
 
 }  // namespace

@@ -254,6 +254,16 @@ void CellWorld::convert_spring_contacts(const Scene& scene) {
 void CellWorld::setup_grasps(const Scene& scene, int first_equality) {
   mjModel* m = model_.get();
   int equality = first_equality;
+  tinyxml2::XMLDocument document;
+  const bool editable = document.Parse(xml_.c_str()) == tinyxml2::XML_SUCCESS;
+  std::vector<tinyxml2::XMLElement*> welds;
+  if (editable) {
+    if (tinyxml2::XMLElement* section = document.RootElement()->FirstChildElement("equality")) {
+      for (tinyxml2::XMLElement* e = section->FirstChildElement("weld"); e != nullptr;
+           e = e->NextSiblingElement("weld"))
+        welds.push_back(e);
+    }
+  }
   for (const SceneObject& object : scene.objects) {
     if (object.grasps.empty()) continue;
     HeldObject held;
@@ -329,10 +339,32 @@ void CellWorld::setup_grasps(const Scene& scene, int first_equality) {
       solimp[3] = 0.5;
       solimp[4] = 2.0;
       m->eq_active[equality] = 0;
+      // The composed document shows what MuJoCo runs (the welds are the last ones).
+      const std::size_t from_end = index(m->neq - equality);
+      if (from_end <= welds.size()) {
+        tinyxml2::XMLElement* weld = welds[welds.size() - from_end];
+        weld->SetAttribute("solref", fmt::format("{} {}", solref[0], solref[1]).c_str());
+        weld->SetAttribute("solimp", fmt::format("{} {} {} {} {}", solimp[0], solimp[1], solimp[2],
+                                                 solimp[3], solimp[4])
+                                         .c_str());
+        weld->InsertNewComment(
+            fmt::format(" grasp of '{}' by '{}' ({}): eq_data [{}] set by the cell world; "
+                        "stiffness {} N/m, damping {} N s/m in MuJoCo's per-unit-mass form; "
+                        "closes within {} m, {} rad, {} m/s ",
+                        object.name, source.gripper(), source.where.str(),
+                        fmt::join(data, data + mjNEQDATA, " "), source.stiffness, source.damping,
+                        source.engage_distance, source.engage_angle, source.engage_speed)
+                .c_str());
+      }
       held.grasps.push_back(grasps_.size());
       grasps_.push_back(g);
     }
     held_.push_back(std::move(held));
+  }
+  if (editable && !grasps_.empty()) {
+    tinyxml2::XMLPrinter printer;
+    document.Print(&printer);
+    xml_ = printer.CStr();
   }
 }
 

@@ -102,8 +102,8 @@ class GripWatch {
 };
 
 /// Bound of the bar's internal force while both grips hold it [N]. Measured on this cell: about
-/// 10 N during the whole hold (the two arms' grips disagree by some 0.2 mm: the homing of ten
-/// axes), 19 N for a moment when the second grip closes; with one robot 5 mm off, above 200 N.
+/// 10 N during the whole hold (the two arms' grips disagree by some 0.2 mm), at most 18 N while
+/// the two EDPs' macro-steps drift apart in the motion; with one robot 5 mm off, above 200 N.
 constexpr double kGripForceBound = 30.0;
 
 struct Carry {

@@ -102,8 +102,8 @@ class GripWatch {
 };
 
 /// Bound of the bar's internal force while both grips hold it [N]. Measured on this cell: about
-/// 10 N during the whole hold (the two arms' grips disagree by some 0.2 mm), at most 18 N while
-/// the two EDPs' macro-steps drift apart in the motion; with one robot 5 mm off, above 200 N.
+/// 10 N during the whole hold (a shear: the two grips 0.19 mm apart across the bar), at most 18 N
+/// in the motion; with one robot 5 mm off, above 200 N (docs/hil.md, "Grasped objects").
 constexpr double kGripForceBound = 30.0;
 
 struct Carry {

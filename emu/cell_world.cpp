@@ -481,6 +481,19 @@ std::array<double, 3> CellWorld::grasp_force(std::size_t g) const noexcept {
   return g < grasps_.size() ? grasps_[g].force : std::array<double, 3>{};
 }
 
+int CellWorld::grasp_gripper_body(std::size_t g) const noexcept {
+  return g < grasps_.size() ? grasps_[g].gripper_body : -1;
+}
+
+std::array<double, 3> CellWorld::grasp_point(std::size_t g) const noexcept {
+  if (g >= grasps_.size()) return {};
+  std::array<double, 3> gripper{};
+  std::array<double, 3> target{};
+  double angle = 0.0;
+  grasp_frames(grasps_[g], gripper.data(), target.data(), angle);
+  return gripper;
+}
+
 double CellWorld::grasp_offset(std::size_t g) const noexcept {
   if (g >= grasps_.size()) return 0.0;
   std::array<double, 3> gripper{};

@@ -232,6 +232,10 @@ class CellWorld {
   /// Force [N, world frame] grasp g's gripper exerted on its object in the last step (zeros
   /// while not engaged or for an unknown g).
   [[nodiscard]] std::array<double, 3> grasp_force(std::size_t g) const noexcept;
+  /// MuJoCo body id of grasp g's gripper (-1 for an unknown g).
+  [[nodiscard]] int grasp_gripper_body(std::size_t g) const noexcept;
+  /// World position [m] of grasp g's gripper frame now (zeros for an unknown g).
+  [[nodiscard]] std::array<double, 3> grasp_point(std::size_t g) const noexcept;
   /// Distance [m] of grasp g's gripper frame from its grasp frame on the object now.
   [[nodiscard]] double grasp_offset(std::size_t g) const noexcept;
   /// Objects with grasps, in scene order.

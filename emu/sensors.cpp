@@ -391,8 +391,9 @@ struct SensorDevices::Device {
   int exclude_body = -1;  ///< range: the mounting body (none on the world)
 
   // Strain gauges.
-  std::vector<char> outboard;  ///< per body
-  std::vector<int> weighed;    ///< outboard bodies with mass
+  std::vector<char> outboard;            ///< per body
+  std::vector<int> weighed;              ///< outboard bodies with mass
+  std::vector<std::size_t> held_grasps;  ///< grasps whose gripper is the mounting body or outboard
   std::array<double, 6> wrench{};
 
   // Encoder.
@@ -470,6 +471,13 @@ SensorDevices::SensorDevices(std::vector<SensorConfig> configs, const CellWorld&
             d.outboard[at(b)] = 1;
             if (m->body_mass[b] > 0.0) d.weighed.push_back(b);
           }
+        }
+        // A gripper is on the tool side of a wrist sensor: a grasp whose gripper is the
+        // mounting body itself counts too.
+        for (std::size_t k = 0; k < world.grasp_count(); ++k) {
+          const int gripper = world.grasp_gripper_body(k);
+          if (gripper == d.body || (gripper > 0 && d.outboard[at(gripper)] != 0))
+            d.held_grasps.push_back(k);
         }
         const Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> g(
             c.gauge_matrix.data());
@@ -605,9 +613,12 @@ FramePose SensorDevices::sensor_pose(const CellWorld& world, std::size_t i) cons
 namespace {
 
 /// The load on the outboard side of a strain-gauge sensor, in its frame (sensors.hpp).
-void measure_wrench(const mjModel* m, const mjData* d, const std::vector<char>& outboard,
-                    const std::vector<int>& weighed, const Matrix3& rotation, const Vector3& origin,
+void measure_wrench(const CellWorld& world, const std::vector<char>& outboard,
+                    const std::vector<int>& weighed, const std::vector<std::size_t>& grasps,
+                    const Matrix3& rotation, const Vector3& origin,
                     std::array<double, 6>& out) noexcept {
+  const mjModel* m = world.model();
+  const mjData* d = world.data();
   Vector3 force = Vector3::Zero();
   Vector3 torque = Vector3::Zero();
   for (int c = 0; c < d->ncon; ++c) {
@@ -630,6 +641,16 @@ void measure_wrench(const mjModel* m, const mjData* d, const std::vector<char>& 
     const Eigen::Map<const Vector3> point(contact.pos);
     force += f;
     torque += (point - origin).cross(f) + t;
+  }
+  // A held object pulls on its gripper with the opposite of the force the gripper exerts on it
+  // (the weld's translational rows; its torque rows are not counted).
+  for (const std::size_t g : grasps) {
+    if (!world.grasp_engaged(g)) continue;
+    const std::array<double, 3> on_object = world.grasp_force(g);
+    const std::array<double, 3> point = world.grasp_point(g);
+    const Vector3 f = -Vector3(on_object[0], on_object[1], on_object[2]);
+    force += f;
+    torque += (Vector3(point[0], point[1], point[2]) - origin).cross(f);
   }
   const Eigen::Map<const Vector3> gravity(m->opt.gravity);
   for (const int b : weighed) {
@@ -712,7 +733,8 @@ std::span<const std::size_t> SensorDevices::update(CellWorld& world,
         Matrix3 rotation;
         Vector3 origin;
         dev.frame(d, rotation, origin);
-        measure_wrench(m, d, dev.outboard, dev.weighed, rotation, origin, dev.wrench);
+        measure_wrench(world, dev.outboard, dev.weighed, dev.held_grasps, rotation, origin,
+                       dev.wrench);
         for (std::size_t r = 0; r < 6; ++r) {
           double v = c.offset[r];
           for (std::size_t k = 0; k < 6; ++k) v += c.gauge_matrix[6 * r + k] * dev.wrench[k];

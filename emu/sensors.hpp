@@ -29,8 +29,11 @@
 ///     is the load on the sensor's outboard side, in the sensor frame and about its origin: the
 ///     sum of every contact force acting on a geom of a body outboard of the sensor (the strict
 ///     descendants of `body`: objects attached to it, further links) from a body that is not
-///     outboard, plus the weight of the outboard bodies (gravity at their centres of mass). It is
-///     the static load: inertial forces are not included. A tool pointing down with a weight
+///     outboard, plus the weight of the outboard bodies (gravity at their centres of mass), plus
+///     the pull of every object held by an engaged grasp whose gripper is `body` or outboard of
+///     it (the opposite of the force the grasp's weld exerts on the object, at the gripper
+///     frame; the weld's torque rows are not counted). It is the static load: inertial forces
+///     are not included. A tool pointing down with a weight
 ///     m g gives fz = +m g; pressing it onto a table makes fz smaller (the table pushes the tool
 ///     back towards the sensor, along -z). Default G = diag(0.01, 0.01, 0.01, 0.1, 0.1, 0.1)
 ///     (I + X) with the cross-coupling X[i][i+1 mod 6] = 0.02, X[i][i-1 mod 6] = -0.01

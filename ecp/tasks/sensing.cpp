@@ -32,7 +32,9 @@
 // follow_mp_compliant: sensor = "wrist_force", tool = 0.15 [m], force = 5 [N] largest force the
 //   probe presses with along the tool axis, gain = 3e-4 [m/s per N] of force error,
 //   max_speed = 0.02 [m/s] and max_acceleration = 0.2 [m/s^2] of the correction, max_offset =
-//   0.01 [m] largest correction back along the tool axis (it never pushes beyond the MP's pose).
+//   0.01 [m] largest correction back along the tool axis, min_offset = 0 [m] largest one forwards
+//   (<= 0; 0: it never pushes beyond the MP's pose). force = 0 with min_offset < 0 keeps the
+//   force along the tool near zero both ways (each grip of a carried bar, tight-bar-hybrid.toml).
 // pick_when_seen: camera = "camera" VSP, region = [xmin, xmax, ymin, ymax] (world, m) where a part
 //   may be picked, above = 0.1 [m] above the part, tool = 0.15, timeout = 30 [s],
 //   base = [x, y, z] the robot's base position in the world (rotation: none) [m].
@@ -334,12 +336,13 @@ class FollowSurface : public Touching {
 /// The ECP half of hybrid control: every NEXT_POSE of the MP (an ABSOLUTE Cartesian tool frame)
 /// moves back along the tool's z axis by `offset`, which follows the force error:
 ///   v = gain * (pressing - force), limited to max_speed and max_acceleration,
-///   offset += v * dt, within [0, max_offset] (braking before either end),
-/// dt being the macro-step. In free space (pressing 0) the offset returns to 0: the MP's path.
+///   offset += v * dt, within [min_offset, max_offset] (braking before either end),
+/// dt being the macro-step. With min_offset 0, in free space (pressing 0) the offset returns to
+/// 0: the MP's path.
 class ForceCompliance : public FollowGenerator {
  public:
   struct Settings {
-    double force, gain, max_speed, max_acceleration, max_offset, servo_period_s;
+    double force, gain, max_speed, max_acceleration, min_offset, max_offset, servo_period_s;
   };
   ForceCompliance(Robot& robot, Reporter& reporter, std::unique_ptr<VirtualSensor> vsp,
                   std::unique_ptr<edp::ArmKinematics> flange, const Settings& settings)
@@ -365,17 +368,18 @@ class ForceCompliance : public FollowGenerator {
     v = std::clamp(v, speed_ - s_.max_acceleration * dt, speed_ + s_.max_acceleration * dt);
     // Brake before either end of [0, max_offset].
     const double up = std::sqrt(2.0 * s_.max_acceleration * std::max(0.0, s_.max_offset - offset_));
-    const double down = std::sqrt(2.0 * s_.max_acceleration * std::max(0.0, offset_));
+    const double down =
+        std::sqrt(2.0 * s_.max_acceleration * std::max(0.0, offset_ - s_.min_offset));
     v = std::clamp(v, -down, up);
-    offset_ = std::clamp(offset_ + v * dt, 0.0, s_.max_offset);
+    offset_ = std::clamp(offset_ + v * dt, s_.min_offset, s_.max_offset);
     speed_ = v;
     Eigen::Isometry3d pose = kinematics::from_vector(command.arm, command.arm_type);
     pose = pose * Eigen::Translation3d(0.0, 0.0, -offset_);
     command.arm = kinematics::to_vector(pose, command.arm_type);
     ++steps_;
-    largest_force_ = std::max(largest_force_, pressing);
-    largest_offset_ = std::max(largest_offset_, offset_);
-    if (offset_ > 0.0) {
+    if (std::abs(pressing) > std::abs(largest_force_)) largest_force_ = pressing;
+    if (std::abs(offset_) > std::abs(largest_offset_)) largest_offset_ = offset_;
+    if (offset_ != 0.0) {
       pressed_sum_ += pressing;
       ++pressed_;
     }
@@ -409,12 +413,23 @@ class FollowMpCompliant : public EcpTask {
   explicit FollowMpCompliant(TaskContext& context) : context_(context) {
     const Params& a = context.args;
     sensor_name_ = a.get_string("sensor", "wrist_force");
-    tool_length_ = positive(a, "tool", 0.15, "m");
-    settings_.force = positive(a, "force", 5.0, "N");
+    tool_length_ = a.get_double("tool", 0.15);
+    if (!(tool_length_ >= 0.0 && tool_length_ <= 1.0))
+      throw ConfigError(a.location_of("tool"),
+                        fmt::format("'tool' = {} m is outside [0, 1] m", tool_length_));
+    settings_.force = a.get_double("force", 5.0);
+    if (!(settings_.force >= 0.0 && settings_.force <= 1000.0))
+      throw ConfigError(a.location_of("force"),
+                        fmt::format("'force' = {} N is outside [0, 1000] N", settings_.force));
     settings_.gain = positive(a, "gain", 3e-4, "m/s per N");
     settings_.max_speed = positive(a, "max_speed", 0.02, "m/s");
     settings_.max_acceleration = positive(a, "max_acceleration", 0.2, "m/s^2");
     settings_.max_offset = positive(a, "max_offset", 0.01, "m");
+    settings_.min_offset = a.get_double("min_offset", 0.0);
+    if (!(settings_.min_offset <= 0.0 && settings_.min_offset >= -1.0))
+      throw ConfigError(
+          a.location_of("min_offset"),
+          fmt::format("'min_offset' = {} m is outside [-1, 0] m", settings_.min_offset));
     settings_.servo_period_s = context.servo_period_s;
     a.reject_unread("robot.ecp.args");
   }

@@ -294,6 +294,50 @@ TEST_F(Hil, ARobotOffBy5mmStrainsTheBarBeyondTheBound) {
   EXPECT_GT(c.held.back().internal, kGripForceBound) << "the squeeze lasts the whole carry";
 }
 
+TEST_F(Hil, EcpsCorrectingTheGripsFromTheirWristForcesRelieveTheBar) {
+  // Hybrid control (configs/tight-bar-hybrid.toml): the same carry with the right robot 5 mm off
+  // as above, but each ECP corrects the MP's grip pose along the bar from its wrist force
+  // (follow_mp_compliant). The grips close on the bar squeezed, as above; then the ECPs take the
+  // error out of the bar within the half-second dwell that precedes the carry.
+  const fs::path source = fs::path(MRROC_SOURCE_DIR) / "configs";
+  std::string text = read(source / "tight-bar-hybrid.toml");
+  replace(text, "scene = \"scenes/two-irb6.toml\"",
+          "scene = \"" + (source / "scenes/two-irb6.toml").string() + "\"");
+  replace_all(text, "model = \"../robots/irb6\"",
+              "model = \"" + (fs::path(MRROC_SOURCE_DIR) / "robots/irb6").string() + "\"");
+  replace(text, "base = [2.0, 0.0, 0.0,", "base = [2.005, 0.0, 0.0,");
+  const fs::path file = dir_ / "tight-bar-hybrid-offset.toml";
+  std::ofstream(file) << text;
+  const Carry c = carry(file);
+  const RunResult& r = c.run;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r.output, "task 'carry_bar' finished")) << r.output;
+  EXPECT_FALSE(has(r.output, "no next macro-step")) << r.output;
+  EXPECT_FALSE(has(r.output, "refused")) << r.output;
+  // 500 samples a second. The grips close squeezed at the end of the approach; the MP's next
+  // macro-step is the half-second dwell, and the ECPs correct from the macro-step after it, at
+  // 5 mm/s: 2.5 mm each. From 1.5 s on, through the rest of the carry, the bound of the nominal
+  // carry holds.
+  ASSERT_GT(c.held.size(), 1000U) << r.output;
+  double settled = 0.0;
+  for (std::size_t k = 750; k < c.held.size(); ++k) settled = std::max(settled, c.held[k].internal);
+  std::printf(
+      "bar's internal force with the right robot 5 mm off and the ECPs correcting: peak %.1f N "
+      "as the grips closed, at most %.1f N after 1.5 s, last %.1f N (bound %.0f N)\n",
+      c.peak, settled, c.held.back().internal, kGripForceBound);
+  EXPECT_LT(settled, kGripForceBound) << r.output;
+  // The bar went where the MP carried it.
+  EXPECT_NEAR(c.held.back().z, 1.10, 0.003);
+  EXPECT_NEAR(c.held.back().x, 1.00, 0.004);
+  // Each ECP reported its corrections; together they take out the 5 mm.
+  std::smatch m;
+  const std::regex corrected("ecp/(left|right) +info +corrected [0-9]+ poses of the MP");
+  EXPECT_EQ(std::distance(std::sregex_iterator(r.output.begin(), r.output.end(), corrected),
+                          std::sregex_iterator()),
+            2)
+      << r.output;
+}
+
 TEST_F(Hil, DriveFaultHoldsTheRobotAndNamesDriveAxisAndCode) {
   const RunResult r = launch(demo("drive", "faults = [\"drive:irb6/upper_arm@1.5=0x8611\"]"));
   EXPECT_EQ(r.exit_code, 1) << r.output;  // the task failed

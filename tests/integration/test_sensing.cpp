@@ -114,8 +114,8 @@ TEST(Sensing, HybridControlPressesWithTheSetForceWhereTheMpPathGoesIntoTheTable)
   EXPECT_EQ(count_matches(r.output, std::regex("no next macro-step from the ECP in time")), 0u)
       << r.output;
   const std::string corrected =
-      "corrected ([0-9]+) poses of the MP: largest force ([0-9.]+) N \\(set 5.0 N\\), mean force "
-      "while corrected ([0-9.]+) N in ([0-9]+) macro-steps, largest correction ([0-9.]+) mm";
+      "corrected ([0-9]+) poses of the MP: largest force (-?[0-9.]+) N \\(set 5.0 N\\), mean force "
+      "while corrected (-?[0-9.]+) N in ([0-9]+) macro-steps, largest correction (-?[0-9.]+) mm";
   // Uncorrected, the path 3 mm into the table would press with 60 N (the contact spring is
   // 20 N/mm). The largest force comes as the probe meets the table, before the correction has
   // caught up (17-19 N measured beside three compilers, load 6.7).

@@ -4,7 +4,8 @@
 // real drives. Runs in real time, or lock-step (physics advances with the masters' SYNCs, as
 // fast as they come). Faults can be injected (emu/faults.hpp). The scene's raw sensors (strain
 // gauges, range finders, encoders, an emulated camera: emu/sensors.hpp) are sampled from the
-// physics and published on LCM for the VSPs. docs/hil.md.
+// physics and published on LCM for the VSPs; the scene objects' poses for the console's 3D
+// view (emu/object_poses.hpp). docs/hil.md.
 #include <fmt/format.h>
 #include <linux/can/error.h>
 #include <pthread.h>
@@ -40,6 +41,7 @@
 #include "mrroc/core/error.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/core/time.hpp"
+#include "object_poses.hpp"
 #include "sensors.hpp"
 
 namespace {
@@ -152,6 +154,10 @@ class Emulator {
     }
     setup_sensors();
     grips_reported_.assign(world_.grasp_count(), false);
+    if (lcm_ != nullptr)  // the objects' poses for the console's 3D view (object_poses.hpp)
+      poses_ = std::make_unique<emu::ObjectPosePublisher>(
+          lcm_->lcm(), emu::load_scene(options_.scene), world_, "emu#" + std::to_string(::getpid()),
+          lcm_->auth());
     for (const std::string& text : options_.faults) {
       Scheduled s;
       s.spec = emu::parse_fault(text);
@@ -318,6 +324,7 @@ class Emulator {
     }
     inject_due_faults(now);
     sample_sensors();
+    if (poses_) (void)poses_->update(world_, now_utime());
   }
 
   void watch(Drive& d) {
@@ -443,6 +450,7 @@ class Emulator {
   emu::CellWorld world_;
   std::unique_ptr<emu::SensorDevices> sensors_;
   std::unique_ptr<emu::RawSamplePublisher> publisher_;
+  std::unique_ptr<emu::ObjectPosePublisher> poses_;
   bool publish_failure_reported_ = false;
   std::vector<std::unique_ptr<Port>> ports_;
   std::vector<std::unique_ptr<Drive>> drives_;

@@ -2,6 +2,10 @@
 /// Codecs of the broadcast, operator and launcher messages (see comm/messages.hpp).
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+
 #include "mrroc/comm/messages.hpp"
 
 namespace mrroc::comm {
@@ -46,6 +50,11 @@ static_assert(same(mp::TaskState::idle, OpRep::IDLE) &&
               same(mp::TaskState::terminating, OpRep::TERMINATING));
 using LaunchCmd = mrroc_lcm::launch_command_t;
 static_assert(same(launch::LaunchCommandType::restart, LaunchCmd::RESTART));
+using SceneObj = mrroc_lcm::scene_object_t;
+static_assert(same(SceneObjectShape::box, SceneObj::BOX) &&
+              same(SceneObjectShape::sphere, SceneObj::SPHERE) &&
+              same(SceneObjectShape::cylinder, SceneObj::CYLINDER) &&
+              same(SceneObjectShape::capsule, SceneObj::CAPSULE));
 
 /// `raw` as enumeration E when it is within lo..hi; else DecodeError naming message and field.
 template <class E>
@@ -360,6 +369,86 @@ launch::LaunchCommand decode(const mrroc_lcm::launch_command_t& m) {
   out.type = checked<launch::LaunchCommandType>(m.command, LaunchCmd::RESTART, LaunchCmd::RESTART,
                                                 "launch_command_t", "command");
   out.process = m.process;
+  return out;
+}
+
+mrroc_lcm::scene_objects_t encode(const SceneObjects& in) {
+  if (in.objects.size() > static_cast<std::size_t>(kMaxSceneObjects))
+    throw Error(fmt::format("scene_objects_t: {} objects, at most {} can be sent",
+                            in.objects.size(), kMaxSceneObjects));
+  mrroc_lcm::scene_objects_t m{};
+  m.scene = in.scene;
+  m.sim_time_s = in.sim_time_s;
+  for (const SceneObjectPose& o : in.objects) {
+    if (o.size.size() != scene_object_size_count(o.shape))
+      throw Error(fmt::format("scene_objects_t: object '{}' has {} size values, its shape {}",
+                              o.name, o.size.size(), scene_object_size_count(o.shape)));
+    SceneObj e{};
+    e.name = o.name;
+    e.shape = static_cast<std::int8_t>(o.shape);
+    e.n_size = static_cast<std::int32_t>(o.size.size());
+    e.size = o.size;
+    std::copy(o.rgba.begin(), o.rgba.end(), e.rgba);
+    e.attach = o.attach;
+    std::copy(o.local_position.begin(), o.local_position.end(), e.local_position);
+    std::copy(o.local_quaternion.begin(), o.local_quaternion.end(), e.local_quaternion);
+    std::copy(o.position.begin(), o.position.end(), e.position);
+    std::copy(o.quaternion.begin(), o.quaternion.end(), e.quaternion);
+    m.objects.push_back(std::move(e));
+  }
+  m.n = static_cast<std::int32_t>(m.objects.size());
+  return m;
+}
+
+SceneObjects decode(const mrroc_lcm::scene_objects_t& m) {
+  constexpr const char* kType = "scene_objects_t";
+  check_count(m.n, kMaxSceneObjects, kType, "n");
+  check_size(m.objects, m.n, kType, "objects");
+  const auto finite = [&](const double* v, std::size_t n, const std::string& name,
+                          const char* field) {
+    for (std::size_t i = 0; i < n; ++i)
+      if (!std::isfinite(v[i]))
+        throw DecodeError(
+            fmt::format("{}: object '{}': field '{}' has value {} at {}, expected "
+                        "a finite number",
+                        kType, name, field, v[i], i));
+  };
+  SceneObjects out;
+  out.scene = m.scene;
+  out.sim_time_s = m.sim_time_s;
+  finite(&m.sim_time_s, 1, "", "sim_time_s");
+  out.objects.reserve(m.objects.size());
+  for (const SceneObj& e : m.objects) {
+    SceneObjectPose o;
+    o.name = e.name;
+    o.shape = checked<SceneObjectShape>(e.shape, SceneObj::BOX, SceneObj::CAPSULE, kType, "shape");
+    const auto expected = static_cast<std::int32_t>(scene_object_size_count(o.shape));
+    if (e.n_size != expected)
+      throw DecodeError(
+          fmt::format("{}: object '{}': field 'n_size' has value {}, expected {} "
+                      "for its shape",
+                      kType, e.name, e.n_size, expected));
+    check_size(e.size, e.n_size, kType, "size");
+    finite(e.size.data(), e.size.size(), e.name, "size");
+    for (const double v : e.size)
+      if (!(v > 0.0))
+        throw DecodeError(
+            fmt::format("{}: object '{}': size {} m is not above 0", kType, e.name, v));
+    finite(e.rgba, 4, e.name, "rgba");
+    finite(e.local_position, 3, e.name, "local_position");
+    finite(e.local_quaternion, 4, e.name, "local_quaternion");
+    finite(e.position, 3, e.name, "position");
+    finite(e.quaternion, 4, e.name, "quaternion");
+    o.size = e.size;
+    std::copy(std::begin(e.rgba), std::end(e.rgba), o.rgba.begin());
+    o.attach = e.attach;
+    std::copy(std::begin(e.local_position), std::end(e.local_position), o.local_position.begin());
+    std::copy(std::begin(e.local_quaternion), std::end(e.local_quaternion),
+              o.local_quaternion.begin());
+    std::copy(std::begin(e.position), std::end(e.position), o.position.begin());
+    std::copy(std::begin(e.quaternion), std::end(e.quaternion), o.quaternion.begin());
+    out.objects.push_back(std::move(o));
+  }
   return out;
 }
 

@@ -890,6 +890,62 @@ TEST_F(ApiTest, SamplesAndSrpMessages) {
             "query parameter 'after' is '1x', expected an integer");
 }
 
+TEST_F(ApiTest, SceneObjectsAndTheirPosesWithTheJoints) {
+  start();
+  auto [none_status, none] = get("/api/objects");
+  ASSERT_EQ(none_status, 200);
+  EXPECT_TRUE(none["objects"].empty());
+  EXPECT_TRUE(none["seq"].is_null());
+  EXPECT_TRUE(get("/api/joints").second["objects"].is_null());
+
+  SceneObjects objects;
+  objects.scene = "conveyor-pick";
+  objects.sim_time_s = 2.5;
+  SceneObjectPose part;
+  part.name = "part";
+  part.shape = SceneObjectShape::box;
+  part.size = {0.03, 0.03, 0.03};
+  part.rgba = {0.8, 0.2, 0.2, 1.0};
+  part.attach = "conveyor/belt_link";
+  part.local_position = {0.0, 0.0, 0.04};
+  part.position = {0.1, -0.65, 0.79};
+  part.quaternion = {1.0, 0.0, 0.0, 0.0};
+  SceneObjectPose ball;
+  ball.name = "ball";
+  ball.shape = SceneObjectShape::sphere;
+  ball.size = {0.05};
+  ball.position = {0.5, 0.3, 0.05};
+  ball.quaternion = {0.0, 0.0, 0.0, 1.0};
+  objects.objects = {part, ball};
+  parts_.state.on_scene_objects(objects, 1'700'000'000'000'000, 42);
+
+  auto [status, served] = get("/api/objects");
+  ASSERT_EQ(status, 200);
+  EXPECT_EQ(served["scene"], "conveyor-pick");
+  EXPECT_EQ(served["seq"], 42);
+  EXPECT_EQ(served["utime"], 1'700'000'000'000'000);
+  EXPECT_EQ(served["sim_time_s"], 2.5);
+  ASSERT_EQ(served["objects"].size(), 2u);
+  const json& p = served["objects"][0];
+  EXPECT_EQ(p["name"], "part");
+  EXPECT_EQ(p["shape"], "box");
+  EXPECT_EQ(p["size"], json::array({0.03, 0.03, 0.03}));
+  EXPECT_EQ(p["attach"], "conveyor/belt_link");
+  EXPECT_EQ(p["local_position"], json::array({0.0, 0.0, 0.04}));
+  EXPECT_EQ(p["position"], json::array({0.1, -0.65, 0.79}));
+  EXPECT_EQ(served["objects"][1]["shape"], "sphere");
+  EXPECT_EQ(served["objects"][1]["attach"], "");
+  EXPECT_EQ(served["objects"][1]["quaternion"], json::array({0.0, 0.0, 0.0, 1.0}));
+  httplib::Client bare("127.0.0.1", port_);  // sends no token
+  EXPECT_EQ(bare.Get("/api/objects")->status, 401);
+
+  const json joints = get("/api/joints").second;
+  EXPECT_EQ(joints["objects"]["seq"], 42);
+  EXPECT_EQ(joints["objects"]["poses"],
+            json::array({json::array({0.1, -0.65, 0.79, 1.0, 0.0, 0.0, 0.0}),
+                         json::array({0.5, 0.3, 0.05, 0.0, 0.0, 0.0, 1.0})}));
+}
+
 TEST_F(ApiTest, AKeptAliveConnectionIsAnsweredWithoutTheDelayedAckStall) {
   // The 3D view polls /api/joints 50 times a second on one kept-alive connection. With Nagle's
   // algorithm on the server's socket every answer after the first waited for the client's

@@ -3,6 +3,7 @@
 // message, field and value named.
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -279,4 +280,66 @@ TEST(MessageCodecs, LaunchStatusAndCommand) {
   auto cm = comm::encode(command);
   cm.command = 2;
   expect_rejected(cm, {"launch_command_t", "command", "2", "1..1"});
+}
+
+TEST(MessageCodecs, SceneObjectsRoundTripAndRejection) {
+  SceneObjects in;
+  in.scene = "two-irb6";
+  in.sim_time_s = 1.25;
+  SceneObjectPose bar;
+  bar.name = "bar";
+  bar.shape = SceneObjectShape::box;
+  bar.size = {0.25, 0.02, 0.02};
+  bar.rgba = {0.2, 0.5, 0.8, 1.0};
+  bar.position = {1.0, 0.0, 0.82};
+  bar.quaternion = {0.5, 0.5, -0.5, 0.5};
+  bar.local_position = {1.0, 0.0, 0.82};
+  SceneObjectPose probe;
+  probe.name = "probe";
+  probe.shape = SceneObjectShape::sphere;
+  probe.size = {0.02};
+  probe.attach = "irb6/roll_link";
+  probe.local_position = {0.34, 0.0, 0.0};
+  probe.local_quaternion = {0.0, 1.0, 0.0, 0.0};
+  in.objects = {bar, probe};
+  const SceneObjects out = round_trip(in);
+  EXPECT_EQ(out.scene, "two-irb6");
+  EXPECT_EQ(out.sim_time_s, 1.25);
+  ASSERT_EQ(out.objects.size(), 2U);
+  EXPECT_EQ(out.objects[0].name, "bar");
+  EXPECT_EQ(out.objects[0].shape, SceneObjectShape::box);
+  EXPECT_EQ(out.objects[0].size, bar.size);
+  EXPECT_EQ(out.objects[0].rgba, bar.rgba);
+  EXPECT_EQ(out.objects[0].attach, "");
+  EXPECT_EQ(out.objects[0].position, bar.position);
+  EXPECT_EQ(out.objects[0].quaternion, bar.quaternion);
+  EXPECT_EQ(out.objects[1].shape, SceneObjectShape::sphere);
+  EXPECT_EQ(out.objects[1].size, probe.size);
+  EXPECT_EQ(out.objects[1].attach, "irb6/roll_link");
+  EXPECT_EQ(out.objects[1].local_position, probe.local_position);
+  EXPECT_EQ(out.objects[1].local_quaternion, probe.local_quaternion);
+
+  const auto wire = comm::encode(in);
+  auto m = wire;
+  m.n = 300;
+  expect_rejected(m, {"scene_objects_t", "'n'", "300"});
+  m = wire;
+  m.objects[0].shape = 5;
+  expect_rejected(m, {"scene_objects_t", "shape", "5", "1..4"});
+  m = wire;
+  m.objects[0].n_size = 2;
+  m.objects[0].size.pop_back();
+  expect_rejected(m, {"object 'bar'", "n_size", "2", "expected 3"});
+  m = wire;
+  m.objects[1].size[0] = -0.02;
+  expect_rejected(m, {"object 'probe'", "-0.02", "not above 0"});
+  m = wire;
+  m.objects[0].position[2] = std::numeric_limits<double>::quiet_NaN();
+  expect_rejected(m, {"object 'bar'", "position", "nan"});
+  SceneObjects wrong = in;
+  wrong.objects[1].size = {0.02, 0.1};  // a sphere has a radius only
+  EXPECT_THROW(comm::encode(wrong), Error);
+  SceneObjects huge;
+  huge.objects.resize(comm::kMaxSceneObjects + 1, bar);
+  EXPECT_THROW(comm::encode(huge), Error);
 }

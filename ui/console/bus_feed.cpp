@@ -15,6 +15,7 @@ namespace mrroc::ui {
 struct BusFeed::Subscribers {
   std::vector<comm::Subscriber<RobotState>> robot_states;
   std::optional<comm::Subscriber<launch::LaunchStatus>> launch_status;
+  std::optional<comm::Subscriber<SceneObjects>> scene_objects;
 };
 
 struct BusFeed::Clients {
@@ -37,6 +38,11 @@ BusFeed::BusFeed(comm::Bus& bus, ConsoleState& state, std::string no_mp_text)
   subscribers_->launch_status.emplace(
       bus, channels::launch_status,
       [this](const launch::LaunchStatus& m, const comm::Received&) { state_.on_launch_status(m); });
+  subscribers_->scene_objects.emplace(
+      bus, channels::scene_objects, [this](const SceneObjects& m, const comm::Received& in) {
+        if (!in.authentic()) return;  // with a key, only the emulator's own
+        state_.on_scene_objects(m, in.header().utime, in.header().seq);
+      });
   listener_ = std::make_unique<SystemListener>(
       bus, [this](const SrpMessage& m) { state_.on_message(m); },
       [this](const ProcessStatus& s) { state_.on_process_status(s); });

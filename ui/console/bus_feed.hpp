@@ -1,8 +1,9 @@
 #pragma once
-// Feeds the console's state from the bus: each robot's state, the launcher's process
-// table, SRP messages and process statuses (subscriptions, on the bus thread), the MP's state
-// (STATUS every 400 ms) and the SRP's history (asked for every 2 s until it answers), on a
-// poller thread. Every message arrives decoded and checked (comm/edge.hpp, comm/links.hpp).
+// Feeds the console's state from the bus: each robot's state, the cell emulator's scene
+// objects, the launcher's process table, SRP messages and process statuses (subscriptions, on the
+// bus thread), the MP's state (STATUS every 400 ms) and the SRP's history (asked for every 2 s
+// until it answers), on a poller thread. Every message arrives decoded and checked (comm/edge.hpp,
+// comm/links.hpp).
 
 #include <condition_variable>
 #include <memory>

@@ -359,7 +359,56 @@ json HttpApi::joints_json() const {
     }
     robots.push_back(std::move(j));
   }
-  return json{{"utime", now_utime()}, {"robots", robots}};
+  json objects = nullptr;
+  if (const auto reading = state_.scene_objects()) {
+    json poses = json::array();
+    for (const SceneObjectPose& o : reading->objects.objects) {
+      const auto& p = o.position;
+      const auto& q = o.quaternion;
+      poses.push_back(json::array({p[0], p[1], p[2], q[0], q[1], q[2], q[3]}));
+    }
+    objects = json{{"seq", reading->seq},
+                   {"utime", reading->utime},
+                   {"age_s", seconds_since(reading->received)},
+                   {"poses", std::move(poses)}};
+  }
+  return json{{"utime", now_utime()}, {"robots", robots}, {"objects", objects}};
+}
+
+namespace {
+const char* shape_text(SceneObjectShape shape) {
+  switch (shape) {
+    case SceneObjectShape::box: return "box";
+    case SceneObjectShape::sphere: return "sphere";
+    case SceneObjectShape::cylinder: return "cylinder";
+    case SceneObjectShape::capsule: return "capsule";
+  }
+  return "?";
+}
+}  // namespace
+
+json HttpApi::objects_json() const {
+  json objects = json::array();
+  const auto reading = state_.scene_objects();
+  if (!reading)
+    return json{{"scene", nullptr}, {"seq", nullptr},        {"utime", nullptr},
+                {"age_s", nullptr}, {"sim_time_s", nullptr}, {"objects", objects}};
+  for (const SceneObjectPose& o : reading->objects.objects)
+    objects.push_back(json{{"name", o.name},
+                           {"shape", shape_text(o.shape)},
+                           {"size", o.size},
+                           {"rgba", o.rgba},
+                           {"attach", o.attach},
+                           {"local_position", o.local_position},
+                           {"local_quaternion", o.local_quaternion},
+                           {"position", o.position},
+                           {"quaternion", o.quaternion}});
+  return json{{"scene", reading->objects.scene},
+              {"seq", reading->seq},
+              {"utime", reading->utime},
+              {"age_s", seconds_since(reading->received)},
+              {"sim_time_s", reading->objects.sim_time_s},
+              {"objects", std::move(objects)}};
 }
 
 std::string HttpApi::model_text(const std::string& robot, const std::string& kind) const {
@@ -522,6 +571,9 @@ void HttpApi::install(ConsoleServer& server) {
              });
   server.Get("/api/joints", [this](const httplib::Request&, httplib::Response& res) {
     reply_json(res, joints_json());
+  });
+  server.Get("/api/objects", [this](const httplib::Request&, httplib::Response& res) {
+    reply_json(res, objects_json());
   });
   server.Get(R"(/api/robots/([a-z][a-z0-9_]*)/(urdf|mjcf))", [this](const httplib::Request& req,
                                                                     httplib::Response& res) {

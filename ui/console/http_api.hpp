@@ -128,7 +128,15 @@ class HttpApi {
   /// GET /api/state.
   [[nodiscard]] nlohmann::json state_json() const;
   /// GET /api/joints: every robot's latest measured and commanded joints (the 3D view polls it).
+  /// With the emulator's scene objects, "objects": the seq, utime and age_s of their latest
+  /// message and "poses": per object (in the order of /api/objects) x y z [m], qw qx qy qz;
+  /// null before any came.
   [[nodiscard]] nlohmann::json joints_json() const;
+  /// GET /api/objects: the cell emulator's scene objects ("scene", "seq", "utime", "age_s",
+  /// "sim_time_s" and "objects": name, shape, size [m], rgba, attach, local_position [m] and
+  /// local_quaternion (w x y z: in the frame of attach), position [m], quaternion w x y z);
+  /// "objects" empty and "seq" null before any message came.
+  [[nodiscard]] nlohmann::json objects_json() const;
   /// GET /api/robots/<robot>/urdf and /mjcf: the text of the robot's URDF or MJCF (`kind`),
   /// the files its model folder's parameters.toml names.
   /// @throws ApiError 404 for an unknown robot, 500 naming the file when it cannot be read.

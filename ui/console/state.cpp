@@ -61,6 +61,17 @@ void ConsoleState::on_launch_status(const launch::LaunchStatus& status,
   launch_received_ = received;
 }
 
+void ConsoleState::on_scene_objects(const SceneObjects& objects, std::int64_t utime,
+                                    std::int64_t seq, SteadyClock::time_point received) {
+  std::lock_guard lock(mutex_);
+  objects_ = ObjectsReading{objects, utime, seq, received};
+}
+
+std::optional<ObjectsReading> ConsoleState::scene_objects() const {
+  std::lock_guard lock(mutex_);
+  return objects_;
+}
+
 void ConsoleState::on_message(const SrpMessage& message) {
   std::lock_guard lock(mutex_);
   log_.push_back(LogEntry{log_next_++, message});

@@ -1,9 +1,9 @@
 #pragma once
 // What the web console knows of the running set: each robot's latest robot state and its
-// recent samples, the launcher's process table, every process' last status, the SRP's messages
-// and the MP's state. The bus feed (bus_feed.hpp) writes it from the bus thread and the poller;
-// the HTTP threads, the jog and the teach-in read it. Every method is thread-safe; readers get
-// copies (snapshots), never references into the guarded data.
+// recent samples, the cell emulator's scene objects, the launcher's process table, every process'
+// last status, the SRP's messages and the MP's state. The bus feed (bus_feed.hpp) writes it from
+// the bus thread and the poller; the HTTP threads, the jog and the teach-in read it. Every method
+// is thread-safe; readers get copies (snapshots), never references into the guarded data.
 
 #include <chrono>
 #include <cstdint>
@@ -17,6 +17,7 @@
 #include "mrroc/comm/reporter.hpp"
 #include "mrroc/msg/launch.hpp"
 #include "mrroc/msg/robot_state.hpp"
+#include "mrroc/msg/scene_objects.hpp"
 #include "mrroc/robot/robot_model.hpp"
 #include "operator.hpp"
 
@@ -59,6 +60,15 @@ struct RobotReading {
   std::int64_t utime = 0;  ///< time of sending [us since the Unix epoch] (its envelope's)
   SteadyClock::time_point received{};
   [[nodiscard]] bool fresh() const { return seconds_since(received) <= kStateFreshS; }
+};
+
+/// The cell emulator's latest scene objects and their poses (scene_objects_t), when they were
+/// sent and when they came.
+struct ObjectsReading {
+  SceneObjects objects;
+  std::int64_t utime = 0;  ///< time of sending [us since the Unix epoch] (its envelope's)
+  std::int64_t seq = 0;    ///< the emulator's number of the message
+  SteadyClock::time_point received{};
 };
 
 /// One SRP message and its number in the console's log.
@@ -120,6 +130,9 @@ class ConsoleState {
                       SteadyClock::time_point received = SteadyClock::now());
   void on_launch_status(const launch::LaunchStatus& status,
                         SteadyClock::time_point received = SteadyClock::now());
+  /// The emulator's scene objects, message number `seq`, sent at `utime`.
+  void on_scene_objects(const SceneObjects& objects, std::int64_t utime, std::int64_t seq,
+                        SteadyClock::time_point received = SteadyClock::now());
   /// A live SRP message: numbered next; the oldest beyond kMaxLog are dropped.
   void on_message(const SrpMessage& message);
   void on_process_status(const ProcessStatus& status,
@@ -143,6 +156,8 @@ class ConsoleState {
   /// The messages numbered above `after` with severity >= `min_severity`, the newest `max`.
   [[nodiscard]] LogView messages(std::int64_t after, int min_severity, std::size_t max) const;
   [[nodiscard]] std::optional<MpStatus> mp() const;
+  /// The latest scene objects, nothing before the first (a set without an emulator's scene).
+  [[nodiscard]] std::optional<ObjectsReading> scene_objects() const;
   /// True once a robot state received after `since` shows robots()[index] at rest.
   [[nodiscard]] bool at_rest_since(std::size_t index, SteadyClock::time_point since) const;
   /// The servo step each robot (or only `robot`, when not empty) is in now, estimated from its
@@ -161,6 +176,7 @@ class ConsoleState {
   std::vector<RobotData> data_;  // parallel to robots_
   std::optional<launch::LaunchStatus> launch_;
   SteadyClock::time_point launch_received_{};
+  std::optional<ObjectsReading> objects_;
   std::map<std::string, std::pair<ProcessStatus, SteadyClock::time_point>> processes_;
   std::deque<LogEntry> log_;
   std::int64_t log_next_ = 1;

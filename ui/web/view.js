@@ -6,7 +6,11 @@
 // cylinders, spheres and capsules of the robot's MJCF (GET /api/robots/<robot>/mjcf).
 // three.js and urdf-loader come from the console itself (/vendor/, the import map of index.html;
 // `npm ci --prefix ui/vendor` installs them): nothing is fetched from elsewhere.
-// For tests: window.mrrocView (jointValues, linkPoses, stats, visiblePixels). docs/operating.md.
+// The cell emulator's scene objects (a set with [emulator] scene: the table, the bar, parts on the
+// conveyor) are drawn with three.js' boxes, spheres, cylinders and capsules (GET /api/objects)
+// at the poses the emulator publishes (with every GET /api/joints).
+// For tests: window.mrrocView (jointValues, linkPoses, objects, stats, visiblePixels).
+// docs/operating.md.
 
 const POLL_PERIOD_MS = 20;
 const GHOST_MIN_RAD = 1e-3;  // the ghost shows when a commanded joint is this far from the measured
@@ -160,9 +164,9 @@ function numbers(text, fallback) {
   return text.trim().split(/\s+/).map(Number);
 }
 
-function mjcfGeom(element) {
-  const type = element.getAttribute("type") || "sphere";
-  const size = numbers(element.getAttribute("size"), [0.01, 0.01, 0.01]);
+/// A MuJoCo geom's shape from its type and size [m] (box: half-sizes; sphere: radius; cylinder,
+/// capsule: radius, half-length along z), centred at its frame; null for other types.
+function shapeGeometry(type, size) {
   let geometry;
   if (type === "box") geometry = new THREE.BoxGeometry(2 * size[0], 2 * size[1], 2 * size[2]);
   else if (type === "sphere") geometry = new THREE.SphereGeometry(size[0], 24, 16);
@@ -172,6 +176,14 @@ function mjcfGeom(element) {
       : new THREE.CapsuleGeometry(size[0], 2 * size[1], software ? 4 : 8, software ? 12 : 24);
     geometry.rotateX(Math.PI / 2);  // MJCF's cylinders run along z, three.js' along y
   } else return null;  // planes, meshes, height fields: not drawn
+  return geometry;
+}
+
+function mjcfGeom(element) {
+  const type = element.getAttribute("type") || "sphere";
+  const size = numbers(element.getAttribute("size"), [0.01, 0.01, 0.01]);
+  const geometry = shapeGeometry(type, size);
+  if (!geometry) return null;
   const mesh = new THREE.Mesh(geometry);
   const pos = numbers(element.getAttribute("pos"), [0, 0, 0]);
   mesh.position.set(pos[0], pos[1], pos[2]);
@@ -251,6 +263,109 @@ async function loadRobot(info) {
   });
 }
 
+// --- the scene's objects ------------------------------------------------------------------------
+// The cell emulator's objects (a set with [emulator] scene): GET /api/objects gives their shapes,
+// sizes, colours and what they are attached to; /api/joints carries their poses with every poll
+// (the emulator sends them about 30 times a second). An object attached to a link of a drawn
+// robot ("conveyor/belt_link") is drawn on that link at its pose there, so it moves with the
+// drawn robot; every other object (free bodies, ones fixed to the world) at the emulator's pose.
+// [{name, shape, size, attach, mesh, link}] in the order of /api/objects and of the poses.
+let objects = [];
+let objectsCount = 0;       // objects the console listed (those drawn are in `objects`)
+let objectsSeq = null;      // the emulator's number of the poses drawn
+let objectsUtime = null;
+let objectsLoading = false;
+let objectsRetry = 0;       // performance.now() before which no new GET /api/objects is made
+const objectGroup = new THREE.Group();
+objectGroup.name = "scene objects";
+scene.add(objectGroup);
+
+function objectMaterial(rgba) {
+  const Material = software ? THREE.MeshLambertMaterial : THREE.MeshPhongMaterial;
+  return new Material({
+    color: new THREE.Color().setRGB(rgba[0], rgba[1], rgba[2], THREE.SRGBColorSpace),
+    ...(software ? {} : { shininess: 30 }),
+    transparent: rgba[3] < 1,
+    opacity: rgba[3],
+  });
+}
+
+/// The drawn link an object is attached to ("<robot>/<link>" of a robot of the view), or null.
+function attachLink(attach) {
+  const slash = attach.indexOf("/");
+  if (slash < 0) return null;
+  const r = robots.get(attach.slice(0, slash));
+  return (r && r.model.links[attach.slice(slash + 1)]) || null;
+}
+
+function clearObjects() {
+  for (const o of objects) {
+    o.mesh.removeFromParent();
+    o.mesh.geometry.dispose();
+    o.mesh.material.dispose();
+  }
+  objects = [];
+  objectsCount = 0;
+  objectsSeq = null;
+}
+
+async function loadObjects() {
+  if (objectsLoading || performance.now() < objectsRetry) return;
+  objectsLoading = true;
+  try {
+    const data = await get("/api/objects");
+    clearObjects();
+    for (const [index, info] of data.objects.entries()) {
+      const geometry = shapeGeometry(info.shape, info.size);
+      if (!geometry) continue;
+      const mesh = new THREE.Mesh(geometry, objectMaterial(info.rgba));
+      mesh.name = info.name;
+      const link = attachLink(info.attach);
+      const [x, y, z] = link ? info.local_position : info.position;
+      const [w, qx, qy, qz] = link ? info.local_quaternion : info.quaternion;
+      mesh.position.set(x, y, z);
+      mesh.quaternion.set(qx, qy, qz, w).normalize();
+      (link || objectGroup).add(mesh);
+      objects.push({ name: info.name, shape: info.shape, size: info.size, attach: info.attach,
+                     mesh, link, index });
+    }
+    // Shapes it cannot draw would make every poll ask again: once a second at most then.
+    if (objects.length !== data.objects.length) objectsRetry = performance.now() + 1000;
+    objectsCount = data.objects.length;
+    objectsSeq = data.seq;
+    objectsUtime = data.utime;
+    framedBox = null;  // frame the objects too
+    dirty = true;
+  } catch (e) {
+    objectsRetry = performance.now() + 1000;  // the console is away: try again in a second
+  } finally {
+    objectsLoading = false;
+  }
+}
+
+/// The poses of one /api/joints answer ({seq, utime, poses: [[x, y, z, qw, qx, qy, qz], ...]}).
+function applyObjectPoses(data) {
+  if (!data) return;
+  if (data.poses.length !== objectsCount) {  // other objects (the emulator started again)
+    loadObjects();
+    return;
+  }
+  if (data.seq === objectsSeq) return;
+  objectsSeq = data.seq;
+  objectsUtime = data.utime;
+  for (const o of objects) {
+    if (o.link) continue;  // drawn with its link
+    const p = data.poses[o.index];
+    if (o.mesh.position.x !== p[0] || o.mesh.position.y !== p[1] || o.mesh.position.z !== p[2] ||
+        o.mesh.quaternion.w !== p[3] || o.mesh.quaternion.x !== p[4] ||
+        o.mesh.quaternion.y !== p[5] || o.mesh.quaternion.z !== p[6]) {
+      o.mesh.position.set(p[0], p[1], p[2]);
+      o.mesh.quaternion.set(p[4], p[5], p[6], p[3]);
+      dirty = true;
+    }
+  }
+}
+
 /// Sets the joints; true when one of them changed (else nothing needs to be drawn again).
 function setJoints(model, names, values) {
   let changed = false;
@@ -280,6 +395,7 @@ function frameCamera() {
   scene.updateMatrixWorld(true);
   const box = new THREE.Box3();
   for (const r of robots.values()) box.expandByObject(r.model);
+  box.expandByObject(objectGroup);
   if (box.isEmpty()) return;
   box.expandByPoint(new THREE.Vector3(0, 0, 0));
   if (framedBox && framedBox.containsBox(box)) return;
@@ -336,6 +452,7 @@ async function pollJoints() {
     r.qDesired = desired;
     r.applied.push(performance.now());
   }
+  applyObjectPoses(data.objects);
   const now = performance.now();
   if (!cameraMoved && now - lastFrameCheck > 250 &&
       [...robots.values()].every((r) => r.step !== null)) {
@@ -365,6 +482,7 @@ function showStatus() {
   const parts = [...robots.values()].map((r) =>
     `${r.name}: step ${r.step ?? "–"}, ${rate(r.applied)} states/s` +
     (r.ghost.visible ? ", commanded pose shown" : ""));
+  if (objects.length) parts.push(`${objects.length} scene objects`);
   say(`${parts.join("; ")}; ${rate(frames)} frames/s${software ? " (drawn on the CPU)" : ""}. ` +
       "Solid: measured joints; translucent blue: " +
       "the commanded pose. Drag to turn, wheel to zoom, right-drag to pan.");
@@ -396,6 +514,29 @@ window.mrrocView = {
     }
     return out;
   },
+  /// The scene's objects as drawn: name, shape, size [m] (read back from the drawn geometry:
+  /// box half-sizes, sphere radius, cylinder and capsule radius and half-length), rgba, attach,
+  /// drawn_on ("link": on the drawn link of `attach`, "emulator": at the emulator's pose), and
+  /// the drawn pose in the cell: position [m], quaternion [w, x, y, z]; with the seq and utime of
+  /// the emulator's poses drawn.
+  objects() {
+    scene.updateMatrixWorld(true);
+    const list = objects.map((o) => {
+      const g = o.mesh.geometry.parameters;
+      const size = o.shape === "box" ? [g.width / 2, g.height / 2, g.depth / 2]
+        : o.shape === "sphere" ? [g.radius]
+        : o.shape === "cylinder" ? [g.radiusTop, g.height / 2]
+        : [g.radius, g.height / 2];  // a capsule: its cylinder part
+      const p = new THREE.Vector3(), q = new THREE.Quaternion(), s = new THREE.Vector3();
+      o.mesh.matrixWorld.decompose(p, q, s);
+      const c = o.mesh.material.color.clone().convertLinearToSRGB();
+      return { name: o.name, shape: o.shape, size, attach: o.attach,
+               rgba: [c.r, c.g, c.b, o.mesh.material.opacity],
+               drawn_on: o.link ? "link" : "emulator",
+               position: p.toArray(), quaternion: [q.w, q.x, q.y, q.z] };
+    });
+    return { seq: objectsSeq, utime: objectsUtime, objects: list };
+  },
   /// Rates over the last second: robot states applied per robot, frames drawn (a frame is drawn
   /// when something changed), polls done.
   stats() {
@@ -404,9 +545,13 @@ window.mrrocView = {
     return { frames_per_s: rate(frames), states_per_s: perRobot, polls };
   },
   /// Draws once and counts the pixels of the canvas that are neither background nor grid:
-  /// the robots' (and the axes') share of the picture.
-  visiblePixels() {
+  /// the robots' (and the axes') share of the picture; with `withObjects` false, without the
+  /// scene's objects.
+  visiblePixels(withObjects = true) {
+    for (const o of objects) o.mesh.visible = withObjects;
     renderer.render(scene, camera);
+    for (const o of objects) o.mesh.visible = true;
+    dirty = true;
     const gl = renderer.getContext();
     const w = gl.drawingBufferWidth, h = gl.drawingBufferHeight;
     const pixels = new Uint8Array(w * h * 4);

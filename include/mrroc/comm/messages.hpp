@@ -2,12 +2,13 @@
 /// @file
 /// Codecs of the messages that are not request/reply links of the control path (codec.hpp has
 /// those): emergency stop, robot state, SRP messages and history, process status, the
-/// operator's commands to the MP, and the launcher's table and commands. Like codec.hpp,
+/// operator's commands to the MP, the launcher's table and commands, and the cell emulator's
+/// scene objects. Like codec.hpp,
 /// `decode` validates every enumeration, count and size and throws `DecodeError` naming the
 /// message, the field and the value. The header (sender, time, sequence) is not part of the
 /// plain values: broadcasts set it from an `Envelope` and subscribers see it (comm/edge.hpp).
 ///
-/// `MessageTraits<Plain>::Lcm` names the LCM type of each of the 18 plain message types, for
+/// `MessageTraits<Plain>::Lcm` names the LCM type of each plain message type, for
 /// the typed publisher and subscriber of comm/edge.hpp and the typed links of comm/links.hpp.
 
 #include "mrroc/comm/codec.hpp"
@@ -15,6 +16,7 @@
 #include "mrroc/msg/launch.hpp"
 #include "mrroc/msg/operator.hpp"
 #include "mrroc/msg/robot_state.hpp"
+#include "mrroc/msg/scene_objects.hpp"
 #include "mrroc/msg/system.hpp"
 #include "mrroc_lcm/emergency_stop_t.hpp"
 #include "mrroc_lcm/launch_command_t.hpp"
@@ -24,6 +26,8 @@
 #include "mrroc_lcm/operator_reply_t.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
+#include "mrroc_lcm/scene_object_t.hpp"
+#include "mrroc_lcm/scene_objects_t.hpp"
 #include "mrroc_lcm/srp_history_reply_t.hpp"
 #include "mrroc_lcm/srp_history_request_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
@@ -34,6 +38,8 @@ namespace mrroc::comm {
 inline constexpr int kMaxHistoryEntries = 500;
 /// Most processes in one launch_status_t.
 inline constexpr int kMaxLaunchProcesses = 4096;
+/// Most objects in one scene_objects_t.
+inline constexpr int kMaxSceneObjects = 256;
 
 mrroc_lcm::emergency_stop_t encode(const EmergencyStop& in);
 EmergencyStop decode(const mrroc_lcm::emergency_stop_t& msg);
@@ -65,6 +71,11 @@ launch::LaunchStatus decode(const mrroc_lcm::launch_status_t& msg);
 mrroc_lcm::launch_command_t encode(const launch::LaunchCommand& in);
 launch::LaunchCommand decode(const mrroc_lcm::launch_command_t& msg);
 
+/// @throws Error with more than kMaxSceneObjects objects or a size of the wrong count for its
+/// shape. decode also refuses values that are not finite and a size not above 0.
+mrroc_lcm::scene_objects_t encode(const SceneObjects& in);
+SceneObjects decode(const mrroc_lcm::scene_objects_t& msg);
+
 /// The LCM type of a plain message type (specialised for each of them below).
 template <class Plain>
 struct MessageTraits;
@@ -91,8 +102,10 @@ MRROC_MESSAGE_TRAITS(mp::OperatorCommand, operator_command_t);
 MRROC_MESSAGE_TRAITS(mp::OperatorReply, operator_reply_t);
 MRROC_MESSAGE_TRAITS(launch::LaunchStatus, launch_status_t);
 MRROC_MESSAGE_TRAITS(launch::LaunchCommand, launch_command_t);
+MRROC_MESSAGE_TRAITS(SceneObjects, scene_objects_t);
 #undef MRROC_MESSAGE_TRAITS
-// header_t and launch_process_t are parts of other messages (the header: Envelope, edge.hpp;
-// a launch_process_t: launch::ProcessRow inside launch::LaunchStatus).
+// header_t, launch_process_t and scene_object_t are parts of other messages (the header:
+// Envelope, edge.hpp; a launch_process_t: launch::ProcessRow inside launch::LaunchStatus; a
+// scene_object_t: SceneObjectPose inside SceneObjects).
 
 }  // namespace mrroc::comm

@@ -262,6 +262,8 @@ inline constexpr const char* launch_status = "mrroc/launch/status";
 /// The SRP's history (srp_history_request_t / srp_history_reply_t).
 inline constexpr const char* srp_history_command = "mrroc/srp/history/cmd";
 inline constexpr const char* srp_history_reply = "mrroc/srp/history/reply";
+/// The cell emulator's scene objects and their poses (scene_objects_t).
+inline constexpr const char* scene_objects = "mrroc/scene/objects";
 }  // namespace channels
 
 }  // namespace mrroc

@@ -5,6 +5,7 @@
 /// second for the web console's 3D view. Units: m; quaternions (w, x, y, z).
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>

@@ -43,6 +43,7 @@
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/raw_sensor_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
+#include "mrroc_lcm/scene_objects_t.hpp"
 #include "mrroc_lcm/srp_history_reply_t.hpp"
 #include "mrroc_lcm/srp_history_request_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
@@ -124,6 +125,11 @@ std::vector<const std::string*> strings_of(const mrroc_lcm::launch_command_t& m)
 }
 std::vector<const std::string*> strings_of(const mrroc_lcm::srp_history_request_t& m) {
   return with_header(m, {});
+}
+std::vector<const std::string*> strings_of(const mrroc_lcm::scene_objects_t& m) {
+  auto out = with_header(m, {&m.scene});
+  for (const mrroc_lcm::scene_object_t& o : m.objects) out.insert(out.end(), {&o.name, &o.attach});
+  return out;
 }
 std::vector<const std::string*> strings_of(const mrroc_lcm::srp_history_reply_t& m) {
   auto out = with_header(m, {});
@@ -277,6 +283,17 @@ std::string canonical(const mrroc::launch::LaunchCommand& v, bool wire) {
   return fmt::format("set_name={} type={} process={}", str(v.set_name, wire), code(v.type),
                      str(v.process, wire));
 }
+std::string canonical(const mrroc::SceneObjects& v, bool wire) {
+  std::string out =
+      fmt::format("scene={} sim_time_s={} objects=[", str(v.scene, wire), bits(v.sim_time_s));
+  const auto array = [](const auto& a) { return doubles(std::vector<double>(a.begin(), a.end())); };
+  for (const mrroc::SceneObjectPose& o : v.objects)
+    out += fmt::format("{{name={} shape={} size={} rgba={} attach={} local={}{} pose={}{}}},",
+                       str(o.name, wire), code(o.shape), doubles(o.size), array(o.rgba),
+                       str(o.attach, wire), array(o.local_position), array(o.local_quaternion),
+                       array(o.position), array(o.quaternion));
+  return out + "]";
+}
 
 // ---- What a decoded value holds: named enumerators, consistent vectors. ----
 
@@ -383,6 +400,20 @@ void check_decoded(const mrroc::launch::LaunchStatus& v) {
 void check_decoded(const mrroc::launch::LaunchCommand& v) {
   fuzz::expect(v.type == mrroc::launch::LaunchCommandType::restart,
                fmt::format("decoded launch command {} is unknown", code(v.type)));
+}
+void check_decoded(const mrroc::SceneObjects& v) {
+  fuzz::expect(v.objects.size() <= static_cast<std::size_t>(mrroc::comm::kMaxSceneObjects),
+               fmt::format("decoded scene has {} objects", v.objects.size()));
+  for (const mrroc::SceneObjectPose& o : v.objects) {
+    fuzz::expect(
+        code(o.shape) >= 1 && code(o.shape) <= 4 &&
+            o.size.size() == mrroc::scene_object_size_count(o.shape),
+        fmt::format("decoded object of shape {} has {} sizes", code(o.shape), o.size.size()));
+    for (const double x : o.size)
+      fuzz::expect(std::isfinite(x) && x > 0.0, fmt::format("decoded object size {}", x));
+    for (const double x : o.position)
+      fuzz::expect(std::isfinite(x), fmt::format("decoded object position {}", x));
+  }
 }
 
 // ---- LCM level. ----
@@ -540,6 +571,7 @@ constexpr Target kTargets[] = {
     {"launch_command", &test_one<mrroc_lcm::launch_command_t>},
     {"srp_history_request", &test_one<mrroc_lcm::srp_history_request_t>},
     {"srp_history_reply", &test_one<mrroc_lcm::srp_history_reply_t>},
+    {"scene_objects", &test_one<mrroc_lcm::scene_objects_t>},
 };
 Test selected = nullptr;
 

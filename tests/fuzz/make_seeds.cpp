@@ -10,6 +10,7 @@
 #include <linux/can.h>
 #include <linux/can/error.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -36,6 +37,7 @@
 #include "mrroc_lcm/operator_reply_t.hpp"
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
+#include "mrroc_lcm/scene_objects_t.hpp"
 #include "mrroc_lcm/srp_history_reply_t.hpp"
 #include "mrroc_lcm/srp_history_request_t.hpp"
 #include "mrroc_lcm/srp_message_t.hpp"
@@ -544,6 +546,47 @@ std::vector<mrroc_lcm::launch_command_t> launch_commands() {
   return out;
 }
 
+std::vector<mrroc_lcm::scene_objects_t> scene_objects() {
+  std::vector<mrroc_lcm::scene_objects_t> out;
+  mrroc_lcm::scene_objects_t m{};
+  header(m.header, "emu#12", 30, mrroc_lcm::header_t::BROADCAST);
+  m.scene = "conveyor-pick";
+  m.sim_time_s = 1.0;
+  mrroc_lcm::scene_object_t part{};
+  part.name = "part";
+  part.shape = mrroc_lcm::scene_object_t::BOX;
+  part.n_size = 3;
+  part.size = {0.03, 0.03, 0.03};
+  const double red[4] = {0.8, 0.2, 0.2, 1.0};
+  std::copy(red, red + 4, part.rgba);
+  part.attach = "conveyor/belt_link";
+  part.local_position[2] = 0.04;
+  part.local_quaternion[0] = 1.0;
+  part.position[0] = -0.9;
+  part.position[1] = -0.65;
+  part.position[2] = 0.79;
+  part.quaternion[0] = 1.0;
+  mrroc_lcm::scene_object_t probe = part;
+  probe.name = "probe";
+  probe.shape = mrroc_lcm::scene_object_t::SPHERE;
+  probe.n_size = 1;
+  probe.size = {0.02};
+  probe.attach = "";
+  mrroc_lcm::scene_object_t can = probe;
+  can.name = "can";
+  can.shape = mrroc_lcm::scene_object_t::CAPSULE;
+  can.n_size = 2;
+  can.size = {0.04, 0.06};
+  m.objects = {part, probe, can};
+  m.n = 3;
+  out.push_back(m);
+  mrroc_lcm::scene_objects_t empty{};
+  header(empty.header, "emu#13", 0, mrroc_lcm::header_t::BROADCAST);
+  empty.scene = "bare";
+  out.push_back(empty);
+  return out;
+}
+
 /// Writes the messages as they are, and the first of them signed too (the auth fields set).
 template <class Msg>
 void lcm_seeds(const std::string& target, std::vector<Msg> messages) {
@@ -561,6 +604,7 @@ void new_message_seeds() {
   lcm_seeds("srp_history_request", history_requests());
   lcm_seeds("srp_history_reply", history_replies());
   lcm_seeds("launch_command", launch_commands());
+  lcm_seeds("scene_objects", scene_objects());
 }
 
 // ---- fuzz_auth: [selector][message] with messages signed with its key, and counter sequences.

@@ -1,6 +1,6 @@
 // The IRb-6's kinematics for the EDP: the analytic solver and the ball-screw transmission of
-// include/mrroc/kinematics/irb6.hpp, two kinematic models (nominal, calibrated) and the local
-// correctors listed in parameters.toml.
+// include/mrroc/kinematics/irb6.hpp, the kinematic models of parameters.toml (0: the nominal link
+// lengths of [robot.kinematics], 1: [robot.kinematics.calibrated]) and its local correctors.
 #include <fmt/format.h>
 
 #include "mrroc/core/error.hpp"
@@ -13,12 +13,8 @@ namespace mrroc::robots::irb6 {
 
 class Irb6ArmKinematics : public edp::ArmKinematics {
  public:
-  explicit Irb6ArmKinematics(const RobotModel& model) : model_(model) {
-    if (model.axes() != kAxes)
-      throw ConfigError(
-          SourceLocation::whole_file(model.parameters_file().string()),
-          fmt::format("irb6 kinematics needs {} axes, the model has {}", kAxes, model.axes()));
-  }
+  explicit Irb6ArmKinematics(const RobotModel& model)
+      : model_(model), models_(checked_models(model)), solver_(models_.front()) {}
 
   std::string name() const override { return "irb6"; }
 
@@ -60,7 +56,7 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
     return {q.begin(), q.end()};
   }
 
-  int model_count() const override { return kKinematicModels; }
+  int model_count() const override { return static_cast<int>(models_.size()); }
   int corrector_count() const override { return 1 + static_cast<int>(model_.correctors.size()); }
   void select_model(int model_no, int corrector_no) override {
     if (corrector_no < 0 || corrector_no >= corrector_count())
@@ -68,7 +64,17 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
                          fmt::format("corrector {} is outside 0..{} (0 = none; the others are "
                                      "listed in {}/parameters.toml)",
                                      corrector_no, corrector_count() - 1, model_.folder.string()));
-    solver_.geometry = kinematic_model(model_no);  // throws for an unknown model
+    if (model_no < 0 || model_no >= model_count())
+      throw CommandError(
+          edp::error_code::bad_argument,
+          model_count() > kCalibratedModel
+              ? fmt::format("kinematic model {} does not exist for the IRb-6 (0 = nominal, "
+                            "1 = calibrated)",
+                            model_no)
+              : fmt::format("kinematic model {} does not exist for the IRb-6 (0 = nominal; {} "
+                            "has no [robot.kinematics.calibrated])",
+                            model_no, model_.parameters_file().string()));
+    solver_.geometry = models_[static_cast<std::size_t>(model_no)];
     solver_.corrector = Eigen::Isometry3d::Identity();
     if (corrector_no > 0) {
       const auto& c = model_.correctors[static_cast<std::size_t>(corrector_no - 1)];
@@ -82,7 +88,16 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
   Eigen::Isometry3d tool() const override { return solver_.tool; }
 
  private:
+  static std::vector<Irb6Geometry> checked_models(const RobotModel& model) {
+    if (model.axes() != kAxes)
+      throw ConfigError(
+          SourceLocation::whole_file(model.parameters_file().string()),
+          fmt::format("irb6 kinematics needs {} axes, the model has {}", kAxes, model.axes()));
+    return kinematic_models(model);
+  }
+
   const RobotModel& model_;
+  std::vector<Irb6Geometry> models_;  ///< kinematic model i is models_[i]
   Irb6Kinematics solver_;
 };
 

@@ -1,4 +1,5 @@
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,6 +10,7 @@
 #include "mrroc/core/error.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::robots::irb6 {
 
@@ -363,16 +365,20 @@ void check_motor_limits(const MotorPosition& m, const char* what) {
   }
 }
 
-Irb6Geometry kinematic_model(int model_no) {
-  switch (model_no) {
-    case kNominalModel: return Irb6Geometry::nominal();
-    case kCalibratedModel: return Irb6Geometry::calibrated();
-    default: break;
+std::vector<Irb6Geometry> kinematic_models(const RobotModel& model) {
+  const auto names = solver_link_lengths("irb6");
+  std::vector<Irb6Geometry> out;
+  for (const std::vector<double>& l : model.link_lengths) {
+    if (l.size() != names.size()) break;
+    out.push_back({l[0], l[1], l[2], l[3]});  // d1, a2, a3, d5
   }
-  bad_argument(
-      fmt::format("kinematic model {} does not exist for the IRb-6 (0 = nominal, "
-                  "1 = calibrated)",
-                  model_no));
+  if (out.empty() || out.size() != model.link_lengths.size())
+    throw ConfigError(SourceLocation::whole_file(model.parameters_file().string()),
+                      fmt::format("robot '{}' has no IRb-6 link lengths ({} [m] under "
+                                  "[robot.kinematics], read with solver = \"irb6\"; its solver is "
+                                  "\"{}\")",
+                                  model.name, fmt::join(names, ", "), model.kinematics));
+  return out;
 }
 
 Eigen::Isometry3d forward_kinematics(const JointPosition& q, const Irb6Geometry& g) {

@@ -5,6 +5,7 @@
 #include <toml++/toml.h>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::sim {
 namespace {
@@ -40,6 +41,7 @@ RobotParameters read_robot_parameters(const std::filesystem::path& path) {
   } catch (const toml::parse_error& e) {
     throw ConfigError(where(e.source(), path), std::string(e.description()));
   }
+  check_robot_parameter_keys(path);  // an unknown key is an error for every reader
   const toml::node_view robot = table["robot"];
   if (const toml::node* node = robot["mjcf"].node()) {
     const auto value = node->value<std::string>();

@@ -29,6 +29,7 @@
 #include "mrroc/core/error.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/kdl_solver.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 namespace {
 
@@ -40,6 +41,15 @@ double percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
   return v[static_cast<std::size_t>(p * static_cast<double>(v.size() - 1))];
+}
+
+/// The IRb-6's kinematic model 0, from robots/irb6/parameters.toml.
+const irb6::Irb6Geometry& nominal() {
+  static const irb6::Irb6Geometry geometry =
+      irb6::kinematic_models(
+          mrroc::load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6"))
+          .at(irb6::kNominalModel);
+  return geometry;
 }
 
 bool linkage_ok(const irb6::JointPosition& q) {
@@ -71,7 +81,7 @@ bool reaches(const irb6::JointPosition& q, const Eigen::Isometry3d& target) {
   for (std::size_t i = 0; i < irb6::kAxes; ++i)
     if (!(q[i] >= irb6::kJointLowerLimits[i] - 1e-9 && q[i] <= irb6::kJointUpperLimits[i] + 1e-9))
       return false;
-  const Eigen::Isometry3d reached = irb6::forward_kinematics(q);
+  const Eigen::Isometry3d reached = irb6::forward_kinematics(q, nominal());
   const Eigen::AngleAxisd rotation(reached.linear().transpose() * target.linear());
   return (reached.translation() - target.translation()).norm() <= kTolerance &&
          std::abs(rotation.angle()) <= kTolerance;
@@ -109,9 +119,9 @@ int main(int argc, char** argv) {
   // Warm-up (page faults, caches), not counted.
   for (int k = 0; k < 50; ++k) {
     const irb6::JointPosition q = random_reachable_joints(rng);
-    const Eigen::Isometry3d target = irb6::forward_kinematics(q);
+    const Eigen::Isometry3d target = irb6::forward_kinematics(q, nominal());
     try {
-      (void)irb6::inverse_kinematics(target, q);
+      (void)irb6::inverse_kinematics(target, q, nominal());
       (void)kdl.inverse(target, std::vector<double>(q.begin(), q.end()));
     } catch (const mrroc::Error&) {
     }
@@ -124,12 +134,12 @@ int main(int argc, char** argv) {
   lma.times_us.reserve(static_cast<std::size_t>(poses));
   for (int k = 0; k < poses; ++k) {
     const irb6::JointPosition q = random_reachable_joints(rng);
-    const Eigen::Isometry3d target = irb6::forward_kinematics(q);
+    const Eigen::Isometry3d target = irb6::forward_kinematics(q, nominal());
     const irb6::JointPosition seed = nearby(q, rng, 0.3);
     {
       const auto t0 = Clock::now();
       try {
-        const irb6::JointPosition s = irb6::inverse_kinematics(target, seed);
+        const irb6::JointPosition s = irb6::inverse_kinematics(target, seed, nominal());
         const auto t1 = Clock::now();
         analytic.times_us.push_back(elapsed_us(t0, t1));
         if (reaches(s, target))
@@ -178,10 +188,11 @@ int main(int argc, char** argv) {
                                     irb6::kSynchroJointPositions.end());
   for (int k = 0; k < std::min(poses, 2000); ++k) {
     const irb6::JointPosition q = random_reachable_joints(rng);
-    const Eigen::Isometry3d target = irb6::forward_kinematics(q);
+    const Eigen::Isometry3d target = irb6::forward_kinematics(q, nominal());
     auto t0 = Clock::now();
     try {
-      const irb6::JointPosition s = irb6::inverse_kinematics(target, irb6::kSynchroJointPositions);
+      const irb6::JointPosition s =
+          irb6::inverse_kinematics(target, irb6::kSynchroJointPositions, nominal());
       if (reaches(s, target)) ++far_analytic.solved;
     } catch (const mrroc::Error&) {
     }

@@ -23,6 +23,7 @@
 #include "mrroc/core/error.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/pose.hpp"
+#include "mrroc/robot/robot_model.hpp"
 #include "mrroc/sim/mujoco_support.hpp"
 #include "scene.hpp"
 
@@ -167,7 +168,11 @@ TEST(CellWorld, FlangesAreWhereTheBasePosesSay) {
       // mrroc's analytic kinematics of the IRb-6, moved to the base.
       mrroc::robots::irb6::JointPosition jq{};
       std::copy(q.begin(), q.end(), jq.begin());
-      const Eigen::Isometry3d expected = base * mrroc::robots::irb6::forward_kinematics(jq);
+      const Eigen::Isometry3d expected =
+          base * mrroc::robots::irb6::forward_kinematics(
+                     jq, mrroc::robots::irb6::kinematic_models(
+                             mrroc::load_robot_model(source_dir() / "robots" / "irb6"))
+                             .at(mrroc::robots::irb6::kNominalModel));
       EXPECT_LT(frame_error(flange, expected), 1e-9) << world.robot(k).name;
       // The single-robot MuJoCo model, moved to the base.
       for (int j = 0; j < 5; ++j)

@@ -27,6 +27,7 @@
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/kinematics/irb6.hpp"
+#include "mrroc/robot/robot_model.hpp"
 #include "scene.hpp"
 #include "sensors.hpp"
 
@@ -64,6 +65,15 @@ std::int64_t wall_utime(const CellWorld& world) {
   return kEpochUtime + std::llround(world.time() * 1e6);
 }
 
+/// The IRb-6's kinematic model 0 (robots/irb6/parameters.toml).
+irb6::Irb6Geometry irb6_nominal() {
+  static const irb6::Irb6Geometry geometry =
+      irb6::kinematic_models(
+          mrroc::load_robot_model(fs::path(MRROC_SOURCE_DIR) / "robots" / "irb6"))
+          .at(irb6::kNominalModel);
+  return geometry;
+}
+
 /// Joints that put the probe's lowest point `height` above the table top at (kTouchX, 0), the
 /// tool pointing straight down (negative: pressed into the table).
 irb6::JointPosition probe_pose(double height) {
@@ -71,7 +81,7 @@ irb6::JointPosition probe_pose(double height) {
   flange.linear() = Eigen::AngleAxisd(kPi, Eigen::Vector3d::UnitY()).toRotationMatrix();
   flange.translation() =
       Eigen::Vector3d(kTouchX, 0.0, kTableTop + height + kProbeRadius + kProbeReach);
-  return irb6::inverse_kinematics(flange, irb6::kSynchroJointPositions);
+  return irb6::inverse_kinematics(flange, irb6::kSynchroJointPositions, irb6_nominal());
 }
 
 /// The sensing scene with the IRb-6 powered on at `q`.
@@ -413,7 +423,8 @@ TEST(EmuSensors, ConveyorPickIrb6ReachesOverThePartWhereTheCameraSeesIt) {
                             .toRotationMatrix();
       flange.translation() = Eigen::Vector3d(x - base[0], part_y - base[1], tip + 0.25 - base[2]);
       irb6::JointPosition q{};
-      EXPECT_NO_THROW(q = irb6::inverse_kinematics(flange, irb6::kSynchroJointPositions))
+      EXPECT_NO_THROW(
+          q = irb6::inverse_kinematics(flange, irb6::kSynchroJointPositions, irb6_nominal()))
           << "x " << x << " tip " << tip;
       std::printf("  gripper tip at (%.2f, %.2f, %.3f): q = (%.3f, %.3f, %.3f, %.3f, %.3f)\n", x,
                   part_y, tip, q[0], q[1], q[2], q[3], q[4]);

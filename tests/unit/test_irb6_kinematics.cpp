@@ -11,12 +11,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <toml++/toml.h>
 #include <urdf_parser/urdf_parser.h>
 #include <kdl/chain.hpp>
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -26,9 +29,11 @@
 #include <kdl_parser/kdl_parser.hpp>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 #ifndef MRROC_SOURCE_DIR
 #error "MRROC_SOURCE_DIR must be defined (absolute path of the source tree)"
@@ -48,6 +53,19 @@ constexpr double kPi = std::numbers::pi;
 constexpr int kSamples = 2000;
 
 constexpr double deg(double d) { return d * kPi / 180.0; }
+
+std::filesystem::path robot_dir() {
+  return std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / "irb6";
+}
+
+/// The kinematic models robots/irb6/parameters.toml gives (0 nominal, 1 calibrated).
+const std::vector<Irb6Geometry>& file_models() {
+  static const std::vector<Irb6Geometry> models =
+      irb6::kinematic_models(mrroc::load_robot_model(robot_dir()));
+  return models;
+}
+Irb6Geometry nominal() { return file_models().at(irb6::kNominalModel); }
+Irb6Geometry calibrated() { return file_models().at(irb6::kCalibratedModel); }
 
 std::uint32_t test_seed() {
   if (const char* env = std::getenv("MRROC_TEST_SEED"); env != nullptr && *env != '\0') {
@@ -389,7 +407,7 @@ TEST_F(Irb6Kdl, AnalyticForwardKinematicsEqualsKdlOnTheUrdf) {
   double worst_position = 0.0;
   double worst_rotation = 0.0;
   for (const JointPosition& q : poses) {
-    const Eigen::Isometry3d analytic = irb6::forward_kinematics(q);
+    const Eigen::Isometry3d analytic = irb6::forward_kinematics(q, nominal());
     const Eigen::Isometry3d kdl = kdl_fk(q);
     worst_position = std::max(worst_position, position_error(analytic, kdl));
     worst_rotation = std::max(worst_rotation, rotation_error(analytic, kdl));
@@ -402,50 +420,149 @@ TEST_F(Irb6Kdl, AnalyticForwardKinematicsEqualsKdlOnTheUrdf) {
 
 TEST(Irb6Forward, HandCheckedPoses) {
   // Synchronisation pose: lower arm up, upper arm and wrist along +x, approach +x, flange x down.
-  const Eigen::Isometry3d sync = irb6::forward_kinematics(irb6::kSynchroJointPositions);
+  const Eigen::Isometry3d sync = irb6::forward_kinematics(irb6::kSynchroJointPositions, nominal());
   EXPECT_LT((sync.translation() - Eigen::Vector3d(0.86, 0.0, 1.155)).norm(), 1e-15);
   EXPECT_LT((sync.linear().col(2) - Eigen::Vector3d::UnitX()).norm(), 1e-15);
   EXPECT_LT((sync.linear().col(0) + Eigen::Vector3d::UnitZ()).norm(), 1e-15);
   // Wrist pitched -90 deg: flange d5 above the wrist, approach up.
-  const Eigen::Isometry3d up = irb6::forward_kinematics({0.0, -kPi / 2, 0.0, -kPi / 2, 0.0});
+  const Eigen::Isometry3d up =
+      irb6::forward_kinematics({0.0, -kPi / 2, 0.0, -kPi / 2, 0.0}, nominal());
   EXPECT_LT((up.translation() - Eigen::Vector3d(0.67, 0.0, 1.345)).norm(), 1e-15);
   EXPECT_LT((up.linear().col(2) - Eigen::Vector3d::UnitZ()).norm(), 1e-15);
   // The default gripper: 0.25 m along the approach.
-  const Eigen::Isometry3d tip = irb6::forward_kinematics(
-      irb6::kSynchroJointPositions, Irb6Geometry::nominal(), translation(0.0, 0.0, 0.25));
+  const Eigen::Isometry3d tip = irb6::forward_kinematics(irb6::kSynchroJointPositions, nominal(),
+                                                         translation(0.0, 0.0, 0.25));
   EXPECT_LT((tip.translation() - Eigen::Vector3d(1.11, 0.0, 1.155)).norm(), 1e-15);
 }
 
-TEST(Irb6Forward, CalibratedModelDiffersByTheMeasuredLengths) {
-  EXPECT_EQ(irb6::kinematic_model(0).a2, 0.455);
-  EXPECT_EQ(irb6::kinematic_model(1).a2, 0.4596);
-  expect_command_error([] { (void)irb6::kinematic_model(2); }, bad_argument,
+/// The flange chain (base_link -> flange) of irb6.urdf with its four length origins replaced: the
+/// column height d1 (origin of joint lower_arm), a2 (upper_arm), a3 (wrist_pitch) and d5
+/// (flange_joint), written as the URDF writes them.
+KDL::Chain urdf_chain_with_lengths(double d1, double a2, double a3, double d5) {
+  std::ifstream in(urdf_path());
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string urdf = text.str();
+  const auto replace = [&](const std::string& from, const std::string& to) {
+    const std::size_t at = urdf.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    EXPECT_EQ(urdf.find(from, at + 1), std::string::npos) << from << " is not unique";
+    if (at != std::string::npos) urdf.replace(at, from.size(), to);
+  };
+  const auto number = [](double x) {
+    std::array<char, 32> t{};
+    std::snprintf(t.data(), t.size(), "%.17g", x);
+    return std::string(t.data());
+  };
+  replace(R"(<origin xyz="0 0 0.70" rpy="0 0 0"/>)",
+          R"(<origin xyz="0 0 )" + number(d1) + R"(" rpy="0 0 0"/>)");
+  replace(R"(<origin xyz="0.455 0 0" rpy="0 1.5707963267948966 0"/>)",
+          R"(<origin xyz=")" + number(a2) + R"( 0 0" rpy="0 1.5707963267948966 0"/>)");
+  replace(R"(<origin xyz="0.67 0 0" rpy="0 0 0"/>)",
+          R"(<origin xyz=")" + number(a3) + R"( 0 0" rpy="0 0 0"/>)");
+  replace(R"(<origin xyz="0.19 0 0" rpy="0 1.5707963267948966 0"/>)",
+          R"(<origin xyz=")" + number(d5) + R"( 0 0" rpy="0 1.5707963267948966 0"/>)");
+  KDL::Chain chain;
+  const auto model = urdf::parseURDF(urdf);
+  EXPECT_TRUE(model);
+  KDL::Tree tree;
+  if (model && kdl_parser::treeFromUrdfModel(*model, tree)) {
+    EXPECT_TRUE(tree.getChain("base_link", "flange", chain));
+  }
+  EXPECT_EQ(chain.getNrOfJoints(), kAxes);
+  return chain;
+}
+
+Eigen::Isometry3d chain_fk(const KDL::Chain& chain, const JointPosition& q) {
+  KDL::ChainFkSolverPos_recursive solver(chain);
+  KDL::JntArray joints(kAxes);
+  for (unsigned int i = 0; i < kAxes; ++i) joints(i) = q[i];
+  KDL::Frame frame;
+  EXPECT_GE(solver.JntToCart(joints, frame), 0);
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out.linear()(r, c) = frame.M(r, c);
+    out.translation()(r) = frame.p(r);
+  }
+  return out;
+}
+
+TEST(Irb6Forward, KinematicModelOneMovesTheToolByTheCalibratedDifference) {
+  // The lengths as parameters.toml writes them, read here with the TOML parser alone.
+  const toml::table file = toml::parse_file((robot_dir() / "parameters.toml").string());
+  const auto length = [&](const char* table, const char* key) {
+    const auto v = table == nullptr ? file["robot"]["kinematics"][key].value<double>()
+                                    : file["robot"]["kinematics"][table][key].value<double>();
+    EXPECT_TRUE(v.has_value()) << key;
+    return v.value_or(0.0);
+  };
+  const double d1 = length(nullptr, "d1");
+  const double a2 = length(nullptr, "a2");
+  const double a3 = length(nullptr, "a3");
+  const double d5 = length(nullptr, "d5");
+  // The calibrated table leaves d1 out: it keeps its nominal value.
+  EXPECT_FALSE(file["robot"]["kinematics"]["calibrated"]["d1"].node());
+  const double a2c = length("calibrated", "a2");
+  const double a3c = length("calibrated", "a3");
+  const double d5c = length("calibrated", "d5");
+  // The calibration changes each length by millimetres.
+  EXPECT_GT(std::abs(a2c - a2), 1e-3);
+  EXPECT_GT(std::abs(a3c - a3), 1e-3);
+  EXPECT_GT(std::abs(d5c - d5), 1e-4);
+  const KDL::Chain urdf_nominal = urdf_chain_with_lengths(d1, a2, a3, d5);
+  const KDL::Chain urdf_calibrated = urdf_chain_with_lengths(d1, a2c, a3c, d5c);
+
+  // The kinematics the EDP and the ECP build from the file, with the gripper as tool.
+  const mrroc::RobotModel model = mrroc::load_robot_model(robot_dir());
+  const auto k0 = mrroc::edp::make_arm_kinematics(model);
+  const auto k1 = mrroc::edp::make_arm_kinematics(model);
+  ASSERT_EQ(k1->model_count(), 2);
+  const Eigen::Isometry3d gripper = translation(0.0, 0.0, 0.25);
+  k0->set_tool(gripper);
+  k1->set_tool(gripper);
+  k1->select_model(irb6::kCalibratedModel, 0);
+  EXPECT_EQ(k1->model_no(), irb6::kCalibratedModel);
+  expect_command_error([&] { k1->select_model(2, 0); }, bad_argument,
                        "kinematic model 2 does not exist for the IRb-6");
-  const Irb6Geometry nominal = irb6::kinematic_model(irb6::kNominalModel);
-  const Irb6Geometry calibrated = irb6::kinematic_model(irb6::kCalibratedModel);
-  // At the synchronisation pose: x = a3 + d5, z = d1 + a2.
-  const Eigen::Vector3d difference =
-      irb6::forward_kinematics(irb6::kSynchroJointPositions, calibrated).translation() -
-      irb6::forward_kinematics(irb6::kSynchroJointPositions, nominal).translation();
-  EXPECT_NEAR(difference.x(), (0.6729 - 0.67) + (0.1903 - 0.19), 1e-12);
-  EXPECT_NEAR(difference.y(), 0.0, 1e-15);
-  EXPECT_NEAR(difference.z(), 0.4596 - 0.455, 1e-12);
-  // Wrist up: x = a3, z = d1 + a2 + d5.
-  const JointPosition up = {0.0, -kPi / 2, 0.0, -kPi / 2, 0.3};
-  const Eigen::Vector3d d_up = irb6::forward_kinematics(up, calibrated).translation() -
-                               irb6::forward_kinematics(up, nominal).translation();
-  EXPECT_NEAR(d_up.x(), 0.0029, 1e-12);
-  EXPECT_NEAR(d_up.z(), 0.0046 + 0.0003, 1e-12);
-  // Orientation does not depend on the lengths.
+
+  // At the synchronisation pose the tool point is (a3 + d5 + 0.25, 0, d1 + a2): by hand, model 1
+  // moves it by (da3 + dd5, 0, da2).
+  const std::vector<double> sync(irb6::kSynchroJointPositions.begin(),
+                                 irb6::kSynchroJointPositions.end());
+  const Eigen::Vector3d moved = k1->forward(sync).translation() - k0->forward(sync).translation();
+  EXPECT_NEAR(moved.x(), (a3c - a3) + (d5c - d5), 1e-12);
+  EXPECT_NEAR(moved.y(), 0.0, 1e-15);
+  EXPECT_NEAR(moved.z(), a2c - a2, 1e-12);
+  EXPECT_GT(moved.norm(), 4e-3);
+
+  // Everywhere: the difference equals that of the URDF chains with the two sets of lengths.
   const std::uint32_t seed = test_seed();
   SCOPED_TRACE(seed_trace(seed));
   std::mt19937 rng(seed + 3U);
+  double worst = 0.0;
+  double smallest_move = 1.0;
   for (int n = 0; n < kSamples; ++n) {
     const JointPosition q = random_joints(rng);
-    ASSERT_LT(rotation_error(irb6::forward_kinematics(q, nominal),
-                             irb6::forward_kinematics(q, calibrated)),
-              1e-15);
+    const std::vector<double> qv(q.begin(), q.end());
+    const Eigen::Isometry3d t0 = k0->forward(qv);
+    const Eigen::Isometry3d t1 = k1->forward(qv);
+    const Eigen::Vector3d expected = (chain_fk(urdf_calibrated, q) * gripper).translation() -
+                                     (chain_fk(urdf_nominal, q) * gripper).translation();
+    const Eigen::Vector3d got = t1.translation() - t0.translation();
+    worst = std::max(worst, (got - expected).norm());
+    smallest_move = std::min(smallest_move, got.norm());
+    ASSERT_LT((got - expected).norm(), 1e-9) << "q = " << show(q);
+    // Orientation does not depend on the lengths.
+    ASSERT_LT(rotation_error(t0, t1), 1e-15) << "q = " << show(q);
+    // The EDP's model 1 reaches its own frames back.
+    const std::vector<double> back = k1->inverse(t1, qv);
+    JointPosition solved{};
+    std::copy(back.begin(), back.end(), solved.begin());
+    ASSERT_LT(max_difference(solved, q), 1e-9) << "q = " << show(q);
   }
+  EXPECT_GT(smallest_move, 1e-3);
+  RecordProperty("worst_model1_move_vs_urdf_m", figure(worst));
+  RecordProperty("smallest_model1_move_m", figure(smallest_move));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -458,7 +575,7 @@ TEST(Irb6Inverse, RoundTripsOnRandomReachablePoses) {
   double worst_joint = 0.0;
   double worst_position = 0.0;
   double worst_rotation = 0.0;
-  for (const Irb6Geometry& g : {Irb6Geometry::nominal(), Irb6Geometry::calibrated()}) {
+  for (const Irb6Geometry& g : {nominal(), calibrated()}) {
     for (int n = 0; n < kSamples; ++n) {
       const JointPosition q = random_joints(rng);
       // A seed far from the answer: the solution within the limits is unique.
@@ -482,8 +599,8 @@ TEST(Irb6Inverse, RoundTripsOnRandomReachablePoses) {
 
 TEST(Irb6Inverse, SynchroPoseAndJointLimitCorners) {
   const JointPosition seed = irb6::kSynchroJointPositions;
-  const JointPosition sync =
-      irb6::inverse_kinematics(irb6::forward_kinematics(irb6::kSynchroJointPositions), seed);
+  const JointPosition sync = irb6::inverse_kinematics(
+      irb6::forward_kinematics(irb6::kSynchroJointPositions, nominal()), seed, nominal());
   EXPECT_LT(max_difference(sync, irb6::kSynchroJointPositions), 1e-14);
   // Every corner of the joint box that the linkage allows.
   int corners = 0;
@@ -493,7 +610,8 @@ TEST(Irb6Inverse, SynchroPoseAndJointLimitCorners) {
       q[i] = (bits >> i) & 1 ? irb6::kJointUpperLimits[i] : irb6::kJointLowerLimits[i];
     if (!linkage_ok(q)) continue;
     ++corners;
-    const JointPosition solved = irb6::inverse_kinematics(irb6::forward_kinematics(q), seed);
+    const JointPosition solved =
+        irb6::inverse_kinematics(irb6::forward_kinematics(q, nominal()), seed, nominal());
     EXPECT_LT(max_difference(solved, q), 1e-9) << "corner " << show(q);
   }
   EXPECT_GE(corners, 16);
@@ -506,7 +624,7 @@ TEST(Irb6Inverse, WristCentreStaysInFrontOfTheColumnAxis) {
   SCOPED_TRACE(seed_trace(seed));
   std::mt19937 rng(seed + 5U);
   double nearest = 1.0;
-  for (const Irb6Geometry& g : {Irb6Geometry::nominal(), Irb6Geometry::calibrated()}) {
+  for (const Irb6Geometry& g : {nominal(), calibrated()}) {
     for (int n = 0; n < kSamples; ++n) {
       const JointPosition q = random_joints(rng);
       const double reach = g.a2 * std::cos(q[1]) + g.a3 * std::cos(q[1] + q[2] + kPi / 2);
@@ -521,8 +639,8 @@ TEST(Irb6Inverse, ToolAndLocalCorrector) {
   const std::uint32_t seed = test_seed();
   SCOPED_TRACE(seed_trace(seed));
   std::mt19937 rng(seed + 6U);
-  irb6::Irb6Kinematics k;
-  k.geometry = Irb6Geometry::calibrated();
+  irb6::Irb6Kinematics k(nominal());
+  k.geometry = calibrated();
   k.tool = translation(0.0, 0.0, 0.25);  // the gripper
   // A small correction on the base side: 2 mm and 3 mrad.
   k.corrector = translation(0.002, -0.001, 0.0015);
@@ -558,25 +676,25 @@ TEST(Irb6Inverse, ToolAndLocalCorrector) {
 TEST(Irb6Inverse, UnreachableOrientationIsRefusedWithTheDeviation) {
   // Synchro pose, approach horizontal along +x; turn the orientation 0.12 rad about the vertical
   // through the flange: the approach leaves the arm plane by exactly 0.12 rad.
-  const Eigen::Isometry3d sync = irb6::forward_kinematics(irb6::kSynchroJointPositions);
+  const Eigen::Isometry3d sync = irb6::forward_kinematics(irb6::kSynchroJointPositions, nominal());
   Eigen::Isometry3d turned = sync;
   turned.linear() = Eigen::AngleAxisd(0.12, Eigen::Vector3d::UnitZ()).matrix() * sync.linear();
   const JointPosition seed = irb6::kSynchroJointPositions;
-  EXPECT_EQ(command_error_text([&] { (void)irb6::inverse_kinematics(turned, seed); }),
+  EXPECT_EQ(command_error_text([&] { (void)irb6::inverse_kinematics(turned, seed, nominal()); }),
             "orientation not reachable by a 5-axis arm: approach deviates 0.12 rad from the arm "
             "plane (tolerance 1e-06 rad)");
-  expect_command_error([&] { (void)irb6::inverse_kinematics(turned, seed); }, out_of_limits,
-                       "orientation not reachable by a 5-axis arm");
+  expect_command_error([&] { (void)irb6::inverse_kinematics(turned, seed, nominal()); },
+                       out_of_limits, "orientation not reachable by a 5-axis arm");
   // inverse_nearest turns it back.
-  const irb6::NearestSolution nearest = irb6::inverse_nearest(turned, seed);
+  const irb6::NearestSolution nearest = irb6::inverse_nearest(turned, seed, nominal());
   EXPECT_NEAR(nearest.deviation, 0.12, 1e-12);
   EXPECT_LT(max_difference(nearest.joints, irb6::kSynchroJointPositions), 1e-12);
   // A deviation below the tolerance is accepted.
   turned.linear() = Eigen::AngleAxisd(5e-7, Eigen::Vector3d::UnitZ()).matrix() * sync.linear();
-  EXPECT_NO_THROW((void)irb6::inverse_kinematics(turned, seed));
+  EXPECT_NO_THROW((void)irb6::inverse_kinematics(turned, seed, nominal()));
   // Approach perpendicular to the arm plane: the seed's approach is taken.
   turned.linear() = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitZ()).matrix() * sync.linear();
-  const irb6::NearestSolution perpendicular = irb6::inverse_nearest(turned, seed);
+  const irb6::NearestSolution perpendicular = irb6::inverse_nearest(turned, seed, nominal());
   EXPECT_NEAR(perpendicular.deviation, kPi / 2, 1e-12);
   EXPECT_LT(max_difference(perpendicular.joints, irb6::kSynchroJointPositions), 1e-12);
 }
@@ -591,14 +709,14 @@ TEST(Irb6Inverse, NearestReachableOrientationOnRandomPoses) {
   for (int n = 0; n < kSamples; ++n) {
     // Margins keep the nearest solution within the limits.
     const JointPosition q = random_joints(rng, 0.15);
-    const Eigen::Isometry3d reachable = irb6::forward_kinematics(q);
+    const Eigen::Isometry3d reachable = irb6::forward_kinematics(q, nominal());
     const double turn = uniform(rng, 1e-5, 0.1);
     Eigen::Isometry3d target = reachable;
     target.linear() =
         Eigen::AngleAxisd(turn, random_unit_vector(rng)).matrix() * reachable.linear();
 
-    const irb6::NearestSolution nearest = irb6::inverse_nearest(target, q);
-    const Eigen::Isometry3d reached = irb6::forward_kinematics(nearest.joints);
+    const irb6::NearestSolution nearest = irb6::inverse_nearest(target, q, nominal());
+    const Eigen::Isometry3d reached = irb6::forward_kinematics(nearest.joints, nominal());
     // The flange position is kept, the frame reached is the one reported, its orientation is
     // `deviation` away from the request and no farther than the reachable frame we started from.
     worst_position = std::max(worst_position, position_error(reached, target));
@@ -613,8 +731,8 @@ TEST(Irb6Inverse, NearestReachableOrientationOnRandomPoses) {
     // The exact inverse refuses it exactly when the deviation exceeds the tolerance.
     if (nearest.deviation > irb6::kOrientationTolerance) {
       ++refused;
-      expect_command_error([&] { (void)irb6::inverse_kinematics(target, q); }, out_of_limits,
-                           "orientation not reachable by a 5-axis arm");
+      expect_command_error([&] { (void)irb6::inverse_kinematics(target, q, nominal()); },
+                           out_of_limits, "orientation not reachable by a 5-axis arm");
     }
   }
   EXPECT_GT(refused, kSamples / 2);
@@ -626,7 +744,7 @@ TEST(Irb6Inverse, NearestWithAToolKeepsTheToolPoint) {
   const std::uint32_t seed = test_seed();
   SCOPED_TRACE(seed_trace(seed));
   std::mt19937 rng(seed + 8U);
-  irb6::Irb6Kinematics k;
+  irb6::Irb6Kinematics k(nominal());
   k.tool = translation(0.0, 0.0, 0.25);
   for (int n = 0; n < kSamples; ++n) {
     const JointPosition q = random_joints(rng, 0.15);
@@ -677,33 +795,36 @@ TEST(Irb6Inverse, TargetsOutsideTheJointLimitsNameTheJoint) {
   for (const Case& c : cases) {
     expect_command_error(
         [&] {
-          (void)irb6::inverse_kinematics(irb6::forward_kinematics(c.q),
-                                         irb6::kSynchroJointPositions);
+          (void)irb6::inverse_kinematics(irb6::forward_kinematics(c.q, nominal()),
+                                         irb6::kSynchroJointPositions, nominal());
         },
         out_of_limits, c.part);
   }
   // Out of reach.
-  Eigen::Isometry3d far = irb6::forward_kinematics(irb6::kSynchroJointPositions);
+  Eigen::Isometry3d far = irb6::forward_kinematics(irb6::kSynchroJointPositions, nominal());
   far.translation() = Eigen::Vector3d(2.0, 0.0, 0.7);  // wrist centre 1.81 m ahead of the axis
   expect_command_error(
-      [&] { (void)irb6::inverse_kinematics(far, irb6::kSynchroJointPositions); }, out_of_limits,
+      [&] { (void)irb6::inverse_kinematics(far, irb6::kSynchroJointPositions, nominal()); },
+      out_of_limits,
       "position not reachable: wrist centre 1.810000 m from the lower-arm axis, the arm reaches "
       "0.215000 .. 1.125000 m");
   // Flange on the column axis with a vertical approach: the wrist centre is on the axis too, the
   // column angle comes from the seed, and the IRb-6 cannot put its wrist there.
-  Eigen::Isometry3d on_axis = irb6::forward_kinematics({0.0, -kPi / 2, 0.0, -kPi / 2, 0.0});
+  Eigen::Isometry3d on_axis =
+      irb6::forward_kinematics({0.0, -kPi / 2, 0.0, -kPi / 2, 0.0}, nominal());
   on_axis.translation() = Eigen::Vector3d(0.0, 0.0, 1.5);
   for (const double column : {-1.0, 0.0, 2.0}) {
     const JointPosition seed = {column, -kPi / 2, 0.0, 0.0, 0.0};
-    expect_command_error([&] { (void)irb6::inverse_kinematics(on_axis, seed); }, out_of_limits,
-                         "inverse kinematics solution");
-    expect_command_error([&] { (void)irb6::inverse_nearest(on_axis, seed); }, out_of_limits,
-                         "inverse kinematics solution");
+    expect_command_error([&] { (void)irb6::inverse_kinematics(on_axis, seed, nominal()); },
+                         out_of_limits, "inverse kinematics solution");
+    expect_command_error([&] { (void)irb6::inverse_nearest(on_axis, seed, nominal()); },
+                         out_of_limits, "inverse kinematics solution");
   }
   // Not finite.
   far.translation().x() = std::nan("");
-  expect_command_error([&] { (void)irb6::inverse_kinematics(far, irb6::kSynchroJointPositions); },
-                       bad_argument, "target frame is not finite");
+  expect_command_error(
+      [&] { (void)irb6::inverse_kinematics(far, irb6::kSynchroJointPositions, nominal()); },
+      bad_argument, "target frame is not finite");
 }
 
 }  // namespace

@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// Kinematics of the IRb-6 (5 axes: column, lower arm, upper arm, wrist pitch, wrist roll):
-/// motor <-> joint transmissions, joint/motor limits, the two kinematic models (nominal and
-/// calibrated), analytic forward and inverse kinematics, tool and local corrector.
+/// motor <-> joint transmissions, joint/motor limits, the kinematic models (nominal and calibrated
+/// link lengths, from the robot's parameters.toml), analytic forward and inverse kinematics, tool
+/// and local corrector.
 ///
 /// Conventions (robots/irb6/README.md and irb6.urdf are authoritative):
 /// - q = (q0 column, q1 lower_arm, q2 upper_arm, q3 wrist_pitch, q4 wrist_roll) [rad];
@@ -21,8 +22,13 @@
 #include <cstddef>
 #include <numbers>
 #include <span>
+#include <vector>
 
 #include <Eigen/Geometry>
+
+namespace mrroc {
+struct RobotModel;
+}  // namespace mrroc
 
 namespace mrroc::robots::irb6 {
 
@@ -128,31 +134,30 @@ void check_joint_limits(const JointPosition& joints, const char* what = "target"
 ///   for a value that is not finite.
 void check_motor_limits(const MotorPosition& motors, const char* what = "position");
 
-/// Link lengths [m] of a kinematic model.
+/// Link lengths [m] of a kinematic model. They come from the robot's parameters.toml
+/// (`kinematic_models`); robots/irb6/parameters.toml gives d1 0.70, a2 0.455, a3 0.67, d5 0.19
+/// (nominal, the figures irb6.urdf and irb6.xml were written with) and a2 0.4596, a3 0.6729,
+/// d5 0.1903 (calibrated).
 struct Irb6Geometry {
   double d1;  ///< column height: base to the lower-arm axis
   double a2;  ///< lower arm
   double a3;  ///< upper arm
   double d5;  ///< wrist-pitch axis to the flange
-
-  /// Kinematic model 0: the nominal lengths (the URDF and MJCF are built from them).
-  static constexpr Irb6Geometry nominal() { return {0.70, 0.455, 0.67, 0.19}; }
-  /// Kinematic model 1: the lengths measured on a calibrated unit (d1 as nominal).
-  static constexpr Irb6Geometry calibrated() { return {0.70, 0.4596, 0.6729, 0.1903}; }
 };
 
 inline constexpr int kNominalModel = 0;
 inline constexpr int kCalibratedModel = 1;
-inline constexpr int kKinematicModels = 2;
 
-/// The geometry of kinematic model `model_no` (0 nominal, 1 calibrated).
-/// @throws CommandError (code edp::error_code::bad_argument) for any other number.
-Irb6Geometry kinematic_model(int model_no);
+/// The kinematic models of a robot model (`RobotModel::link_lengths` of solver "irb6", read from
+/// parameters.toml): model 0 the nominal lengths of [robot.kinematics] d1, a2, a3, d5, model 1
+/// (when the file has [robot.kinematics.calibrated]) the calibrated ones.
+/// @throws ConfigError naming the parameters file when the model has no IRb-6 link lengths
+///   (its solver is not "irb6").
+std::vector<Irb6Geometry> kinematic_models(const RobotModel& model);
 
 /// Flange frame in the base frame for joints `q` (model only: no corrector, no tool).
 /// Equals the KDL chain of irb6.urdf for the nominal geometry.
-Eigen::Isometry3d forward_kinematics(const JointPosition& q,
-                                     const Irb6Geometry& geometry = Irb6Geometry::nominal());
+Eigen::Isometry3d forward_kinematics(const JointPosition& q, const Irb6Geometry& geometry);
 
 /// Tool frame in the base frame: `forward_kinematics(q, geometry) * tool` (`tool` is the tool
 /// frame in the flange frame; the default gripper is a translation of 0.25 m along flange z).
@@ -200,7 +205,7 @@ struct NearestSolution {
 ///   limits, naming the joint as `check_joint_limits` does (what = "inverse kinematics solution").
 ///   (code bad_argument) for a frame that is not finite.
 JointPosition inverse_kinematics(const Eigen::Isometry3d& flange, const JointPosition& seed,
-                                 const Irb6Geometry& geometry = Irb6Geometry::nominal(),
+                                 const Irb6Geometry& geometry,
                                  double orientation_tolerance = kOrientationTolerance,
                                  double pivot = 0.0);
 
@@ -211,8 +216,7 @@ JointPosition inverse_kinematics(const Eigen::Isometry3d& flange, const JointPos
 /// position has a smaller geodesic orientation distance to the request.
 /// @throws CommandError as `inverse_kinematics`, except for the orientation.
 NearestSolution inverse_nearest(const Eigen::Isometry3d& flange, const JointPosition& seed,
-                                const Irb6Geometry& geometry = Irb6Geometry::nominal(),
-                                double pivot = 0.0);
+                                const Irb6Geometry& geometry, double pivot = 0.0);
 
 /// The kinematics the EDP uses: a kinematic model, a local corrector and a tool.
 ///
@@ -226,7 +230,9 @@ NearestSolution inverse_nearest(const Eigen::Isometry3d& flange, const JointPosi
 /// `inverse_nearest` use the tool origin's projection on the flange z axis as pivot (for a tool
 /// along flange z, such as the gripper, the tool point itself is kept).
 struct Irb6Kinematics {
-  Irb6Geometry geometry = Irb6Geometry::nominal();
+  explicit Irb6Kinematics(const Irb6Geometry& model) : geometry(model) {}
+
+  Irb6Geometry geometry;
   Eigen::Isometry3d corrector = Eigen::Isometry3d::Identity();  ///< base side of the flange
   Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();       ///< tool in the flange frame
   double orientation_tolerance = kOrientationTolerance;         ///< [rad]

@@ -1,11 +1,14 @@
 #pragma once
 /// @file
 /// A robot's model as the controller needs it: axes, joint names, joint limits (from the URDF),
-/// velocity/acceleration limits and synchronisation positions (from parameters.toml).
+/// velocity/acceleration limits, synchronisation positions and the kinematics' parameters (from
+/// parameters.toml). Every key of parameters.toml is read by some code; an unknown key is an error.
 
 #include <array>
 #include <filesystem>
+#include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace mrroc {
@@ -35,6 +38,12 @@ struct RobotModel {
   /// URDF files of the kinematic models ([robot.kinematics] models; absolute paths), model i is
   /// kinematic_models[i]; empty: the solver's own models.
   std::vector<std::filesystem::path> kinematic_models;
+  /// Link lengths [m] of the kinematic models, for a solver that takes its geometry from this file
+  /// (`solver_link_lengths`; solver "irb6": d1, a2, a3, d5). Entry 0 is kinematic model 0, the
+  /// lengths under [robot.kinematics]; entry 1, when the file has [robot.kinematics.calibrated],
+  /// is model 1, those lengths (one the table leaves out keeps its model-0 value). Each entry holds
+  /// one value per name, in the order of `solver_link_lengths`. Empty for the other solvers.
+  std::vector<std::vector<double>> link_lengths;
 
   /// Linear transmission between joint coordinates q and the motors' axis coordinates a:
   /// a = coupling q ([robot.transmission] coupling, n x n, row by row); empty: identity.
@@ -54,8 +63,30 @@ struct RobotModel {
   void check_joint_limits(const std::vector<double>& q, const char* what = "target") const;
 };
 
+/// The link lengths [m] that kinematics solver `solver` takes from [robot.kinematics] (and
+/// [robot.kinematics.calibrated]) of parameters.toml, in order: "irb6" -> d1, a2, a3, d5; empty for
+/// every other solver (they take their geometry from the URDF).
+std::span<const char* const> solver_link_lengths(std::string_view solver);
+
+/// Largest link length [m] parameters.toml may give (no link of a cell's robot is longer).
+inline constexpr double kMaxLinkLength = 10.0;
+/// Largest difference between a calibrated link length and its nominal value, as a fraction of
+/// the nominal value: a calibration corrects small errors of a unit, not its design.
+inline constexpr double kMaxCalibrationChange = 0.10;
+
 /// Loads `folder/parameters.toml` and the URDF it names.
-/// @throws ConfigError naming the file (and line, for TOML errors).
+/// @throws ConfigError naming the file and line: a TOML syntax error, an unknown key (naming the
+///   known ones, see `check_robot_parameter_keys`), a value of the wrong type, a missing key, a
+///   link length that is not a finite number in (0, kMaxLinkLength] m or a calibrated one that
+///   differs from the nominal by more than kMaxCalibrationChange.
 RobotModel load_robot_model(const std::filesystem::path& folder);
+
+/// Checks that `file` (a robot's parameters.toml) holds only keys some code reads: [robot] name,
+/// axes, joint_names, urdf, mjcf, synchro_joint_positions, max_joint_velocity,
+/// max_joint_acceleration; [robot.kinematics] solver, models, correctors and the solver's link
+/// lengths with [robot.kinematics.calibrated]; [robot.transmission] coupling.
+/// @throws ConfigError "file:line: error: unknown key 'tool' in [robot] (known: ...)", or for a
+///   TOML syntax error.
+void check_robot_parameter_keys(const std::filesystem::path& file);
 
 }  // namespace mrroc

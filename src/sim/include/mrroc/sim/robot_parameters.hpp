@@ -26,9 +26,10 @@ struct RobotParameters {
   SourceLocation coupling_where;
 };
 
-/// Reads the keys above (other keys are ignored: the file serves several readers).
-/// @throws ConfigError "file:line: error: ..." on a TOML syntax error or a value of the wrong
-///   type (naming the key and the expected type and unit).
+/// Reads the keys above; the file's other keys are read by `load_robot_model`, and a key no code
+/// reads is refused (`check_robot_parameter_keys`).
+/// @throws ConfigError "file:line: error: ..." on a TOML syntax error, an unknown key (naming the
+///   known ones) or a value of the wrong type (naming the key and the expected type and unit).
 RobotParameters read_robot_parameters(const std::filesystem::path& path);
 
 }  // namespace mrroc::sim

@@ -120,8 +120,8 @@ void check_keys(const toml::table& root, const fs::path& file) {
     std::string note;
     if (lengths.empty()) {
       note = fmt::format(
-          "; link lengths are read only by solver \"irb6\", solver \"{}\" takes "
-          "its geometry from the URDF",
+          "; link lengths are read only by solver \"irb6\", solver \"{}\" takes none from "
+          "this file",
           solver.empty() ? "urdf" : solver);
     } else {
       known.insert(known.end(), lengths.begin(), lengths.end());

@@ -233,8 +233,8 @@ TEST(RobotParameters, UnknownKeysAreRefusedWithFileLineAndTheKnownKeys) {
     robot.replace("solver = \"rnt\"", "solver = \"rnt\"\nd1 = 0.60");
     expect_refused(robot, robot.line("d1 = 0.60"),
                    {"unknown key 'd1' in [robot.kinematics]",
-                    "link lengths are read only by solver \"irb6\", solver \"rnt\" takes its "
-                    "geometry from the URDF"});
+                    "link lengths are read only by solver \"irb6\", solver \"rnt\" takes none "
+                    "from this file"});
   }
   {
     ScratchRobot robot("rnt");

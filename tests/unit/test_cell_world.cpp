@@ -621,7 +621,9 @@ std::vector<double> grip_joints(const CellWorld& world, std::size_t k,
   const Eigen::Isometry3d base = mrroc::kinematics::from_values(
       world.robot(k).base, mrroc::edp::ArmRepresentation::xyz_angle_axis);
   mrroc::robots::irb6::JointPosition seed{0.0, -1.5, 0.0, 0.0, 0.0};
-  const auto q = mrroc::robots::irb6::inverse_kinematics(base.inverse() * grip, seed);
+  static const mrroc::robots::irb6::Irb6Geometry nominal = mrroc::robots::irb6::kinematic_models(
+      mrroc::load_robot_model(source_dir() / "robots" / "irb6"))[0];
+  const auto q = mrroc::robots::irb6::inverse_kinematics(base.inverse() * grip, seed, nominal);
   return {q.begin(), q.end()};
 }
 

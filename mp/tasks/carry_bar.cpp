@@ -15,6 +15,7 @@
 
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/mp/task.hpp"
+#include "straight_path.hpp"
 
 namespace mrroc::mp {
 
@@ -41,18 +42,15 @@ class BarCarryGenerator : public Generator {
                     double servo_period_s)
       : bases_(std::move(bases)),
         half_(bar_length / 2.0),
-        path_(std::move(path)),
-        speed_(speed),
-        steps_(motion_steps),
-        period_(servo_period_s) {}
+        start_(path.front()),
+        path_(path, std::vector<double>(path.size() - 1, speed), motion_steps * servo_period_s),
+        steps_(motion_steps) {}
 
   bool first_step(const ImageList& robots, const ecp::SensorList&) override {
     // Approach: both robots go to the grips of the bar's first pose in one long macro-step.
-    segment_ = 0;
-    macro_ = 0;
     approaching_ = true;
     dwelled_ = false;
-    command(robots, path_.front(), 1000, 1001);
+    command(robots, start_, 1000, 1001);
     return true;
   }
 
@@ -61,7 +59,7 @@ class BarCarryGenerator : public Generator {
     if (approaching_ && !dwelled_) {
       // Hold the grips for half a second so that both robots settle before the carry.
       dwelled_ = true;
-      command(robots, path_.front(), 250, 251);
+      command(robots, start_, 250, 251);
       return true;
     }
     if (approaching_) {
@@ -69,20 +67,13 @@ class BarCarryGenerator : public Generator {
       max_deviation_ = 0.0;  // the carry starts here: the grip distance now is the reference
       start_distance_ = -1.0;
       measure(robots);
-      if (!begin_segment()) return false;
-    } else if (macro_ >= segment_macros_) {
-      ++segment_;
-      if (!begin_segment()) return false;
     }
-    ++macro_;
-    const double tau = static_cast<double>(macro_) / segment_macros_;
-    const double s = tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
-    const Eigen::Vector3d centre = from_ + (to_ - from_) * s;
-    const bool last = segment_ + 2 == path_.size() && macro_ == segment_macros_;
+    Eigen::Vector3d centre;
+    if (!path_.next(centre)) return false;
     // Readings three servo steps early: the next poses must reach both EDPs before the
     // macro-steps queued ahead of them (the EDPs' lookahead) run out, so that neither robot
     // stops between macro-steps.
-    command(robots, centre, steps_, last ? steps_ + 1 : std::max(1, steps_ - 3));
+    command(robots, centre, steps_, path_.at_end() ? steps_ + 1 : std::max(1, steps_ - 3));
     return true;
   }
 
@@ -90,16 +81,6 @@ class BarCarryGenerator : public Generator {
   [[nodiscard]] int macro_steps() const { return macro_total_; }
 
  private:
-  bool begin_segment() {
-    if (segment_ + 1 >= path_.size()) return false;
-    from_ = path_[segment_];
-    to_ = path_[segment_ + 1];
-    const double duration = 1.875 * (to_ - from_).norm() / speed_;
-    segment_macros_ = std::max(1, static_cast<int>(std::ceil(duration / (steps_ * period_))));
-    macro_ = 0;
-    return true;
-  }
-
   void command(const ImageList& robots, const Eigen::Vector3d& centre, int steps, int value) {
     for (std::size_t i = 0; i < robots.size(); ++i) {
       const double side = i == 0 ? 1.0 : -1.0;  // left grips the bar's -x end, approaching +x
@@ -133,17 +114,12 @@ class BarCarryGenerator : public Generator {
 
   std::vector<Eigen::Isometry3d> bases_;
   double half_;
-  std::vector<Eigen::Vector3d> path_;
-  double speed_;
+  Eigen::Vector3d start_;
+  StraightPath path_;
   int steps_;
-  double period_;
-  std::size_t segment_ = 0;
-  int macro_ = 0;
-  int segment_macros_ = 1;
   int macro_total_ = 0;
   bool approaching_ = true;
   bool dwelled_ = false;
-  Eigen::Vector3d from_, to_;
   double max_deviation_ = 0.0;
   double start_distance_ = -1.0;
 };

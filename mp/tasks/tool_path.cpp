@@ -17,6 +17,7 @@
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/mp/task.hpp"
+#include "straight_path.hpp"
 
 namespace mrroc::mp {
 
@@ -27,14 +28,13 @@ class ToolPathGenerator : public Generator {
   ToolPathGenerator(const Eigen::Matrix3d& orientation, std::vector<Eigen::Vector3d> path,
                     std::vector<double> speeds, int motion_steps, double servo_period_s)
       : orientation_(orientation),
-        path_(std::move(path)),
-        speeds_(std::move(speeds)),
-        steps_(motion_steps),
-        period_(servo_period_s) {}
+        start_(path.front()),
+        path_(std::move(path), std::move(speeds), motion_steps * servo_period_s),
+        steps_(motion_steps) {}
 
   bool first_step(const ImageList& robots, const ecp::SensorList&) override {
     // To the path's first point in one long macro-step (2 s), then half a second at rest there.
-    command(robots, path_.front(), 1000, 1001);
+    command(robots, start_, 1000, 1001);
     approaching_ = true;
     return true;
   }
@@ -42,39 +42,20 @@ class ToolPathGenerator : public Generator {
   bool next_step(const ImageList& robots, const ecp::SensorList&) override {
     if (approaching_) {
       approaching_ = false;
-      command(robots, path_.front(), 250, 251);
-      segment_ = 0;
-      return begin_segment();
+      command(robots, start_, 250, 251);
+      return true;
     }
-    if (macro_ >= segment_macros_) {
-      ++segment_;
-      if (!begin_segment()) return false;
-    }
-    ++macro_;
-    const double tau = static_cast<double>(macro_) / segment_macros_;
-    const double s = tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
-    const bool last = segment_ + 2 == path_.size() && macro_ == segment_macros_;
+    Eigen::Vector3d point;
+    if (!path_.next(point)) return false;
     // Read a third of the macro-step early: the next pose passes the ECP (and its sensors, when
     // it corrects the pose) before it is queued in the EDP.
-    command(robots, from_ + (to_ - from_) * s, steps_,
-            last ? steps_ + 1 : ecp::early_reading_step(steps_));
+    command(robots, point, steps_, path_.at_end() ? steps_ + 1 : ecp::early_reading_step(steps_));
     return true;
   }
 
   [[nodiscard]] int macro_steps() const { return macro_total_; }
 
  private:
-  bool begin_segment() {
-    if (segment_ + 1 >= path_.size()) return false;
-    from_ = path_[segment_];
-    to_ = path_[segment_ + 1];
-    // Peak speed of the quintic law: 1.875 times the mean.
-    const double duration = 1.875 * (to_ - from_).norm() / speeds_[segment_];
-    segment_macros_ = std::max(1, static_cast<int>(std::ceil(duration / (steps_ * period_))));
-    macro_ = 0;
-    return true;
-  }
-
   void command(const ImageList& robots, const Eigen::Vector3d& position, int steps, int value) {
     Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
     tool.linear() = orientation_;
@@ -90,16 +71,11 @@ class ToolPathGenerator : public Generator {
   }
 
   Eigen::Matrix3d orientation_;
-  std::vector<Eigen::Vector3d> path_;
-  std::vector<double> speeds_;  ///< peak speed of each segment [m/s]
+  Eigen::Vector3d start_;
+  StraightPath path_;
   int steps_;
-  double period_;
   bool approaching_ = true;
-  std::size_t segment_ = 0;
-  int macro_ = 0;
-  int segment_macros_ = 1;
   int macro_total_ = 0;
-  Eigen::Vector3d from_, to_;
 };
 
 }  // namespace

@@ -144,6 +144,21 @@ class Hil : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
+  /// configs/`name` (a two-irb6 carry) with absolute paths and the right robot's `base` 5 mm
+  /// further along x than the emulated cell puts it.
+  fs::path right_robot_5mm_off(const std::string& name) {
+    const fs::path source = fs::path(MRROC_SOURCE_DIR) / "configs";
+    std::string text = read(source / name);
+    replace(text, "scene = \"scenes/two-irb6.toml\"",
+            "scene = \"" + (source / "scenes/two-irb6.toml").string() + "\"");
+    replace_all(text, "model = \"../robots/irb6\"",
+                "model = \"" + (fs::path(MRROC_SOURCE_DIR) / "robots/irb6").string() + "\"");
+    replace(text, "base = [2.0, 0.0, 0.0,", "base = [2.005, 0.0, 0.0,");
+    const fs::path file = dir_ / ("offset-" + name);
+    std::ofstream(file) << text;
+    return file;
+  }
+
   /// configs/demo-irb6-can.toml with absolute paths and `emulator_extra` in its [emulator].
   fs::path demo(const std::string& name, const std::string& emulator_extra) {
     const fs::path source = fs::path(MRROC_SOURCE_DIR) / "configs";
@@ -271,16 +286,7 @@ TEST_F(Hil, TwoRobotsCarryTheBarInOneEmulatedWorld) {
 TEST_F(Hil, ARobotOffBy5mmStrainsTheBarBeyondTheBound) {
   // The task believes the right robot's base 5 mm further along x than it stands in the emulated
   // cell: its grip lands 5 mm nearer the left one, and the two grippers squeeze the bar.
-  const fs::path source = fs::path(MRROC_SOURCE_DIR) / "configs";
-  std::string text = read(source / "tight-bar-can.toml");
-  replace(text, "scene = \"scenes/two-irb6.toml\"",
-          "scene = \"" + (source / "scenes/two-irb6.toml").string() + "\"");
-  replace_all(text, "model = \"../robots/irb6\"",
-              "model = \"" + (fs::path(MRROC_SOURCE_DIR) / "robots/irb6").string() + "\"");
-  replace(text, "base = [2.0, 0.0, 0.0,", "base = [2.005, 0.0, 0.0,");
-  const fs::path file = dir_ / "tight-bar-offset.toml";
-  std::ofstream(file) << text;
-  const Carry c = carry(file);
+  const Carry c = carry(right_robot_5mm_off("tight-bar-can.toml"));
   const RunResult& r = c.run;
   // The task's own check cannot see it (its kinematics agree with themselves) ...
   EXPECT_TRUE(has(r.output, "task 'carry_bar' finished")) << r.output;
@@ -299,16 +305,7 @@ TEST_F(Hil, EcpsCorrectingTheGripsFromTheirWristForcesRelieveTheBar) {
   // as above, but each ECP corrects the MP's grip pose along the bar from its wrist force
   // (follow_mp_compliant). The grips close on the bar squeezed, as above; then the ECPs take the
   // error out of the bar within the half-second dwell that precedes the carry.
-  const fs::path source = fs::path(MRROC_SOURCE_DIR) / "configs";
-  std::string text = read(source / "tight-bar-hybrid.toml");
-  replace(text, "scene = \"scenes/two-irb6.toml\"",
-          "scene = \"" + (source / "scenes/two-irb6.toml").string() + "\"");
-  replace_all(text, "model = \"../robots/irb6\"",
-              "model = \"" + (fs::path(MRROC_SOURCE_DIR) / "robots/irb6").string() + "\"");
-  replace(text, "base = [2.0, 0.0, 0.0,", "base = [2.005, 0.0, 0.0,");
-  const fs::path file = dir_ / "tight-bar-hybrid-offset.toml";
-  std::ofstream(file) << text;
-  const Carry c = carry(file);
+  const Carry c = carry(right_robot_5mm_off("tight-bar-hybrid.toml"));
   const RunResult& r = c.run;
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r.output, "task 'carry_bar' finished")) << r.output;

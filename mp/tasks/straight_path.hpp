@@ -1,0 +1,63 @@
+#pragma once
+// A path of points cut into macro-steps, for the MP tasks that generate Cartesian paths
+// (carry_bar, tool_path): straight segments, each rest to rest with the quintic time law
+// s(t) = 10 t^3 - 15 t^4 + 6 t^5, whose peak speed is 1.875 times its mean.
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <vector>
+
+namespace mrroc::mp {
+
+class StraightPath {
+ public:
+  /// `peak_speeds`: one per segment [m/s, > 0]; `macro_step_s`: the macro-step's duration [s].
+  StraightPath(std::vector<Eigen::Vector3d> points, std::vector<double> peak_speeds,
+               double macro_step_s)
+      : points_(std::move(points)), speeds_(std::move(peak_speeds)), macro_step_s_(macro_step_s) {}
+
+  /// The point at the end of the next macro-step; false when the path is done.
+  bool next(Eigen::Vector3d& point) {
+    if (!started_) {
+      started_ = true;
+      if (!begin(0)) return false;
+    } else if (macro_ >= macros_ && !begin(segment_ + 1)) {
+      return false;
+    }
+    ++macro_;
+    const double tau = static_cast<double>(macro_) / macros_;
+    const double s = tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+    point = from_ + (to_ - from_) * s;
+    return true;
+  }
+
+  /// Whether the point next() gave last is the path's end.
+  [[nodiscard]] bool at_end() const {
+    return started_ && segment_ + 2 == points_.size() && macro_ == macros_;
+  }
+
+ private:
+  bool begin(std::size_t segment) {
+    if (segment + 1 >= points_.size()) return false;
+    segment_ = segment;
+    from_ = points_[segment];
+    to_ = points_[segment + 1];
+    const double duration = 1.875 * (to_ - from_).norm() / speeds_[segment];
+    macros_ = std::max(1, static_cast<int>(std::ceil(duration / macro_step_s_)));
+    macro_ = 0;
+    return true;
+  }
+
+  std::vector<Eigen::Vector3d> points_;
+  std::vector<double> speeds_;
+  double macro_step_s_;
+  bool started_ = false;
+  std::size_t segment_ = 0;
+  int macro_ = 0;
+  int macros_ = 1;
+  Eigen::Vector3d from_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d to_ = Eigen::Vector3d::Zero();
+};
+
+}  // namespace mrroc::mp

@@ -21,11 +21,13 @@ using namespace mrroc;
 
 /// What the ECP builds before it reports ready, at start and for --check-config: the task
 /// library, the robot model, the robot's image and the task, built once (every error found).
-std::unique_ptr<ecp::EcpShell> prepare(comm::Bus& bus, const RobotConfig& robot_config,
-                                       Reporter& reporter) {
+std::unique_ptr<ecp::EcpShell> prepare(comm::Bus& bus, const ProcessSetConfig& config,
+                                       const RobotConfig& robot_config, Reporter& reporter) {
   if (!robot_config.ecp.library.empty())
     load_plugin_library(robot_config.ecp.library, robot_config.ecp.where);
-  return std::make_unique<ecp::EcpShell>(bus, robot_config, reporter);
+  std::vector<std::string> vsps;
+  for (const VspConfig& vsp : config.vsps) vsps.push_back(vsp.name);
+  return std::make_unique<ecp::EcpShell>(bus, robot_config, reporter, std::move(vsps));
 }
 
 int run(const std::string& config_path, const std::string& robot_name) {
@@ -38,7 +40,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
   bus.start();
   Reporter reporter(bus, "ecp/" + robot_config.name, robot_config.name);
   try {
-    const std::unique_ptr<ecp::EcpShell> shell = prepare(bus, robot_config, reporter);
+    const std::unique_ptr<ecp::EcpShell> shell = prepare(bus, config, robot_config, reporter);
     shell->run(scheduling);
     reporter.set_state(ProcessState::finished);
   } catch (const std::exception& e) {
@@ -62,7 +64,7 @@ int check(const std::string& config_path, const std::string& robot_name) {
       const RobotConfig& robot_config = set.config.robot(robot_name);
       comm::Bus bus(kCheckLcmUrl);
       Reporter reporter(bus, "ecp/" + robot_config.name, robot_config.name);
-      (void)prepare(bus, robot_config, reporter);
+      (void)prepare(bus, set.config, robot_config, reporter);
     });
   }
   for (const auto& error : errors.errors()) std::fprintf(stderr, "%s\n", error.what());

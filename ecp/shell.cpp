@@ -24,10 +24,12 @@ EcpReply error_reply(ErrorClass cls, int code, const std::string& text) {
 
 }  // namespace
 
-EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter)
+EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter,
+                   std::vector<std::string> vsps)
     : bus_(bus),
       config_(config),
       reporter_(reporter),
+      vsps_(std::move(vsps)),
       process_("ecp/" + config.name),
       robot_(bus, process_, config.name, load_robot_model(config.model_dir)),
       // Commands are dispatched on the bus thread as they arrive (dispatch never blocks: a task,
@@ -37,7 +39,7 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
   // Build the configured task once now, so that a wrong name or argument fails before "ready"
   // (every error found; `mrroc-ecp --check-config` runs this constructor too).
   TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s,
-                      &bus_,  process_};
+                      &bus_,  process_,  nullptr,          &vsps_};
   ConfigErrorList errors;
   // An argument's own location, else the [robot.ecp] table's.
   errors.add(check_ecp_task(config_.ecp.name, context, config_.ecp.name_where, config_.ecp.where));
@@ -136,8 +138,8 @@ EcpReply EcpShell::run_task(const std::string& name, const Params& args) {
   // (the console's jogs between runs, which it makes only while the MP is idle; docs/edp.md).
   robot_.take_over_next();
   follow_.reset();  // a new run: the MP's poses pass unchanged unless this task says otherwise
-  TaskContext context{robot_, reporter_, args,    config_.edp.servo_period_s,
-                      &bus_,  process_,  &follow_};
+  TaskContext context{robot_, reporter_, args,     config_.edp.servo_period_s,
+                      &bus_,  process_,  &follow_, &vsps_};
   std::unique_ptr<EcpTask> task = make_ecp_task(name, context);
   reporter_.info(fmt::format("task '{}' started", name));
   task->main_task();

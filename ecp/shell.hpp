@@ -39,7 +39,9 @@ namespace mrroc::ecp {
 class EcpShell {
  public:
   /// Loads the robot model and the configured task (errors name config file and line).
-  EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter);
+  /// `vsps`: the names of the process set's VSPs, which the task's sensors must be among.
+  EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter,
+           std::vector<std::string> vsps);
   ~EcpShell();
   EcpShell(const EcpShell&) = delete;
   EcpShell& operator=(const EcpShell&) = delete;
@@ -65,6 +67,7 @@ class EcpShell {
   comm::Bus& bus_;
   const RobotConfig& config_;
   Reporter& reporter_;
+  std::vector<std::string> vsps_;
   std::string process_;
   Robot robot_;
   /// The running task's corrector of NEXT_POSE commands (TaskContext::follow_mp_with); used and

@@ -102,7 +102,7 @@ class Touching : public EcpTask {
  public:
   explicit Touching(TaskContext& context) : context_(context) {
     const Params& a = context.args;
-    sensor_name_ = a.get_string("sensor", "wrist_force");
+    sensor_name_ = context.sensor_argument("sensor", "wrist_force");
     tool_length_ = positive(a, "tool", 0.15, "m");
     start_ = vector3(a, "start", {0.9, 0.0, 0.40});
     speed_ = positive(a, "speed", 0.01, "m/s");
@@ -412,7 +412,7 @@ class FollowMpCompliant : public EcpTask {
  public:
   explicit FollowMpCompliant(TaskContext& context) : context_(context) {
     const Params& a = context.args;
-    sensor_name_ = a.get_string("sensor", "wrist_force");
+    sensor_name_ = context.sensor_argument("sensor", "wrist_force");
     tool_length_ = a.get_double("tool", 0.15);
     if (!(tool_length_ >= 0.0 && tool_length_ <= 1.0))
       throw ConfigError(a.location_of("tool"),
@@ -491,7 +491,7 @@ class PickWhenSeen : public EcpTask {
  public:
   explicit PickWhenSeen(TaskContext& context) : context_(context) {
     const Params& a = context.args;
-    camera_name_ = a.get_string("camera", "camera");
+    camera_name_ = context.sensor_argument("camera", "camera");
     region_ = a.get_doubles("region");
     if (region_.size() != 4 || region_[0] >= region_[1] || region_[2] >= region_[3])
       throw ConfigError(a.location_of("region"),

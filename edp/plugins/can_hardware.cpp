@@ -49,92 +49,32 @@ class CanHardware final : public Hardware {
   [[nodiscard]] std::string name() const override { return "can"; }
   [[nodiscard]] std::size_t axis_count() const override { return axes_; }
 
+  void check(const HardwareSetup& setup) override { (void)read_settings(setup); }
+
   void configure(const HardwareSetup& setup) override {
     master_.reset();
     bus_.reset();
-    const Params& params = setup.params;
-    const RobotModel model = load_robot_model(setup.model_dir);
+    const Settings settings = read_settings(setup);
+    const RobotModel& model = settings.model;
     axes_ = model.axes();
-    const std::string url = params.get_string("bus");
-    std::vector<std::int64_t> nodes;
-    if (params.has("nodes")) {
-      for (const double n : params.get_doubles("nodes")) {
-        if (n != std::floor(n) || n < 1 || n > canopen_max_node())
-          throw ConfigError(params.location_of("nodes"),
-                            fmt::format("node id {} in 'nodes' must be an integer in 1..127", n));
-        nodes.push_back(static_cast<std::int64_t>(n));
-      }
-      if (nodes.size() != axes_)
-        throw ConfigError(params.location_of("nodes"),
-                          fmt::format("'nodes' lists {} node ids, robot '{}' has {} axes",
-                                      nodes.size(), model.name, axes_));
-    } else {
-      for (std::size_t i = 0; i < axes_; ++i) nodes.push_back(static_cast<std::int64_t>(i + 1));
-    }
-    const double counts = params.get_double("counts_per_unit", 100000.0);
-    const double bitrate = params.get_double("bitrate", 1e6);
-    const double window = params.get_double("following_error_window", 0.05);
-    const std::int64_t window_ms = params.get_int("following_error_timeout_ms", 50);
-    const std::int64_t silent = params.get_int("silent_cycles", 10);
-    const double timeout_s = params.get_double("bring_up_timeout_s", 5.0);
-    const std::int64_t heartbeat = params.get_int("heartbeat_ms", 100);
-    params.reject_unread("robot.edp.params");
-    const auto positive = [&](const char* key, double value, const char* unit) {
-      if (!(value > 0.0) || !std::isfinite(value))
-        throw ConfigError(params.location_of(key),
-                          fmt::format("'{}' = {} {} must be a positive number", key, value, unit));
-    };
-    positive("counts_per_unit", counts, "counts/unit");
-    positive("bitrate", bitrate, "bit/s");
-    positive("following_error_window", window, "rad");
-    positive("bring_up_timeout_s", timeout_s, "s");
-    if (window_ms < 1 || window_ms > 65535)
-      throw ConfigError(
-          params.location_of("following_error_timeout_ms"),
-          fmt::format("'following_error_timeout_ms' = {} ms must be in 1..65535 ms", window_ms));
-    if (silent < 2 || silent > 1000)
-      throw ConfigError(params.location_of("silent_cycles"),
-                        fmt::format("'silent_cycles' = {} must be in 2..1000", silent));
-    if (heartbeat < 0 || heartbeat > 65535)
-      throw ConfigError(params.location_of("heartbeat_ms"),
-                        fmt::format("'heartbeat_ms' = {} ms must be in 0..65535 ms", heartbeat));
-
-    // Transmission a = M q.
-    const auto n = static_cast<Eigen::Index>(axes_);
-    coupling_ = Eigen::MatrixXd::Identity(n, n);
-    for (std::size_t r = 0; r < model.coupling.size(); ++r)
-      for (std::size_t c = 0; c < model.coupling[r].size(); ++c)
-        coupling_(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) =
-            model.coupling[r][c];
-    const Eigen::FullPivLU<Eigen::MatrixXd> lu(coupling_);
-    if (!lu.isInvertible())
-      throw ConfigError(SourceLocation::whole_file(model.parameters_file().string()),
-                        "robot.transmission.coupling is singular");
-    inverse_ = lu.inverse();
-
-    // Bus load of the cyclic traffic.
-    const double heartbeat_s = static_cast<double>(heartbeat) / 1000.0;
-    const can::canopen::BusLoad load =
-        can::canopen::cyclic_bus_load(axes_, setup.servo_period_s, bitrate, heartbeat_s);
-    load_text_ = fmt::format(
-        "can: {} for robot '{}': {} drives, cycle {:.3g} ms, {} frames per cycle, bus load "
-        "{:.0f} % nominal, {:.0f} % worst case at {:.0f} kbit/s",
-        url, setup.robot, axes_, setup.servo_period_s * 1000.0, load.frames_per_cycle,
-        load.load_nominal * 100.0, load.load_worst * 100.0, bitrate / 1000.0);
+    coupling_ = settings.coupling;
+    inverse_ = settings.inverse;
+    load_text_ = settings.load_text;
     std::fprintf(stderr, "%s\n", load_text_.c_str());
-    if (load.load_worst > 1.0)
-      throw ConfigError(
-          params.location(),
-          fmt::format("robot '{}' needs {:.0f} % of bus {} at {:.0f} kbit/s with a {:.3g} ms cycle "
-                      "(limit 100 %, recommended at most {:.0f} %): lengthen servo_period_ms or "
-                      "split the drives over more buses",
-                      setup.robot, load.load_worst * 100.0, url, bitrate / 1000.0,
-                      setup.servo_period_s * 1000.0, can::canopen::kRecommendedMaxLoad * 100.0));
-    if (load.load_worst > can::canopen::kRecommendedMaxLoad)
+    if (settings.load_worst > can::canopen::kRecommendedMaxLoad)
       std::fprintf(stderr,
                    "can: warning: worst-case bus load %.0f %% is above the recommended "
                    "%.0f %%\n",
-                   load.load_worst * 100.0, can::canopen::kRecommendedMaxLoad * 100.0);
+                   settings.load_worst * 100.0, can::canopen::kRecommendedMaxLoad * 100.0);
+    const auto n = static_cast<Eigen::Index>(axes_);
+    const std::vector<std::int64_t>& nodes = settings.nodes;
+    const double counts = settings.counts;
+    const double window = settings.window;
+    const std::int64_t window_ms = settings.window_ms;
+    const std::int64_t silent = settings.silent;
+    const double timeout_s = settings.timeout_s;
+    const std::int64_t heartbeat = settings.heartbeat;
+    const std::string& url = settings.url;
 
     std::vector<can::MasterAxis> axes;
     for (std::size_t i = 0; i < axes_; ++i) {
@@ -213,6 +153,113 @@ class CanHardware final : public Hardware {
 
  private:
   static double canopen_max_node() { return static_cast<double>(can::canopen::kMaxNode); }
+
+  /// The plugin's parameters, read and checked (configure() and the config check).
+  struct Settings {
+    RobotModel model;
+    std::string url;
+    std::vector<std::int64_t> nodes;
+    double counts = 0.0;
+    double window = 0.0;
+    std::int64_t window_ms = 0;
+    std::int64_t silent = 0;
+    double timeout_s = 0.0;
+    std::int64_t heartbeat = 0;
+    Eigen::MatrixXd coupling;
+    Eigen::MatrixXd inverse;
+    std::string load_text;
+    double load_worst = 0.0;
+  };
+
+  /// Reads and checks every parameter, the coupling and the bus load; opens nothing.
+  /// @throws ConfigError naming the key, the value, its unit and the limit.
+  static Settings read_settings(const HardwareSetup& setup) {
+    Settings s;
+    const Params& params = setup.params;
+    s.model = load_robot_model(setup.model_dir);
+    const RobotModel& model = s.model;
+    const std::size_t axes = model.axes();
+    s.url = params.get_string("bus");
+    if (params.has("nodes")) {
+      for (const double n : params.get_doubles("nodes")) {
+        if (n != std::floor(n) || n < 1 || n > canopen_max_node())
+          throw ConfigError(params.location_of("nodes"),
+                            fmt::format("node id {} in 'nodes' must be an integer in 1..127", n));
+        s.nodes.push_back(static_cast<std::int64_t>(n));
+      }
+      if (s.nodes.size() != axes)
+        throw ConfigError(params.location_of("nodes"),
+                          fmt::format("'nodes' lists {} node ids, robot '{}' has {} axes",
+                                      s.nodes.size(), model.name, axes));
+    } else {
+      for (std::size_t i = 0; i < axes; ++i) s.nodes.push_back(static_cast<std::int64_t>(i + 1));
+    }
+    s.counts = params.get_double("counts_per_unit", 100000.0);
+    const double bitrate = params.get_double("bitrate", 1e6);
+    s.window = params.get_double("following_error_window", 0.05);
+    s.window_ms = params.get_int("following_error_timeout_ms", 50);
+    s.silent = params.get_int("silent_cycles", 10);
+    s.timeout_s = params.get_double("bring_up_timeout_s", 5.0);
+    s.heartbeat = params.get_int("heartbeat_ms", 100);
+    params.reject_unread("robot.edp.params");
+    try {
+      can::check_bus_url(s.url);
+    } catch (const ConfigError& e) {
+      throw e.at(params.location_of("bus"));
+    }
+    const auto positive = [&](const char* key, double value, const char* unit) {
+      if (!(value > 0.0) || !std::isfinite(value))
+        throw ConfigError(params.location_of(key),
+                          fmt::format("'{}' = {} {} must be a positive number", key, value, unit));
+    };
+    positive("counts_per_unit", s.counts, "counts/unit");
+    positive("bitrate", bitrate, "bit/s");
+    positive("following_error_window", s.window, "rad");
+    positive("bring_up_timeout_s", s.timeout_s, "s");
+    if (s.window_ms < 1 || s.window_ms > 65535)
+      throw ConfigError(
+          params.location_of("following_error_timeout_ms"),
+          fmt::format("'following_error_timeout_ms' = {} ms must be in 1..65535 ms", s.window_ms));
+    if (s.silent < 2 || s.silent > 1000)
+      throw ConfigError(params.location_of("silent_cycles"),
+                        fmt::format("'silent_cycles' = {} must be in 2..1000", s.silent));
+    if (s.heartbeat < 0 || s.heartbeat > 65535)
+      throw ConfigError(params.location_of("heartbeat_ms"),
+                        fmt::format("'heartbeat_ms' = {} ms must be in 0..65535 ms", s.heartbeat));
+
+    // Transmission a = M q.
+    const auto n = static_cast<Eigen::Index>(axes);
+    s.coupling = Eigen::MatrixXd::Identity(n, n);
+    for (std::size_t r = 0; r < model.coupling.size(); ++r)
+      for (std::size_t c = 0; c < model.coupling[r].size(); ++c)
+        s.coupling(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) =
+            model.coupling[r][c];
+    const Eigen::FullPivLU<Eigen::MatrixXd> lu(s.coupling);
+    if (!lu.isInvertible())
+      throw ConfigError(SourceLocation::whole_file(model.parameters_file().string()),
+                        "robot.transmission.coupling is singular");
+    s.inverse = lu.inverse();
+
+    // Bus load of the cyclic traffic.
+    const double heartbeat_s = static_cast<double>(s.heartbeat) / 1000.0;
+    const can::canopen::BusLoad load =
+        can::canopen::cyclic_bus_load(axes, setup.servo_period_s, bitrate, heartbeat_s);
+    s.load_text = fmt::format(
+        "can: {} for robot '{}': {} drives, cycle {:.3g} ms, {} frames per cycle, bus load "
+        "{:.0f} % nominal, {:.0f} % worst case at {:.0f} kbit/s",
+        s.url, setup.robot, axes, setup.servo_period_s * 1000.0, load.frames_per_cycle,
+        load.load_nominal * 100.0, load.load_worst * 100.0, bitrate / 1000.0);
+    s.load_worst = load.load_worst;
+    if (load.load_worst > 1.0)
+      throw ConfigError(
+          params.location(),
+          fmt::format("robot '{}' needs {:.0f} % of bus {} at {:.0f} kbit/s with a {:.3g} ms cycle "
+                      "(limit 100 %, recommended at most {:.0f} %): lengthen servo_period_ms or "
+                      "split the drives over more buses",
+                      setup.robot, load.load_worst * 100.0, s.url, bitrate / 1000.0,
+                      setup.servo_period_s * 1000.0, can::canopen::kRecommendedMaxLoad * 100.0));
+    return s;
+  }
 
   std::size_t axes_ = 0;
   std::unique_ptr<can::Bus> bus_;

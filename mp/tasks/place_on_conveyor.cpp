@@ -9,7 +9,9 @@
 
 #include <cmath>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/mp/task.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::mp {
 
@@ -19,6 +21,21 @@ std::string poses_argument(const std::vector<std::vector<double>>& poses) {
   for (const auto& p : poses)
     rows += fmt::format("{}[{}]", rows.empty() ? "" : ", ", fmt::join(p, ", "));
   return fmt::format("poses = [{}]\n", rows);
+}
+
+/// The joint pose `q` given as argument `key`, checked now (so that `mrroc-launch --check` finds
+/// it) against the joint count and limits of the robot it is for, as its ECP and EDP would check
+/// it.
+/// @throws ConfigError at the argument naming the joint, the value, the unit and the limit.
+std::vector<double> joint_pose(const TaskContext& context, const std::string& key,
+                               const Robot& robot, std::vector<double> q) {
+  const RobotModel model = load_robot_model(context.config.robot(robot.name()).model_dir);
+  try {
+    model.check_joint_limits(q, key.c_str());
+  } catch (const Error& e) {
+    throw ConfigError(context.args.location_of(key), e.what());
+  }
+  return q;
 }
 }  // namespace
 
@@ -30,12 +47,21 @@ class PlaceOnConveyor : public MpTask {
       : context_(context),
         arm_(context.robot(context.args.get_string("arm", "irb6"))),
         conveyor_(context.robot(context.args.get_string("conveyor", "conveyor"))),
-        approach_(context.args.get_doubles("approach")),
-        place_(context.args.get_doubles("place")),
-        retreat_(context.args.get_doubles("retreat")),
-        belt_target_(context.args.get_double("belt_target")),
         gripper_(context.args.get_int("gripper_output", 1)) {
-    context.args.reject_unread("mp.args");
+    // Every pose is checked, each error reported (ConfigErrors).
+    ConfigErrorList errors;
+    const Params& a = context.args;
+    const SourceLocation& at = a.location();
+    errors.run(
+        at, [&] { approach_ = joint_pose(context, "approach", arm_, a.get_doubles("approach")); });
+    errors.run(at, [&] { place_ = joint_pose(context, "place", arm_, a.get_doubles("place")); });
+    errors.run(at,
+               [&] { retreat_ = joint_pose(context, "retreat", arm_, a.get_doubles("retreat")); });
+    errors.run(at, [&] {
+      belt_target_ = joint_pose(context, "belt_target", conveyor_, {a.get_double("belt_target")});
+    });
+    errors.run(at, [&] { a.reject_unread("mp.args"); });
+    errors.throw_if_any();
   }
 
   void main_task() override {
@@ -51,17 +77,17 @@ class PlaceOnConveyor : public MpTask {
       if (&r == &conveyor_) {
         log.info(fmt::format("{} carries the object away", conveyor_.name()));
         r.next_state("visit_joint_poses",
-                     poses_argument({{belt_target_}}) + "velocity_scale = 0.8\n");
+                     poses_argument({belt_target_}) + "velocity_scale = 0.8\n");
       } else {
         r.next_state("visit_joint_poses", poses_argument({retreat_}));
       }
     });
     const double belt = conveyor_.image().joints.empty() ? 0.0 : conveyor_.image().joints[0];
-    if (std::abs(belt - belt_target_) > kDeliveryTolerance)
+    if (std::abs(belt - belt_target_[0]) > kDeliveryTolerance)
       throw Error(
           fmt::format("object not delivered: {} at {:.4f} m, target {:.4f} m (tolerance "
                       "{:.4f} m)",
-                      conveyor_.name(), belt, belt_target_, kDeliveryTolerance));
+                      conveyor_.name(), belt, belt_target_[0], kDeliveryTolerance));
     log.info(fmt::format("object delivered: {} at {:.4f} m", conveyor_.name(), belt));
   }
 
@@ -70,7 +96,7 @@ class PlaceOnConveyor : public MpTask {
   Robot& arm_;
   Robot& conveyor_;
   std::vector<double> approach_, place_, retreat_;
-  double belt_target_;
+  std::vector<double> belt_target_;  ///< the conveyor's one joint [m]
   std::int64_t gripper_;
 };
 

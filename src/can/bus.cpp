@@ -78,7 +78,15 @@ void check_interface_name(std::string_view url, std::string_view interface) {
 
 }  // namespace
 
-std::unique_ptr<Bus> open_bus(std::string_view url) {
+namespace {
+
+struct BusUrl {
+  std::string_view scheme;
+  std::string_view rest;
+};
+
+/// The URL's scheme and the rest, both validated. @throws ConfigError (bad_url).
+BusUrl parse_bus_url(std::string_view url) {
   const std::size_t colon = url.find(':');
   if (url.empty()) bad_url(url, std::string("empty URL (") + kKnownSchemes + ")");
   if (colon == std::string_view::npos)
@@ -90,14 +98,23 @@ std::unique_ptr<Bus> open_bus(std::string_view url) {
                      std::string(rest.substr(2)) + ")");
   if (scheme == "socketcan") {
     check_interface_name(url, rest);
-    return detail::open_socketcan_bus(url, rest);
-  }
-  if (scheme == "virtual") {
+  } else if (scheme == "virtual") {
     check_virtual_name(url, rest);
-    check_virtual_namespace(url);
-    return detail::open_virtual_bus(url, rest);
+  } else {
+    bad_url(url, "unknown scheme '" + std::string(scheme) + "' (" + kKnownSchemes + ")");
   }
-  bad_url(url, "unknown scheme '" + std::string(scheme) + "' (" + kKnownSchemes + ")");
+  return {scheme, rest};
+}
+
+}  // namespace
+
+void check_bus_url(std::string_view url) { (void)parse_bus_url(url); }
+
+std::unique_ptr<Bus> open_bus(std::string_view url) {
+  const BusUrl parsed = parse_bus_url(url);
+  if (parsed.scheme == "socketcan") return detail::open_socketcan_bus(url, parsed.rest);
+  check_virtual_namespace(url);
+  return detail::open_virtual_bus(url, parsed.rest);
 }
 
 }  // namespace mrroc::can

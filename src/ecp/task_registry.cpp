@@ -1,4 +1,9 @@
 // The name -> factory registry of ECP tasks, and the virtual sensors of an ECP task.
+#include <algorithm>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
 #include "../core/registry.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/ecp/task.hpp"
@@ -28,8 +33,8 @@ std::vector<ConfigError> ecp::check_ecp_task(const std::string& name, const Task
   // A copy of the arguments that collects every unknown key instead of throwing at the first.
   Params args = context.args;
   args.collect_unknown_keys(&errors);
-  TaskContext built{context.robot,          context.reporter, args,
-                    context.servo_period_s, context.bus,      context.process};
+  TaskContext built{context.robot, context.reporter, args,    context.servo_period_s,
+                    context.bus,   context.process,  nullptr, context.vsps};
   errors.run(where, [&] { (void)factory(built); });
   args.collect_unknown_keys(nullptr);
   return errors.errors();
@@ -39,8 +44,31 @@ std::vector<ConfigError> ecp::check_ecp_task(const std::string& name, const Task
 
 namespace mrroc::ecp {
 
+namespace {
+
+/// Empty when `vsps` is unknown or has `vsp`; else why not.
+std::string missing_vsp(const std::vector<std::string>* vsps, const std::string& vsp) {
+  if (vsps == nullptr || std::find(vsps->begin(), vsps->end(), vsp) != vsps->end()) return {};
+  return fmt::format("VSP '{}' is not in the process set ({})", vsp,
+                     vsps->empty() ? std::string("it has no [[vsp]]")
+                                   : fmt::format("its [[vsp]] are: {}", fmt::join(*vsps, ", ")));
+}
+
+}  // namespace
+
+std::string TaskContext::sensor_argument(const std::string& key,
+                                         const std::string& fallback) const {
+  std::string name = args.get_string(key, fallback);
+  const std::string why = missing_vsp(vsps, name);
+  if (!why.empty())
+    throw ConfigError(args.has(key) ? args.location_of(key) : args.location(),
+                      fmt::format("'{}' = \"{}\": {}", key, name, why));
+  return name;
+}
+
 std::unique_ptr<VirtualSensor> TaskContext::sensor(const std::string& vsp) const {
   if (bus == nullptr) throw Error("this task context has no LCM bus for virtual sensors");
+  if (const std::string why = missing_vsp(vsps, vsp); !why.empty()) throw Error(why);
   return std::make_unique<VirtualSensor>(*bus, vsp, process.empty() ? "ecp" : process);
 }
 

@@ -40,17 +40,18 @@ std::unique_ptr<Hardware> make_configured_hardware(const RobotConfig& robot,
                     "real time (for emulated drives, set lock_step in [emulator] instead)",
                     hardware->name()));
   ConfigErrorList errors;
-  if (open_devices || hardware->simulated()) {
-    HardwareSetup setup;
-    setup.robot = robot.name;
-    setup.model_dir = robot.model_dir;
-    setup.servo_period_s = robot.edp.servo_period_s;
-    setup.synchro_positions = model.synchro_joint_positions;
-    setup.params = robot.edp.params;
-    setup.params.collect_unknown_keys(&errors);  // every unknown key, and the other checks too
+  HardwareSetup setup;
+  setup.robot = robot.name;
+  setup.model_dir = robot.model_dir;
+  setup.servo_period_s = robot.edp.servo_period_s;
+  setup.synchro_positions = model.synchro_joint_positions;
+  setup.params = robot.edp.params;
+  setup.params.collect_unknown_keys(&errors);  // every unknown key, and the other checks too
+  if (open_devices || hardware->simulated())
     errors.run(robot.edp.where, [&] { hardware->configure(setup); });
-    setup.params.collect_unknown_keys(nullptr);
-  }
+  else
+    errors.run(robot.edp.where, [&] { hardware->check(setup); });
+  setup.params.collect_unknown_keys(nullptr);
   errors.throw_if_any();
   return hardware;
 }

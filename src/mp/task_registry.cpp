@@ -53,6 +53,7 @@ namespace mrroc::mp {
 
 std::unique_ptr<ecp::VirtualSensor> TaskContext::sensor(const std::string& vsp) const {
   if (bus == nullptr) throw Error("this task context has no LCM bus for virtual sensors");
+  (void)config.vsp(vsp);  // a VSP of this process set, else a ConfigError naming the known ones
   return std::make_unique<ecp::VirtualSensor>(*bus, vsp, "mp");
 }
 

@@ -28,13 +28,15 @@ void RobotModel::check_joint_limits(const std::vector<double>& q, const char* wh
           edp::error_code::bad_argument,
           fmt::format("joint {} ({}) {} {} is not a finite number", i, joint_names[i], what, q[i]));
     if (q[i] > upper_limits[i])
-      throw CommandError(edp::error_code::out_of_limits,
-                         fmt::format("joint {} ({}) {} {:.6f} rad exceeds upper limit {:.6f} rad",
-                                     i, joint_names[i], what, q[i], upper_limits[i]));
+      throw CommandError(
+          edp::error_code::out_of_limits,
+          fmt::format("joint {} ({}) {} {:.6f} {} exceeds upper limit {:.6f} {}", i, joint_names[i],
+                      what, q[i], unit(i), upper_limits[i], unit(i)));
     if (q[i] < lower_limits[i])
-      throw CommandError(edp::error_code::out_of_limits,
-                         fmt::format("joint {} ({}) {} {:.6f} rad is below lower limit {:.6f} rad",
-                                     i, joint_names[i], what, q[i], lower_limits[i]));
+      throw CommandError(
+          edp::error_code::out_of_limits,
+          fmt::format("joint {} ({}) {} {:.6f} {} is below lower limit {:.6f} {}", i,
+                      joint_names[i], what, q[i], unit(i), lower_limits[i], unit(i)));
   }
 }
 

@@ -147,6 +147,81 @@ TEST(ConfigCheck, ReportsEveryMistakeOfTheFileWithItsLineAndExits2) {
   fs::remove_all(c.file.parent_path());
 }
 
+TEST(ConfigCheck, ReachesRealDevicePluginParametersTheSetsVspNamesAndTheMpTasksPoses) {
+  // What a process finds only when it starts, before: the `can` plugin's parameters (checked
+  // without opening the bus), a task argument naming a VSP the set lacks, and the MP task's joint
+  // poses against the joint count and limits of the robots they are for.
+  BrokenConfig c;
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-check-dev-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  c.file = dir / "devices.toml";
+  c.lines = {
+      "[system]",
+      "name = \"broken-devices\"",
+      "[mp]",
+      "task = \"place_on_conveyor\"",
+      "[mp.args]",
+      "approach = [-0.9, -1.40, 0.10]",          // 3 values for a 5-axis arm
+      "place = [-0.9, -9.35, 0.15, 0.60, 0.0]",  // beyond the lower arm's limit
+      "retreat = [0.0, -1.5708, 0.0, 0.0, 0.0]",
+      "belt_target = 9.0",  // m, beyond the conveyor's travel
+      "gripper_outpt = 1",  // misspelt
+      "[[vsp]]",
+      "name = \"wrist_force\"",
+      "plugin = \"force_torque\"",
+      "sources = [\"irb6_wrist\"]",
+      "[[robot]]",
+      "name = \"irb6\"",
+      "model = \"" + (kSource / "robots/irb6").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"can\"",
+      "[robot.edp.params]",
+      "bus = \"virtual:irb 6\"",  // a space in the bus name
+      "bitrat = 5",               // misspelt
+      "[robot.ecp]",
+      "task = \"follow_mp_compliant\"",
+      "[robot.ecp.args]",
+      "sensor = \"wrist_forse\"",  // no such VSP
+      "[[robot]]",
+      "name = \"conveyor\"",
+      "model = \"" + (kSource / "robots/conveyor").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"can\"",
+      "params = { bus = \"virtual:cell\", silent_cycles = 1 }",  // below 2
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+  };
+  {
+    std::ofstream out(c.file);
+    for (const auto& l : c.lines) out << l << "\n";
+  }
+  const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  const std::vector<std::pair<std::string, std::string>> expected = {
+      {"approach = ", "approach has 3 joint values, robot 'irb6' has 5 axes"},
+      {"place = ", "joint 1 (lower_arm) place -9.350000 rad is below lower limit -2.268928 rad"},
+      {"belt_target = ", "joint 0 (belt) belt_target 9.000000 m exceeds upper limit 2.000000 m"},
+      {"gripper_outpt", "unknown key 'gripper_outpt' in [mp.args]"},
+      {"virtual:irb 6", "CAN bus URL 'virtual:irb 6': bus name has the character ' '"},
+      {"bitrat", "unknown key 'bitrat' in [robot.edp.params]"},
+      {"wrist_forse",
+       "'sensor' = \"wrist_forse\": VSP 'wrist_forse' is not in the process set (its [[vsp]] "
+       "are: wrist_force)"},
+      {"silent_cycles", "'silent_cycles' = 1 must be in 2..1000"},
+  };
+  for (const auto& [marker, message] : expected) {
+    const std::string line =
+        c.file.string() + ":" + std::to_string(c.line_of(marker)) + ": error: " + message;
+    EXPECT_NE(out.find(line), std::string::npos) << "expected: " << line << "\n" << out;
+  }
+  EXPECT_NE(out.find(std::to_string(expected.size()) + " errors; nothing started"),
+            std::string::npos)
+      << "each error once, nothing else\n"
+      << out;
+  fs::remove_all(dir);
+}
+
 TEST(ConfigCheck, TheReaderReportsEveryErrorOfEveryTableAndWhichProcessesTheyConcern) {
   const std::string model = (kSource / "robots/irb6").string();
   const std::string text =

@@ -32,10 +32,20 @@ struct TaskContext {
   /// Where the shell keeps the generator that corrects the MP's NEXT_POSE commands (null where
   /// no MP drives this robot, e.g. when a config is checked).
   std::unique_ptr<FollowGenerator>* follow_slot = nullptr;
+  /// The names of the process set's VSPs ([[vsp]] name), which sensor() and sensor_argument()
+  /// check a name against (null: not checked, e.g. a context a test builds by hand).
+  const std::vector<std::string>* vsps = nullptr;
 
   /// The image of the VSP named `vsp` ([[vsp]] name): a client of it, for Move and Wait.
-  /// @throws Error when the context has no bus.
+  /// @throws Error when the context has no bus, or when `vsps` is known and lacks `vsp`.
   [[nodiscard]] std::unique_ptr<VirtualSensor> sensor(const std::string& vsp) const;
+  /// The task argument `key` (default `fallback`) that names a VSP, checked against `vsps`, so
+  /// that a config naming a VSP the set does not have fails its check (`mrroc-launch --check`)
+  /// instead of when the task first reads the sensor. Call it from the task's constructor.
+  /// @throws ConfigError at the argument (or at the arguments' table for the default) naming the
+  ///   VSP and listing the set's.
+  [[nodiscard]] std::string sensor_argument(const std::string& key,
+                                            const std::string& fallback) const;
   /// From now on, every NEXT_POSE of the MP passes through `generator` before it goes to the
   /// EDP (FollowGenerator), until the next START_TASK or NEXT_STATE. Typically the last thing a
   /// task's main_task() does. @throws Error where the shell gave no slot (follow_slot).

@@ -64,6 +64,12 @@ class Hardware {
 
   /// Load models, open devices. @throws HardwareError or ConfigError with a clear message.
   virtual void configure(const HardwareSetup& setup) = 0;
+  /// Checks `setup` as configure() would, opening no device: what `mrroc-edp --check-config`
+  /// (and so `mrroc-launch --check`) runs for a plugin that drives real devices (`simulated()`
+  /// false); simulated hardware is configured instead. The default checks nothing, so a plugin
+  /// of real devices should read and check its parameters here too (every key, unknown keys
+  /// rejected). @throws ConfigError as configure().
+  virtual void check(const HardwareSetup& setup) { (void)setup; }
   /// Power the drives; after this, read/write are called every cycle.
   virtual void activate() = 0;
   /// Stop and power down. Must be safe to call more than once.
@@ -126,7 +132,7 @@ std::vector<std::string> hardware_names();
 /// at `plugin`), `lock_step` only for simulated hardware, then `configure()` with the robot's
 /// setup (its [robot.edp.params], every unknown key reported, and the plugin's model files).
 /// With `open_devices` false (the check) a plugin that drives real devices (`simulated()`
-/// false) is made but not configured: its configure() opens them.
+/// false) is made and its check() runs instead of configure(), which would open them.
 /// @throws ConfigError, or ConfigErrors with every error found.
 std::unique_ptr<Hardware> make_configured_hardware(const RobotConfig& robot,
                                                    const RobotModel& model, bool open_devices);

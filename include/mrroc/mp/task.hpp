@@ -29,7 +29,7 @@ struct TaskContext {
   comm::Bus* bus = nullptr;        ///< the MP's LCM connection (for virtual sensors)
 
   /// The image of the VSP named `vsp` in the MP: a client of it, for MP-level Move and Wait.
-  /// @throws Error when the context has no bus.
+  /// @throws Error when the context has no bus; ConfigError when the set has no VSP `vsp`.
   [[nodiscard]] std::unique_ptr<ecp::VirtualSensor> sensor(const std::string& vsp) const;
 
   /// @throws ConfigError naming the robots there are.

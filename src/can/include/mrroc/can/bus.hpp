@@ -96,5 +96,8 @@ class Bus {
 /// text names the URL and the known schemes) and mrroc::HardwareError when the bus cannot be opened
 /// (e.g. "socketcan:can0: no such interface", or AF_CAN not supported by the running kernel).
 std::unique_ptr<Bus> open_bus(std::string_view url);
+/// Checks a bus URL as open_bus() does, without opening anything (a config check).
+/// @throws mrroc::ConfigError as open_bus() for a malformed URL or an unknown scheme.
+void check_bus_url(std::string_view url);
 
 }  // namespace mrroc::can

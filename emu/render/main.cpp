@@ -1,7 +1,8 @@
-// mrroc-render: pictures of a recorded run without a browser or a display. Reads the robot states
-// of an LCM log (recorded by `mrroc-launch --record`), sets each robot's measured joints into the
-// MuJoCo model of the set's cell, draws it off-screen with MuJoCo's own renderer (EGL) into PNG
-// frames, and makes an MP4 of them with ffmpeg. docs/recording.md, "Rendering".
+// mrroc-render: pictures of a run without a browser or a display. Reads the robot states of an
+// LCM log (recorded by `mrroc-launch --record`), or with --live those a running set broadcasts,
+// sets each robot's measured joints into the MuJoCo model of the set's cell, draws it off-screen
+// with MuJoCo's own renderer (EGL) into PNG frames, and makes an MP4 of them with ffmpeg.
+// docs/recording.md, "Rendering".
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -12,16 +13,23 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cell_view.hpp"
 #include "frames.hpp"
+#include "mrroc/comm/auth.hpp"
+#include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/command_line.hpp"
 #include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
+#include "mrroc/robot/robot_model.hpp"
 #include "offscreen.hpp"
 #include "robot_log.hpp"
 
@@ -52,6 +60,10 @@ struct Options {
   double elevation = -22.0;
   bool label = false;
   bool no_video = false;
+  bool live = false;
+  double duration_s = 0.0;  ///< live: stop after this long (0: when the states stop)
+  double idle_s = 2.0;      ///< live: stop when no state came for this long
+  double wait_s = 30.0;     ///< live: the longest wait for the first state
 };
 
 /// Joint positions of one robot over time, interpolated linearly between its states.
@@ -269,6 +281,221 @@ int run(const Options& options) {
   return 0;
 }
 
+/// --live: the latest measured joints of each robot of the cell, from its EDP's state
+/// broadcasts (robot_state_t on <robot>/edp/state), received on the bus' thread.
+class LiveStates {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  LiveStates(mrroc::comm::Bus& bus, const CellView& cell) : latest_(cell.robot_count()) {
+    const auto quiet = mrroc::comm::SubscriberOptions::unreported();
+    for (std::size_t k = 0; k < cell.robot_count(); ++k) {
+      const std::size_t axes = cell.axis_count(k);
+      subscribers_.emplace_back(
+          bus, mrroc::channels::robot_state(cell.robot_name(k)),
+          [this, k, axes](const mrroc::RobotState& s, const mrroc::comm::Received& in) {
+            const bool drawable =
+                s.q.size() == axes &&
+                std::all_of(s.q.begin(), s.q.end(), [](double v) { return std::isfinite(v); });
+            if (!drawable || !in.authentic()) {
+              std::lock_guard lock(mutex_);
+              ++rejected_;
+              return;
+            }
+            std::lock_guard lock(mutex_);
+            latest_[k] = s.q;
+            last_ = Clock::now();
+            ++received_;
+          },
+          quiet);
+    }
+  }
+
+  /// Sets every robot heard from into `cell` (the others keep their pose); returns how many
+  /// states have arrived so far.
+  std::size_t apply(CellView& cell) const {
+    std::lock_guard lock(mutex_);
+    for (std::size_t k = 0; k < latest_.size(); ++k)
+      if (!latest_[k].empty()) cell.set_joints(k, latest_[k]);
+    return received_;
+  }
+  [[nodiscard]] std::size_t received() const {
+    std::lock_guard lock(mutex_);
+    return received_;
+  }
+  [[nodiscard]] std::size_t rejected() const {
+    std::lock_guard lock(mutex_);
+    return rejected_;
+  }
+  /// When the last state arrived (meaningful once received() > 0).
+  [[nodiscard]] Clock::time_point last() const {
+    std::lock_guard lock(mutex_);
+    return last_;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<std::vector<double>> latest_;
+  Clock::time_point last_{};
+  std::size_t received_ = 0;
+  std::size_t rejected_ = 0;
+  std::vector<mrroc::comm::Subscriber<mrroc::RobotState>> subscribers_;
+};
+
+/// --live: draws the set while it runs, one frame every 1/fps s of wall time from the first
+/// state on, each showing the latest state of every robot; a frame whose time passed while an
+/// earlier one was drawn repeats the picture before it, so the video keeps the run's time.
+int run_live(const Options& options) {
+  const mrroc::ProcessSetConfig set = mrroc::load_process_set(options.config);
+  mju_user_error = mujoco_error;
+  mju_user_warning = mujoco_warning;
+  CellView cell(set);
+  GlContext gl;
+  std::printf("%s\n", gl.description().c_str());
+  Renderer renderer(cell.model(), options.width, options.height);
+  const fs::path out(options.out_dir);
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out)) {
+    throw Error(fmt::format("cannot make the output folder '{}': {}", out.string(),
+                            ec ? ec.message() : "not a folder"));
+  }
+  const std::size_t removed = remove_old_frames(out);
+  if (removed > 0)
+    std::printf("removed %zu frames of an earlier render from %s\n", removed, out.string().c_str());
+
+  mrroc::install_stop_handlers();
+  mrroc::comm::Bus bus(set.lcm_url);
+  mrroc::comm::enable_auth_from_file(bus, set.auth_key_file);
+  LiveStates states(bus, cell);
+  bus.start();
+  fmt::print("live: waiting for the robot states of set '{}' ({}) on {}\n", set.name,
+             cell.robot_names(), set.lcm_url.empty() ? "LCM's default URL" : set.lcm_url);
+  std::fflush(stdout);
+  using Clock = LiveStates::Clock;
+  const auto waited = Clock::now();
+  while (states.received() == 0) {
+    if (mrroc::stop_requested()) return 0;
+    if (std::chrono::duration<double>(Clock::now() - waited).count() > options.wait_s) {
+      throw Error(fmt::format(
+          "no robot state of set '{}' ({}) arrived within {} s on {}{}: is the set running "
+          "(mrroc-launch), and on this LCM URL?",
+          set.name, cell.robot_names(), options.wait_s, set.lcm_url,
+          states.rejected() > 0
+              ? fmt::format(" ({} states refused: wrong joint count, not finite, or not "
+                            "authentic)",
+                            states.rejected())
+              : ""));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+
+  // The camera: the box every robot can fill, from 64 poses spread over its joint ranges (the
+  // run's future is unknown), then back to the first states.
+  CameraView view;
+  {
+    std::vector<mrroc::RobotModel> models;
+    for (std::size_t k = 0; k < cell.robot_count(); ++k)
+      models.push_back(mrroc::load_robot_model(set.robot(cell.robot_name(k)).model_dir));
+    std::array<double, 3> low{1e30, 1e30, 1e30};
+    std::array<double, 3> high{-1e30, -1e30, -1e30};
+    constexpr int kSamples = 64;
+    for (int i = 0; i < kSamples; ++i) {
+      for (std::size_t k = 0; k < models.size(); ++k) {
+        const mrroc::RobotModel& m = models[k];
+        std::vector<double> q(m.axes());
+        for (std::size_t j = 0; j < q.size(); ++j) {
+          // A low-discrepancy sequence per joint (golden-ratio steps, shifted per joint).
+          const double u = std::fmod(
+              0.5 + (i + 1) * 0.6180339887498949 * (1.0 + 0.37 * static_cast<double>(j)), 1.0);
+          q[j] = m.lower_limits[j] + u * (m.upper_limits[j] - m.lower_limits[j]);
+        }
+        cell.set_joints(k, q);
+      }
+      cell.pose();
+      double l[3];
+      double h[3];
+      cell.robot_bounds(l, h);
+      for (std::size_t c = 0; c < 3; ++c) {
+        low[c] = std::min(low[c], l[c]);
+        high[c] = std::max(high[c], h[c]);
+      }
+    }
+    double radius = 0.0;
+    for (std::size_t c = 0; c < 3; ++c) {
+      view.lookat[c] = 0.5 * (low[c] + high[c]);
+      radius += 0.25 * (high[c] - low[c]) * (high[c] - low[c]);
+    }
+    radius = std::sqrt(radius);
+    const double fovy = cell.model()->vis.global.fovy * M_PI / 180.0;
+    view.distance = std::max(0.5, 0.7 * radius / std::sin(0.5 * fovy));
+  }
+  states.apply(cell);
+  cell.pose();
+  if (!options.lookat.empty()) {
+    const auto p = *parse_point(options.lookat);
+    std::copy(p.begin(), p.end(), view.lookat);
+  }
+  if (options.distance > 0.0) view.distance = options.distance;
+  view.azimuth = options.azimuth;
+  view.elevation = options.elevation;
+  fmt::print(
+      "live: drawing {} x {} at {} fps until {} (camera: lookat {:.3f} {:.3f} {:.3f} m, "
+      "distance {:.3f} m)\n",
+      options.width, options.height, options.fps,
+      options.duration_s > 0.0
+          ? fmt::format("{} s have passed, the states stop for {} s, or SIGINT/SIGTERM",
+                        options.duration_s, options.idle_s)
+          : fmt::format("the states stop for {} s, or SIGINT/SIGTERM", options.idle_s),
+      view.lookat[0], view.lookat[1], view.lookat[2], view.distance);
+  std::fflush(stdout);
+
+  const auto start = Clock::now();
+  const auto period = std::chrono::duration<double>(1.0 / options.fps);
+  std::size_t count = 0;
+  std::size_t repeated = 0;
+  std::size_t drawn = 0;
+  std::vector<std::uint8_t> image;
+  const std::string reason = [&]() -> std::string {
+    for (;;) {
+      std::this_thread::sleep_until(
+          start + std::chrono::duration_cast<Clock::duration>(period * static_cast<double>(count)));
+      const auto now = Clock::now();
+      const double elapsed = std::chrono::duration<double>(now - start).count();
+      if (mrroc::stop_requested()) return "stop signal";
+      if (options.duration_s > 0.0 && elapsed >= options.duration_s)
+        return fmt::format("{} s passed", options.duration_s);
+      if (std::chrono::duration<double>(now - states.last()).count() > options.idle_s)
+        return fmt::format("no state for {} s (the set ended?)", options.idle_s);
+      states.apply(cell);
+      cell.pose();
+      const std::string label =
+          options.label ? fmt::format("{}   t = {:.2f} s (live)", set.name, elapsed) : "";
+      image = renderer.draw(cell.data(), view, label);
+      write_png(out / frame_name(count++), image, options.width, options.height);
+      ++drawn;
+      // Frames due while this one was drawn show the same picture.
+      const double done = std::chrono::duration<double>(Clock::now() - start).count();
+      while (static_cast<double>(count) * period.count() < done - period.count()) {
+        write_png(out / frame_name(count++), image, options.width, options.height);
+        ++repeated;
+      }
+    }
+  }();
+  if (count == 0) throw Error("no frame drawn: " + reason);
+  fmt::print(
+      "live: stopped ({}); {} robot states received; wrote {} .. {} ({} frames, {} drawn, {} "
+      "repeating the frame before them because drawing took longer than 1/{} s)\n",
+      reason, states.received(), (out / frame_name(0)).string(), frame_name(count - 1), count,
+      drawn, repeated, options.fps);
+  if (!options.no_video) {
+    const fs::path video = options.video.empty() ? out / "run.mp4" : fs::path(options.video);
+    encode_video(options.ffmpeg, out, options.fps, video);
+    std::printf("video: %s\n", fs::absolute(video).lexically_normal().string().c_str());
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -281,12 +508,26 @@ int main(int argc, char** argv) {
       "model of the set's cell (its [emulator] scene, or its robots' model folders at their "
       "bases), between states linearly interpolated. Writes OUT/frame_00000.png ... and "
       "OUT/run.mp4 (ffmpeg, H.264), and prints the video's path last ('video: PATH'). Time 0 is "
-      "the first robot state of the log. Exit status 1 when the run cannot be drawn (the message "
-      "says why), 2 for a bad command line.");
+      "the first robot state of the log. With --live instead of --log it draws a set while it "
+      "runs, from the states its EDPs broadcast (on the config's LCM URL; run it in the set's "
+      "network namespace), one frame every 1/fps s of wall time, until the states stop, "
+      "--duration has passed, or SIGINT/SIGTERM. Exit status 1 when the run cannot be drawn "
+      "(the message says why), 2 for a bad command line.");
   Options options;
   cli.option("-c,--config", options.config, "process-set config (TOML) the log was recorded with")
       .required();
-  cli.option("-l,--log", options.log, "LCM log file").required();
+  cli.option("-l,--log", options.log, "LCM log file (or --live)");
+  cli.flag("--live", options.live,
+           "draw the running set from its robots' state broadcasts instead of a log");
+  cli.option("--duration", options.duration_s,
+             "--live: stop after this many seconds (default: when the states stop)")
+      .range(0, 1e6);
+  cli.option("--idle", options.idle_s, "--live: stop when no state came for this long [s]")
+      .range(0.1, 600)
+      .show_default();
+  cli.option("--wait", options.wait_s, "--live: the longest wait for the first state [s]")
+      .range(0.1, 3600)
+      .show_default();
   cli.option("-o,--out", options.out_dir,
              "output folder (created if missing; frames of an "
              "earlier render there are removed)")
@@ -318,6 +559,12 @@ int main(int argc, char** argv) {
   cli.option("--video", options.video, "video file (default: OUT/run.mp4)");
   cli.option("--ffmpeg", options.ffmpeg, "ffmpeg executable").show_default();
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  if (options.log.empty() == !options.live) {
+    std::fprintf(stderr,
+                 "mrroc-render: give either --log FILE (a recorded run) or --live (the running "
+                 "set)\nRun with --help for more information.\n");
+    return mrroc::kUsageError;
+  }
   if (!options.lookat.empty() && !parse_point(options.lookat)) {
     std::fprintf(stderr,
                  "mrroc-render: --lookat '%s' is not three numbers 'x,y,z' [m]\nRun with --help "
@@ -333,7 +580,7 @@ int main(int argc, char** argv) {
     return mrroc::kUsageError;
   }
   try {
-    return run(options);
+    return options.live ? run_live(options) : run(options);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mrroc-render: %s\n", e.what());
     return kRunError;

@@ -230,6 +230,59 @@ TEST_F(Render, DrawsTheRecordedDemoWhereTheArmMoved) {
   EXPECT_EQ(read_png(out / "frame_00000.png").width, 64);
 }
 
+// --live beside the running demo: frames of the arm as it moves, drawn from the states its EDP
+// broadcasts, one every 1/fps s of wall time, until the states stop when the set ends.
+TEST_F(Render, DrawsTheRunningDemoLive) {
+  const fs::path out = dir_ / "live";
+  ChildProcess render({kRender, "--config", kConfig, "--live", "--out", out.string(), "--fps", "10",
+                       "--width", std::to_string(kWidth), "--height", std::to_string(kHeight),
+                       "--idle", "1", "--wait", "60"});
+  const fs::path log_file = dir_ / "live.lcmlog";
+  ChildProcess launch(
+      {std::string(MRROC_BIN_DIR) + "/mrroc-launch", "--record", log_file.string(), kConfig});
+  ASSERT_EQ(launch.wait(), 0) << launch.output();
+  ASSERT_EQ(render.wait(), 0) << render.output();
+  const std::string output = render.output();
+  std::printf("%s", output.c_str());
+  EXPECT_NE(output.find("live: stopped (no state for 1 s (the set ended?))"), std::string::npos)
+      << output;
+  const fs::path video = out / "run.mp4";
+  EXPECT_NE(output.find("video: " + fs::absolute(video).string()), std::string::npos) << output;
+
+  std::size_t frames = 0;
+  while (fs::exists(out / fmt::format("frame_{:05d}.png", frames))) ++frames;
+  // The demo moves for about 6 s after its EDP is ready: at 10 frames a second, at least 40
+  // frames (whatever the drawing speed: a late frame repeats its predecessor).
+  const std::vector<State> states = read_states(log_file);
+  ASSERT_GT(states.size(), 100U);
+  std::printf("%zu frames over a run of %.2f s of states\n", frames, states.back().t);
+  EXPECT_GE(static_cast<double>(frames), 0.7 * states.back().t * 10.0) << output;
+
+  // The arm moved between the first frame (it has just powered on, before its first motion)
+  // and the last (the demo's final pose), where the arm is, not everywhere.
+  const Image first = read_png(out / "frame_00000.png");
+  const Image last = read_png(out / fmt::format("frame_{:05d}.png", frames - 1));
+  ASSERT_EQ(first.width, kWidth);
+  ASSERT_EQ(last.height, kHeight);
+  const std::size_t all = static_cast<std::size_t>(kWidth) * kHeight;
+  const Difference moved = compare(first, last);
+  EXPECT_GT(moved.pixels, all / 400) << "the arm's pixels changed";
+  EXPECT_LT(moved.pixels, all / 2) << "only where the arm is";
+  // Frames on the way differ from the first: the motion was drawn, not only its end.
+  std::size_t changed = 0;
+  for (std::size_t i = 1; i + 1 < frames; ++i)
+    if (compare(first, read_png(out / fmt::format("frame_{:05d}.png", i))).pixels > all / 400)
+      ++changed;
+  EXPECT_GT(changed, frames / 3) << "frames in motion";
+
+  ChildProcess probe({"ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0",
+                      "-show_entries", "stream=nb_read_frames", "-of", "default=noprint_wrappers=1",
+                      video.string()});
+  ASSERT_EQ(probe.wait(), 0) << probe.output();
+  EXPECT_NE(probe.output().find(fmt::format("nb_read_frames={}", frames)), std::string::npos)
+      << probe.output();
+}
+
 template <class Msg>
 void write_event(lcm::LogFile& log, const std::string& channel, std::int64_t utime,
                  const Msg& msg) {
@@ -350,7 +403,16 @@ TEST_F(Render, ClearErrors) {
   EXPECT_NE(version->output().find("mrroc-render"), std::string::npos) << version->output();
   auto no_log = run({"--config", kConfig});
   EXPECT_EQ(no_log->wait(), 2);
-  EXPECT_NE(no_log->output().find("--log"), std::string::npos) << no_log->output();
+  EXPECT_NE(no_log->output().find("give either --log FILE"), std::string::npos) << no_log->output();
+  auto both = run({"--config", kConfig, "--log", log_file.string(), "--live"});
+  EXPECT_EQ(both->wait(), 2);
+  EXPECT_NE(both->output().find("give either --log FILE"), std::string::npos) << both->output();
+  // --live with no set running: it says what it waited for, and ends.
+  auto nobody = run({"--config", kConfig, "--live", "--wait", "0.5", "--out", out.string()});
+  EXPECT_EQ(nobody->wait(), 1);
+  EXPECT_NE(nobody->output().find("no robot state of set 'demo-irb6' (irb6) arrived within 0.5 s"),
+            std::string::npos)
+      << nobody->output();
   auto small = run({"--config", kConfig, "--log", log_file.string(), "--width", "5"});
   EXPECT_EQ(small->wait(), 2);
   EXPECT_NE(small->output().find("5"), std::string::npos) << small->output();

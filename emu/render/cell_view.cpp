@@ -4,6 +4,7 @@
 #include <tinyxml2.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -198,6 +199,20 @@ void CellView::set_joints(std::size_t k, std::span<const double> q) {
                             robot.q.size(), q.size()));
   }
   std::copy(q.begin(), q.end(), robot.q.begin());
+}
+
+bool CellView::set_object(const std::string& name, const std::array<double, 3>& position,
+                          const std::array<double, 4>& quaternion) {
+  const mjModel* m = model_.get();
+  const int joint = mj_name2id(m, mjOBJ_JOINT, name.c_str());
+  if (joint < 0 || m->jnt_type[joint] != mjJNT_FREE) return false;
+  const double norm = std::sqrt(quaternion[0] * quaternion[0] + quaternion[1] * quaternion[1] +
+                                quaternion[2] * quaternion[2] + quaternion[3] * quaternion[3]);
+  if (!std::isfinite(norm) || norm < 1e-9) return false;
+  mjtNum* q = data_->qpos + m->jnt_qposadr[joint];
+  for (std::size_t i = 0; i < 3; ++i) q[i] = position[i];
+  for (std::size_t i = 0; i < 4; ++i) q[3 + i] = quaternion[i] / norm;
+  return true;
 }
 
 double CellView::pose() {

@@ -4,6 +4,7 @@
 // positions. Nothing is simulated: each pose is set (a = M q on the actuator joints, closed
 // kinematic loops solved, forward kinematics), so the picture shows exactly the joints given.
 
+#include <array>
 #include <cstddef>
 #include <optional>
 #include <span>
@@ -42,6 +43,13 @@ class CellView {
   /// Robot k's joint positions q [rad or m], used by the next pose(). @throws Error when the
   /// number of values is not the robot's number of axes.
   void set_joints(std::size_t k, std::span<const double> q);
+  /// Puts the free object `name` of the scene (a `[[scene.object]]` without `attach`) at a world
+  /// pose for the next pose(): position [m], unit quaternion (w, x, y, z; normalised here).
+  /// Returns false when the cell has no free object of that name (objects fixed to the world or
+  /// to a robot move with what holds them).
+  bool set_object(const std::string& name, const std::array<double, 3>& position,
+                  const std::array<double, 4>& quaternion);
+
   /// Puts every robot at its joint positions: actuator joints at a = M q, the kinematic loops
   /// closed, positions of every body and geom computed. Returns the largest loop violation left
   /// [m or rad] (0 without loops).

@@ -4,6 +4,7 @@
 // with MuJoCo's own renderer (EGL) into PNG frames, and makes an MP4 of them with ffmpeg.
 // docs/recording.md, "Rendering".
 #include <fmt/format.h>
+#include <lcm/lcm-cpp.hpp>
 
 #include <algorithm>
 #include <array>
@@ -25,6 +26,7 @@
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/edge.hpp"
+#include "mrroc/comm/messages.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/command_line.hpp"
 #include "mrroc/core/error.hpp"
@@ -103,6 +105,55 @@ class Track {
   std::size_t dropped_ = 0;
 };
 
+/// The poses of the scene's objects over time (scene_objects_t, which the cell emulator
+/// broadcasts about 30 times a second), each sample held until the next.
+class ObjectTrack {
+ public:
+  void add(double t, mrroc::SceneObjects objects) { samples_.emplace_back(t, std::move(objects)); }
+  void sort() {
+    std::stable_sort(samples_.begin(), samples_.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+  }
+  [[nodiscard]] std::size_t size() const { return samples_.size(); }
+  /// Sets the free objects of the sample at time t [s] (the last at or before t; the first
+  /// before it) into `cell`; returns how many objects were set.
+  std::size_t apply(CellView& cell, double t) const {
+    if (samples_.empty()) return 0;
+    auto next = std::upper_bound(samples_.begin(), samples_.end(), t,
+                                 [](double v, const auto& s) { return v < s.first; });
+    const auto& sample = next == samples_.begin() ? *next : *(next - 1);
+    return set_objects(cell, sample.second);
+  }
+  /// Sets every free object of `objects` into `cell`; returns how many.
+  static std::size_t set_objects(CellView& cell, const mrroc::SceneObjects& objects) {
+    std::size_t n = 0;
+    for (const auto& o : objects.objects)
+      if (o.attach.empty() && cell.set_object(o.name, o.position, o.quaternion)) ++n;
+    return n;
+  }
+
+ private:
+  std::vector<std::pair<double, mrroc::SceneObjects>> samples_;
+};
+
+/// The scene_objects_t of an LCM log, timed like the robot states (0: `first_utime`, the first
+/// robot state's send time [us]). A log without them gives an empty track.
+ObjectTrack read_object_track(const std::string& file, std::int64_t first_utime) {
+  ObjectTrack track;
+  lcm::LogFile log(file, "r");
+  if (!log.good()) return track;
+  while (const lcm::LogEvent* event = log.readNextEvent()) {
+    if (event->channel != mrroc::channels::scene_objects) continue;
+    mrroc::comm::Envelope header;
+    auto objects =
+        mrroc::comm::decode_bytes<mrroc::SceneObjects>(event->data, event->datalen, &header);
+    if (!objects) continue;
+    track.add(static_cast<double>(header.utime - first_utime) * 1e-6, std::move(*objects));
+  }
+  track.sort();
+  return track;
+}
+
 std::optional<std::array<double, 3>> parse_point(const std::string& text) {
   std::array<double, 3> p{};
   std::string s = text;
@@ -116,8 +167,10 @@ std::optional<std::array<double, 3>> parse_point(const std::string& text) {
   return p;
 }
 
-void set_all(CellView& cell, const std::vector<std::pair<std::size_t, Track>>& tracks, double t) {
+void set_all(CellView& cell, const std::vector<std::pair<std::size_t, Track>>& tracks, double t,
+             const ObjectTrack* objects = nullptr) {
   for (const auto& [k, track] : tracks) cell.set_joints(k, track.at(t));
+  if (objects != nullptr) objects->apply(cell, t);
   cell.pose();
 }
 
@@ -237,6 +290,7 @@ int run(const Options& options) {
   }
 
   const CameraView view = frame_camera(cell, tracks, times, options);
+  const ObjectTrack objects = read_object_track(options.log, log.first_utime);
   const fs::path out(options.out_dir);
   std::error_code ec;
   fs::create_directories(out, ec);
@@ -254,16 +308,18 @@ int run(const Options& options) {
   std::size_t states = 0;
   for (const auto& entry : log.robots) states += entry.second.samples.size();
   fmt::print(
-      "{}: {} robot states of {} robots, {:.3f} s; drawing {} frames of {} x {} at {} fps{} "
+      "{}: {} robot states of {} robots{}, {:.3f} s; drawing {} frames of {} x {} at {} fps{} "
       "(camera: lookat {:.3f} {:.3f} {:.3f} m, distance {:.3f} m, azimuth {} deg, "
       "elevation {} deg)\n",
-      options.log, states, log.robots.size(), end - begin, count, options.width, options.height,
-      options.fps, hold_frames > 0 ? fmt::format(", the last {} held", hold_frames) : "",
-      view.lookat[0], view.lookat[1], view.lookat[2], view.distance, view.azimuth, view.elevation);
+      options.log, states, log.robots.size(),
+      objects.size() > 0 ? fmt::format(" and {} poses of the scene's objects", objects.size()) : "",
+      end - begin, count, options.width, options.height, options.fps,
+      hold_frames > 0 ? fmt::format(", the last {} held", hold_frames) : "", view.lookat[0],
+      view.lookat[1], view.lookat[2], view.distance, view.azimuth, view.elevation);
   std::fflush(stdout);
   const auto started = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < count; ++i) {
-    set_all(cell, tracks, times[i]);
+    set_all(cell, tracks, times[i], &objects);
     const std::string label =
         options.label ? fmt::format("{}   t = {:.2f} s", set.name, times[i] - begin) : "";
     write_png(out / frame_name(i), renderer.draw(cell.data(), view, label), options.width,
@@ -309,14 +365,24 @@ class LiveStates {
           },
           quiet);
     }
+    objects_.emplace(
+        bus, mrroc::channels::scene_objects,
+        [this](const mrroc::SceneObjects& o, const mrroc::comm::Received& in) {
+          if (!in.authentic()) return;
+          std::lock_guard lock(mutex_);
+          objects_latest_ = o;
+        },
+        quiet);
   }
 
-  /// Sets every robot heard from into `cell` (the others keep their pose); returns how many
-  /// states have arrived so far.
+  /// Sets every robot heard from, and the scene's free objects (the cell emulator's latest
+  /// scene_objects_t), into `cell` (the others keep their pose); returns how many states have
+  /// arrived so far.
   std::size_t apply(CellView& cell) const {
     std::lock_guard lock(mutex_);
     for (std::size_t k = 0; k < latest_.size(); ++k)
       if (!latest_[k].empty()) cell.set_joints(k, latest_[k]);
+    ObjectTrack::set_objects(cell, objects_latest_);
     return received_;
   }
   [[nodiscard]] std::size_t received() const {
@@ -339,7 +405,9 @@ class LiveStates {
   Clock::time_point last_{};
   std::size_t received_ = 0;
   std::size_t rejected_ = 0;
+  mrroc::SceneObjects objects_latest_;
   std::vector<mrroc::comm::Subscriber<mrroc::RobotState>> subscribers_;
+  std::optional<mrroc::comm::Subscriber<mrroc::SceneObjects>> objects_;
 };
 
 /// --live: draws the set while it runs, one frame every 1/fps s of wall time from the first

@@ -19,6 +19,7 @@
 
 #include "mrroc_lcm/process_status_t.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
+#include "mrroc_lcm/scene_objects_t.hpp"
 #include "srp_process.hpp"
 
 namespace fs = std::filesystem;
@@ -309,6 +310,64 @@ mrroc_lcm::robot_state_t state(const std::string& robot, int joints, std::int64_
   s.dq.assign(static_cast<std::size_t>(joints), 0.0);
   s.q_desired.assign(static_cast<std::size_t>(joints), 0.1);
   return s;
+}
+
+// The scene's free objects are drawn where the log's scene_objects_t put them: in the two-IRb-6
+// cell of tight-bar-can.toml, with both arms still, the bar lifted 0.3 m off its table between
+// 0.5 s and 1 s changes the pictures there and only there.
+TEST_F(Render, DrawsTheSceneObjectsWhereTheLogPutsThem) {
+  const std::string config = std::string(MRROC_SOURCE_DIR) + "/configs/tight-bar-can.toml";
+  const fs::path log_file = dir_ / "bar.lcmlog";
+  {
+    lcm::LogFile log(log_file.string(), "w");
+    for (int i = 0; i <= 50; ++i) {  // 0 .. 1 s, every 20 ms
+      const std::int64_t utime = 1'000'000 + i * 20'000;
+      for (const std::string robot : {"left", "right"}) {
+        mrroc_lcm::robot_state_t s = state(robot, 5, utime);
+        s.q = {0.0, -1.5708, 0.0, 0.0, 0.0};
+        write_event(log, robot + "/edp/state", utime, s);
+      }
+      mrroc_lcm::scene_objects_t objects{};
+      objects.header.utime = utime;
+      objects.header.sender = "emu#1";
+      objects.header.kind = mrroc_lcm::header_t::BROADCAST;
+      objects.scene = "two-irb6";
+      mrroc_lcm::scene_object_t bar{};
+      bar.name = "bar";
+      bar.shape = mrroc_lcm::scene_object_t::BOX;
+      bar.n_size = 3;
+      bar.size = {0.25, 0.02, 0.02};
+      bar.rgba[0] = 0.9;
+      bar.rgba[3] = 1.0;
+      bar.local_position[0] = 1.0;
+      bar.local_position[2] = 1.10;
+      bar.local_quaternion[0] = 1.0;
+      const double lift = i <= 25 ? 0.0 : 0.3 * (i - 25) / 25.0;  // m
+      bar.position[0] = 1.0;
+      bar.position[2] = 1.10 + lift;
+      bar.quaternion[0] = 1.0;
+      objects.objects.push_back(bar);
+      objects.n = 1;
+      write_event(log, "mrroc/scene/objects", utime, objects);
+    }
+  }
+  const fs::path out = dir_ / "bar";
+  ChildProcess render({kRender, "--config", config, "--log", log_file.string(), "--out",
+                       out.string(), "--fps", "10", "--width", std::to_string(kWidth), "--height",
+                       std::to_string(kHeight), "--lookat", "1.0,0,1.2", "--distance", "2.0",
+                       "--no-video"});
+  ASSERT_EQ(render.wait(), 0) << render.output();
+  EXPECT_NE(render.output().find("and 51 poses of the scene's objects"), std::string::npos)
+      << render.output();
+  const auto frame = [&](int i) { return read_png(out / fmt::format("frame_{:05d}.png", i)); };
+  const std::size_t all = static_cast<std::size_t>(kWidth) * kHeight;
+  // Before the lift (0 .. 0.5 s): the same picture.
+  for (int i = 1; i <= 5; ++i) EXPECT_LE(compare(frame(0), frame(i)).pixels, all / 2000) << i;
+  // After it: the bar has left its place; the change is the bar's, not the whole picture.
+  const Difference lifted = compare(frame(0), frame(10));
+  EXPECT_GT(lifted.pixels, all / 400) << "the bar's pixels changed";
+  EXPECT_LT(lifted.pixels, all / 5) << "only where the bar is";
+  EXPECT_GT(compare(frame(8), frame(10)).pixels, 0U) << "it moved on the way";
 }
 
 // Each error says what is wrong and ends the program with 1 (2 for a bad command line).

@@ -6,7 +6,11 @@
 #include <cmath>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
+
+#include "cell_world.hpp"
 #include "mrroc/core/error.hpp"
 
 namespace mrroc::emu {
@@ -98,6 +102,39 @@ FaultSpec parse_fault(std::string_view spec) {
     if (f.duration_s <= 0.0) bad(spec, "duration " + std::string(value) + " s must be > 0 s");
   }
   return f;
+}
+
+ResolvedFault resolve_fault(std::string_view spec, const CellWorld& world,
+                            const std::vector<std::string>& sensors) {
+  ResolvedFault r;
+  r.spec = parse_fault(spec);
+  const std::string text(spec);
+  if (r.spec.kind == FaultKind::sensor) {
+    if (std::find(sensors.begin(), sensors.end(), r.spec.device) == sensors.end())
+      throw ConfigError(
+          fmt::format("fault '{}': the scene has no raw sensor device '{}'{}", text, r.spec.device,
+                      sensors.empty() ? std::string(" (it has none)")
+                                      : fmt::format(" (devices: {})", fmt::join(sensors, ", "))));
+    return r;
+  }
+  try {
+    r.robot = world.robot_index(r.spec.robot);
+  } catch (const Error& e) {
+    throw ConfigError(fmt::format("fault '{}': {}", text, e.what()));
+  }
+  if (!r.spec.axis.empty()) {
+    const CellRobot& robot = world.robot(r.robot);
+    bool found = false;
+    for (std::size_t i = 0; i < robot.axis_count(); ++i)
+      if (robot.axis_names[i] == r.spec.axis || std::to_string(i) == r.spec.axis) {
+        r.axis = i;
+        found = true;
+      }
+    if (!found)
+      throw ConfigError(fmt::format("fault '{}': robot '{}' has no axis '{}' (axes: {})", text,
+                                    robot.name, r.spec.axis, fmt::join(robot.axis_names, ", ")));
+  }
+  return r;
 }
 
 }  // namespace mrroc::emu

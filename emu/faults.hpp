@@ -14,11 +14,15 @@
 ///
 /// <axis> is an axis name or index (0-based); <t> is in seconds after all the robot's drives
 /// first reached operation enabled (for `sensor`: the scene's first robot).
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace mrroc::emu {
+
+class CellWorld;
 
 enum class FaultKind { drive, silent, drop, bus_off, sensor };
 
@@ -36,5 +40,19 @@ struct FaultSpec {
 
 /// @throws mrroc::ConfigError naming the spec and what is wrong with it.
 FaultSpec parse_fault(std::string_view spec);
+
+/// A fault found in the cell: the index of its robot and axis (`sensor`: robot 0, whose drives
+/// time it).
+struct ResolvedFault {
+  FaultSpec spec;
+  std::size_t robot = 0;
+  std::size_t axis = 0;
+};
+
+/// parse_fault(spec), then its robot, axis or sensor device looked up in the cell (`sensors`:
+/// the names of the scene's raw sensor devices). What the emulator does at start and its
+/// `--check-config`. @throws mrroc::ConfigError naming the fault and what the cell lacks.
+ResolvedFault resolve_fault(std::string_view spec, const CellWorld& world,
+                            const std::vector<std::string>& sensors);
 
 }  // namespace mrroc::emu

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "cell_world.hpp"
+#include "config_check.hpp"
 #include "drives.hpp"
 #include "faults.hpp"
 #include "mrroc/can/bus.hpp"
@@ -36,6 +37,7 @@
 #include "mrroc/comm/auth.hpp"
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/reporter.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/command_line.hpp"
 #include "mrroc/core/error.hpp"
@@ -158,34 +160,14 @@ class Emulator {
       poses_ = std::make_unique<emu::ObjectPosePublisher>(
           lcm_->lcm(), emu::load_scene(options_.scene), world_, "emu#" + std::to_string(::getpid()),
           lcm_->auth());
+    std::vector<std::string> devices;
+    for (std::size_t i = 0; i < sensors_->size(); ++i) devices.push_back(sensors_->config(i).name);
     for (const std::string& text : options_.faults) {
+      const emu::ResolvedFault fault = emu::resolve_fault(text, world_, devices);
       Scheduled s;
-      s.spec = emu::parse_fault(text);
-      if (s.spec.kind == emu::FaultKind::sensor) {
-        s.robot = 0;  // times count from the first robot's drives
-        bool found = false;
-        for (std::size_t i = 0; i < sensors_->size(); ++i)
-          found = found || sensors_->config(i).name == s.spec.device;
-        if (!found)
-          throw ConfigError(fmt::format("fault '{}': the scene has no raw sensor device '{}'", text,
-                                        s.spec.device));
-        schedule_.push_back(s);
-        continue;
-      }
-      s.robot = world_.robot_index(s.spec.robot);
-      if (!s.spec.axis.empty()) {
-        const emu::CellRobot& robot = world_.robot(s.robot);
-        bool found = false;
-        for (std::size_t i = 0; i < robot.axis_count(); ++i)
-          if (robot.axis_names[i] == s.spec.axis || std::to_string(i) == s.spec.axis) {
-            s.axis = i;
-            found = true;
-          }
-        if (!found)
-          throw ConfigError(fmt::format("fault '{}': robot '{}' has no axis '{}' (axes: {})", text,
-                                        robot.name, s.spec.axis,
-                                        fmt::join(robot.axis_names, ", ")));
-      }
+      s.spec = fault.spec;
+      s.robot = fault.robot;
+      s.axis = fault.axis;
       schedule_.push_back(s);
     }
     // Power on every drive where its axis is.
@@ -473,6 +455,28 @@ void real_time_priority() {
 
 }  // namespace
 
+/// --check-config: the process set's errors and the emulator's (emu::check_emulator_config),
+/// one per line on stderr; nothing is opened, nothing sent.
+int check(const std::string& config_path) {
+  using namespace mrroc;
+  if (config_path.empty()) {
+    std::fprintf(stderr, "mrroc-axis-emu: --check-config needs --config (a process set)\n");
+    return kUsageError;
+  }
+  ConfigErrorList errors;
+  try {
+    const ProcessSetCheck set = check_process_set(config_path);
+    errors.add(set.errors);
+    if (!set.broken_process("emu")) errors.add(emu::check_emulator_config(set.config));
+  } catch (const std::exception& e) {
+    errors.add(e, SourceLocation::whole_file(config_path));
+  }
+  for (const auto& error : errors.errors()) std::fprintf(stderr, "%s\n", error.what());
+  if (!errors.empty()) return kExitConfigErrors;
+  std::printf("mrroc-axis-emu: emu: config is valid\n");
+  return 0;
+}
+
 int main(int argc, char** argv) {
   mrroc::CommandLine cli(
       "mrroc-axis-emu",
@@ -500,9 +504,15 @@ int main(int argc, char** argv) {
   cli.option("--lcm-url", options.lcm_url, "LCM URL for SRP messages (default: the config's)");
   cli.option("--run-for", options.run_for_s, "stop after this much simulated time [s]").positive();
   cli.flag("--print-scene", options.print_scene, "print the composed MJCF and exit");
+  bool check_config = false;
+  cli.flag("--check-config", check_config,
+           "check the process set's [emulator] part (its scene, drives, sensors, faults, and the "
+           "set's robots on emulated buses against it), print every error, and exit (2: errors "
+           "found); nothing is opened or sent");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
 
   using namespace mrroc;
+  if (check_config) return check(config);
   install_stop_handlers();
   std::string process = "emu";
   try {

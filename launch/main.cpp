@@ -225,8 +225,8 @@ void print_plan(const ProcessSetConfig& config, const std::vector<PlannedProcess
 
 /// True for the processes that check their own part of the config (`--check-config`).
 bool checks_own_config(const PlannedProcess& p) {
-  return p.name == "mp" || p.name.rfind("edp/", 0) == 0 || p.name.rfind("ecp/", 0) == 0 ||
-         p.name.rfind("vsp/", 0) == 0;
+  return p.name == "mp" || p.name == "emu" || p.name.rfind("edp/", 0) == 0 ||
+         p.name.rfind("ecp/", 0) == 0 || p.name.rfind("vsp/", 0) == 0;
 }
 
 /// The longest a process' --check-config may take (it loads models, no network).
@@ -335,7 +335,7 @@ class ErrorReport {
   int order_ = 0;
 };
 
-/// --check: every process that checks its own config (EDPs, ECPs, VSPs, MP) runs its
+/// --check: every process that checks its own config (emulator, EDPs, ECPs, VSPs, MP) runs its
 /// `--check-config` here, the same code it runs at start (docs/configs.md, "When each part is
 /// checked"); their errors join `report`.
 void check_processes(const ProcessSetCheck& set, const std::vector<PlannedProcess>& plan,

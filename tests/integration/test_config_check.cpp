@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 #include <string>
 #include <utility>
@@ -219,6 +220,109 @@ TEST(ConfigCheck, ReachesRealDevicePluginParametersTheSetsVspNamesAndTheMpTasksP
             std::string::npos)
       << "each error once, nothing else\n"
       << out;
+  fs::remove_all(dir);
+}
+
+TEST(ConfigCheck, ChecksTheEmulatorsSceneAndTheSetsRobotsAgainstIt) {
+  // The cell emulator checks its scene (the file, its drives, sensors) and the [emulator] faults,
+  // and the set's robots on emulated buses against the scene: the robot exists, bus, node ids,
+  // encoder resolution and model are the scene's.
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-check-emu-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const std::string irb6 = (kSource / "robots/irb6").string();
+  {
+    std::ofstream scene(dir / "cell.toml");
+    scene << "[scene]\nname = \"cell\"\n[[scene.robot]]\nname = \"irb6\"\nmodel = \"" << irb6
+          << "\"\n[scene.robot.drives]\nbus = \"virtual:cell\"\n[[scene.sensor]]\nname = "
+             "\"wrist\"\ntype = \"strain_gauges\"\nbody = \"irb6/roll_link\"\n";
+    std::ofstream broken(dir / "broken-scene.toml");
+    broken << "[scene]\nname = \"broken\"\n[[scene.robot]]\nname = \"irb6\"\nmodel = \"" << irb6
+           << "\"\n[[scene.object]]\nname = \"part\"\ntype = \"box\"\nsize = [0.05, 0.05, "
+              "0.05]\npos = [1.0, 0.0, 0.1]\nmass = 0.5\ncolour = [1, 0, 0, 1]\n";
+  }
+  BrokenConfig c;
+  c.file = dir / "emulated.toml";
+  c.lines = {
+      "[system]",
+      "name = \"emulated\"",
+      "[emulator]",
+      "scene = \"cell.toml\"",
+      "faults = [\"drive:irb6/wrist_twist@1.0\", \"sensor:wirst@2.0\"]",  // no such axis, device
+      "[mp]",
+      "task = \"start_and_wait\"",
+      "[[robot]]",
+      "name = \"irb6\"",
+      "model = \"" + irb6 + "\"",
+      "[robot.edp]",
+      "plugin = \"can\"",
+      "[robot.edp.params]",
+      "bus = \"virtual:irb6\"",   // the scene wires it to virtual:cell
+      "nodes = [1, 2, 3, 4, 6]",  // the scene's are 1..5
+      "counts_per_unit = 4096",   // the scene's drives count 100000 per rad
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+      "[[robot]]",
+      "name = \"rnt\"",  // not in the scene
+      "model = \"" + (kSource / "robots/rnt").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"can\"",
+      "params = { bus = \"virtual:rnt\" }",
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+  };
+  {
+    std::ofstream file(c.file);
+    for (const auto& l : c.lines) file << l << "\n";
+  }
+  const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  const std::string f = c.file.string();
+  const auto at = [&](const std::string& marker) {
+    return f + ":" + std::to_string(c.line_of(marker)) + ": error: ";
+  };
+  const std::vector<std::string> expected = {
+      at("[emulator]") +
+          "fault 'drive:irb6/wrist_twist@1.0': robot 'irb6' has no axis "
+          "'wrist_twist' (axes: column, lower_arm, upper_arm, wrist_pitch, "
+          "wrist_roll)",
+      at("[emulator]") +
+          "fault 'sensor:wirst@2.0': the scene has no raw sensor device 'wirst' "
+          "(devices: wrist)",
+      at("bus = ") + "robot 'irb6': bus 'virtual:irb6' is not where the scene",
+      at("nodes = ") + "robot 'irb6': node ids [1, 2, 3, 4, 6] are not the scene's [1, 2, 3, 4, 5]",
+      at("counts_per_unit") +
+          "robot 'irb6': counts_per_unit = 4096 counts/unit is not the emulated drives' 100000",
+      // At its [[robot]] table, the line before its name.
+      f + ":" + std::to_string(c.line_of("name = \"rnt\"") - 1) + ": error: " +
+          "robot 'rnt' drives the emulated bus 'virtual:rnt', but the "
+          "emulator's scene",
+  };
+  for (const auto& message : expected)
+    EXPECT_NE(out.find(message), std::string::npos) << "expected: " << message << "\n" << out;
+  EXPECT_NE(out.find(std::to_string(expected.size()) + " errors; nothing started"),
+            std::string::npos)
+      << out;
+
+  // A scene with a mistake of its own: reported at the scene file's line.
+  std::string text;
+  {
+    std::ifstream in(c.file);
+    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  text.replace(text.find("cell.toml"), 9, "broken-scene.toml");
+  {
+    std::ofstream file(dir / "broken-scene-set.toml");
+    file << text;
+  }
+  const auto [scene_code, scene_out] =
+      run(launcher() + " --check '" + (dir / "broken-scene-set.toml").string() + "'");
+  std::printf("%s", scene_out.c_str());
+  EXPECT_EQ(scene_code, 2) << scene_out;
+  EXPECT_NE(scene_out.find((dir / "broken-scene.toml").string() + ":12: error: "),
+            std::string::npos)
+      << scene_out;
+  EXPECT_NE(scene_out.find("colour"), std::string::npos) << scene_out;
   fs::remove_all(dir);
 }
 

@@ -80,17 +80,16 @@ void check_can_robots(const ProcessSetConfig& set, const CellWorld& world,
                    [&] { counts = params.get_double("counts_per_unit", 100000.0); }) &&
         std::abs(counts - w.counts_per_unit) > 1e-9 * w.counts_per_unit)
       errors.add(ConfigError(
-          params.has("counts_per_unit") ? params.location_of("counts_per_unit")
-                                        : params.location(),
+          params.has("counts_per_unit") ? params.location_of("counts_per_unit") : params.location(),
           fmt::format("robot '{}': counts_per_unit = {} counts/unit is not the emulated drives' "
                       "{} ({} [scene.robot.drives] counts_per_unit): every position would be "
                       "off by their ratio",
                       robot.name, counts, w.counts_per_unit, scene)));
     if (normal(robot.model_dir) != normal(world.robot(k).model_dir))
       errors.add(ConfigError(
-          robot.where, fmt::format("robot '{}': model '{}' is not the scene's model of it, '{}'",
-                                   robot.name, robot.model_dir.string(),
-                                   world.robot(k).model_dir.string())));
+          robot.where,
+          fmt::format("robot '{}': model '{}' is not the scene's model of it, '{}'", robot.name,
+                      robot.model_dir.string(), world.robot(k).model_dir.string())));
   }
 }
 

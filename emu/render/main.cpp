@@ -174,23 +174,21 @@ void set_all(CellView& cell, const std::vector<std::pair<std::size_t, Track>>& t
   cell.pose();
 }
 
-/// The camera: looking at the middle of the box every robot fills during the run, from a
-/// distance that keeps the box in view (unless the options give them).
-CameraView frame_camera(CellView& cell, const std::vector<std::pair<std::size_t, Track>>& tracks,
-                        const std::vector<double>& times, const Options& options) {
-  std::array<double, 3> low{1e30, 1e30, 1e30};
-  std::array<double, 3> high{-1e30, -1e30, -1e30};
-  const std::size_t stride = std::max<std::size_t>(1, times.size() / 40);
-  for (std::size_t i = 0; i < times.size(); i += stride) {
-    set_all(cell, tracks, times[i]);
-    double l[3];
-    double h[3];
-    cell.robot_bounds(l, h);
-    for (int c = 0; c < 3; ++c) {
-      low[static_cast<std::size_t>(c)] = std::min(low[static_cast<std::size_t>(c)], l[c]);
-      high[static_cast<std::size_t>(c)] = std::max(high[static_cast<std::size_t>(c)], h[c]);
-    }
+/// Widens [low, high] [m] to hold every robot of `cell` in its current pose.
+void grow_box(const CellView& cell, std::array<double, 3>& low, std::array<double, 3>& high) {
+  double l[3];
+  double h[3];
+  cell.robot_bounds(l, h);
+  for (std::size_t c = 0; c < 3; ++c) {
+    low[c] = std::min(low[c], l[c]);
+    high[c] = std::max(high[c], h[c]);
   }
+}
+
+/// The camera looking at the middle of the box [low, high] from a distance that keeps it in view,
+/// unless the options give the point, the distance; their azimuth and elevation.
+CameraView camera_for_box(const CellView& cell, const std::array<double, 3>& low,
+                          const std::array<double, 3>& high, const Options& options) {
   CameraView view;
   double radius = 0.0;
   for (std::size_t c = 0; c < 3; ++c) {
@@ -208,6 +206,43 @@ CameraView frame_camera(CellView& cell, const std::vector<std::pair<std::size_t,
   view.azimuth = options.azimuth;
   view.elevation = options.elevation;
   return view;
+}
+
+/// The output folder, made when missing, without the frames of an earlier render.
+fs::path output_folder(const Options& options) {
+  const fs::path out(options.out_dir);
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out)) {
+    throw Error(fmt::format("cannot make the output folder '{}': {}", out.string(),
+                            ec ? ec.message() : "not a folder"));
+  }
+  const std::size_t removed = remove_old_frames(out);
+  if (removed > 0)
+    std::printf("removed %zu frames of an earlier render from %s\n", removed, out.string().c_str());
+  return out;
+}
+
+/// The frames of `out` as a video (unless --no-video); prints its path last.
+void write_video(const Options& options, const fs::path& out) {
+  if (options.no_video) return;
+  const fs::path video = options.video.empty() ? out / "run.mp4" : fs::path(options.video);
+  encode_video(options.ffmpeg, out, options.fps, video);
+  std::printf("video: %s\n", fs::absolute(video).lexically_normal().string().c_str());
+}
+
+/// The camera: looking at the middle of the box every robot fills during the run, from a
+/// distance that keeps the box in view (unless the options give them).
+CameraView frame_camera(CellView& cell, const std::vector<std::pair<std::size_t, Track>>& tracks,
+                        const std::vector<double>& times, const Options& options) {
+  std::array<double, 3> low{1e30, 1e30, 1e30};
+  std::array<double, 3> high{-1e30, -1e30, -1e30};
+  const std::size_t stride = std::max<std::size_t>(1, times.size() / 40);
+  for (std::size_t i = 0; i < times.size(); i += stride) {
+    set_all(cell, tracks, times[i]);
+    grow_box(cell, low, high);
+  }
+  return camera_for_box(cell, low, high, options);
 }
 
 void mujoco_error(const char* message) {
@@ -291,16 +326,7 @@ int run(const Options& options) {
 
   const CameraView view = frame_camera(cell, tracks, times, options);
   const ObjectTrack objects = read_object_track(options.log, log.first_utime);
-  const fs::path out(options.out_dir);
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) {
-    throw Error(fmt::format("cannot make the output folder '{}': {}", out.string(),
-                            ec ? ec.message() : "not a folder"));
-  }
-  const std::size_t removed = remove_old_frames(out);
-  if (removed > 0)
-    std::printf("removed %zu frames of an earlier render from %s\n", removed, out.string().c_str());
+  const fs::path out = output_folder(options);
 
   GlContext gl;
   std::printf("%s\n", gl.description().c_str());
@@ -329,11 +355,7 @@ int run(const Options& options) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   std::printf("wrote %s .. %s (%zu frames in %.1f s)\n", (out / frame_name(0)).string().c_str(),
               frame_name(count - 1).c_str(), count, seconds);
-  if (!options.no_video) {
-    const fs::path video = options.video.empty() ? out / "run.mp4" : fs::path(options.video);
-    encode_video(options.ffmpeg, out, options.fps, video);
-    std::printf("video: %s\n", fs::absolute(video).lexically_normal().string().c_str());
-  }
+  write_video(options, out);
   return 0;
 }
 
@@ -421,16 +443,7 @@ int run_live(const Options& options) {
   GlContext gl;
   std::printf("%s\n", gl.description().c_str());
   Renderer renderer(cell.model(), options.width, options.height);
-  const fs::path out(options.out_dir);
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec || !fs::is_directory(out)) {
-    throw Error(fmt::format("cannot make the output folder '{}': {}", out.string(),
-                            ec ? ec.message() : "not a folder"));
-  }
-  const std::size_t removed = remove_old_frames(out);
-  if (removed > 0)
-    std::printf("removed %zu frames of an earlier render from %s\n", removed, out.string().c_str());
+  const fs::path out = output_folder(options);
 
   mrroc::install_stop_handlers();
   mrroc::comm::Bus bus(set.lcm_url);
@@ -481,32 +494,12 @@ int run_live(const Options& options) {
         cell.set_joints(k, q);
       }
       cell.pose();
-      double l[3];
-      double h[3];
-      cell.robot_bounds(l, h);
-      for (std::size_t c = 0; c < 3; ++c) {
-        low[c] = std::min(low[c], l[c]);
-        high[c] = std::max(high[c], h[c]);
-      }
+      grow_box(cell, low, high);
     }
-    double radius = 0.0;
-    for (std::size_t c = 0; c < 3; ++c) {
-      view.lookat[c] = 0.5 * (low[c] + high[c]);
-      radius += 0.25 * (high[c] - low[c]) * (high[c] - low[c]);
-    }
-    radius = std::sqrt(radius);
-    const double fovy = cell.model()->vis.global.fovy * M_PI / 180.0;
-    view.distance = std::max(0.5, 0.7 * radius / std::sin(0.5 * fovy));
+    view = camera_for_box(cell, low, high, options);
   }
   states.apply(cell);
   cell.pose();
-  if (!options.lookat.empty()) {
-    const auto p = *parse_point(options.lookat);
-    std::copy(p.begin(), p.end(), view.lookat);
-  }
-  if (options.distance > 0.0) view.distance = options.distance;
-  view.azimuth = options.azimuth;
-  view.elevation = options.elevation;
   fmt::print(
       "live: drawing {} x {} at {} fps until {} (camera: lookat {:.3f} {:.3f} {:.3f} m, "
       "distance {:.3f} m)\n",
@@ -556,11 +549,7 @@ int run_live(const Options& options) {
       "repeating the frame before them because drawing took longer than 1/{} s)\n",
       reason, states.received(), (out / frame_name(0)).string(), frame_name(count - 1), count,
       drawn, repeated, options.fps);
-  if (!options.no_video) {
-    const fs::path video = options.video.empty() ? out / "run.mp4" : fs::path(options.video);
-    encode_video(options.ffmpeg, out, options.fps, video);
-    std::printf("video: %s\n", fs::absolute(video).lexically_normal().string().c_str());
-  }
+  write_video(options, out);
   return 0;
 }
 

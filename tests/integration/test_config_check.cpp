@@ -43,6 +43,11 @@ struct BrokenConfig {
   std::vector<std::string> lines;
   fs::path file;
 
+  void write() const {
+    std::ofstream out(file);
+    for (const auto& l : lines) out << l << "\n";
+  }
+
   [[nodiscard]] int line_of(const std::string& marker) const {
     for (std::size_t i = 0; i < lines.size(); ++i)
       if (lines[i].find(marker) != std::string::npos) return static_cast<int>(i + 1);
@@ -102,8 +107,7 @@ BrokenConfig write_broken_config() {
       "[robot.ecp]",
       "task = \"follow_mp\"",
   };
-  std::ofstream out(c.file);
-  for (const auto& l : c.lines) out << l << "\n";
+  c.write();
   return c;
 }
 
@@ -192,10 +196,7 @@ TEST(ConfigCheck, ReachesRealDevicePluginParametersTheSetsVspNamesAndTheMpTasksP
       "[robot.ecp]",
       "task = \"follow_mp\"",
   };
-  {
-    std::ofstream out(c.file);
-    for (const auto& l : c.lines) out << l << "\n";
-  }
+  c.write();
   const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
   std::printf("%s", out.c_str());
   EXPECT_EQ(code, 2) << out;
@@ -270,10 +271,7 @@ TEST(ConfigCheck, ChecksTheEmulatorsSceneAndTheSetsRobotsAgainstIt) {
       "[robot.ecp]",
       "task = \"follow_mp\"",
   };
-  {
-    std::ofstream file(c.file);
-    for (const auto& l : c.lines) file << l << "\n";
-  }
+  c.write();
   const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
   std::printf("%s", out.c_str());
   EXPECT_EQ(code, 2) << out;

@@ -63,6 +63,7 @@ void CellWorld::build(const Scene& scene) {
                     last.first_equality + last.equality_count, grasp_total));
   }
   setup_grasps(scene, composed.first_grasp_equality);
+  setup_cuts(scene);
 
   joint_robot_.assign(index(m->njnt), -1);
   joint_axis_.assign(index(m->njnt), -1);
@@ -368,6 +369,195 @@ void CellWorld::setup_grasps(const Scene& scene, int first_equality) {
   }
 }
 
+void CellWorld::setup_cuts(const Scene& scene) {
+  const mjModel* m = model_.get();
+  for (const SceneObject& object : scene.objects) {
+    for (const SceneCutter& source : object.cutters) {
+      CutState c;
+      c.info.object = object.name;
+      c.info.cutter = source.site;
+      c.info.radius = source.radius;
+      c.info.specific_force = source.specific_force;
+      std::copy(object.size.begin(), object.size.end(), c.info.half_size.begin());
+      c.info.board_body = mj_name2id(m, mjOBJ_BODY, object.name.c_str());
+      c.site = mj_name2id(m, mjOBJ_SITE, source.site.c_str());
+      if (c.site < 0) {
+        throw ConfigError(source.where,
+                          fmt::format("cutter of object '{}': site '{}' is not in the scene (a "
+                                      "robot's sites are named '<robot>/<site>', e.g. 'rnt/tool')",
+                                      object.name, source.site));
+      }
+      c.info.cutter_body = m->site_bodyid[c.site];
+      // The cutter is a robot's: the root of its body's tree is a robot's base body.
+      const char* root = mj_id2name(m, mjOBJ_BODY, m->body_rootid[c.info.cutter_body]);
+      bool robot = false;
+      for (const SceneRobot& r : scene.robots) robot = robot || (root != nullptr && r.name == root);
+      if (!robot) {
+        throw ConfigError(source.where,
+                          fmt::format("cutter of object '{}': site '{}' is not on a robot (a "
+                                      "cutter is a robot's tool)",
+                                      object.name, source.site));
+      }
+      c.groove.reserve(kGrooveCapacity);
+      for (const int body : {c.info.cutter_body, c.info.board_body}) {
+        if (body > 0 &&
+            std::find(cut_bodies_.begin(), cut_bodies_.end(), body) == cut_bodies_.end())
+          cut_bodies_.push_back(body);
+      }
+      cuts_.push_back(std::move(c));
+    }
+  }
+}
+
+void CellWorld::measure_cuts() noexcept {
+  if (cuts_.empty()) return;
+  const mjModel* m = model_.get();
+  const mjData* d = data_.get();
+  for (CutState& c : cuts_) {
+    const std::size_t b = index(c.info.board_body);
+    const mjtNum* rotation = d->xmat + 9 * b;
+    const mjtNum* origin = d->xpos + 3 * b;
+    const mjtNum* point = d->site_xpos + 3 * index(c.site);
+    std::array<double, 3> arm{};
+    std::array<double, 3> tip{};
+    mju_sub3(arm.data(), point, origin);
+    mju_mulMatTVec(tip.data(), rotation, arm.data(), 3, 3);
+    CutReading& r = c.now;
+    const std::array<double, 3>& half = c.info.half_size;
+    r.tip = tip;
+    std::copy(point, point + 3, r.point.begin());
+    r.depth = half[2] - tip[2];
+    r.cutting = r.depth > 0.0 && std::abs(tip[0]) <= half[0] && std::abs(tip[1]) <= half[1];
+    r.force = {};
+    r.force_norm = 0.0;
+    if (r.cutting) {
+      // The tip's velocity relative to the board's material point under it, in the board frame.
+      std::array<double, 6> tip_velocity{};
+      std::array<double, 6> board_velocity{};
+      mj_objectVelocity(m, d, mjOBJ_SITE, c.site, tip_velocity.data(), 0);
+      mj_objectVelocity(m, d, mjOBJ_XBODY, c.info.board_body, board_velocity.data(), 0);
+      std::array<double, 3> turn{};
+      mju_cross(turn.data(), board_velocity.data(), arm.data());
+      std::array<double, 3> relative{};
+      for (std::size_t k = 0; k < 3; ++k)
+        relative[k] = tip_velocity[3 + k] - board_velocity[3 + k] - turn[k];
+      std::array<double, 3> v{};
+      mju_mulMatTVec(v.data(), rotation, relative.data(), 3, 3);
+      const double s = std::max(mju_norm3(v.data()), kCutCreepSpeed);
+      const double depth = std::min(r.depth, 2.0 * half[2]);
+      const double side = c.info.specific_force * depth * 2.0 * c.info.radius;
+      const double end = c.info.specific_force * M_PI * c.info.radius * c.info.radius;
+      r.force = {-side * v[0] / s, -side * v[1] / s, end * std::max(0.0, -v[2]) / s};
+      r.force_norm = mju_norm3(r.force.data());
+    }
+    // The groove.
+    CutSummary& sum = c.summary;
+    const bool record_end = !r.cutting && c.was_cutting;
+    if (r.cutting) {
+      sum.cutting_time += m->opt.timestep;
+      sum.max_depth = std::max(sum.max_depth, r.depth);
+      sum.peak_force = std::max(sum.peak_force, r.force_norm);
+      bool record = false;
+      if (!c.was_cutting) {
+        ++sum.strokes;
+        record = true;
+      } else {
+        sum.length += std::hypot(tip[0] - c.last_tip[0], tip[1] - c.last_tip[1]);
+        const GroovePoint* last = c.groove.empty() ? nullptr : &c.groove.back();
+        record = last == nullptr || last->stroke != sum.strokes - 1 ||
+                 std::hypot(tip[0] - last->x, tip[1] - last->y) >= kGrooveSpacing;
+      }
+      if (record) {
+        if (c.groove.size() < kGrooveCapacity) {
+          c.groove.push_back({tip[0], tip[1], r.depth, sum.strokes - 1});
+        } else {
+          c.groove_full = true;
+        }
+      }
+      c.last_tip = {tip[0], tip[1]};
+      c.last_depth = r.depth;
+    } else if (record_end && !c.groove.empty()) {
+      // The stroke's end, where the tip left the board.
+      const GroovePoint& last = c.groove.back();
+      if (last.x != c.last_tip[0] || last.y != c.last_tip[1]) {
+        if (c.groove.size() < kGrooveCapacity) {
+          c.groove.push_back({c.last_tip[0], c.last_tip[1], c.last_depth, sum.strokes - 1});
+        } else {
+          c.groove_full = true;
+        }
+      }
+    }
+    c.was_cutting = r.cutting;
+    // The resistance in the world, for apply_cuts().
+    mju_mulMatVec(r.world_force.data(), rotation, r.force.data(), 3, 3);
+  }
+}
+
+void CellWorld::apply_cuts() noexcept {
+  if (cuts_.empty()) return;
+  mjData* d = data_.get();
+  for (const int body : cut_bodies_) mju_zero(d->xfrc_applied + 6 * index(body), 6);
+  // xfrc_applied acts at the body's centre of mass: the force at the tip adds a torque.
+  const auto add = [d](int body, const std::array<double, 3>& force, const double* point) {
+    if (body <= 0) return;  // the world
+    mjtNum* applied = d->xfrc_applied + 6 * index(body);
+    std::array<double, 3> arm{};
+    std::array<double, 3> torque{};
+    mju_sub3(arm.data(), point, d->xipos + 3 * index(body));
+    mju_cross(torque.data(), arm.data(), force.data());
+    mju_addTo3(applied, force.data());
+    mju_addTo3(applied + 3, torque.data());
+  };
+  for (const CutState& c : cuts_) {
+    if (!c.now.cutting) continue;
+    add(c.info.cutter_body, c.now.world_force, c.now.point.data());
+    const std::array<double, 3> opposite = {-c.now.world_force[0], -c.now.world_force[1],
+                                            -c.now.world_force[2]};
+    add(c.info.board_body, opposite, c.now.point.data());
+  }
+}
+
+std::size_t CellWorld::cut_index(std::string_view object, std::string_view cutter) const {
+  std::string known;
+  std::size_t found = cuts_.size();
+  int matches = 0;
+  for (std::size_t i = 0; i < cuts_.size(); ++i) {
+    const CellCut& c = cuts_[i].info;
+    known += fmt::format("{}'{}' by '{}'", i == 0 ? "" : ", ", c.object, c.cutter);
+    if (c.object == object && (cutter.empty() || c.cutter == cutter)) {
+      found = i;
+      ++matches;
+    }
+  }
+  if (matches == 1) return found;
+  if (matches > 1) {
+    throw Error(fmt::format("cell '{}': object '{}' has {} cutters: name one (cuts: {})", name_,
+                            object, matches, known));
+  }
+  throw Error(fmt::format("cell '{}': no cut of object '{}'{} (cuts: {})", name_, object,
+                          cutter.empty() ? std::string() : fmt::format(" by '{}'", cutter),
+                          known.empty() ? "none" : known));
+}
+
+const CutReading& CellWorld::cut_reading(std::size_t c) const noexcept {
+  static const CutReading none;
+  return c < cuts_.size() ? cuts_[c].now : none;
+}
+
+const CutSummary& CellWorld::cut_summary(std::size_t c) const noexcept {
+  static const CutSummary none;
+  return c < cuts_.size() ? cuts_[c].summary : none;
+}
+
+std::span<const GroovePoint> CellWorld::groove(std::size_t c) const noexcept {
+  if (c >= cuts_.size()) return {};
+  return cuts_[c].groove;
+}
+
+bool CellWorld::groove_full(std::size_t c) const noexcept {
+  return c < cuts_.size() && cuts_[c].groove_full;
+}
+
 void CellWorld::grasp_frames(const GraspState& g, double gripper[3], double target[3],
                              double& angle) const noexcept {
   const mjData* d = data_.get();
@@ -560,7 +750,14 @@ void CellWorld::reset() noexcept {
     held.internal = held.peak = 0.0;
     held.peak_at = -1.0;
   }
+  for (CutState& c : cuts_) {
+    c.summary = {};
+    c.groove.clear();
+    c.groove_full = false;
+    c.was_cutting = false;
+  }
   mj_forward(m, d);
+  measure_cuts();
   for (const int v : compensated_dofs_) d->qfrc_applied[v] = d->qfrc_bias[v];
   warnings_at_reset_ = sim::warning_total(d);
   faulted_ = false;
@@ -606,10 +803,12 @@ bool CellWorld::step() noexcept {
   // Splitting the step this way keeps body poses and constraint violations current for the
   // readings between steps.
   apply_feed_forward();
+  apply_cuts();
   mj_step2(m, d);
   measure_grasps();  // efc_force and efc_J belong to the same state until mj_step1
   mj_step1(m, d);
   engage_grasps();
+  measure_cuts();
   return check_stable();
 }
 

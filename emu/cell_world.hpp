@@ -48,9 +48,27 @@
 /// between them, zero when the grippers only share the object's weight and inertia); with fewer,
 /// 0. Its peak since reset() is kept.
 ///
+/// Cutting (scene.hpp, [[scene.object.cutter]]): each (board, cutter) pair is a cut. After every
+/// step (and at reset()) the cell world finds the cutter tip in the board's frame: its depth
+/// below the top face and whether it cuts (below the face, inside its rectangle); from the tip's
+/// velocity relative to the board v (board frame) it computes the cutting resistance
+///   F_xy = -specific_force * depth * 2 radius * v_xy / s,
+///   F_z  = +specific_force * pi radius^2 * max(0, -v_z) / s,   s = max(|v|, kCutCreepSpeed),
+/// (depth capped at the board's thickness), which the next step applies at the tip to the
+/// cutter's body and, opposite, to the board's (xfrc_applied: a force of the world, not of the
+/// drives, so actuator_forces() does not count it; the robot's servos push through it and their
+/// tracking shows it). Below kCutCreepSpeed the force fades linearly to 0 with the speed: the
+/// explicitly integrated damping this gives (specific_force * depth * 2 radius / kCutCreepSpeed)
+/// stays well inside the stability of the 1 ms step for the cutters of the stock scenes.
+/// Each cut keeps its groove: the number of strokes (separate cuts: the tip entered the board),
+/// the cut length (the tip's path along the face while cutting), the largest depth and force,
+/// and the groove's points (tip positions on the face while cutting, one every kGrooveSpacing
+/// along a stroke and at each stroke's start, at most kGrooveCapacity, then groove_full()).
+///
 /// Real time: set_targets, set_velocity_feed_forward, step, solve_constraint_forces, every read
 /// (`time`, `actuator_*`, `joint_*`, `synchro_switch`, `body_pose(int)`, `site_pose(int)`,
-/// `grasp_*`, `internal_force`, `peak_*`) and `reset` neither allocate nor throw. A CellWorld is
+/// `grasp_*`, `internal_force`, `peak_*`, `cut_*`, `groove*`) and `reset` neither allocate nor
+/// throw. A CellWorld is
 /// not thread-safe: call it from one thread (or guard it).
 
 #include <array>
@@ -120,6 +138,45 @@ struct CellGrasp {
   double damping = 0.0;          ///< [N s/m]
 };
 
+/// One cut of the cell: a board and a cutter (fixed after construction).
+struct CellCut {
+  std::string object;                 ///< the board
+  std::string cutter;                 ///< the cutter tip's site
+  double radius = 0.0;                ///< [m]
+  double specific_force = 0.0;        ///< [N/m^2]
+  std::array<double, 3> half_size{};  ///< the board's box half-sizes [m]; top face at z = hz
+  int board_body = 0;                 ///< MuJoCo body ids
+  int cutter_body = 0;
+};
+
+/// A cut now (after the last step or reset).
+struct CutReading {
+  std::array<double, 3> tip{};          ///< the cutter tip in the board's frame [m]
+  double depth = 0.0;                   ///< below the top face [m] (negative: above it)
+  bool cutting = false;                 ///< below the face and inside its rectangle
+  std::array<double, 3> force{};        ///< resistance on the cutter, board frame [N]
+  double force_norm = 0.0;              ///< |force| [N]
+  std::array<double, 3> world_force{};  ///< the force in the world frame [N]
+  std::array<double, 3> point{};        ///< the tip in the world [m] (where the force acts)
+};
+
+/// What a cut left since reset().
+struct CutSummary {
+  int strokes = 0;            ///< separate cuts (the tip entered the board)
+  double length = 0.0;        ///< the tip's path along the face while cutting [m]
+  double max_depth = 0.0;     ///< [m]
+  double peak_force = 0.0;    ///< largest |force| [N]
+  double cutting_time = 0.0;  ///< [s]
+};
+
+/// A point of a groove: the tip on the board's face while cutting.
+struct GroovePoint {
+  double x = 0.0;      ///< board frame [m]
+  double y = 0.0;      ///< [m]
+  double depth = 0.0;  ///< [m]
+  int stroke = 0;      ///< 0-based stroke
+};
+
 class CellWorld {
  public:
   /// A closed kinematic loop opening by more than this is a fault [m or rad].
@@ -129,6 +186,13 @@ class CellWorld {
   /// regularise the constraint with R, which acts like an added mass 1 / R. 1 keeps the contact
   /// close to a plain spring-damper on the body and the semi-implicit step stable.
   static constexpr double kSpringContactAddedMass = 1.0;
+  /// Below this speed of the cutter tip relative to the board the cutting resistance fades
+  /// linearly to 0 [m/s] (see the file comment).
+  static constexpr double kCutCreepSpeed = 0.02;
+  /// Spacing of a groove's recorded points along a stroke [m].
+  static constexpr double kGrooveSpacing = 2e-4;
+  /// Most points a groove keeps.
+  static constexpr std::size_t kGrooveCapacity = 1U << 16U;
 
   /// Composes the scene (compose_scene), loads it into MuJoCo, closes every robot's kinematic
   /// loops at its power-on pose and resets to that state.
@@ -250,6 +314,22 @@ class CellWorld {
   [[nodiscard]] double peak_internal_force(std::size_t i) const noexcept;
   [[nodiscard]] double peak_internal_force_time(std::size_t i) const noexcept;
 
+  // ---- Cutting (real time) ----
+  [[nodiscard]] std::size_t cut_count() const noexcept { return cuts_.size(); }
+  /// Cut c (c < cut_count()), in scene order (objects, then their cutters).
+  [[nodiscard]] const CellCut& cut(std::size_t c) const { return cuts_.at(c).info; }
+  /// Index of the cut of board `object` by `cutter` (its site; empty: the board's only cutter).
+  /// @throws Error naming the cuts when there is no such cut (or several for an empty cutter).
+  [[nodiscard]] std::size_t cut_index(std::string_view object, std::string_view cutter = {}) const;
+  /// Cut c now (a default reading for an unknown c).
+  [[nodiscard]] const CutReading& cut_reading(std::size_t c) const noexcept;
+  /// What cut c left since reset() (zeros for an unknown c).
+  [[nodiscard]] const CutSummary& cut_summary(std::size_t c) const noexcept;
+  /// The points of cut c's groove, in order (empty for an unknown c).
+  [[nodiscard]] std::span<const GroovePoint> groove(std::size_t c) const noexcept;
+  /// True when cut c's groove reached kGrooveCapacity points (later points were not kept).
+  [[nodiscard]] bool groove_full(std::size_t c) const noexcept;
+
   // ---- Faults ----
   [[nodiscard]] bool faulted() const noexcept { return faulted_; }
   /// Why the simulation is unstable (empty when it is not), e.g. "cell 'two-irb6' unstable at
@@ -292,7 +372,26 @@ class CellWorld {
     double peak_at = -1.0;
   };
 
+  /// A cut with what step() needs.
+  struct CutState {
+    CellCut info;
+    int site = 0;
+    CutReading now;
+    CutSummary summary;
+    bool was_cutting = false;
+    std::array<double, 2> last_tip{};  ///< tip on the face at the last cutting step [m]
+    double last_depth = 0.0;           ///< and its depth [m]
+    std::vector<GroovePoint> groove;   ///< capacity kGrooveCapacity
+    bool groove_full = false;
+  };
+
   void build(const Scene& scene);
+  /// The cuts' bodies and sites. @throws ConfigError for a cutter site that is not a robot's.
+  void setup_cuts(const Scene& scene);
+  /// After mj_step1 (or mj_forward): each cut's reading and groove for the current state.
+  void measure_cuts() noexcept;
+  /// Before mj_step2: the cuts' resistances into xfrc_applied of the cutters' and boards' bodies.
+  void apply_cuts() noexcept;
   /// The grasps' welds: their data (grasp frames), solref and solimp. @throws ConfigError for a
   /// grasped object without a free joint.
   void setup_grasps(const Scene& scene, int first_equality);
@@ -330,6 +429,8 @@ class CellWorld {
   std::vector<int> joint_axis_;        ///< per model joint: axis index, -1 for passive joints
   std::vector<GraspState> grasps_;
   std::vector<HeldObject> held_;
+  std::vector<CutState> cuts_;
+  std::vector<int> cut_bodies_;  ///< bodies whose xfrc_applied the cuts set
   int warnings_at_reset_ = 0;
   bool faulted_ = false;
   std::array<char, 512> fault_{};

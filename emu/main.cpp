@@ -192,6 +192,18 @@ class Emulator {
           world_.held_object(i), world_.peak_internal_force(i), world_.peak_internal_force_time(i));
   }
 
+  /// The grooves the cutters left (emu/cell_world.hpp, "Cutting").
+  void print_grooves() const {
+    for (std::size_t c = 0; c < world_.cut_count(); ++c) {
+      const emu::CutSummary& s = world_.cut_summary(c);
+      std::cout << fmt::format(
+          "mrroc-axis-emu: board '{}' cut by '{}': {} strokes, cut length {:.3f} m, max depth "
+          "{:.2f} mm, peak force {:.1f} N, {:.2f} s cutting{}\n",
+          world_.cut(c).object, world_.cut(c).cutter, s.strokes, s.length, s.max_depth * 1e3,
+          s.peak_force, s.cutting_time, world_.groove_full(c) ? " (groove record full)" : "");
+    }
+  }
+
   [[nodiscard]] std::uint64_t steps() const { return steps_; }
   [[nodiscard]] std::uint64_t samples_published() const {
     return publisher_ ? publisher_->published() : 0;
@@ -591,6 +603,7 @@ int main(int argc, char** argv) {
     real_time_priority();
     emulator.run();
     emulator.print_grips();
+    emulator.print_grooves();
     std::cout << fmt::format("mrroc-axis-emu: stopped after {} physics steps, {} raw samples\n",
                              emulator.steps(), emulator.samples_published());
     if (reporter) reporter->set_state(ProcessState::finished);

@@ -274,10 +274,28 @@ SceneGrasp read_grasp(const fs::path& file, const toml::table& table, const std:
   return grasp;
 }
 
+SceneCutter read_cutter(const fs::path& file, const toml::table& table) {
+  const TableReader r(file, table, "scene.object.cutter");
+  r.reject_unknown({"site", "radius", "specific_force"});
+  SceneCutter cutter;
+  cutter.where = r.at(table);
+  const std::optional<std::string> site = r.text("site");
+  if (!site || site->empty()) {
+    r.fail_missing("site", "the cutter tip: a site of a robot, e.g. \"rnt/tool\"");
+  }
+  cutter.site = *site;
+  const std::optional<double> radius = r.number("radius", 1e-4, 0.05, "m");
+  if (!radius) r.fail_missing("radius", "the cutter's radius in m");
+  cutter.radius = *radius;
+  cutter.specific_force =
+      r.number("specific_force", 1.0, 1e9, "N/m^2").value_or(cutter.specific_force);
+  return cutter;
+}
+
 SceneObject read_object(const fs::path& file, const toml::table& table) {
   const TableReader r(file, table, "scene.object");
   r.reject_unknown({"name", "type", "size", "pos", "rotation", "mass", "rgba", "attach", "contact",
-                    "solref", "friction", "grasp"});
+                    "solref", "friction", "grasp", "cutter"});
   SceneObject object;
   object.where = r.at(table);
   object.name = r.name("name");
@@ -332,6 +350,21 @@ SceneObject read_object(const fs::path& file, const toml::table& table) {
     r.fail(*r.find("attach"), fmt::format("object '{}' is attached to '{}': only a free object "
                                           "(without 'attach') can be grasped",
                                           object.name, object.attach));
+  }
+  for (const toml::table* cutter : table_list(r, "cutter", "scene.object.cutter")) {
+    object.cutters.push_back(read_cutter(file, *cutter));
+  }
+  if (!object.cutters.empty()) {
+    if (object.shape != ObjectShape::box) {
+      r.fail(*r.find("type"), fmt::format("object '{}' has cutters: only a box (a board, cut on "
+                                          "its top face) can be cut, not a {}",
+                                          object.name, shape_name(object.shape)));
+    }
+    if (object.attach.empty()) {
+      r.fail(*r.find("cutter"), fmt::format("object '{}' has cutters: a board to cut must be "
+                                            "fixed (attach = \"world\" or a body), not free",
+                                            object.name));
+    }
   }
   return object;
 }

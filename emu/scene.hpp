@@ -50,6 +50,13 @@
 ///     stiffness = 1e5                 # optional [N/m], default 1e5: the grip's spring
 ///     damping = 600.0                 # optional [N s/m], default 600
 ///
+///     [[scene.object.cutter]]         # optional, box objects with `attach` only: a tool that
+///                                     #   cuts the object's top face (a board to engrave)
+///     site = "rnt/tool"               # the cutter tip: a site of a robot
+///     radius = 0.004                  # m, the cutter's radius (0.0001 .. 0.05)
+///     specific_force = 2e6            # optional [N/m^2], default 2e6: cutting resistance per
+///                                     #   unit of the cut's cross-section (1 .. 1e9)
+///
 /// Contacts. An object's geom collides with every other contact-capable geom (other objects, the
 /// floor) but not with robot links (their geoms are visual only). An object attached to a robot
 /// body (a tool, a probe) moves with the robot and is gravity-compensated with it.
@@ -85,6 +92,15 @@
 /// solref). A recorded relative pose (a grip that engages unstrained wherever it closes) would
 /// absorb a robot's calibration error when it grasps, and a carry by translations would never
 /// show it.
+///
+/// Cutting (CellWorld, "Cutting"). An object with cutters is a board: a box whose top face is its
+/// frame's +z face (z = +hz), fixed where `attach` puts it (it must not be a free body). A cutter
+/// cuts while its tip (the site's origin) is below the top face and inside the face's rectangle
+/// (|x| <= hx, |y| <= hy in the object's frame; the cutter's radius is not counted at the edges).
+/// The cut resists the tip's motion relative to the board: along the face with specific_force *
+/// depth * 2 radius (the groove's cross-section), down into the board with specific_force *
+/// pi radius^2 (the cutter's end face), both opposing the tip's velocity; no force lifting out.
+/// The cutter is taken as perpendicular to the face (a tilted cutter cuts as an upright one).
 ///
 /// The base pose uses the same convention as `[[robot]] base` of process-set configs (position
 /// and rotation vector of the robot's base frame in the cell). Robot and object names must be
@@ -138,6 +154,14 @@ struct SceneGrasp {
   [[nodiscard]] const std::string& gripper() const noexcept { return site.empty() ? body : site; }
 };
 
+/// A tool that cuts an object's top face ([[scene.object.cutter]]).
+struct SceneCutter {
+  std::string site;             ///< the cutter tip: a site of a robot
+  double radius = 0.0;          ///< [m]
+  double specific_force = 2e6;  ///< [N/m^2] per unit of the cut's cross-section
+  SourceLocation where;         ///< of the [[scene.object.cutter]] table
+};
+
 /// One object of the cell: a rigid body with one geom.
 struct SceneObject {
   std::string name;
@@ -154,8 +178,9 @@ struct SceneObject {
   std::optional<std::array<double, 2>> solref;
   std::vector<double> friction;  ///< 0 to 3 coefficients (empty: MuJoCo's defaults)
   std::vector<SceneGrasp> grasps;
-  SourceLocation where;         ///< of the [[scene.object]] table
-  SourceLocation solref_where;  ///< of `solref` (when given)
+  std::vector<SceneCutter> cutters;  ///< tools that cut it (a board)
+  SourceLocation where;              ///< of the [[scene.object]] table
+  SourceLocation solref_where;       ///< of `solref` (when given)
 
   /// True when `solref` is the stiffness form (negative numbers).
   [[nodiscard]] bool spring_contact() const noexcept { return solref && (*solref)[0] < 0.0; }

@@ -22,9 +22,10 @@ using Matrix3 = Eigen::Matrix3d;
 using Vector3 = Eigen::Vector3d;
 using RowMajor3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
-constexpr std::array<const char*, 5> kTypeNames = {"strain_gauges", "range", "encoder", "camera",
-                                                   "grasp"};
-constexpr std::array<double, 5> kDefaultRates = {500.0, 50.0, 500.0, 30.0, 500.0};
+constexpr std::array<const char*, 6> kTypeNames = {"strain_gauges", "range", "encoder",
+                                                   "camera",        "grasp", "engraving"};
+constexpr std::array<double, 6> kDefaultRates = {500.0, 50.0, 500.0, 30.0, 500.0, 500.0};
+constexpr const char* kTypeList = "strain_gauges, range, encoder, camera, grasp or engraving";
 
 std::size_t at(int i) { return static_cast<std::size_t>(i); }
 
@@ -141,12 +142,15 @@ const std::vector<std::string>& known_keys(SensorType type) {
                                                   "seed", "objects", "region",  "latency_ms"};
   static const std::vector<std::string> grasp = {"name",  "type", "rate_hz",
                                                  "noise", "seed", "object"};
+  static const std::vector<std::string> engraving = {"name", "type",   "rate_hz", "noise",
+                                                     "seed", "object", "cutter"};
   switch (type) {
     case SensorType::strain_gauges: return gauges;
     case SensorType::range: return range;
     case SensorType::encoder: return encoder;
     case SensorType::camera: return camera;
     case SensorType::grasp: return grasp;
+    case SensorType::engraving: return engraving;
   }
   return gauges;
 }
@@ -262,6 +266,18 @@ void read_grasp(const SensorReader& r, const CellWorld& world, SensorConfig& c) 
   c.object = *object;
 }
 
+void read_engraving(const SensorReader& r, const CellWorld& world, SensorConfig& c) {
+  const std::optional<std::string> object = r.text("object");
+  if (!object) r.fail_missing("object", "a board with [[scene.object.cutter]] entries");
+  c.cutter = r.text("cutter").value_or("");
+  try {
+    (void)world.cut_index(*object, c.cutter);
+  } catch (const Error& e) {
+    r.fail(*r.find(c.cutter.empty() ? "object" : "cutter"), e.what());
+  }
+  c.object = *object;
+}
+
 SensorConfig read_sensor(const fs::path& file, const toml::table& table, const CellWorld& world) {
   SensorReader r(file, table);
   SensorConfig c;
@@ -276,7 +292,7 @@ SensorConfig read_sensor(const fs::path& file, const toml::table& table, const C
   c.name = *name;
   r.set_device(c.name);
   const std::optional<std::string> type = r.text("type");
-  if (!type) r.fail_missing("type", "strain_gauges, range, encoder, camera or grasp");
+  if (!type) r.fail_missing("type", kTypeList);
   bool known = false;
   for (std::size_t t = 0; t < kTypeNames.size(); ++t) {
     if (*type == kTypeNames[t]) {
@@ -285,9 +301,7 @@ SensorConfig read_sensor(const fs::path& file, const toml::table& table, const C
     }
   }
   if (!known) {
-    r.fail(*r.find("type"),
-           fmt::format("'type' = \"{}\" is not strain_gauges, range, encoder, camera or grasp",
-                       *type));
+    r.fail(*r.find("type"), fmt::format("'type' = \"{}\" is not {}", *type, kTypeList));
   }
   r.reject_unknown(known_keys(c.type), *type);
   const double physics_rate = 1.0 / world.timestep();
@@ -320,6 +334,7 @@ SensorConfig read_sensor(const fs::path& file, const toml::table& table, const C
     case SensorType::encoder: read_encoder(r, world, c); break;
     case SensorType::camera: read_camera(r, world, c); break;
     case SensorType::grasp: read_grasp(r, world, c); break;
+    case SensorType::engraving: read_engraving(r, world, c); break;
   }
   return c;
 }
@@ -418,6 +433,9 @@ struct SensorDevices::Device {
   std::size_t held = 0;
   int object_body = 0;
   std::vector<std::size_t> grasps;
+
+  // Engraving: the cut (CellWorld index).
+  std::size_t cut = 0;
 
   double noise() noexcept { return config.noise > 0.0 ? config.noise * normal(random) : 0.0; }
 
@@ -533,6 +551,17 @@ SensorDevices::SensorDevices(std::vector<SensorConfig> configs, const CellWorld&
         }
         break;
       }
+      case SensorType::engraving: {
+        try {
+          d.cut = world.cut_index(c.object, c.cutter);
+        } catch (const Error& e) {
+          fail(e.what());
+        }
+        c.cutter = world.cut(d.cut).cutter;
+        d.sample.names = {"x", "y", "depth", "cutting", "force"};
+        d.sample.units = {"m", "m", "m", "", "N"};
+        break;
+      }
     }
     d.sample.values.assign(d.sample.names.size(), 0.0);
     d.config = std::move(c);
@@ -586,6 +615,12 @@ std::string SensorDevices::describe(std::size_t i) const {
           "sensor '{}': grip on object '{}' by {} (internal force, N), {} Hz{} -> {}", c.name,
           c.object, fmt::join(grippers, ", "), c.rate_hz, noise, channel);
     }
+    case SensorType::engraving:
+      return fmt::format(
+          "sensor '{}': engraving of board '{}' by '{}' (tip x, y, depth m, cutting, force N), "
+          "{} Hz{} -> {}",
+          c.name, c.object, c.cutter, c.rate_hz,
+          c.noise > 0.0 ? fmt::format(", noise {} N", c.noise) : "", channel);
   }
   return c.name;
 }
@@ -651,6 +686,18 @@ void measure_wrench(const CellWorld& world, const std::vector<char>& outboard,
     const Vector3 f = -Vector3(on_object[0], on_object[1], on_object[2]);
     force += f;
     torque += (Vector3(point[0], point[1], point[2]) - origin).cross(f);
+  }
+  // A cut pushes on its cutter (and back on its board) at the cutter tip.
+  for (std::size_t c = 0; c < world.cut_count(); ++c) {
+    const CutReading& cut = world.cut_reading(c);
+    if (!cut.cutting) continue;
+    const bool cutter_out = outboard[at(world.cut(c).cutter_body)] != 0;
+    const bool board_out = outboard[at(world.cut(c).board_body)] != 0;
+    if (cutter_out == board_out) continue;
+    Vector3 f(cut.world_force[0], cut.world_force[1], cut.world_force[2]);
+    if (board_out) f = -f;
+    force += f;
+    torque += (Vector3(cut.point[0], cut.point[1], cut.point[2]) - origin).cross(f);
   }
   const Eigen::Map<const Vector3> gravity(m->opt.gravity);
   for (const int b : weighed) {
@@ -769,6 +816,15 @@ std::span<const std::size_t> SensorDevices::update(CellWorld& world,
           s.values[4 + 4 * j] = world.grasp_engaged(g) ? 1.0 : 0.0;
           for (std::size_t k = 0; k < 3; ++k) s.values[5 + 4 * j + k] = f[k] + dev.noise();
         }
+        break;
+      }
+      case SensorType::engraving: {
+        const CutReading& cut = world.cut_reading(dev.cut);
+        s.values[0] = cut.tip[0];
+        s.values[1] = cut.tip[1];
+        s.values[2] = cut.depth;
+        s.values[3] = cut.cutting ? 1.0 : 0.0;
+        s.values[4] = cut.force_norm + (cut.cutting ? dev.noise() : 0.0);
         break;
       }
       case SensorType::camera: break;

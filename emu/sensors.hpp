@@ -6,7 +6,8 @@
 ///
 ///     [[scene.sensor]]
 ///     name = "irb6_wrist"           # device name (channel mrroc/raw/<name>), unique
-///     type = "strain_gauges"        # strain_gauges | range | encoder | camera | grasp
+///     type = "strain_gauges"        # strain_gauges | range | encoder | camera | grasp |
+///                                   #   engraving
 ///     rate_hz = 500                 # optional: samples per second of simulated time
 ///     noise = 0.0002                # optional: std of Gaussian noise, in the values' unit
 ///     seed = 7                      # optional: noise seed (default: from the name)
@@ -21,7 +22,10 @@
 ///     objects = ["part"]            # camera: bodies it looks for, in order
 ///     region = [x0, x1, y0, y1, z0, z1]  # its field of view in the world [m]
 ///     latency_ms = 50               #   publication delay [ms]
-///     object = "bar"                # grasp: an object with [[scene.object.grasp]] entries
+///     object = "bar"                # grasp: an object with [[scene.object.grasp]] entries;
+///                                   #   engraving: a board with [[scene.object.cutter]] entries
+///     cutter = "rnt/tool"           # engraving, optional: the cutter's site (default: the
+///                                   #   board's only cutter)
 ///
 /// The devices, their values and units:
 ///   - strain_gauges (default 500 Hz): a 6-axis wrist force/torque sensor of six strain-gauge
@@ -32,7 +36,9 @@
 ///     outboard, plus the weight of the outboard bodies (gravity at their centres of mass), plus
 ///     the pull of every object held by an engaged grasp whose gripper is `body` or outboard of
 ///     it (the opposite of the force the grasp's weld exerts on the object, at the gripper
-///     frame; the weld's torque rows are not counted). It is the static load: inertial forces
+///     frame; the weld's torque rows are not counted), plus the cutting resistance of every cut
+///     whose cutter is outboard and board is not (at the cutter tip; or the opposite, for a
+///     board outboard). It is the static load: inertial forces
 ///     are not included. A tool pointing down with a weight
 ///     m g gives fz = +m g; pressing it onto a table makes fz smaller (the table pushes the tool
 ///     back towards the sensor, along -z). Default G = diag(0.01, 0.01, 0.01, 0.1, 0.1, 0.1)
@@ -52,6 +58,13 @@
 ///     "x", "y", "z" [m], its position in the world; then for each of its grasps i (scene
 ///     order) "engaged<i>" (1 or 0) and "fx<i>", "fy<i>", "fz<i>" [N] (+ noise), the force its
 ///     gripper exerts on the object, world frame. Values of the last physics step.
+///   - engraving (default 500 Hz): a cut of a board (scene.hpp, "Cutting"; CellWorld, "Cutting"):
+///     values "x", "y" [m], the cutter tip in the board's frame (its origin is the board's
+///     centre, z up through the top face); "depth" [m], the tip below the top face (negative
+///     above it); "cutting" (1 or 0: below the face and inside its rectangle); "force" [N], the
+///     magnitude of the cutting resistance (+ noise while cutting; 0 while not). Values of the
+///     current state, as the next physics step applies them. The emulator prints each cut's
+///     groove at exit (strokes, cut length, largest depth and force).
 /// sample_no counts each device's samples from 0. sample_utime is the wall clock when the sample
 /// is taken (= when it is published), for the camera the publication time minus the latency.
 /// Rates count simulated time (so they hold in lock-step too); a device samples at the first
@@ -82,7 +95,7 @@ class Authenticator;
 
 namespace mrroc::emu {
 
-enum class SensorType { strain_gauges, range, encoder, camera, grasp };
+enum class SensorType { strain_gauges, range, encoder, camera, grasp, engraving };
 
 /// "strain_gauges", ...
 const char* sensor_type_name(SensorType type) noexcept;
@@ -111,7 +124,8 @@ struct SensorConfig {
   std::vector<std::string> objects;  ///< camera
   std::array<double, 6> region{};    ///< camera: xmin xmax ymin ymax zmin zmax [m]
   double latency_s = 0.05;           ///< camera
-  std::string object;                ///< grasp
+  std::string object;                ///< grasp, engraving
+  std::string cutter;                ///< engraving: the cutter's site
   SourceLocation where;              ///< of the [[scene.sensor]] table
 };
 

@@ -4,46 +4,24 @@
 // records the measured joints of every macro-step, computes the cutter tip from them, and fails
 // when the tip strayed from the intended strokes by more than the tolerance.
 //
-// [robot.ecp.args]: text (letters of the stroke font: C, M, O, R), origin = [x, y, z] (the
-// text's lower-left corner on the board surface [m]), letter_height, letter_width, spacing,
-// depth (below the surface), lift (above it), cutter (tool length along the flange z axis),
-// speed [m/s], acceleration [m/s^2], tolerance [m], servo_algorithm (1: velocity feed-forward).
+// [robot.ecp.args]: text (letters of the stroke font: C, M, O, R; include/mrroc/ecp/
+// stroke_font.hpp, which also lays the text out), origin = [x, y, z] (the text's lower-left
+// corner on the board surface [m]), letter_height, letter_width, spacing, depth (below the
+// surface), lift (above it), cutter (tool length along the flange z axis), speed [m/s],
+// acceleration [m/s^2], tolerance [m], servo_algorithm (1: velocity feed-forward).
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
-#include <map>
 
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generators/cartesian_path.hpp"
+#include "mrroc/ecp/stroke_font.hpp"
 #include "mrroc/ecp/task.hpp"
 
 namespace mrroc::ecp {
 
 namespace {
-
-using Stroke = std::vector<Eigen::Vector2d>;  // (u along the text, v up the letter), unit box
-
-std::vector<Stroke> arc_stroke(double from_deg, double to_deg, int pieces) {
-  Stroke s;
-  for (int i = 0; i <= pieces; ++i) {
-    const double a = (from_deg + (to_deg - from_deg) * i / pieces) * M_PI / 180.0;
-    s.emplace_back(0.5 + 0.5 * std::cos(a), 0.5 + 0.5 * std::sin(a));
-  }
-  return {s};
-}
-
-const std::map<char, std::vector<Stroke>>& font() {
-  static const std::map<char, std::vector<Stroke>> f = {
-      {'M', {{{0, 0}, {0, 1}, {0.5, 0.45}, {1, 1}, {1, 0}}}},
-      {'R',
-       {{{0, 0}, {0, 1}, {0.7, 1}, {1, 0.85}, {1, 0.65}, {0.7, 0.5}, {0, 0.5}},
-        {{0.45, 0.5}, {1, 0}}}},
-      {'O', arc_stroke(0, 360, 12)},
-      {'C', arc_stroke(45, 315, 9)},
-  };
-  return f;
-}
 
 /// Records the measured joints after every exchange of the wrapped generator.
 class Recording : public Generator {
@@ -93,10 +71,10 @@ class Engrave : public EcpTask {
       throw ConfigError(a.location_of("origin"), "'origin' must be [x, y, z] (m)");
     origin_ = Eigen::Vector3d(origin[0], origin[1], origin[2]);
     for (char c : text_)
-      if (c != ' ' && font().count(c) == 0)
+      if (c != ' ' && engraving::letter_strokes(c) == nullptr)
         throw ConfigError(
             a.location_of("text"),
-            fmt::format("letter '{}' is not in the stroke font (C, M, O, R, space)", c));
+            fmt::format("letter '{}' is not in the stroke font ({})", c, engraving::kFontLetters));
   }
 
   void main_task() override {
@@ -122,19 +100,20 @@ class Engrave : public EcpTask {
 
     std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> cuts;  // intended, at depth
     std::vector<std::vector<double>> samples;
-    int letter = 0;
+    const engraving::TextLayout layout{origin_, height_, width_, spacing_};
+    int letter = -1;
     for (char c : text_) {
-      const double u0 = letter++ * (width_ + spacing_);
-      if (c == ' ') continue;
+      ++letter;
+      const std::vector<engraving::Stroke>* strokes = engraving::letter_strokes(c);
+      if (strokes == nullptr) continue;  // a space
       std::vector<CartesianSegment> segments;
       auto at = [&](const Eigen::Vector2d& p, double dz) {
         Eigen::Isometry3d f = Eigen::Isometry3d::Identity();
         f.linear() = down;
-        // Text along +y, letters upright along -x (read from the robot's side of the board).
-        f.translation() = origin_ + Eigen::Vector3d(-p.y() * height_, u0 + p.x() * width_, dz);
+        f.translation() = engraving::place(layout, letter, p) + Eigen::Vector3d(0, 0, dz);
         return f;
       };
-      for (const Stroke& stroke : font().at(c)) {
+      for (const engraving::Stroke& stroke : *strokes) {
         segments.push_back(CartesianSegment::line_to(at(stroke.front(), lift_)));
         segments.push_back(CartesianSegment::line_to(at(stroke.front(), -depth_)));
         for (std::size_t i = 1; i < stroke.size(); ++i) {

@@ -21,6 +21,7 @@
 
 #include "cell_world.hpp"
 #include "mrroc/core/error.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/kinematics/irb6.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/robot/robot_model.hpp"
@@ -738,6 +739,280 @@ TEST(SceneFile, GraspErrorsNameTheKeyAndTheLimit) {
   EXPECT_EQ(error("[[scene.object.grasp]]\nbody = \"left/roll_link\"\npos = [0.19, 0, 0]\nat = "
                   "[0, 0, 0]\n"),
             "");
+}
+
+// ---- Cutting ----
+
+/// The RNT of configs/scenes/engrave.toml (base at the world's origin) with its cutter: joints
+/// that put the cutter tip at a point, pointing down as over the board's centre.
+class RntCutter {
+ public:
+  RntCutter()
+      : model_(mrroc::load_robot_model(source_dir() / "robots" / "rnt")),
+        kinematics_(mrroc::edp::make_arm_kinematics(model_)) {
+    Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+    tool.translation() = Eigen::Vector3d(0.0, 0.0, 0.15);  // the MJCF's site `tool`
+    kinematics_->set_tool(tool);
+    down_ = kinematics_->forward(seed_).linear();
+  }
+  /// Joints q with the tip at `tip` [m], nearest to the last ones.
+  std::vector<double> joints(const Eigen::Vector3d& tip) {
+    Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+    target.linear() = down_;
+    target.translation() = tip;
+    seed_ = kinematics_->inverse(target, seed_);
+    return seed_;
+  }
+  /// Actuator positions a = M q of the cell's robot 0.
+  static std::vector<double> actuators(const CellWorld& world, const std::vector<double>& q) {
+    const std::vector<double>& m = world.robot(0).coupling;
+    std::vector<double> a(q.size(), 0.0);
+    for (std::size_t i = 0; i < q.size(); ++i)
+      for (std::size_t j = 0; j < q.size(); ++j) a[i] += m[i * q.size() + j] * q[j];
+    return a;
+  }
+
+ private:
+  mrroc::RobotModel model_;
+  std::unique_ptr<mrroc::edp::ArmKinematics> kinematics_;
+  std::vector<double> seed_ = {0.0, 0.8190, 0.2630, 0.4887, 0.0, 0.0};  // tip over the centre
+  Eigen::Matrix3d down_;
+};
+
+/// Drives robot 0's tip along `path(t)` [m] for `duration` [s] (position targets and velocity
+/// feed-forward of each step); `each` sees the world after every step. Counts heap allocations
+/// of the world's calls into `allocations`.
+template <typename Path, typename Each>
+void drive_tip(CellWorld& world, RntCutter& rnt, Path path, double duration, Each each,
+               long& allocations) {
+  const double dt = world.timestep();
+  const int steps = static_cast<int>(std::lround(duration / dt));
+  std::vector<double> a = RntCutter::actuators(world, rnt.joints(path(0.0)));
+  for (int s = 1; s <= steps; ++s) {
+    const std::vector<double> next = RntCutter::actuators(world, rnt.joints(path(s * dt)));
+    std::vector<double> v(next.size());
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = (next[i] - a[i]) / dt;
+    a = next;
+    g_heap.allocations = 0;
+    g_heap.counting = true;
+    const bool ok =
+        world.set_targets(0, a) && world.set_velocity_feed_forward(0, v) && world.step();
+    const mrroc::emu::CutReading& reading = world.cut_reading(0);
+    const mrroc::emu::CutSummary& summary = world.cut_summary(0);
+    const auto groove = world.groove(0);
+    g_heap.counting = false;
+    allocations += g_heap.allocations.load();
+    (void)reading;
+    (void)summary;
+    (void)groove;
+    ASSERT_TRUE(ok) << world.fault_text();
+    each(s * dt);
+  }
+}
+
+/// A straight move from `from` to `to` [m] in `duration` [s]: constant acceleration over the
+/// first and last quarter, constant speed between (4/3 of the mean speed).
+auto straight(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double duration) {
+  return [=](double t) {
+    const double u = std::clamp(t / duration, 0.0, 1.0);
+    // s(u) for a trapezoidal speed over quarters; s(1) = 1.
+    const double peak = 4.0 / 3.0;
+    double s = 0.0;
+    if (u < 0.25) {
+      s = 0.5 * peak / 0.25 * u * u;
+    } else if (u < 0.75) {
+      s = 0.5 * peak * 0.25 + peak * (u - 0.25);
+    } else {
+      const double r = 1.0 - u;
+      s = 1.0 - 0.5 * peak / 0.25 * r * r;
+    }
+    return Eigen::Vector3d(from + s * (to - from));
+  };
+}
+
+TEST(CellWorld, TheCutterMeetsTheBoardsResistanceAndLeavesItsGroove) {
+  Scene scene = mrroc::emu::load_scene(scene_file("engrave.toml"));
+  ASSERT_EQ(scene.objects.at(0).cutters.size(), 1U);
+  const double k = scene.objects[0].cutters[0].specific_force;
+  const double radius = scene.objects[0].cutters[0].radius;
+  constexpr double kDepth = 0.002;
+  constexpr double kSurface = 0.20;                     // the board's top face [m]
+  const double side_force = k * kDepth * 2.0 * radius;  // along the board at 2 mm depth
+  const double end_force = k * M_PI * radius * radius;  // plunging
+  // The same 20 mm move along +y at 2 mm depth and 10 mm above the board, from power-on there.
+  const Eigen::Vector3d start(0.60, -0.02, kSurface - kDepth);
+  const Eigen::Vector3d end(0.60, 0.0, kSurface - kDepth);
+  const Eigen::Vector3d above(0.0, 0.0, kDepth + 0.01);
+  constexpr double kMove = 0.6;  // s: cruising at 0.044 m/s from 0.15 s to 0.45 s
+  struct Run {
+    std::vector<double> waist_force;  ///< per step of the move [N m]
+    std::vector<double> force_y;      ///< the reading's force along the move [N]
+    std::vector<double> force_norm;
+  };
+  long allocations = 0;
+  Run cut;
+  Run free;
+  for (Run* run : {&free, &cut}) {
+    const Eigen::Vector3d lift = run == &free ? above : Eigen::Vector3d::Zero();
+    RntCutter rnt;
+    scene.robots[0].initial_joint_positions = rnt.joints(start + lift);
+    CellWorld world(scene);
+    ASSERT_EQ(world.cut_count(), 1U);
+    EXPECT_EQ(world.cut(0).cutter, "rnt/tool");
+    EXPECT_EQ(world.cut_index("board"), 0U);
+    EXPECT_EQ(world.cut_index("board", "rnt/tool"), 0U);
+    EXPECT_THROW((void)world.cut_index("table"), mrroc::Error);
+    EXPECT_THROW((void)world.cut_index("board", "rnt/flange"), mrroc::Error);
+    const mrroc::emu::CutReading& now = world.cut_reading(0);
+    if (run == &cut) {
+      // At power-on the tip is 2 mm deep at (0, -0.02) of the board's frame, and still.
+      EXPECT_TRUE(now.cutting);
+      EXPECT_NEAR(now.depth, kDepth, 1e-6);
+      EXPECT_NEAR(now.tip[0], 0.0, 1e-6);
+      EXPECT_NEAR(now.tip[1], -0.02, 1e-6);
+      EXPECT_NEAR(now.tip[2], 0.01 - kDepth, 1e-6);
+      EXPECT_EQ(now.force_norm, 0.0);
+      EXPECT_EQ(world.cut_summary(0).strokes, 1);
+    } else {
+      EXPECT_FALSE(now.cutting);
+      EXPECT_NEAR(now.depth, -0.01, 1e-6);
+    }
+    std::array<double, 6> f{};
+    drive_tip(
+        world, rnt, straight(start + lift, end + lift, kMove), kMove,
+        [&](double t) {
+          ASSERT_TRUE(world.actuator_forces(0, f));
+          run->waist_force.push_back(f[0]);
+          run->force_y.push_back(now.force[1]);
+          run->force_norm.push_back(now.force_norm);
+          if (run == &cut) {
+            ASSERT_TRUE(now.cutting) << "t = " << t;
+            ASSERT_NEAR(now.depth, kDepth, 2e-4) << "t = " << t;
+          }
+        },
+        allocations);
+    if (HasFatalFailure()) return;
+    if (run == &free) {
+      EXPECT_EQ(world.cut_summary(0).strokes, 0);
+      EXPECT_TRUE(world.groove(0).empty());
+      continue;
+    }
+    // Lift out, then plunge 20 mm further along at 0.05 m/s (mean) from 5 mm above.
+    const Eigen::Vector3d up = end + Eigen::Vector3d(0.0, 0.0, kDepth + 0.005);
+    drive_tip(
+        world, rnt, straight(end, up, 0.3), 0.3, [](double) {}, allocations);
+    if (HasFatalFailure()) return;
+    EXPECT_FALSE(now.cutting);
+    EXPECT_EQ(now.force_norm, 0.0);
+    const mrroc::emu::CutSummary first = world.cut_summary(0);
+    const std::vector<mrroc::emu::GroovePoint> groove(world.groove(0).begin(),
+                                                      world.groove(0).end());
+    const Eigen::Vector3d over(0.60, 0.02, kSurface + 0.005);
+    drive_tip(
+        world, rnt, straight(up, over, 0.5), 0.5, [](double) {}, allocations);
+    double plunge_force = 0.0;
+    drive_tip(
+        world, rnt, straight(over, over - Eigen::Vector3d(0, 0, 0.005 + kDepth), 0.28), 0.28,
+        [&](double) { plunge_force = std::max(plunge_force, now.force[2]); }, allocations);
+    if (HasFatalFailure()) return;
+    EXPECT_EQ(world.cut_summary(0).strokes, 2);
+    EXPECT_NEAR(plunge_force, end_force, 0.05 * end_force)
+        << "plunging at 0.033 m/s (peak), above the creep speed: the end face's resistance";
+    std::printf("plunge: largest upward resistance %.1f N (k pi r^2 = %.1f N)\n", plunge_force,
+                end_force);
+
+    // The first groove: where the tip went, 2 mm deep, 20 mm long.
+    std::printf(
+        "first groove: %d stroke, %.2f mm long, %.3f mm deep at most, peak force %.1f N, "
+        "%zu points\n",
+        first.strokes, first.length * 1e3, first.max_depth * 1e3, first.peak_force, groove.size());
+    EXPECT_EQ(first.strokes, 1);
+    EXPECT_NEAR(first.length, 0.020, 5e-4);
+    EXPECT_NEAR(first.max_depth, kDepth, 2e-4);
+    ASSERT_GE(groove.size(), 80U) << "a point every 0.2 mm (+ one step) of 20 mm";
+    EXPECT_LE(groove.size(), 101U);
+    EXPECT_NEAR(groove.front().y, -0.02, 1e-5);
+    EXPECT_NEAR(groove.back().y, 0.0, 5e-4);
+    for (const mrroc::emu::GroovePoint& g : groove) {
+      EXPECT_EQ(g.stroke, 0);
+      EXPECT_NEAR(g.x, 0.0, 2e-4);
+      EXPECT_GE(g.y, -0.0201);
+      EXPECT_LE(g.y, 0.0005);
+      EXPECT_GT(g.depth, 0.0);
+      EXPECT_LE(g.depth, kDepth + 2e-4);
+    }
+    world.reset();
+    EXPECT_EQ(world.cut_summary(0).strokes, 1) << "powered on in the board";
+    EXPECT_EQ(world.groove(0).size(), 1U);
+    EXPECT_EQ(world.cut_summary(0).length, 0.0);
+  }
+  EXPECT_EQ(allocations, 0) << "cutting allocated in step() or the readings";
+
+  // While cruising, the reading's force opposes the motion with k * depth * 2 r, and the waist
+  // drive pushes through it: its torque exceeds that of the same move in the air by the
+  // resistance's moment about the waist axis, x * |F| (x = 0.60 m).
+  const auto steps = static_cast<double>(cut.force_y.size());
+  const auto from = static_cast<std::size_t>(0.2 / kMove * steps);
+  const auto to = static_cast<std::size_t>(0.4 / kMove * steps);
+  double extra = 0.0;
+  double force = 0.0;
+  for (std::size_t i = from; i < to; ++i) {
+    EXPECT_NEAR(cut.force_y[i], -cut.force_norm[i], 0.02 * side_force) << i;
+    EXPECT_NEAR(cut.force_norm[i], side_force, 0.05 * side_force) << i;
+    EXPECT_EQ(free.force_norm[i], 0.0);
+    extra += cut.waist_force[i] - free.waist_force[i];
+    force += cut.force_norm[i];
+  }
+  extra /= static_cast<double>(to - from);
+  force /= static_cast<double>(to - from);
+  std::printf(
+      "cruising 2 mm deep: resistance %.2f N (k d 2r = %.2f N); waist torque %.2f N m "
+      "above the move in the air (x |F| = %.2f N m)\n",
+      force, side_force, extra, 0.60 * force);
+  EXPECT_NEAR(extra, 0.60 * force, 0.1 * 0.60 * force);
+}
+
+TEST(SceneFile, CutterErrorsNameTheKeyAndTheLimit) {
+  const ScratchDir dir;
+  const std::string rnt = (source_dir() / "robots" / "rnt").string();
+  const std::string head =
+      "[scene]\n[[scene.robot]]\nname = \"rnt\"\nmodel = \"" + rnt +
+      "\"\n[[scene.object]]\nname = \"board\"\npos = [0.6, 0, 0.19]\nmass = 1.0\n";
+  const auto error = [&](const std::string& text) -> std::string {
+    try {
+      const CellWorld world(dir.write("scene.toml", head + text));
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return {};
+  };
+  const std::string cutter = "[[scene.object.cutter]]\nsite = \"rnt/tool\"\nradius = 0.004\n";
+  EXPECT_NE(error("type = \"box\"\nsize = [0.15, 0.2, 0.01]\n" + cutter)
+                .find("a board to cut must be fixed"),
+            std::string::npos);
+  EXPECT_NE(error("type = \"cylinder\"\nsize = [0.2, 0.01]\nattach = \"world\"\n" + cutter)
+                .find("only a box (a board, cut on its top face) can be cut, not a cylinder"),
+            std::string::npos);
+  const std::string board = "type = \"box\"\nsize = [0.15, 0.2, 0.01]\nattach = \"world\"\n";
+  EXPECT_NE(error(board + "[[scene.object.cutter]]\nradius = 0.004\n").find("missing key 'site'"),
+            std::string::npos);
+  EXPECT_NE(
+      error(board + "[[scene.object.cutter]]\nsite = \"rnt/tool\"\n").find("missing key 'radius'"),
+      std::string::npos);
+  EXPECT_NE(error(board + cutter + "specific_force = 0\n")
+                .find("'specific_force' = 0 N/m^2 is outside the accepted range 1 .. 1000000000"),
+            std::string::npos);
+  EXPECT_NE(error(board + "[[scene.object.cutter]]\nsite = \"rnt/tool\"\nradius = 0.5\n")
+                .find("'radius' = 0.5 m is outside the accepted range"),
+            std::string::npos);
+  EXPECT_NE(error(board + cutter + "depth = 1\n")
+                .find("unknown key 'depth' in "
+                      "[scene.object.cutter]"),
+            std::string::npos);
+  EXPECT_NE(error(board + "[[scene.object.cutter]]\nsite = \"rnt/drill\"\nradius = 0.004\n")
+                .find("cutter of object 'board': site 'rnt/drill' is not in the scene"),
+            std::string::npos);
+  EXPECT_EQ(error(board + cutter), "");
 }
 
 // ---- Performance (printed, not asserted) ----

@@ -14,6 +14,7 @@
 #include <map>
 #include <new>
 #include <numbers>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -43,6 +44,7 @@ namespace fs = std::filesystem;
 namespace irb6 = mrroc::robots::irb6;
 using mrroc::ConfigError;
 using mrroc::emu::CellWorld;
+using mrroc::emu::FramePose;
 using mrroc::emu::RawSamplePublisher;
 using mrroc::emu::Scene;
 using mrroc::emu::SensorDevices;
@@ -707,6 +709,76 @@ TEST(EmuSensors, GraspDeviceIsTheBarsGripAsTheCellWorldMeasuresIt) {
   EXPECT_EQ(v[4], 0.0);
   EXPECT_EQ(v[8], 0.0);
   EXPECT_EQ(v[7], 0.0) << "an open grip exerts no force";
+}
+
+TEST(EmuSensors, EngravingDeviceIsTheCutAsTheCellWorldMeasuresIt) {
+  // engrave.toml's engraving: the RNT at its power-on pose, the tip far above the board.
+  CellWorld world(scene_file("engrave.toml"));
+  SensorDevices sensors(scene_file("engrave.toml"), world);
+  const std::size_t i = sensors.index("engraving");
+  EXPECT_EQ(sensors.config(i).type, mrroc::emu::SensorType::engraving);
+  EXPECT_EQ(sensors.config(i).rate_hz, 500.0);
+  EXPECT_EQ(sensors.config(i).cutter, "rnt/tool");
+  EXPECT_NE(sensors.describe(i).find("engraving of board 'board' by 'rnt/tool'"), std::string::npos)
+      << sensors.describe(i);
+  const std::vector<std::string> names = {"x", "y", "depth", "cutting", "force"};
+  EXPECT_EQ(sensors.sample(i).names, names);
+  const std::vector<std::string> units = {"m", "m", "m", "", "N"};
+  EXPECT_EQ(sensors.sample(i).units, units);
+  int published = 0;
+  for (int s = 0; s < 100; ++s) {
+    ASSERT_TRUE(world.step()) << world.fault_text();
+    for (const std::size_t ready : sensors.update(world, wall_utime(world)))
+      published += ready == i ? 1 : 0;
+  }
+  EXPECT_EQ(published, 50);  // 500 Hz for 0.1 s
+  const auto& v = sensors.sample(i).values;
+  const mrroc::emu::CutReading& cut = world.cut_reading(world.cut_index("board"));
+  // The tip in the board's frame: the tool site's world position less the board's centre.
+  const FramePose tip = world.site_pose("rnt/tool");
+  EXPECT_NEAR(v[0], tip.position[0] - 0.60, 1e-12);
+  EXPECT_NEAR(v[1], tip.position[1], 1e-12);
+  EXPECT_NEAR(v[2], 0.20 - tip.position[2], 1e-12);
+  EXPECT_EQ(v[2], cut.depth);
+  EXPECT_LT(v[2], -0.1) << "power-on holds the cutter far above the board";
+  EXPECT_EQ(v[3], 0.0);
+  EXPECT_EQ(v[4], 0.0) << "no force out of the board";
+}
+
+TEST(EmuSensors, EngravingDeviceNamesAnExistingCut) {
+  ScratchDir dir;
+  std::ifstream in(scene_file("engrave.toml"));
+  std::stringstream contents;
+  contents << in.rdbuf();
+  std::string scene = contents.str();
+  scene = scene.substr(0, scene.find("[[scene.sensor]]"));
+  const std::string model = "\"../../robots/rnt\"";
+  scene.replace(scene.find(model), model.size(), "\"" MRROC_SOURCE_DIR "/robots/rnt\"");
+  const fs::path world_file = dir.write("world.toml", scene);
+  CellWorld world(world_file);
+  const auto error = [&](const std::string& keys) {
+    const fs::path file = dir.write(
+        "s.toml", scene + "[[scene.sensor]]\nname = \"s\"\ntype = \"engraving\"\n" + keys);
+    return config_error([&] { (void)SensorDevices(file, world); });
+  };
+  const auto has = [](const std::string& text, const std::string& part) {
+    EXPECT_NE(text.find(part), std::string::npos) << text << "\n  lacks: " << part;
+  };
+  has(error(""), "error: sensor 's': missing key 'object' (a board with [[scene.object.cutter]]");
+  has(error("object = \"table\"\n"),
+      "error: sensor 's': cell 'engrave': no cut of object 'table' (cuts: 'board' by 'rnt/tool')");
+  has(error("object = \"board\"\ncutter = \"rnt/flange\"\n"),
+      "error: sensor 's': cell 'engrave': no cut of object 'board' by 'rnt/flange'");
+  has(error("object = \"board\"\nbody = \"world\"\n"),
+      "unknown key 'body' in [[scene.sensor]] of type engraving (allowed: name, type, rate_hz, "
+      "noise, seed, object, cutter)");
+  EXPECT_EQ(
+      SensorDevices(dir.write("ok.toml", scene + "[[scene.sensor]]\nname = \"s\"\ntype = "
+                                                 "\"engraving\"\nobject = \"board\"\ncutter = "
+                                                 "\"rnt/tool\"\n"),
+                    world)
+          .size(),
+      1U);
 }
 
 }  // namespace

@@ -100,7 +100,8 @@
 /// The cut resists the tip's motion relative to the board: along the face with specific_force *
 /// depth * 2 radius (the groove's cross-section), down into the board with specific_force *
 /// pi radius^2 (the cutter's end face), both opposing the tip's velocity; no force lifting out.
-/// The cutter is taken as perpendicular to the face (a tilted cutter cuts as an upright one).
+/// The cutter is taken as perpendicular to the face (a tilted cutter cuts as an upright one). The
+/// groove is recorded, not removed from the board: cutting along it again meets uncut wood.
 ///
 /// The base pose uses the same convention as `[[robot]] base` of process-set configs (position
 /// and rotation vector of the robot's base frame in the cell). Robot and object names must be

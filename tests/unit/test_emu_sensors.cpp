@@ -726,11 +726,18 @@ TEST(EmuSensors, EngravingDeviceIsTheCutAsTheCellWorldMeasuresIt) {
   const std::vector<std::string> units = {"m", "m", "m", "", "N"};
   EXPECT_EQ(sensors.sample(i).units, units);
   int published = 0;
+  long allocations = 0;
   for (int s = 0; s < 100; ++s) {
     ASSERT_TRUE(world.step()) << world.fault_text();
-    for (const std::size_t ready : sensors.update(world, wall_utime(world)))
-      published += ready == i ? 1 : 0;
+    const std::int64_t now = wall_utime(world);
+    g_heap.allocations = 0;
+    g_heap.counting = true;
+    const auto ready = sensors.update(world, now);
+    g_heap.counting = false;
+    allocations += g_heap.allocations;
+    for (const std::size_t device : ready) published += device == i ? 1 : 0;
   }
+  EXPECT_EQ(allocations, 0) << "sampling the engraving allocated";
   EXPECT_EQ(published, 50);  // 500 Hz for 0.1 s
   const auto& v = sensors.sample(i).values;
   const mrroc::emu::CutReading& cut = world.cut_reading(world.cut_index("board"));

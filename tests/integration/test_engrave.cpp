@@ -5,8 +5,8 @@
 // cutting, force at 500 Hz) and measured against the letters of the task's own stroke font
 // (include/mrroc/ecp/stroke_font.hpp): one groove per stroke, every groove point on its stroke,
 // every stroke covered by its groove, 2 mm deep between the stroke ends, nothing cut elsewhere;
-// and the motion that cut it (commanded joint velocities and accelerations within the limits,
-// no stall in the wood).
+// and the motion that cut it (no standstill for want of a macro-step, commanded joint velocities
+// and accelerations within the limits, the cutter never still in the wood for long).
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>

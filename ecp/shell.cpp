@@ -31,15 +31,16 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
       reporter_(reporter),
       vsps_(std::move(vsps)),
       process_("ecp/" + config.name),
-      robot_(bus, process_, config.name, load_robot_model(config.model_dir)),
+      robot_(make_task_robot(config.ecp.name, bus, process_, config.name,
+                             load_robot_model(config.model_dir))),
       // Commands are dispatched on the bus thread as they arrive (dispatch never blocks: a task,
       // sub-task or macro-step goes to the worker), one thread hand-off less than a queue.
       server_(bus, process_, channels::ecp_command(config.name), channels::ecp_reply(config.name),
               [this](comm::EcpServer::Incoming in) { serve(std::move(in)); }) {
   // Build the configured task once now, so that a wrong name or argument fails before "ready"
   // (every error found; `mrroc-ecp --check-config` runs this constructor too).
-  TaskContext context{robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s,
-                      &bus_,  process_,  nullptr,          &vsps_};
+  TaskContext context{*robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s,
+                      &bus_,   process_,  nullptr,           &vsps_};
   ConfigErrorList errors;
   // An argument's own location, else the [robot.ecp] table's.
   errors.add(check_ecp_task(config_.ecp.name, context, config_.ecp.name_where, config_.ecp.where));
@@ -48,7 +49,7 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
 }
 
 EcpShell::~EcpShell() {
-  robot_.request_stop();
+  robot_->request_stop();
   {
     std::lock_guard lock(mutex_);
     closing_ = true;
@@ -105,9 +106,9 @@ bool EcpShell::start_activity(const std::string& what, std::function<EcpReply()>
         reporter_.report(Severity::error, error_code::task_error, what + ": " + e.what());
       }
       if (reply.joints.empty()) {
-        reply.synchronised = robot_.image().synchronised;
-        reply.joints = robot_.image().joints;
-        reply.desired_joints = robot_.image().desired_joints;
+        reply.synchronised = robot_->image().synchronised;
+        reply.joints = robot_->image().joints;
+        reply.desired_joints = robot_->image().desired_joints;
       }
       // Free the worker before answering: the MP may send its next command at once.
       {
@@ -124,7 +125,7 @@ bool EcpShell::start_activity(const std::string& what, std::function<EcpReply()>
 EcpReply EcpShell::state_reply(EcpReplyType type) const {
   EcpReply r;
   r.type = type;
-  const RobotImage& image = robot_.image();
+  const RobotImage& image = robot_->image();
   r.synchronised = image.synchronised;
   r.joints = image.joints;
   r.desired_joints = image.desired_joints;
@@ -136,10 +137,10 @@ EcpReply EcpShell::state_reply(EcpReplyType type) const {
 EcpReply EcpShell::run_task(const std::string& name, const Params& args) {
   // A run (task or sub-task) drives the robot from its first instruction, whoever drove it last
   // (the console's jogs between runs, which it makes only while the MP is idle; docs/edp.md).
-  robot_.take_over_next();
+  robot_->take_over_next();
   follow_.reset();  // a new run: the MP's poses pass unchanged unless this task says otherwise
-  TaskContext context{robot_, reporter_, args,     config_.edp.servo_period_s,
-                      &bus_,  process_,  &follow_, &vsps_};
+  TaskContext context{*robot_, reporter_, args,     config_.edp.servo_period_s,
+                      &bus_,   process_,  &follow_, &vsps_};
   std::unique_ptr<EcpTask> task = make_ecp_task(name, context);
   reporter_.info(fmt::format("task '{}' started", name));
   task->main_task();
@@ -148,17 +149,17 @@ EcpReply EcpShell::run_task(const std::string& name, const Params& args) {
 }
 
 EcpReply EcpShell::next_pose(const MpCommand& command) {
-  if (robot_.stop_requested()) throw TaskStopped("task stopped on request");
-  robot_.wait_while_paused();
-  if (!robot_.image().synchronised) robot_.synchronise();
+  if (robot_->stop_requested()) throw TaskStopped("task stopped on request");
+  robot_->wait_while_paused();
+  if (!robot_->image().synchronised) robot_->synchronise();
   MpCommand pose = command;
   if (follow_) {
     const SensorList sensors = follow_->sensors();
     for (Sensor* s : sensors) s->initiate_reading();
     for (Sensor* s : sensors) s->get_reading();
-    follow_->correct(pose, robot_.image(), sensors);
+    follow_->correct(pose, robot_->image(), sensors);
   }
-  edp::Instruction& c = robot_.image().command;
+  edp::Instruction& c = robot_->image().command;
   c = edp::Instruction{};
   c.type = edp::InstructionType::set_get;
   c.set = edp::item::arm;
@@ -169,13 +170,13 @@ EcpReply EcpShell::next_pose(const MpCommand& command) {
   c.motion_steps = pose.motion_steps;
   c.value_in_step_no = pose.value_in_step_no;
   c.arm = pose.arm;
-  robot_.execute();
+  robot_->execute();
   return state_reply(EcpReplyType::acknowledge);
 }
 
 EcpReply EcpShell::end_motion() {
-  robot_.read_state();
-  if (follow_) follow_->end_motion(robot_.image());
+  robot_->read_state();
+  if (follow_) follow_->end_motion(robot_->image());
   return state_reply(EcpReplyType::acknowledge);
 }
 
@@ -187,14 +188,14 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
   };
   switch (command.type) {
     case MpCommandType::start_task:
-      robot_.clear_stop();  // a STOP ends one run, not the next one
+      robot_->clear_stop();  // a STOP ends one run, not the next one
       if (!start_activity(
               fmt::format("task '{}'", config_.ecp.name),
               [this] { return run_task(config_.ecp.name, config_.ecp.args); }, responder))
         busy();
       break;
     case MpCommandType::next_state: {
-      robot_.clear_stop();
+      robot_->clear_stop();
       const std::string state = command.state_name;
       const std::string arguments = command.arguments;
       const std::string origin = fmt::format("NEXT_STATE '{}' arguments", state);
@@ -218,7 +219,7 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
       if (!start_activity(
               "END_MOTION",
               [this] {
-                robot_.clear_stop();
+                robot_->clear_stop();
                 return end_motion();
               },
               responder))
@@ -226,17 +227,17 @@ void EcpShell::dispatch(const MpCommand& command, const Responder& responder) {
       break;
     // Operator commands answer at once, without the robot image (the worker may be updating it).
     case MpCommandType::stop:
-      robot_.request_stop();
+      robot_->request_stop();
       reporter_.warning("STOP from the MP");
       responder.reply(EcpReply{});
       break;
     case MpCommandType::pause:
-      robot_.pause();
+      robot_->pause();
       reporter_.info("paused");
       responder.reply(EcpReply{});
       break;
     case MpCommandType::resume:
-      robot_.resume();
+      robot_->resume();
       reporter_.info("resumed");
       responder.reply(EcpReply{});
       break;
@@ -278,7 +279,7 @@ void EcpShell::run(const std::string& scheduling) {
     serving_ = false;
   }
   reporter_.set_state(ProcessState::stopping);
-  robot_.request_stop();
+  robot_->request_stop();
 }
 
 }  // namespace mrroc::ecp

@@ -69,7 +69,8 @@ class EcpShell {
   Reporter& reporter_;
   std::vector<std::string> vsps_;
   std::string process_;
-  Robot robot_;
+  /// The class the configured task drives (make_task_robot).
+  std::unique_ptr<Robot> robot_;
   /// The running task's corrector of NEXT_POSE commands (TaskContext::follow_mp_with); used and
   /// replaced on the worker thread only.
   std::unique_ptr<FollowGenerator> follow_;

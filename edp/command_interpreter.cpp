@@ -79,7 +79,7 @@ Reply CommandInterpreter::execute(const Instruction& in) {
   } else if (servo_.emergency_stopped() &&
              (in.type == InstructionType::synchro ||
               ((in.type == InstructionType::set || in.type == InstructionType::set_get) &&
-               (in.set & item::arm) != 0))) {
+               (in.set & (item::arm | item::device)) != 0))) {
     reply = error(error_code::emergency_stop,
                   fmt::format("{} refused: emergency stop engaged (release it first, e.g. "
                               "mrroc-ui release)",
@@ -116,18 +116,18 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     return Reply{};
   }
   constexpr std::uint8_t settable =
-      item::arm | item::tool | item::model | item::servo | item::outputs;
-  constexpr std::uint8_t gettable =
-      item::arm | item::tool | item::model | item::servo | item::inputs | item::timing;
+      item::arm | item::tool | item::model | item::servo | item::outputs | item::device;
+  constexpr std::uint8_t gettable = item::arm | item::tool | item::model | item::servo |
+                                    item::inputs | item::timing | item::device;
   if (sets && (in.set & ~settable) != 0)
     throw CommandError(error_code::bad_argument,
                        fmt::format("SET of items {:#x} is not possible (SET takes ARM, TOOL, "
-                                   "MODEL, SERVO, OUTPUTS)",
+                                   "MODEL, SERVO, OUTPUTS, DEVICE)",
                                    in.set & ~settable));
   if (gets && (in.get & ~gettable) != 0)
     throw CommandError(error_code::bad_argument,
                        fmt::format("GET of items {:#x} is not possible (GET takes ARM, TOOL, "
-                                   "MODEL, SERVO, INPUTS, TIMING)",
+                                   "MODEL, SERVO, INPUTS, TIMING, DEVICE)",
                                    in.get & ~gettable));
   if (((sets && (in.set & item::outputs) != 0) || (gets && (in.get & item::inputs) != 0)) &&
       !servo_.hardware().binary_io())
@@ -136,6 +136,13 @@ Reply CommandInterpreter::accept(const Instruction& in) {
         fmt::format("{} refused: plugin '{}' has no binary inputs or outputs",
                     sets && (in.set & item::outputs) != 0 ? "SET OUTPUTS" : "GET INPUTS",
                     servo_.hardware().name()));
+  const bool sets_device = sets && (in.set & item::device) != 0;
+  if ((sets_device || (gets && (in.get & item::device) != 0)) && servo_.device().name.empty())
+    throw CommandError(
+        error_code::not_supported,
+        fmt::format("{} refused: plugin '{}' drives no device",
+                    sets_device ? "SET DEVICE" : "GET DEVICE", servo_.hardware().name()));
+  if (sets_device) validate_device(in);
   if (gets && (in.get & item::arm) != 0 && in.get_arm_type != ArmRepresentation::joint) {
     if (!servo_.synchronised())
       throw CommandError(error_code::not_synchronised,
@@ -172,6 +179,7 @@ Reply CommandInterpreter::accept(const Instruction& in) {
   }
 
   if (sets && (in.set & item::outputs) != 0) servo_.request_outputs(in.output_values);
+  if (sets_device) servo_.request_device(in.device);
   if (sets && (in.set & item::servo) != 0)
     servo_.request_servo(in.servo_algorithm, in.servo_parameters_no);
   due_arm_type_ = in.get_arm_type;
@@ -218,6 +226,39 @@ void CommandInterpreter::validate_servo(const Instruction& in) const {
                                      "algorithm {}",
                                      i, model_.joint_names[i], set,
                                      hw.servo_parameter_set_count(algorithm) - 1, algorithm));
+  }
+}
+
+void CommandInterpreter::validate_device(const Instruction& in) const {
+  const DeviceDescription& device = servo_.device();
+  if (in.device.size() != device.command.size()) {
+    std::string fields;
+    for (const DeviceField& f : device.command)
+      fields += fmt::format("{}{} [{}]", fields.empty() ? "" : ", ", f.name, f.unit);
+    throw CommandError(
+        error_code::bad_argument,
+        fmt::format("SET DEVICE has {} values, device '{}' of plugin '{}' takes {}: {}",
+                    in.device.size(), device.name, servo_.hardware().name(), device.command.size(),
+                    fields));
+  }
+  for (std::size_t i = 0; i < in.device.size(); ++i) {
+    const DeviceField& f = device.command[i];
+    const double v = in.device[i];
+    if (!std::isfinite(v))
+      throw CommandError(error_code::bad_argument,
+                         fmt::format("SET DEVICE {} field {} ({}) value {} {} is not a finite "
+                                     "number",
+                                     device.name, i, f.name, v, f.unit));
+    if (v > f.max)
+      throw CommandError(error_code::out_of_limits,
+                         fmt::format("SET DEVICE {} field {} ({}) {:g} {} exceeds its upper limit "
+                                     "of {:g} {}",
+                                     device.name, i, f.name, v, f.unit, f.max, f.unit));
+    if (v < f.min)
+      throw CommandError(error_code::out_of_limits,
+                         fmt::format("SET DEVICE {} field {} ({}) {:g} {} is below its lower limit "
+                                     "of {:g} {}",
+                                     device.name, i, f.name, v, f.unit, f.min, f.unit));
   }
 }
 
@@ -361,6 +402,9 @@ Reply CommandInterpreter::reading_reply(const Reading& reading) const {
   r.kinematic_model_no = kinematics_.model_no();
   r.corrector_no = kinematics_.corrector_no();
   r.input_values = reading.inputs;
+  if ((due_get_ & item::device) != 0)
+    r.device.assign(reading.device.begin(),
+                    reading.device.begin() + static_cast<std::ptrdiff_t>(reading.device_fields));
   r.servo_algorithm.assign(reading.servo_algorithm.begin(), reading.servo_algorithm.begin() + n);
   r.servo_parameters_no.assign(reading.servo_parameter_set.begin(),
                                reading.servo_parameter_set.begin() + n);

@@ -18,6 +18,11 @@
 /// - One owner at a time (execute with a client name): instructions of any other client are
 ///   refused (`not_owner`) unless it takes over (`take_over`) while the robot is at rest, or the
 ///   owner has been silent for the lease with the robot at rest.
+/// - SET DEVICE and GET DEVICE reach the plugin's device (Hardware::device()); a plugin without
+///   one refuses them (`not_supported`). Every commanded field must be finite and inside its
+///   range (`bad_argument`, `out_of_limits`, naming field, value, unit and limit), the command
+///   must have one value per field, and SET DEVICE is refused during an emergency stop. It needs
+///   no SYNCHRO.
 /// - Motion before SYNCHRO is refused ("not synchronised"); a second SYNCHRO is refused
 ///   ("already synchronised").
 /// - A SET applies MODEL first, then TOOL, then ARM (so an arm target in the same SET uses the new
@@ -63,6 +68,8 @@ class CommandInterpreter {
   Reply accept(const Instruction& instruction);
   Reply query();
   void validate_servo(const Instruction& instruction) const;
+  /// SET DEVICE: one finite value per command field of the plugin's device, each in its range.
+  void validate_device(const Instruction& instruction) const;
   std::vector<double> arm_target(const Instruction& instruction) const;
   void check_path(const std::vector<double>& start, const std::vector<double>& target,
                   int steps) const;

@@ -47,6 +47,14 @@ ServoLoop::ServoLoop(Hardware& hardware, const RobotModel& model, double period_
   if (hardware_.axis_count() != axes_)
     throw HardwareError(fmt::format("hardware plugin '{}' has {} axes, robot model '{}' has {}",
                                     hardware_.name(), hardware_.axis_count(), model.name, axes_));
+  device_ = hardware_.device();
+  if (device_.command.size() > kMaxDeviceFields || device_.reply.size() > kMaxDeviceFields)
+    throw HardwareError(
+        fmt::format("hardware plugin '{}': device '{}' has {} command and {} reply "
+                    "fields; the EDP supports at most {} each",
+                    hardware_.name(), device_.name, device_.command.size(), device_.reply.size(),
+                    kMaxDeviceFields));
+  latest_.device_fields = device_.reply.size();
 }
 
 ServoLoop::~ServoLoop() { stop(); }
@@ -64,6 +72,11 @@ void ServoLoop::start() {
     throw HardwareError("hardware plugin '" + hardware_.name() +
                         "' failed its first read: " + hardware_.fault_text());
   for (std::size_t i = 0; i < axes_; ++i) desired_[i] = feedback_[i].position;
+  if (!device_.reply.empty()) {
+    // The device as it is before the first cycle (a GET DEVICE may come before it).
+    hardware_.read_device(std::span(device_sample_.data(), device_.reply.size()));
+    latest_.device = device_sample_;
+  }
   thread_ = std::thread([this] { run(); });
 }
 
@@ -108,7 +121,8 @@ void ServoLoop::run() {
 
 bool ServoLoop::has_work() const {
   return mode_ != Mode::hold || current_.has_value() || !queue_.empty() || reset_pending_ ||
-         after_stop_id_ != 0 || hold_at_measured_ || outputs_pending_ || servo_pending_;
+         after_stop_id_ != 0 || hold_at_measured_ || outputs_pending_ || servo_pending_ ||
+         device_pending_;
 }
 
 bool ServoLoop::awaiting_successor() const {
@@ -193,6 +207,8 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
   try {
     read_status = hardware_.read(std::span(sample_.data(), axes_));
     inputs = hardware_.read_inputs();
+    if (!device_.reply.empty())
+      hardware_.read_device(std::span(device_sample_.data(), device_.reply.size()));
   } catch (const std::exception& e) {
     read_status = CycleStatus::fault;
     std::snprintf(thrown, sizeof thrown, "%s", e.what());
@@ -203,6 +219,7 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
 
   // 2. Decide the setpoints under the lock (copies and arithmetic only).
   bool write_outputs = false;
+  bool write_device = false;
   bool switch_servo = false;
   std::uint32_t outputs = 0;
   std::array<std::int8_t, kMaxAxes> algorithm{};
@@ -212,6 +229,7 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
     std::lock_guard lock(mutex_);
     feedback_ = sample_;
     latest_.inputs = inputs;
+    latest_.device = device_sample_;
     if (reset) {
       reset_pending_ = false;
       if (read_status == CycleStatus::ok) {
@@ -238,6 +256,9 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
     write_outputs = outputs_pending_;
     outputs_pending_ = false;
     outputs = outputs_;
+    write_device = device_pending_;
+    device_pending_ = false;
+    if (write_device) device_write_ = device_command_;
     switch_servo = servo_pending_;
     servo_pending_ = false;
     algorithm = servo_algorithm_;
@@ -256,6 +277,8 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
   char failure[256] = {};
   try {
     if (write_outputs) hardware_.write_outputs(outputs);
+    if (write_device)
+      hardware_.write_device(std::span<const double>(device_write_.data(), device_.command.size()));
     if (switch_servo)
       for (std::size_t i = 0; i < axes_; ++i)
         hardware_.set_servo(i, algorithm[i], parameter_set[i]);
@@ -627,6 +650,16 @@ void ServoLoop::request_outputs(std::uint32_t values) {
     std::lock_guard lock(mutex_);
     outputs_ = values;
     outputs_pending_ = true;
+  }
+  changed_.notify();
+}
+
+void ServoLoop::request_device(const std::vector<double>& command) {
+  {
+    std::lock_guard lock(mutex_);
+    const std::size_t n = std::min(command.size(), device_.command.size());
+    std::copy_n(command.begin(), n, device_command_.begin());
+    device_pending_ = true;
   }
   changed_.notify();
 }

@@ -47,6 +47,9 @@ struct Reading {
   std::uint32_t outputs = 0;  ///< binary outputs as last written
   std::array<std::int8_t, kMaxAxes> servo_algorithm{};
   std::array<std::int8_t, kMaxAxes> servo_parameter_set{};
+  /// The plugin's device reply (Hardware::read_device), `device_fields` values.
+  std::array<double, kMaxDeviceFields> device{};
+  std::size_t device_fields = 0;
   /// Macro-steps queued when the reading was taken, the running one included.
   int macro_steps_ahead = 0;
 };
@@ -163,6 +166,11 @@ class ServoLoop {
   /// caller against the plugin's counts).
   void request_servo(const std::vector<std::int8_t>& algorithm,
                      const std::vector<std::int8_t>& parameter_set);
+  /// Device command (one value per command field of Hardware::device(), checked by the
+  /// caller), written to the plugin in the next cycle.
+  void request_device(const std::vector<double>& command);
+  /// The plugin's device, as it described it when the loop was made.
+  [[nodiscard]] const DeviceDescription& device() const { return device_; }
   [[nodiscard]] Hardware& hardware() { return hardware_; }
 
   /// Set when the hardware reported a fault or synchronisation failed; the loop then holds still.
@@ -260,6 +268,11 @@ class ServoLoop {
 
   bool outputs_pending_ = false;
   std::uint32_t outputs_ = 0;
+  DeviceDescription device_;  ///< constant after construction
+  bool device_pending_ = false;
+  std::array<double, kMaxDeviceFields> device_command_{};  ///< under mutex_
+  std::array<double, kMaxDeviceFields> device_write_{};    ///< servo thread only
+  std::array<double, kMaxDeviceFields> device_sample_{};   ///< servo thread only
   bool servo_pending_ = false;
   std::array<std::int8_t, kMaxAxes> servo_algorithm_{};
   std::array<std::int8_t, kMaxAxes> servo_parameter_set_{};

@@ -101,7 +101,14 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
                         ": nq = " + std::to_string(m->nq) + ", nv = " + std::to_string(m->nv) +
                         " differ from the " + std::to_string(m->njnt) + " joints");
   }
-  sim::RobotAxes robot = sim::map_axes(m, 0, m->nu, "", context);
+  // The arm's axes are the first actuators, one per joint of robot.joint_names (all of them when
+  // parameters.toml lists none); the actuators after them are the gripper device.
+  int arm_actuators = m->nu;
+  if (robot_file && robot_file->joint_names && !robot_file->joint_names->empty() &&
+      static_cast<int>(robot_file->joint_names->size()) < m->nu)
+    arm_actuators = static_cast<int>(robot_file->joint_names->size());
+  sim::RobotAxes robot = sim::map_axes(m, 0, arm_actuators, "", context);
+  GripperDevice gripper = find_gripper(m, arm_actuators, robot, mjcf_path);
   const std::size_t axes = robot.size();
   // Axis names must agree with parameters.toml when it lists them.
   if (robot_file) sim::check_axis_names(robot, robot_file->joint_names, context);
@@ -149,6 +156,14 @@ void MujocoHardware::configure(const HardwareSetup& setup) {
 
   // Commit.
   robot_ = std::move(robot);
+  gripper_ = gripper;
+  // Gravity feed-forward acts on the robot's own degrees of freedom (arm and gripper), not on
+  // the objects of its world (the part falls as it would).
+  const int robot_root = m->body_rootid[m->jnt_bodyid[robot_.joint[0]]];
+  compensated_.assign(index(m->nv), false);
+  for (int v = 0; v < m->nv; ++v)
+    compensated_[index(v)] = m->body_rootid[m->dof_bodyid[v]] == robot_root;
+  robot_root_ = robot_root;
   power_on_qpos_ = std::move(power_on_qpos);
   scratch_a_.assign(axes, 0.0);
   scratch_q_.assign(axes, 0.0);
@@ -204,9 +219,19 @@ void MujocoHardware::reset_to_power_on() noexcept {
   for (std::size_t i = 0; i < axes_; ++i) {
     data_->ctrl[i] = data_->qpos[robot_.qpos_adr[i]];
   }
+  if (gripper_.present) {
+    // Power-on: the fingers open, pushing with the opening force.
+    for (std::size_t k = 0; k < 2; ++k) {
+      data_->qpos[gripper_.qpos_adr[k]] = gripper_.max_opening / 2.0;
+      data_->ctrl[gripper_.actuator[k]] = gripper_.max_opening / 2.0;
+    }
+    set_finger_force(kGripperPowerOnForce);
+    gripper_.command_opening = gripper_.max_opening;
+  }
   mj_forward(model_, data_);
   for (int v = 0; v < model_->nv; ++v) {
-    data_->qfrc_applied[v] = gravity_compensation_ ? data_->qfrc_bias[v] : 0.0;
+    data_->qfrc_applied[v] =
+        gravity_compensation_ && compensated_[index(v)] ? data_->qfrc_bias[v] : 0.0;
   }
 }
 
@@ -339,7 +364,7 @@ CycleStatus MujocoHardware::write(std::span<const double> setpoints) {
       // qfrc_bias from the current positions and velocities, mj_step2 integrates.
       mj_step1(model_, data_);
       for (int v = 0; v < model_->nv; ++v) {
-        data_->qfrc_applied[v] = data_->qfrc_bias[v];
+        data_->qfrc_applied[v] = compensated_[index(v)] ? data_->qfrc_bias[v] : 0.0;
       }
       for (std::size_t i = 0; i < axes_; ++i)
         data_->qfrc_applied[robot_.dof_adr[i]] += feed_forward_[i];
@@ -369,6 +394,103 @@ std::vector<double> MujocoHardware::actuator_joint_positions() const {
     a[i] = data_->qpos[robot_.qpos_adr[i]];
   }
   return a;
+}
+
+MujocoHardware::GripperDevice MujocoHardware::find_gripper(const mjModel* m, int first,
+                                                           const sim::RobotAxes& arm,
+                                                           const std::filesystem::path& mjcf) {
+  GripperDevice g;
+  const int count = m->nu - first;
+  if (count == 0) return g;
+  const std::string where = "mujoco: model " + sim::quoted(mjcf) + ": ";
+  if (count != 2)
+    throw HardwareError(where + std::to_string(count) +
+                        " actuators follow the arm's (robot.joint_names of parameters.toml); a "
+                        "gripper device has two, one slide joint per finger");
+  for (int k = 0; k < 2; ++k) {
+    const int a = first + k;
+    const int joint = m->actuator_trnid[2 * a];
+    const char* name = mj_id2name(m, mjOBJ_ACTUATOR, a);
+    const std::string label = name != nullptr ? name : std::to_string(a);
+    if (m->actuator_trntype[a] != mjTRN_JOINT || joint < 0 || m->jnt_type[joint] != mjJNT_SLIDE)
+      throw HardwareError(where + "gripper actuator '" + label + "' does not drive a slide joint");
+    if (std::find(arm.joint.begin(), arm.joint.end(), joint) != arm.joint.end())
+      throw HardwareError(where + "gripper actuator '" + label + "' drives an arm joint");
+    if (m->actuator_forcelimited[a] == 0 || m->jnt_limited[joint] == 0)
+      throw HardwareError(where + "gripper actuator '" + label +
+                          "' needs forcelimited=\"true\" and its joint a range");
+    const auto uk = static_cast<std::size_t>(k);
+    g.actuator[uk] = a;
+    g.qpos_adr[uk] = m->jnt_qposadr[joint];
+    g.dof_adr[uk] = m->jnt_dofadr[joint];
+    g.body[uk] = m->jnt_bodyid[joint];
+    // A finger's joint is half the opening: its range's upper end, twice, is the widest.
+    g.max_opening += m->jnt_range[2 * joint + 1];
+    g.max_force = k == 0 ? m->actuator_forcerange[2 * a + 1]
+                         : std::min(g.max_force, m->actuator_forcerange[2 * a + 1]);
+  }
+  g.present = true;
+  return g;
+}
+
+DeviceDescription MujocoHardware::device() const {
+  if (!gripper_.present) return {};
+  return {"gripper",
+          {{"opening", "m", 0.0, gripper_.max_opening}, {"force", "N", 0.0, gripper_.max_force}},
+          {{"opening", "m"}, {"speed", "m/s"}, {"force", "N"}, {"holding", "-"}}};
+}
+
+void MujocoHardware::set_finger_force(double force_n) noexcept {
+  for (std::size_t k = 0; k < 2; ++k) {
+    const auto a = static_cast<std::size_t>(gripper_.actuator[k]);
+    model_->actuator_forcerange[2 * a] = -force_n;
+    model_->actuator_forcerange[2 * a + 1] = force_n;
+  }
+}
+
+void MujocoHardware::write_device(std::span<const double> command) {
+  if (!gripper_.present || model_ == nullptr || data_ == nullptr || command.size() != 2) return;
+  // Each finger is servoed to half the opening; the force limit is what it may push with.
+  for (std::size_t k = 0; k < 2; ++k) data_->ctrl[gripper_.actuator[k]] = command[0] / 2.0;
+  set_finger_force(command[1]);
+  gripper_.command_opening = command[0];
+}
+
+void MujocoHardware::read_device(std::span<double> reply) const {
+  if (!gripper_.present || model_ == nullptr || data_ == nullptr || reply.size() != 4) return;
+  const double opening = data_->qpos[gripper_.qpos_adr[0]] + data_->qpos[gripper_.qpos_adr[1]];
+  const double speed = data_->qvel[gripper_.dof_adr[0]] + data_->qvel[gripper_.dof_adr[1]];
+  // The grip force: the normal forces of each finger's contacts with bodies outside the robot
+  // (the objects of its world), and the body each finger presses on most.
+  std::array<double, 2> pressing{};
+  std::array<int, 2> object{-1, -1};
+  std::array<double, 2> strongest{};
+  for (int c = 0; c < data_->ncon; ++c) {
+    const mjContact& contact = data_->contact[c];
+    const int b1 = model_->geom_bodyid[contact.geom1];
+    const int b2 = model_->geom_bodyid[contact.geom2];
+    for (std::size_t k = 0; k < 2; ++k) {
+      const int other = b1 == gripper_.body[k] ? b2 : b2 == gripper_.body[k] ? b1 : -1;
+      if (other < 0 || model_->body_rootid[other] == robot_root_) continue;
+      mjtNum force[6];
+      mj_contactForce(model_, data_, c, force);
+      pressing[k] += force[0];
+      if (force[0] > strongest[k]) {
+        strongest[k] = force[0];
+        object[k] = other;
+      }
+    }
+  }
+  // Holding: both fingers press on one object, they have stopped, and short of the commanded
+  // opening (they did not close fully).
+  const bool holding = object[0] >= 0 && object[0] == object[1] &&
+                       std::min(pressing[0], pressing[1]) >= kHoldingForce &&
+                       std::abs(speed) < kStoppedSpeed &&
+                       opening > gripper_.command_opening + kHoldingMargin;
+  reply[0] = opening;
+  reply[1] = speed;
+  reply[2] = (pressing[0] + pressing[1]) / 2.0;
+  reply[3] = holding ? 1.0 : 0.0;
 }
 
 MRROC_REGISTER_HARDWARE("mujoco", MujocoHardware);

@@ -3,7 +3,11 @@
 /// The `mujoco` EDP hardware plugin: a robot's axes simulated with MuJoCo 2.2.
 ///
 /// Axes are the model's *actuators*: one axis per actuator, in actuator order, and each actuator
-/// is a position servo on one hinge or slide joint (its *actuator joint*). Other joints are
+/// is a position servo on one hinge or slide joint (its *actuator joint*). When parameters.toml
+/// lists robot.joint_names and the model has more actuators than names, the axes are the first
+/// of them and the two after them are a gripper device (see device()). Joints of bodies outside
+/// the robot's kinematic tree (e.g. a part to grasp on slide joints) are simulated, but are not
+/// axes and get no gravity feed-forward. Other joints are
 /// passive; they may belong to closed kinematic loops that the model closes with equality
 /// constraints (e.g. a parallelogram `<connect>`). Each `write()` sets the actuators' targets and
 /// advances the simulation by exactly one servo period (an integer number of MuJoCo steps).
@@ -116,6 +120,27 @@ class MujocoHardware : public Hardware {
   void write_outputs(std::uint32_t values) override { outputs_ = values; }
   [[nodiscard]] std::uint32_t read_inputs() const override;
 
+  /// The gripper device, when the model has one: the two actuators after the arm's (whose
+  /// names are robot.joint_names of parameters.toml), each on a finger's slide joint whose
+  /// position is half the opening (robots/irb6/irb6_gripper.xml).
+  ///   command: opening [m] (0 .. the sum of the finger joints' upper range ends), force [N]
+  ///            (0 .. the smaller upper end of the actuators' forcerange): each finger is
+  ///            servoed to half the opening, pushing with at most the force.
+  ///   reply:   opening [m], opening speed [m/s], grip force [N] (the mean over the two fingers
+  ///            of the normal forces of their contacts with bodies outside the robot), holding
+  ///            (1: both fingers press on one object with at least kHoldingForce, have stopped
+  ///            (|speed| < kStoppedSpeed) and are kHoldingMargin or more short of the commanded
+  ///            opening, i.e. stopped on the object before closing fully).
+  /// At power-on the fingers are open, pushing with kGripperPowerOnForce. No device (empty
+  /// name) without those actuators.
+  [[nodiscard]] DeviceDescription device() const override;
+  void write_device(std::span<const double> command) override;
+  void read_device(std::span<double> reply) const override;
+  static constexpr double kHoldingForce = 0.5;          ///< [N]
+  static constexpr double kStoppedSpeed = 0.002;        ///< [m/s]
+  static constexpr double kHoldingMargin = 0.001;       ///< [m]
+  static constexpr double kGripperPowerOnForce = 10.0;  ///< [N]
+
   /// The loaded model and its data (nullptr before configure()).
   [[nodiscard]] const mjModel* model() const { return model_; }
   [[nodiscard]] const mjData* data() const { return data_; }
@@ -144,6 +169,21 @@ class MujocoHardware : public Hardware {
   [[nodiscard]] bool active() const { return active_; }
 
  private:
+  struct GripperDevice {
+    bool present = false;
+    std::array<int, 2> actuator{};
+    std::array<int, 2> qpos_adr{};
+    std::array<int, 2> dof_adr{};
+    std::array<int, 2> body{};  ///< each finger's body
+    double max_opening = 0.0;   ///< [m]
+    double max_force = 0.0;     ///< [N]
+    double command_opening = 0.0;
+  };
+  /// The gripper of the actuators from `first` on (none when there are none).
+  /// @throws HardwareError when they are not two force-limited actuators on slide joints.
+  static GripperDevice find_gripper(const mjModel* m, int first, const sim::RobotAxes& arm,
+                                    const std::filesystem::path& mjcf);
+  void set_finger_force(double force_n) noexcept;
   void release() noexcept;
   void reset_to_power_on() noexcept;
   [[gnu::format(printf, 2, 3)]] void set_fault(const char* format, ...) noexcept;
@@ -174,6 +214,9 @@ class MujocoHardware : public Hardware {
   std::uint32_t outputs_ = 0;
   std::array<bool, 16> switch_state_{};  ///< as of the last read()
   std::array<char, 512> fault_{};
+  GripperDevice gripper_;
+  std::vector<bool> compensated_;  ///< per degree of freedom: gravity feed-forward (the robot's)
+  int robot_root_ = 0;             ///< root body of the robot's kinematic tree
 };
 
 }  // namespace mrroc::edp

@@ -24,7 +24,7 @@ static_assert(same(InstructionType::set, Ins::SET) && same(InstructionType::get,
 static_assert(edp::item::arm == Ins::ARM_BIT && edp::item::tool == Ins::TOOL_BIT &&
               edp::item::model == Ins::MODEL_BIT && edp::item::servo == Ins::SERVO_BIT &&
               edp::item::outputs == Ins::OUTPUTS_BIT && edp::item::inputs == Ins::INPUTS_BIT &&
-              edp::item::timing == Ins::TIMING_BIT);
+              edp::item::timing == Ins::TIMING_BIT && edp::item::device == Ins::DEVICE_BIT);
 static_assert(same(ArmRepresentation::frame, Ins::FRAME) &&
               same(ArmRepresentation::xyz_euler_zyz, Ins::XYZ_EULER_ZYZ) &&
               same(ArmRepresentation::xyz_angle_axis, Ins::XYZ_ANGLE_AXIS) &&
@@ -88,8 +88,8 @@ edp::ArmRepresentation arm_of(std::int8_t raw, const char* field) {
 mrroc_lcm::edp_instruction_t encode(const edp::Instruction& in) {
   L m{};
   m.instruction = static_cast<std::int8_t>(in.type);
-  m.set_mask = static_cast<std::int8_t>(in.set);
-  m.get_mask = static_cast<std::int8_t>(in.get);
+  m.set_mask = static_cast<std::int16_t>(in.set);
+  m.get_mask = static_cast<std::int16_t>(in.get);
   m.set_arm_type = arm_code(in.set_arm_type);
   m.get_arm_type = arm_code(in.get_arm_type);
   m.motion_type = static_cast<std::int8_t>(in.motion_type);
@@ -108,6 +108,8 @@ mrroc_lcm::edp_instruction_t encode(const edp::Instruction& in) {
   m.servo_algorithm = in.servo_algorithm;
   m.servo_parameters_no = in.servo_parameters_no;
   m.output_values = static_cast<std::int32_t>(in.output_values);
+  m.n_device = length(in.device, "device");
+  m.device = in.device;
   m.with_query = in.with_query ? 1 : 0;
   m.no_successor = in.no_successor ? 1 : 0;
   m.take_over = in.take_over ? 1 : 0;
@@ -117,7 +119,7 @@ mrroc_lcm::edp_instruction_t encode(const edp::Instruction& in) {
 edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   edp::Instruction in;
   in.type = checked_enum<edp::InstructionType>(m.instruction, L::SET, L::QUERY, "instruction");
-  constexpr int all_items = 127;
+  constexpr int all_items = 255;
   if ((m.set_mask & ~all_items) != 0 || (m.get_mask & ~all_items) != 0)
     throw DecodeError(
         fmt::format("set_mask {} / get_mask {} has unknown bits", m.set_mask, m.get_mask));
@@ -137,6 +139,7 @@ edp::Instruction decode(const mrroc_lcm::edp_instruction_t& m) {
   in.servo_algorithm = checked_vector(m.servo_algorithm, m.n_servo, "servo_algorithm");
   in.servo_parameters_no = checked_vector(m.servo_parameters_no, m.n_servo, "servo_parameters_no");
   in.output_values = static_cast<std::uint32_t>(m.output_values);
+  in.device = checked_vector(m.device, m.n_device, "device");
   if (m.with_query != 0 && m.with_query != 1)
     throw DecodeError(fmt::format("field 'with_query' = {} is not 0 or 1", m.with_query));
   in.with_query = m.with_query == 1;
@@ -180,6 +183,8 @@ mrroc_lcm::edp_reply_t encode(const edp::Reply& in) {
   m.servo_parameters_no = in.servo_parameters_no;
   m.servo_parameters_no.resize(in.servo_algorithm.size(), 0);
   m.input_values = static_cast<std::int32_t>(in.input_values);
+  m.n_device = length(in.device, "device");
+  m.device = in.device;
   m.servo_cycles = in.servo_cycles;
   m.servo_overruns = in.servo_overruns;
   m.servo_period_us = in.servo_period_us;
@@ -211,6 +216,7 @@ edp::Reply decode(const mrroc_lcm::edp_reply_t& m) {
   out.servo_algorithm = checked_vector(m.servo_algorithm, m.n_servo, "servo_algorithm");
   out.servo_parameters_no = checked_vector(m.servo_parameters_no, m.n_servo, "servo_parameters_no");
   out.input_values = static_cast<std::uint32_t>(m.input_values);
+  out.device = checked_vector(m.device, m.n_device, "device");
   out.servo_cycles = m.servo_cycles;
   out.servo_overruns = m.servo_overruns;
   out.servo_period_us = m.servo_period_us;

@@ -59,6 +59,10 @@ void Robot::update_image(const edp::Reply& reply, std::uint8_t asked) {
     image_.servo_parameters_no = reply.servo_parameters_no;
   }
   if ((asked & edp::item::inputs) != 0) image_.inputs = reply.input_values;
+  if ((asked & edp::item::device) != 0) {
+    image_.device = reply.device;
+    read_device_reply(reply.device);
+  }
   if ((asked & edp::item::timing) != 0)
     image_.timing =
         ServoTiming{reply.servo_cycles,    reply.servo_overruns,  reply.servo_period_us,
@@ -124,15 +128,20 @@ void Robot::execute() {
   const bool gets =
       command.type == edp::InstructionType::get || command.type == edp::InstructionType::set_get;
   const std::uint8_t asked = gets ? command.get : 0;
+  const bool sets_device = (command.type == edp::InstructionType::set ||
+                            command.type == edp::InstructionType::set_get) &&
+                           (command.set & edp::item::device) != 0;
   if (!separate_query_ && command.type != edp::InstructionType::query) {
     edp::Instruction with_query = command;
+    if (sets_device) write_device_command(with_query.device);
     with_query.with_query = true;
     const edp::Reply reply = exchange(with_query);
     follow_settings(with_query);  // accepted: the EDP uses them from now on
     update_image(reply, asked);
     return;
   }
-  const edp::Instruction sent = command;
+  edp::Instruction sent = command;
+  if (sets_device) write_device_command(sent.device);
   exchange(sent);
   follow_settings(sent);
   edp::Instruction query;

@@ -1,5 +1,8 @@
 // The name -> factory registry of ECP tasks, and the virtual sensors of an ECP task.
+#include <cxxabi.h>
+
 #include <algorithm>
+#include <cstdlib>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -15,10 +18,25 @@ detail::Registry<ecp::EcpTaskFactory>& ecp_registry() {
   static detail::Registry<ecp::EcpTaskFactory> r("ECP task");
   return r;
 }
+// The robot class of each task registered with one (MRROC_REGISTER_ECP_TASK_WITH_ROBOT).
+detail::Registry<ecp::RobotFactory>& robot_registry() {
+  static detail::Registry<ecp::RobotFactory> r("ECP robot class");
+  return r;
+}
 }  // namespace
 
-void ecp::register_ecp_task(const std::string& name, EcpTaskFactory factory) {
+void ecp::register_ecp_task(const std::string& name, EcpTaskFactory factory, RobotFactory robot) {
   ecp_registry().add(name, std::move(factory));
+  if (robot) robot_registry().add(name, std::move(robot));
+}
+
+std::unique_ptr<ecp::Robot> ecp::make_task_robot(const std::string& task, comm::Bus& bus,
+                                                 const std::string& process,
+                                                 const std::string& robot, RobotModel model) {
+  const std::vector<std::string> with_robot = robot_registry().names();
+  if (std::find(with_robot.begin(), with_robot.end(), task) != with_robot.end())
+    return robot_registry().get(task)(bus, process, robot, std::move(model));
+  return std::make_unique<Robot>(bus, process, robot, std::move(model));
 }
 std::unique_ptr<ecp::EcpTask> ecp::make_ecp_task(const std::string& name, TaskContext& context) {
   return ecp_registry().get(name)(context);
@@ -43,6 +61,14 @@ std::vector<ConfigError> ecp::check_ecp_task(const std::string& name, const Task
 }  // namespace mrroc
 
 namespace mrroc::ecp {
+
+std::string detail::class_name(const std::type_info& type) {
+  int status = 0;
+  char* readable = abi::__cxa_demangle(type.name(), nullptr, nullptr, &status);
+  std::string name = status == 0 && readable != nullptr ? readable : type.name();
+  std::free(readable);  // NOLINT(cppcoreguidelines-no-malloc): __cxa_demangle's malloc
+  return name;
+}
 
 namespace {
 

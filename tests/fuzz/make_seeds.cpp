@@ -141,6 +141,12 @@ std::vector<edp::Instruction> instructions() {
   frame.value_in_step_no = 51;
   frame.arm = {1, 0, 0, 0.8, 0, 1, 0, 0.0, 0, 0, 1, 1.1};
   out.push_back(frame);
+  edp::Instruction grip;  // SET DEVICE of the mujoco gripper: opening [m], force [N]
+  grip.type = edp::InstructionType::set_get;
+  grip.set = edp::item::device;
+  grip.get = edp::item::device;
+  grip.device = {0.0, 20.0};
+  out.push_back(grip);
   return out;
 }
 
@@ -169,6 +175,9 @@ std::vector<edp::Reply> edp_replies() {
   data.lateness_p99_us = 80;
   data.lateness_max_us = 950;
   out.push_back(data);
+  edp::Reply gripper = data;  // GET DEVICE: opening [m], speed [m/s], force [N], holding
+  gripper.device = {0.0399, 0.0, 19.6, 1.0};
+  out.push_back(gripper);
   edp::Reply error;
   error.type = edp::ReplyType::error;
   error.error_code = edp::error_code::out_of_limits;

@@ -11,8 +11,8 @@ using test::through_bytes;
 TEST(Messages, EdpInstructionRoundTrip) {
   edp::Instruction in;
   in.type = edp::InstructionType::set_get;
-  in.set = edp::item::arm | edp::item::tool | edp::item::outputs;
-  in.get = edp::item::arm | edp::item::inputs;
+  in.set = edp::item::arm | edp::item::tool | edp::item::outputs | edp::item::device;
+  in.get = edp::item::arm | edp::item::inputs | edp::item::device;
   in.set_arm_type = edp::ArmRepresentation::xyz_euler_zyz;
   in.get_arm_type = edp::ArmRepresentation::motor;
   in.motion_type = edp::MotionType::relative;
@@ -26,6 +26,7 @@ TEST(Messages, EdpInstructionRoundTrip) {
   in.servo_algorithm = {1, 2, 1, 1, 0};
   in.servo_parameters_no = {0, 1, 0, 3, 0};
   in.output_values = 0xA5;
+  in.device = {0.02, 15.0};
   const edp::Instruction out = comm::decode(through_bytes(comm::encode(in)));
   EXPECT_EQ(out.type, in.type);
   EXPECT_EQ(out.set, in.set);
@@ -43,6 +44,7 @@ TEST(Messages, EdpInstructionRoundTrip) {
   EXPECT_EQ(out.servo_algorithm, in.servo_algorithm);
   EXPECT_EQ(out.servo_parameters_no, in.servo_parameters_no);
   EXPECT_EQ(out.output_values, 0xA5U);
+  EXPECT_EQ(out.device, in.device);
 }
 
 TEST(Messages, EdpReplyRoundTrip) {
@@ -57,6 +59,7 @@ TEST(Messages, EdpReplyRoundTrip) {
   in.desired_joints = {0.11, -1.51, 0.21, 0.31, 0.41};
   in.joint_velocities = {0, 0.1, 0, 0, -0.1};
   in.input_values = 7;
+  in.device = {0.04, 0.0, 12.5, 1.0};
   in.servo_cycles = 1000;
   in.servo_overruns = 2;
   in.servo_period_us = 2000;
@@ -74,6 +77,7 @@ TEST(Messages, EdpReplyRoundTrip) {
   EXPECT_EQ(out.desired_joints, in.desired_joints);
   EXPECT_EQ(out.joint_velocities, in.joint_velocities);
   EXPECT_EQ(out.input_values, 7U);
+  EXPECT_EQ(out.device, in.device);
   EXPECT_EQ(out.servo_cycles, 1000);
   EXPECT_EQ(out.servo_overruns, 2);
   EXPECT_DOUBLE_EQ(out.servo_period_us, 2000);
@@ -156,8 +160,11 @@ TEST(Messages, MalformedInstructionNamesTheField) {
   m.n_arm = 2;  // length field disagrees with the data
   expect_rejected(m, "arm");
   m = good;
-  m.set_mask = static_cast<std::int8_t>(0x80);
+  m.set_mask = 0x100;  // above DEVICE_BIT
   expect_rejected(m, "set_mask");
+  m = good;
+  m.n_device = 1;  // length field disagrees with the data
+  expect_rejected(m, "device");
 }
 
 TEST(Messages, TruncatedBytesDoNotDecode) {

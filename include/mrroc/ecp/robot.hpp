@@ -19,6 +19,12 @@
 
 namespace mrroc::ecp {
 
+/// A robot with a device beside its arm (the paper's device-dependent buffers and images, e.g. a
+/// gripper) derives from Robot, keeps its device's command and reply fields in its own members
+/// and converts them in the two hooks write_device_command and read_device_reply; its task code
+/// calls its own methods (ecp/tasks/gripper.hpp: `gripper.close(force)`, `gripper.width()`). A
+/// task says which robot class it drives when it is registered
+/// (MRROC_REGISTER_ECP_TASK_WITH_ROBOT) and reaches it through TaskContext::robot_as.
 class Robot {
  public:
   /// @param process_name  the caller's name (e.g. "ecp/irb6"), for its EDP client.
@@ -28,6 +34,9 @@ class Robot {
   /// With the request/reply layer's own options (mrroc/comm/request_reply.hpp).
   Robot(comm::Bus& bus, const std::string& process_name, const std::string& robot_name,
         RobotModel model, const comm::ClientOptions& options);
+  virtual ~Robot() = default;
+  Robot(const Robot&) = delete;
+  Robot& operator=(const Robot&) = delete;
 
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] const RobotModel& model() const { return model_; }
@@ -44,7 +53,9 @@ class Robot {
 
   /// Sends `image().command` and updates the image from its result: one exchange (the command
   /// goes with `with_query`, and the EDP answers with what its QUERY would return), or, with
-  /// set_separate_query(true), the paper's two: the command, then QUERY.
+  /// set_separate_query(true), the paper's two: the command, then QUERY. A command that SETs
+  /// DEVICE carries the device part write_device_command makes; a reply to a GET of DEVICE goes
+  /// to `image().device` and to read_device_reply.
   /// @throws EdpRefused (the EDP refused; nothing moved), TimeoutError.
   void execute();
   /// True: execute() sends a separate QUERY after every command (the paper's sequence; one more
@@ -80,6 +91,17 @@ class Robot {
   /// Blocks while paused; returns true if it did block. @throws TaskStopped when a stop is
   /// requested.
   bool wait_while_paused();
+
+ protected:
+  /// Extension point of a derived robot with a device: fills the device part of a SET DEVICE
+  /// from the derived robot's command fields, one number per command field of the EDP plugin's
+  /// device, in its order and units. `command` arrives holding `image().command.device`; the
+  /// default leaves it so.
+  virtual void write_device_command(std::vector<double>& command) const { (void)command; }
+  /// Extension point of a derived robot with a device: reads the reply fields of a GET DEVICE
+  /// (one number per reply field of the plugin's device) into the derived robot's own fields.
+  /// @throws Error when they do not fit (e.g. the EDP's plugin drives another device).
+  virtual void read_device_reply(const std::vector<double>& reply) { (void)reply; }
 
  private:
   edp::Reply exchange(const edp::Instruction& instruction);

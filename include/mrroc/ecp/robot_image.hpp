@@ -61,6 +61,9 @@ struct RobotImage {
   std::optional<std::vector<std::int8_t>> servo_parameters_no;  ///< GET SERVO, per axis
   std::optional<std::uint32_t> inputs;                          ///< GET INPUTS: bit i = line i
   std::optional<ServoTiming> timing;                            ///< GET TIMING
+  /// GET DEVICE: the reply fields of the EDP plugin's device, in its order and units (a robot
+  /// class derived from Robot reads them into its own fields: Robot::read_device_reply).
+  std::optional<std::vector<double>> device;
 
   /// The instruction the next exchange sends (a generator fills it in each step).
   edp::Instruction command;

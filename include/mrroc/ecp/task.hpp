@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <typeinfo>
 #include <vector>
 
 #include "mrroc/comm/reporter.hpp"
@@ -21,6 +22,11 @@ class Bus;
 }  // namespace mrroc::comm
 
 namespace mrroc::ecp {
+
+namespace detail {
+/// The readable name of a class ("mrroc::ecp::Gripper").
+std::string class_name(const std::type_info& type);
+}  // namespace detail
 
 struct TaskContext {
   Robot& robot;
@@ -50,6 +56,21 @@ struct TaskContext {
   /// EDP (FollowGenerator), until the next START_TASK or NEXT_STATE. Typically the last thing a
   /// task's main_task() does. @throws Error where the shell gave no slot (follow_slot).
   void follow_mp_with(std::unique_ptr<FollowGenerator> generator) const;
+
+  /// The robot as the class the task drives (a robot class derived from Robot, e.g. Gripper,
+  /// made by the ECP shell for a task registered with MRROC_REGISTER_ECP_TASK_WITH_ROBOT).
+  /// @throws Error naming the class when the robot is not one (e.g. a sub-task that needs a
+  /// gripper run by an ECP whose configured task drives a plain Robot).
+  template <class R>
+  [[nodiscard]] R& robot_as() const {
+    if (auto* r = dynamic_cast<R*>(&robot)) return *r;
+    throw Error("this task needs robot '" + robot.name() + "' to be a " +
+                detail::class_name(typeid(R)) +
+                ", the ECP's configured task ([robot.ecp] task) "
+                "drives a " +
+                detail::class_name(typeid(robot)) +
+                " (a task names its robot class with MRROC_REGISTER_ECP_TASK_WITH_ROBOT)");
+  }
 };
 
 class EcpTask {
@@ -60,7 +81,17 @@ class EcpTask {
 };
 
 using EcpTaskFactory = std::function<std::unique_ptr<EcpTask>(TaskContext&)>;
-void register_ecp_task(const std::string& name, EcpTaskFactory factory);
+/// Makes the robot a task drives: the ECP shell's client of the EDP (process: the ECP's process
+/// name, robot: the robot's name in the process set).
+using RobotFactory = std::function<std::unique_ptr<Robot>(
+    comm::Bus& bus, const std::string& process, const std::string& robot, RobotModel model)>;
+/// `robot`: the class of robot the task drives (empty: a plain Robot).
+void register_ecp_task(const std::string& name, EcpTaskFactory factory, RobotFactory robot = {});
+/// The robot the ECP shell makes for its configured task `task`: the class that task was
+/// registered with, else (also for an unknown name, reported by check_ecp_task) a plain Robot.
+std::unique_ptr<Robot> make_task_robot(const std::string& task, comm::Bus& bus,
+                                       const std::string& process, const std::string& robot,
+                                       RobotModel model);
 /// @throws ConfigError listing the known task names.
 std::unique_ptr<EcpTask> make_ecp_task(const std::string& name, TaskContext& context);
 
@@ -75,7 +106,9 @@ std::vector<ConfigError> check_ecp_task(const std::string& name, const TaskConte
 
 namespace detail {
 struct EcpTaskRegistrar {
-  EcpTaskRegistrar(const char* name, EcpTaskFactory f) { register_ecp_task(name, std::move(f)); }
+  EcpTaskRegistrar(const char* name, EcpTaskFactory f, RobotFactory robot = {}) {
+    register_ecp_task(name, std::move(f), std::move(robot));
+  }
 };
 }  // namespace detail
 
@@ -87,4 +120,20 @@ struct EcpTaskRegistrar {
     NAME, [](::mrroc::ecp::TaskContext& c) {                                             \
       return std::unique_ptr<::mrroc::ecp::EcpTask>(new CLASS(c));                       \
     }                                                                                    \
+  }
+
+/// Registers an ECP task class that drives a robot of class ROBOT (derived from ecp::Robot, with
+/// Robot's first constructor): the ECP shell whose configured task it is makes its robot a ROBOT,
+/// and the task reaches it with `context.robot_as<ROBOT>()`.
+#define MRROC_REGISTER_ECP_TASK_WITH_ROBOT(NAME, CLASS, ROBOT)                            \
+  static const ::mrroc::ecp::detail::EcpTaskRegistrar mrroc_ecp_task_registrar_##CLASS {  \
+    NAME,                                                                                 \
+        [](::mrroc::ecp::TaskContext& c) {                                                \
+          return std::unique_ptr<::mrroc::ecp::EcpTask>(new CLASS(c));                    \
+        },                                                                                \
+        [](::mrroc::comm::Bus& bus, const std::string& process, const std::string& robot, \
+           ::mrroc::RobotModel model) {                                                   \
+          return std::unique_ptr<::mrroc::ecp::Robot>(                                    \
+              new ROBOT(bus, process, robot, std::move(model)));                          \
+        }                                                                                 \
   }

@@ -42,6 +42,27 @@ struct AxisFeedback {
   bool synchro_switch = false;  ///< state of the axis' synchronisation switch
 };
 
+/// Most fields a device's command or reply may have (the servo loop keeps them in fixed arrays).
+inline constexpr std::size_t kMaxDeviceFields = 8;
+
+/// One number of a device's command or reply (e.g. a gripper's opening).
+struct DeviceField {
+  std::string name;  ///< e.g. "opening"
+  std::string unit;  ///< e.g. "m", "N", "-" for a flag (0 or 1)
+  /// Range a SET DEVICE value must lie in [unit] (command fields; unused for reply fields).
+  double min = 0.0;
+  double max = 0.0;
+};
+
+/// The device a plugin drives beside the robot's axes (the paper's device-dependent buffers and
+/// images, e.g. a gripper): what a SET DEVICE commands and what a GET DEVICE returns. An empty
+/// `name` means the plugin has no device.
+struct DeviceDescription {
+  std::string name;                  ///< e.g. "gripper"
+  std::vector<DeviceField> command;  ///< at most kMaxDeviceFields
+  std::vector<DeviceField> reply;    ///< at most kMaxDeviceFields
+};
+
 /// What a plugin is given at configure time.
 struct HardwareSetup {
   std::string robot;                             ///< robot name from the config, e.g. "irb6"
@@ -89,6 +110,16 @@ class Hardware {
   virtual void write_outputs(std::uint32_t values) { (void)values; }
   /// Binary inputs of the robot controller (bit i = line i). Called from the servo thread.
   [[nodiscard]] virtual std::uint32_t read_inputs() const { return 0; }
+
+  /// The device the plugin drives beside the axes; valid after configure(). The default (empty
+  /// name): none, and the EDP refuses SET DEVICE and GET DEVICE (error not_supported).
+  [[nodiscard]] virtual DeviceDescription device() const { return {}; }
+  /// Commands the device with one value per `device().command` field, each already checked
+  /// against its range. Called from the servo thread before write(); must not allocate.
+  virtual void write_device(std::span<const double> command) { (void)command; }
+  /// Measures the device: one value per `device().reply` field. Called from the servo thread
+  /// after read(); must not allocate.
+  virtual void read_device(std::span<double> reply) const { (void)reply; }
 
   /// Servo algorithms the plugin offers (numbered 0..n-1; 0 is the default).
   [[nodiscard]] virtual int servo_algorithm_count() const { return 1; }

@@ -20,6 +20,9 @@ inline constexpr std::uint8_t servo = 8;     ///< servo algorithm and parameters
 inline constexpr std::uint8_t outputs = 16;  ///< binary outputs (SET)
 inline constexpr std::uint8_t inputs = 32;   ///< binary inputs (GET)
 inline constexpr std::uint8_t timing = 64;   ///< servo-loop timing statistics (GET)
+/// The device-dependent command (SET) and reply (GET) of the hardware plugin's device, e.g. a
+/// gripper (docs/edp.md, "Devices").
+inline constexpr std::uint8_t device = 128;
 }  // namespace item
 
 /// Arm and tool representations.
@@ -64,6 +67,10 @@ struct Instruction {
   std::vector<std::int8_t> servo_parameters_no;
 
   std::uint32_t output_values = 0;
+
+  /// SET DEVICE: one value per command field of the plugin's device, in its order and units
+  /// (Hardware::device(); e.g. a gripper's opening [m] and force [N]).
+  std::vector<double> device;
 
   /// The reply carries the result a QUERY would return (for SET ARM the reading taken in step
   /// `value_in_step_no`, or as the EDP's lookahead allows, see docs/edp.md) and no QUERY follows:
@@ -124,6 +131,8 @@ struct Reply {
   std::vector<std::int8_t> servo_algorithm;
   std::vector<std::int8_t> servo_parameters_no;
   std::uint32_t input_values = 0;
+  /// GET DEVICE: one value per reply field of the plugin's device, in its order and units.
+  std::vector<double> device;
 
   /// Servo-loop timing (filled for GET with item::timing).
   std::int64_t servo_cycles = 0;

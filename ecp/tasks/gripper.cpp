@@ -9,7 +9,6 @@
 namespace mrroc::ecp {
 
 namespace {
-constexpr std::size_t kCommandFields = 2;  // opening, force
 constexpr std::size_t kReplyFields = 4;    // opening, speed, force, holding
 constexpr double kSettleTimeoutS = 10.0;
 // Readings in a row below kStoppedSpeed that count as stopped, and the first readings ignored
@@ -20,7 +19,6 @@ constexpr int kIgnoredReadings = 3;
 
 void Gripper::write_device_command(std::vector<double>& command) const {
   command = {command_opening_, command_force_};
-  static_assert(kCommandFields == 2);
 }
 
 void Gripper::read_device_reply(const std::vector<double>& reply) {

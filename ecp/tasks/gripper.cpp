@@ -9,7 +9,7 @@
 namespace mrroc::ecp {
 
 namespace {
-constexpr std::size_t kReplyFields = 4;    // opening, speed, force, holding
+constexpr std::size_t kReplyFields = 4;  // opening, speed, force, holding
 constexpr double kSettleTimeoutS = 10.0;
 // Readings in a row below kStoppedSpeed that count as stopped, and the first readings ignored
 // (the reply to the SET itself was measured before the fingers were commanded).
@@ -43,6 +43,8 @@ void Gripper::read_device() {
 }
 
 void Gripper::move_fingers(double opening_m, double force_n) {
+  if (stop_requested()) throw TaskStopped("task stopped on request");
+  wait_while_paused();  // as Move: a PAUSE holds before the next command
   command_opening_ = opening_m;
   command_force_ = force_n;
   const edp::Instruction saved = image().command;

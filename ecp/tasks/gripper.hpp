@@ -31,8 +31,9 @@ class Gripper : public Robot {
   static constexpr double kStoppedSpeed = 0.002;
 
   /// Closes the fingers with at most `force_n` [N] and waits until they stop: on a part
-  /// (holding()) or closed. @throws EdpRefused (e.g. a force above kMaxForce, naming the limit),
-  /// TimeoutError when they do not stop within 10 s, TaskStopped.
+  /// (holding()) or closed. A PAUSE holds it before the command, as Move. @throws EdpRefused
+  /// (e.g. a force above kMaxForce, naming the limit), TimeoutError when they do not stop within
+  /// 10 s, TaskStopped.
   void close(double force_n);
   /// Opens the fingers fully and waits until they stop.
   void open();

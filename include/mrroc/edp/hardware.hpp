@@ -111,8 +111,9 @@ class Hardware {
   /// Binary inputs of the robot controller (bit i = line i). Called from the servo thread.
   [[nodiscard]] virtual std::uint32_t read_inputs() const { return 0; }
 
-  /// The device the plugin drives beside the axes; valid after configure(). The default (empty
-  /// name): none, and the EDP refuses SET DEVICE and GET DEVICE (error not_supported).
+  /// The device the plugin drives beside the axes; valid after configure(), read once when the
+  /// EDP's servo loop is made. The default (empty name): none, and the EDP refuses SET DEVICE and
+  /// GET DEVICE (error not_supported).
   [[nodiscard]] virtual DeviceDescription device() const { return {}; }
   /// Commands the device with one value per `device().command` field, each already checked
   /// against its range. Called from the servo thread before write(); must not allocate.

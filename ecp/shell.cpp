@@ -40,7 +40,7 @@ EcpShell::EcpShell(comm::Bus& bus, const RobotConfig& config, Reporter& reporter
   // Build the configured task once now, so that a wrong name or argument fails before "ready"
   // (every error found; `mrroc-ecp --check-config` runs this constructor too).
   TaskContext context{*robot_, reporter_, config_.ecp.args, config_.edp.servo_period_s,
-                      &bus_,   process_,  nullptr,           &vsps_};
+                      &bus_,   process_,  nullptr,          &vsps_};
   ConfigErrorList errors;
   // An argument's own location, else the [robot.ecp] table's.
   errors.add(check_ecp_task(config_.ecp.name, context, config_.ecp.name_where, config_.ecp.where));

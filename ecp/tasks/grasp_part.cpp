@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "gripper.hpp"
+#include "joint_motion_options.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/ecp/generators/joint_poses.hpp"
 #include "mrroc/ecp/task.hpp"
@@ -25,10 +26,7 @@ class GraspPart : public EcpTask {
     grasp_ = args.get_doubles("grasp");
     lift_ = args.get_doubles("lift");
     force_ = args.get_double("force", 20.0);
-    options_.velocity_scale = args.get_double("velocity_scale", 0.5);
-    options_.acceleration_scale = args.get_double("acceleration_scale", 0.5);
-    options_.motion_steps = static_cast<int>(args.get_int("motion_steps", 10));
-    options_.servo_period_s = context.servo_period_s;
+    options_ = joint_motion_options(args, context.servo_period_s);
     args.reject_unread("robot.ecp.args");
     ConfigErrorList errors;
     const RobotModel& model = gripper_.model();

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "joint_motion_options.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/ecp/generators/joint_poses.hpp"
 #include "mrroc/ecp/task.hpp"
@@ -14,10 +15,7 @@ class VisitJointPoses : public EcpTask {
   explicit VisitJointPoses(TaskContext& context) : context_(context) {
     const Params& args = context.args;
     poses_ = args.get_double_rows("poses");
-    options_.velocity_scale = args.get_double("velocity_scale", 0.5);
-    options_.acceleration_scale = args.get_double("acceleration_scale", 0.5);
-    options_.motion_steps = static_cast<int>(args.get_int("motion_steps", 10));
-    options_.servo_period_s = context.servo_period_s;
+    options_ = joint_motion_options(args, context.servo_period_s);
     args.reject_unread("robot.ecp.args");
     // Validate every pose and option before anything moves, naming where they were written:
     // the options, each pose on its own (arity, joint limits), then the paths between them.

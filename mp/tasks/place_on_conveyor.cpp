@@ -28,8 +28,7 @@ std::string poses_argument(const std::vector<std::vector<double>>& poses) {
 /// it.
 /// @throws ConfigError at the argument naming the joint, the value, the unit and the limit.
 std::vector<double> joint_pose(const TaskContext& context, const std::string& key,
-                               const Robot& robot, std::vector<double> q) {
-  const RobotModel model = load_robot_model(context.config.robot(robot.name()).model_dir);
+                               const RobotModel& model, std::vector<double> q) {
   try {
     model.check_joint_limits(q, key.c_str());
   } catch (const Error& e) {
@@ -52,13 +51,18 @@ class PlaceOnConveyor : public MpTask {
     ConfigErrorList errors;
     const Params& a = context.args;
     const SourceLocation& at = a.location();
+    const auto model_of = [&](const Robot& r) {
+      return load_robot_model(context.config.robot(r.name()).model_dir);
+    };
+    const RobotModel arm = model_of(arm_);
+    const RobotModel conveyor = model_of(conveyor_);
     errors.run(
-        at, [&] { approach_ = joint_pose(context, "approach", arm_, a.get_doubles("approach")); });
-    errors.run(at, [&] { place_ = joint_pose(context, "place", arm_, a.get_doubles("place")); });
+        at, [&] { approach_ = joint_pose(context, "approach", arm, a.get_doubles("approach")); });
+    errors.run(at, [&] { place_ = joint_pose(context, "place", arm, a.get_doubles("place")); });
     errors.run(at,
-               [&] { retreat_ = joint_pose(context, "retreat", arm_, a.get_doubles("retreat")); });
+               [&] { retreat_ = joint_pose(context, "retreat", arm, a.get_doubles("retreat")); });
     errors.run(at, [&] {
-      belt_target_ = joint_pose(context, "belt_target", conveyor_, {a.get_double("belt_target")});
+      belt_target_ = joint_pose(context, "belt_target", conveyor, {a.get_double("belt_target")});
     });
     errors.run(at, [&] { a.reject_unread("mp.args"); });
     errors.throw_if_any();

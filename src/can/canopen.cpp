@@ -151,6 +151,11 @@ can_frame encode(std::uint8_t node, const Rpdo1& pdo) {
   put32(f.data + 2, static_cast<std::uint32_t>(pdo.target_position));
   return f;
 }
+can_frame encode(std::uint8_t node, const Rpdo2& pdo) {
+  can_frame f = frame(rpdo2_id(node), 4);
+  put32(f.data, pdo.outputs);
+  return f;
+}
 can_frame encode(std::uint8_t node, const Tpdo1& pdo) {
   can_frame f = frame(tpdo1_id(node), 8);
   put16(f.data, pdo.statusword);
@@ -161,6 +166,10 @@ can_frame encode(std::uint8_t node, const Tpdo1& pdo) {
 std::optional<Rpdo1> decode_rpdo1(const can_frame& f) {
   if (!plain(f, 6)) return std::nullopt;
   return Rpdo1{get16(f.data), static_cast<std::int32_t>(get32(f.data + 2))};
+}
+std::optional<Rpdo2> decode_rpdo2(const can_frame& f) {
+  if (!plain(f, 4)) return std::nullopt;
+  return Rpdo2{get32(f.data)};
 }
 std::optional<Tpdo1> decode_tpdo1(const can_frame& f) {
   if (!plain(f, 8)) return std::nullopt;
@@ -310,15 +319,21 @@ BusLoad cyclic_bus_load(std::size_t axes, double period_s, double bitrate_bps,
   const auto n = static_cast<int>(axes);
   const FrameBits sync = frame_bits(0);
   const FrameBits rpdo = frame_bits(6);
+  const FrameBits outputs = frame_bits(4);
   const FrameBits tpdo = frame_bits(8);
   const FrameBits heartbeat = frame_bits(1);
   load.frames_per_cycle = 1 + 2 * n;
   const double heartbeats_per_cycle =
       heartbeat_period_s > 0.0 ? static_cast<double>(n) * period_s / heartbeat_period_s : 0.0;
-  load.bits_per_cycle_nominal =
-      sync.nominal + n * (rpdo.nominal + tpdo.nominal) + heartbeats_per_cycle * heartbeat.nominal;
-  load.bits_per_cycle_worst =
-      sync.worst + n * (rpdo.worst + tpdo.worst) + heartbeats_per_cycle * heartbeat.worst;
+  // Each drive's outputs are refreshed every kOutputRefreshCycles cycles (an RPDO2).
+  const double refreshes_per_cycle =
+      static_cast<double>(n) / static_cast<double>(kOutputRefreshCycles);
+  load.bits_per_cycle_nominal = sync.nominal + n * (rpdo.nominal + tpdo.nominal) +
+                                heartbeats_per_cycle * heartbeat.nominal +
+                                refreshes_per_cycle * outputs.nominal;
+  load.bits_per_cycle_worst = sync.worst + n * (rpdo.worst + tpdo.worst) +
+                              heartbeats_per_cycle * heartbeat.worst +
+                              refreshes_per_cycle * outputs.worst;
   const double capacity = bitrate_bps * period_s;
   load.load_nominal = load.bits_per_cycle_nominal / capacity;
   load.load_worst = load.bits_per_cycle_worst / capacity;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <utility>
 
 namespace mrroc::can {
@@ -32,6 +33,11 @@ double Cia402Drive::position_of(std::int32_t value) const noexcept {
   return zero_ + static_cast<double>(value) / config_.counts_per_unit;
 }
 
+std::uint32_t Cia402Drive::digital_inputs() const noexcept {
+  return (sample_.home_switch ? std::uint32_t{canopen::kHomeSwitchBit} : 0U) |
+         (static_cast<std::uint32_t>(sample_.input_lines) << canopen::kUserLineShift);
+}
+
 std::uint16_t Cia402Drive::statusword() const noexcept {
   std::uint16_t sw = canopen::state_bits(state_);
   if (state_ != DriveState::not_ready_to_switch_on && state_ != DriveState::switch_on_disabled &&
@@ -57,6 +63,8 @@ void Cia402Drive::power_on(const AxisSample& sample, double now_s) {
   target_ = 0;
   target_valid_ = false;
   rpdo_pending_ = false;
+  rpdo2_pending_ = false;
+  outputs_ = output_mask_ = 0;
   controlword_ = 0;
   following_error_ = false;
   following_error_since_s_ = over_current_since_s_ = -1.0;
@@ -139,6 +147,10 @@ void Cia402Drive::on_sync(double now_s) {
     target_ = rpdo_.target_position;
     target_valid_ = true;
   }
+  if (rpdo2_pending_) {
+    rpdo2_pending_ = false;
+    outputs_ = rpdo2_outputs_;
+  }
   if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeCyclicSyncPosition &&
       target_valid_) {
     // Velocity from target to target (the master's stream is uniform even when the SYNCs
@@ -152,7 +164,7 @@ void Cia402Drive::on_sync(double now_s) {
   canopen::Tpdo1 tpdo;
   tpdo.statusword = statusword();
   tpdo.position_actual = counts(sample_.position);
-  tpdo.inputs = sample_.home_switch ? canopen::kHomeSwitchBit : std::uint16_t{0};
+  tpdo.inputs = canopen::compact_inputs(digital_inputs());
   send(canopen::encode(config_.node, tpdo));
 }
 
@@ -302,14 +314,26 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
         return 0U;
       });
     case od::kRpdo1Mapping:
+    case od::kRpdo2Mapping:
     case od::kTpdo1Mapping: {
-      const bool rx = q.index == od::kRpdo1Mapping;
-      const std::size_t count = rx ? od::kRpdo1Entries.size() : od::kTpdo1Entries.size();
-      if (q.subindex > count) return fail(abort::kNoSubindex);
-      if (q.subindex == 0) return read(static_cast<std::uint32_t>(count), 1);
-      return read(rx ? od::kRpdo1Entries[q.subindex - 1U] : od::kTpdo1Entries[q.subindex - 1U], 4);
+      const std::span<const std::uint32_t> entries =
+          q.index == od::kRpdo1Mapping   ? std::span<const std::uint32_t>(od::kRpdo1Entries)
+          : q.index == od::kRpdo2Mapping ? std::span<const std::uint32_t>(od::kRpdo2Entries)
+                                         : std::span<const std::uint32_t>(od::kTpdo1Entries);
+      if (q.subindex > entries.size()) return fail(abort::kNoSubindex);
+      if (q.subindex == 0) return read(static_cast<std::uint32_t>(entries.size()), 1);
+      return read(entries[q.subindex - 1U], 4);
     }
-    case od::kDigitalInputsLow: return read(sample_.home_switch ? canopen::kHomeSwitchBit : 0U, 2);
+    case od::kDigitalInputsCompact:
+      return no_sub(0) ? fail(abort::kNoSubindex)
+                       : read(canopen::compact_inputs(digital_inputs()), 2);
+    case od::kDigitalOutputs:
+      if (no_sub(2)) return fail(abort::kNoSubindex);
+      if (q.subindex == 0) return read(2, 1);
+      return writable(4, q.subindex == 1 ? outputs_ : output_mask_, [&](std::uint32_t v) {
+        (q.subindex == 1 ? outputs_ : output_mask_) = v;
+        return 0U;
+      });
     case od::kEncoderResolution:
       return read(static_cast<std::uint32_t>(std::lround(config_.counts_per_unit)), 4);
     case od::kControlword:
@@ -361,7 +385,8 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
                             static_cast<double>(v) / config_.counts_per_unit;
                         return 0U;
                       });
-    case od::kDigitalInputs: return read(sample_.home_switch ? canopen::kHomeSwitchBit : 0U, 4);
+    case od::kDigitalInputs:
+      return no_sub(0) ? fail(abort::kNoSubindex) : read(digital_inputs(), 4);
     case od::kInterpolationPeriod: {
       if (q.subindex == 0) return read(2, 1);
       if (q.subindex > 2) return fail(abort::kNoSubindex);
@@ -395,6 +420,12 @@ void Cia402Drive::on_frame(const can_frame& frame, double now_s) {
     if (const auto pdo = canopen::decode_rpdo1(frame)) {
       rpdo_ = *pdo;
       rpdo_pending_ = true;
+    }
+  }
+  if (frame.can_id == canopen::rpdo2_id(config_.node) && nmt_ == NmtState::operational) {
+    if (const auto pdo = canopen::decode_rpdo2(frame)) {
+      rpdo2_outputs_ = pdo->outputs;
+      rpdo2_pending_ = true;
     }
   }
 }

@@ -103,10 +103,12 @@ TEST(Canopen, BusLoadMatchesTheFrameArithmetic) {
   EXPECT_EQ(co::frame_bits(8).nominal, 111);
   EXPECT_EQ(co::frame_bits(8).worst, 135);
   EXPECT_EQ(co::frame_bits(0).nominal, 47);
-  // Five IRb-6 axes at 2 ms on 1 Mbit/s: SYNC + 5 RPDO (6 bytes) + 5 TPDO (8 bytes).
+  // Five IRb-6 axes at 2 ms on 1 Mbit/s: SYNC + 5 RPDO1 (6 bytes) + 5 TPDO (8 bytes), and an
+  // RPDO2 (4 bytes) per axis every 50 cycles.
   const co::BusLoad irb6 = co::cyclic_bus_load(5, 0.002, 1e6, 0.0);
   EXPECT_EQ(irb6.frames_per_cycle, 11);
-  EXPECT_NEAR(irb6.load_nominal, (47 + 5 * (95 + 111)) / 2000.0, 1e-12);
+  EXPECT_EQ(co::frame_bits(4).nominal, 79);
+  EXPECT_NEAR(irb6.load_nominal, (47 + 5 * (95 + 111) + 5.0 / 50.0 * 79) / 2000.0, 1e-12);
   EXPECT_LT(irb6.load_worst, co::kRecommendedMaxLoad);
   // Six axes at 1 kHz do not fit one 1 Mbit/s bus; at 2 ms they do (nominally).
   EXPECT_GT(co::cyclic_bus_load(6, 0.001, 1e6, 0.0).load_nominal, 1.0);

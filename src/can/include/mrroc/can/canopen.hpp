@@ -4,15 +4,24 @@
 /// docs/hil.md describes it for users; this header is the reference for the numbers.
 ///
 /// Identifiers: the predefined connection set with 11-bit COB-IDs, node ids 1..127.
-///   NMT 0x000, SYNC 0x080, EMCY 0x080+n, TPDO1 0x180+n, RPDO1 0x200+n,
+///   NMT 0x000, SYNC 0x080, EMCY 0x080+n, TPDO1 0x180+n, RPDO1 0x200+n, RPDO2 0x300+n,
 ///   SDO server->client 0x580+n, SDO client->server 0x600+n, heartbeat / boot-up 0x700+n.
 ///
-/// Fixed PDO mapping (every drive, every cycle; the master checks the mapping objects by SDO):
-///   RPDO1 (master -> drive, 6 bytes): 0x6040 controlword (u16), 0x607A target position (i32).
-///   TPDO1 (drive -> master, 8 bytes): 0x6041 statusword (u16), 0x6064 position actual value
-///         (i32), 0x2001 digital inputs, low word (u16; bit 2 = home switch, as in 0x60FD).
-/// Both are synchronous (transmission type 1): a drive applies the RPDO received before a SYNC at
-/// that SYNC and answers every SYNC with a TPDO sampled at the SYNC.
+/// Fixed PDO mapping (the master checks the mapping objects by SDO):
+///   RPDO1 (master -> drive, 6 bytes, every cycle): 0x6040 controlword (u16), 0x607A target
+///         position (i32).
+///   RPDO2 (master -> drive, 4 bytes, when the outputs change and every kOutputRefreshCycles
+///         cycles): 0x60FE sub 1 digital outputs (u32; lines 0..7 are bits 16..23).
+///   TPDO1 (drive -> master, 8 bytes, every cycle): 0x6041 statusword (u16), 0x6064 position
+///         actual value (i32), 0x2001 digital inputs, compact (u16; see compact_inputs()).
+/// All three are synchronous (transmission type 1): a drive applies the RPDOs received before a
+/// SYNC at that SYNC and answers every SYNC with a TPDO sampled at the SYNC.
+///
+/// Digital lines. 0x60FD (u32, read only) is CiA 402's digital inputs: bit 2 home switch, bits
+/// 16..23 the drive's input lines 0..7 (manufacturer-specific bits). 0x60FE (CiA 402 digital
+/// outputs) sub 1 is the outputs (u32, lines 0..7 in bits 16..23), sub 2 the bit mask of the
+/// outputs the master may drive (power-on 0: none; the master writes kUserLineMask). A drive
+/// drives line k while bit 16 + k is set in both; the other bits are ignored.
 /// All multi-byte values are little-endian, as CANopen specifies.
 #include <linux/can.h>
 
@@ -30,6 +39,7 @@ inline constexpr canid_t kSyncId = 0x080;
 inline constexpr canid_t emcy_id(std::uint8_t node) { return 0x080U + node; }
 inline constexpr canid_t tpdo1_id(std::uint8_t node) { return 0x180U + node; }
 inline constexpr canid_t rpdo1_id(std::uint8_t node) { return 0x200U + node; }
+inline constexpr canid_t rpdo2_id(std::uint8_t node) { return 0x300U + node; }
 inline constexpr canid_t sdo_response_id(std::uint8_t node) { return 0x580U + node; }
 inline constexpr canid_t sdo_request_id(std::uint8_t node) { return 0x600U + node; }
 inline constexpr canid_t heartbeat_id(std::uint8_t node) { return 0x700U + node; }
@@ -73,11 +83,13 @@ inline constexpr std::uint16_t kCommunicationCyclePeriod = 0x1006;
 inline constexpr std::uint16_t kConsumerHeartbeatTime = 0x1016;
 inline constexpr std::uint16_t kHeartbeatTime = 0x1017;  ///< u16, producer heartbeat [ms]
 inline constexpr std::uint16_t kRpdo1Mapping = 0x1600;   ///< sub 0 = count, 1.. = entries
+inline constexpr std::uint16_t kRpdo2Mapping = 0x1601;
 inline constexpr std::uint16_t kTpdo1Mapping = 0x1A00;
 /// Error behaviour: sub 0 = 1, sub 1 = u8 NMT reaction to a communication error while
 /// operational: 0 enter pre-operational, 1 no change, 2 enter stopped.
 inline constexpr std::uint16_t kErrorBehaviour = 0x1029;
-inline constexpr std::uint16_t kDigitalInputsLow = 0x2001;   ///< u16, bit 2 home switch
+/// u16, 0x60FD compacted (compact_inputs()): bit 2 home switch, bits 8..15 input lines 0..7
+inline constexpr std::uint16_t kDigitalInputsCompact = 0x2001;
 inline constexpr std::uint16_t kEncoderResolution = 0x2002;  ///< u32, counts per revolution / m
 /// i16 abort connection option code (CiA 402): the device control reaction to a communication
 /// error (heartbeat or SYNC lost): 0 none, 1 fault, 2 disable voltage, 3 quick stop.
@@ -95,11 +107,14 @@ inline constexpr std::uint16_t kTargetPosition = 0x607A;         ///< i32 [count
 /// then stay in quick stop active (holding). Only these two are implemented.
 inline constexpr std::uint16_t kQuickStopOption = 0x605A;
 inline constexpr std::uint16_t kQuickStopDeceleration = 0x6085;  ///< u32 [counts/s^2]
-inline constexpr std::uint16_t kDigitalInputs = 0x60FD;          ///< u32, bit 2 home switch
-inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;    ///< sub 1: u8 value, sub 2: i8 exp
+inline constexpr std::uint16_t kDigitalInputs = 0x60FD;          ///< u32, bit 2 home, 16..23 lines
+/// Digital outputs: sub 0 = 2, sub 1 = u32 outputs, sub 2 = u32 bit mask (lines in bits 16..23)
+inline constexpr std::uint16_t kDigitalOutputs = 0x60FE;
+inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;  ///< sub 1: u8 value, sub 2: i8 exp
 inline constexpr std::uint32_t kServoDeviceType = 0x00020192;
 /// The fixed mapping entries (index << 16 | sub << 8 | bits).
 inline constexpr std::array<std::uint32_t, 2> kRpdo1Entries{0x60400010, 0x607A0020};
+inline constexpr std::array<std::uint32_t, 1> kRpdo2Entries{0x60FE0120};
 inline constexpr std::array<std::uint32_t, 3> kTpdo1Entries{0x60410010, 0x60640020, 0x20010010};
 }  // namespace od
 
@@ -190,16 +205,37 @@ struct Rpdo1 {
   std::uint16_t controlword = 0;
   std::int32_t target_position = 0;  ///< [counts]
 };
+struct Rpdo2 {
+  std::uint32_t outputs = 0;  ///< 0x60FE sub 1: lines 0..7 in bits 16..23
+};
 struct Tpdo1 {
   std::uint16_t statusword = 0;
   std::int32_t position_actual = 0;  ///< [counts]
-  std::uint16_t inputs = 0;          ///< bit 2 home switch
+  std::uint16_t inputs = 0;          ///< 0x2001: compact_inputs() of 0x60FD
 };
 inline constexpr std::uint16_t kHomeSwitchBit = 1U << 2;
+/// A drive's digital lines (inputs and outputs): 8, in bits 16..23 of 0x60FD and 0x60FE.
+inline constexpr unsigned kUserLineShift = 16;
+inline constexpr unsigned kUserLines = 8;
+inline constexpr std::uint32_t kUserLineMask = 0xFFU << kUserLineShift;
+/// The master refreshes each drive's outputs (RPDO2) at least this often [cycles], so that a
+/// lost frame is repaired (a drive holds its outputs between RPDO2s).
+inline constexpr std::uint64_t kOutputRefreshCycles = 50;
+/// 0x60FD (u32) in 16 bits for TPDO1's 0x2001: bits 0..7 as 0x60FD's, bits 8..15 = 0x60FD's
+/// bits 16..23 (the input lines).
+inline constexpr std::uint16_t compact_inputs(std::uint32_t inputs) {
+  return static_cast<std::uint16_t>((inputs & 0xFFU) | ((inputs >> 8U) & 0xFF00U));
+}
+/// The inverse of compact_inputs() (0x60FD's other bits read 0).
+inline constexpr std::uint32_t expand_inputs(std::uint16_t compact) {
+  return (compact & 0xFFU) | ((static_cast<std::uint32_t>(compact) & 0xFF00U) << 8U);
+}
 can_frame encode(std::uint8_t node, const Rpdo1& pdo);
+can_frame encode(std::uint8_t node, const Rpdo2& pdo);
 can_frame encode(std::uint8_t node, const Tpdo1& pdo);
 /// Decode a PDO's payload; nullopt when the length is wrong.
 std::optional<Rpdo1> decode_rpdo1(const can_frame& frame);
+std::optional<Rpdo2> decode_rpdo2(const can_frame& frame);
 std::optional<Tpdo1> decode_tpdo1(const can_frame& frame);
 
 // --- EMCY ----------------------------------------------------------------------------------------
@@ -270,7 +306,9 @@ struct FrameBits {
 };
 FrameBits frame_bits(int bytes);
 /// Bus load of one robot's cyclic traffic: one SYNC, an RPDO1 and a TPDO1 per axis each cycle,
-/// plus heartbeats. Loads are fractions of the bus' capacity (0.7 = 70 %).
+/// plus heartbeats and the outputs' refresh (an RPDO2 per axis every kOutputRefreshCycles
+/// cycles). A change of the outputs adds one RPDO2 per drive whose outputs changed, in that cycle
+/// only; it is not counted. Loads are fractions of the bus' capacity (0.7 = 70 %).
 struct BusLoad {
   int frames_per_cycle = 0;
   double bits_per_cycle_nominal = 0.0;

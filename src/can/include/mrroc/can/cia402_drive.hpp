@@ -32,6 +32,11 @@
 ///  - Quick stop: the demand decelerates at 0x6085 from the axis' velocity to standstill; then
 ///    quick stop option code 0x605A 6 holds in quick stop active (until enable operation or
 ///    disable voltage), 2 goes to switch on disabled (brake).
+///  - Digital lines: 0x60FD (and TPDO1's 0x2001) show the home switch and the axis' 8 input
+///    lines (`AxisSample::input_lines`); 0x60FE sub 1 and sub 2 (outputs and their mask, by SDO
+///    or RPDO2, which takes effect at the next SYNC) set the 8 output lines (`output_lines()`).
+///    Outputs hold through faults and communication errors; power-on and NMT reset node clear
+///    them and their mask.
 ///  - Heartbeat every 0x1017 ms when non-zero.
 ///  - Fault injection: `inject_fault(code)` (drive fault with that EMCY code), `set_silent(true)`
 ///    (the node neither sends nor receives: a dead or disconnected node).
@@ -68,6 +73,7 @@ struct AxisSample {
   double velocity = 0.0;  ///< [units/s]
   double force = 0.0;     ///< motor torque or force [N m or N]
   bool home_switch = false;
+  std::uint8_t input_lines = 0;  ///< the drive's digital input lines 0..7 (bit k = line k)
 };
 
 class Cia402Drive {
@@ -109,6 +115,13 @@ class Cia402Drive {
     return config_.interpolation_period_s;
   }
   [[nodiscard]] std::int32_t counts(double position) const noexcept;
+  /// The output lines the drive drives (bit k = line k): 0x60FE sub 1 under its mask sub 2.
+  [[nodiscard]] std::uint8_t output_lines() const noexcept {
+    return static_cast<std::uint8_t>((outputs_ & output_mask_ & canopen::kUserLineMask) >>
+                                     canopen::kUserLineShift);
+  }
+  /// 0x60FD as the drive reports it now.
+  [[nodiscard]] std::uint32_t digital_inputs() const noexcept;
 
   /// Drive fault with an EMCY code (e.g. canopen::emcy::kDeviceHardware).
   void inject_fault(std::uint16_t code, double now_s);
@@ -139,6 +152,10 @@ class Cia402Drive {
   // RPDO1 received since the last SYNC.
   bool rpdo_pending_ = false;
   canopen::Rpdo1 rpdo_{};
+  bool rpdo2_pending_ = false;  ///< RPDO2 received since the last SYNC
+  std::uint32_t rpdo2_outputs_ = 0;
+  std::uint32_t outputs_ = 0;      ///< 0x60FE sub 1
+  std::uint32_t output_mask_ = 0;  ///< 0x60FE sub 2
   std::uint16_t controlword_ = 0;
   std::int8_t mode_ = canopen::kModeCyclicSyncPosition;
   std::int32_t target_ = 0;

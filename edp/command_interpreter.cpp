@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #include "mrroc/core/error.hpp"
@@ -136,6 +137,16 @@ Reply CommandInterpreter::accept(const Instruction& in) {
         fmt::format("{} refused: plugin '{}' has no binary inputs or outputs",
                     sets && (in.set & item::outputs) != 0 ? "SET OUTPUTS" : "GET INPUTS",
                     servo_.hardware().name()));
+  if (sets && (in.set & item::outputs) != 0) {
+    const std::uint32_t lines = servo_.hardware().output_lines();
+    if (const std::uint32_t missing = in.output_values & ~lines; missing != 0)
+      throw CommandError(
+          error_code::bad_argument,
+          fmt::format("SET OUTPUTS {:#x} refused: output line {} does not exist (plugin '{}' has "
+                      "lines {:#x})",
+                      in.output_values, std::countr_zero(missing), servo_.hardware().name(),
+                      lines));
+  }
   const bool sets_device = sets && (in.set & item::device) != 0;
   if ((sets_device || (gets && (in.get & item::device) != 0)) && servo_.device().name.empty())
     throw CommandError(

@@ -1,10 +1,19 @@
 // Stock ECP task "visit_joint_poses": synchronise the robot, then visit the poses given in the
 // config ([robot.ecp.args] poses = [[...], ...], in rad), reporting each pose reached.
+// Optional arguments beside the motion options (joint_motion_options.hpp):
+//   wait_input = 16        binary input line (0..31) that must be on before the first pose
+//                          (e.g. a light barrier seeing a part); wait_input_state = false waits
+//                          for it to be off; wait_timeout = 60.0 [s] (0: for ever)
+//   outputs_at_end = 0x1   binary outputs set after the last pose (SET OUTPUTS)
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <cmath>
+#include <optional>
+
 #include "joint_motion_options.hpp"
 #include "mrroc/config/check.hpp"
+#include "mrroc/ecp/conditions.hpp"
 #include "mrroc/ecp/generators/joint_poses.hpp"
 #include "mrroc/ecp/task.hpp"
 
@@ -16,6 +25,26 @@ class VisitJointPoses : public EcpTask {
     const Params& args = context.args;
     poses_ = args.get_double_rows("poses");
     options_ = joint_motion_options(args, context.servo_period_s);
+    if (args.has("wait_input")) {
+      const std::int64_t line = args.get_int("wait_input");
+      if (line < 0 || line > 31)
+        throw ConfigError(
+            args.location_of("wait_input"),
+            fmt::format("'wait_input' = {} is not a binary input line (0..31)", line));
+      wait_input_ = static_cast<int>(line);
+      wait_state_ = args.get_bool("wait_input_state", true);
+      wait_timeout_ = args.get_double("wait_timeout", 60.0);
+      if (!(std::isfinite(wait_timeout_) && wait_timeout_ >= 0.0))
+        throw ConfigError(args.location_of("wait_timeout"),
+                          fmt::format("'wait_timeout' = {} s must be >= 0 s", wait_timeout_));
+    }
+    if (args.has("outputs_at_end")) {
+      const std::int64_t bits = args.get_int("outputs_at_end");
+      if (bits < 0 || bits > 0xFFFFFFFFLL)
+        throw ConfigError(args.location_of("outputs_at_end"),
+                          fmt::format("'outputs_at_end' = {} is outside 0..0xFFFFFFFF", bits));
+      outputs_at_end_ = static_cast<std::uint32_t>(bits);
+    }
     args.reject_unread("robot.ecp.args");
     // Validate every pose and option before anything moves, naming where they were written:
     // the options, each pose on its own (arity, joint limits), then the paths between them.
@@ -35,11 +64,28 @@ class VisitJointPoses : public EcpTask {
     robot.synchronise();
     context_.reporter.info(
         fmt::format("synchronised at [{:.4f}]", fmt::join(robot.image().joints, ", ")));
+    if (wait_input_) {
+      context_.reporter.info(
+          fmt::format("waiting for input {} to be {}", *wait_input_, wait_state_ ? "on" : "off"));
+      InputCondition input(*wait_input_, wait_state_, wait_timeout_);
+      Wait(robot, {}, input);
+      context_.reporter.info(fmt::format("input {} {} after {:.2f} s", *wait_input_,
+                                         wait_state_ ? "on" : "off", input.waited_s()));
+    }
     for (std::size_t i = 0; i < poses_.size(); ++i) {
       JointPosesGenerator generator(robot.model(), {poses_[i]}, options_);
       Move(robot, {}, generator);
       context_.reporter.info(fmt::format("pose {}/{} reached: joints [{:.4f}] rad", i + 1,
                                          poses_.size(), fmt::join(robot.image().joints, ", ")));
+    }
+    if (outputs_at_end_) {
+      edp::Instruction& c = robot.image().command;
+      c = edp::Instruction{};
+      c.type = edp::InstructionType::set;
+      c.set = edp::item::outputs;
+      c.output_values = *outputs_at_end_;
+      robot.execute();
+      context_.reporter.info(fmt::format("outputs set to {:#x}", *outputs_at_end_));
     }
   }
 
@@ -47,6 +93,10 @@ class VisitJointPoses : public EcpTask {
   TaskContext& context_;
   std::vector<std::vector<double>> poses_;
   JointPosesOptions options_;
+  std::optional<int> wait_input_;
+  bool wait_state_ = true;
+  double wait_timeout_ = 60.0;
+  std::optional<std::uint32_t> outputs_at_end_;
 };
 
 MRROC_REGISTER_ECP_TASK("visit_joint_poses", VisitJointPoses);

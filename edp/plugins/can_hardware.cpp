@@ -20,11 +20,16 @@
 /// (parameters.toml [robot.transmission] coupling, default identity): targets are sent as a = M q
 /// and positions read back as q = M^-1 a. Positions are incremental (zero at the drives' power-on);
 /// the EDP's SYNCHRO finds the offset by the home switch each drive reports in its TPDO.
-/// No binary I/O: the drives' digital inputs and outputs (CiA 402 0x60FD, 0x60FE) are not
-/// mapped, so the EDP refuses SET OUTPUTS and GET INPUTS with not_supported.
+/// Binary I/O on the drives' digital lines (CiA 402 0x60FD, 0x60FE; 8 input and 8 output lines a
+/// drive, canopen.hpp): inputs 0..15 are the home switches of axes 0..15 (as the mujoco plugin's
+/// synchronisation switches), inputs 16..23 the input lines 0..7 of axis 0's drive and 24..31
+/// those of axis 1's; outputs 0..7 are axis 0's drive's output lines 0..7 and 8..15 axis 1's
+/// (a one-axis robot has outputs 0..7 only; the EDP refuses the others). Inputs are sampled at
+/// the last SYNC, as the positions; outputs go out in the cycle after the SET (an RPDO2).
 /// Emergency stop sends the drives quick stop (they decelerate at the robot's largest
 /// acceleration, in drive coordinates, and hold); release re-enables them where they stand.
 #include <Eigen/Dense>
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -145,6 +150,21 @@ class CanHardware final : public Hardware {
 
   void emergency_stop(bool engaged) override {
     quick_stop_.store(engaged, std::memory_order_relaxed);
+  }
+
+  [[nodiscard]] bool binary_io() const override { return true; }
+  [[nodiscard]] std::uint32_t output_lines() const override { return axes_ >= 2 ? 0xFFFFU : 0xFFU; }
+  void write_outputs(std::uint32_t values) override {
+    for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 2); ++i)
+      master_->set_outputs(i, static_cast<std::uint8_t>(values >> (8U * i)));
+  }
+  [[nodiscard]] std::uint32_t read_inputs() const override {
+    std::uint32_t inputs = 0;
+    for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 16); ++i)
+      if (master_->status(i).home_switch) inputs |= 1U << i;
+    for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 2); ++i)
+      inputs |= static_cast<std::uint32_t>(master_->status(i).input_lines) << (16U + 8U * i);
+    return inputs;
   }
 
   [[nodiscard]] std::string fault_text() const override {

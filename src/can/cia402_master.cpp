@@ -34,7 +34,9 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
       options_(options),
       status_(axes_.size()),
       targets_(axes_.size(), 0),
-      held_(axes_.size(), 0) {
+      held_(axes_.size(), 0),
+      outputs_(axes_.size(), 0),
+      sent_outputs_(axes_.size(), -1) {
   if (axes_.empty()) throw HardwareError(bus_.url() + ": a CiA 402 master needs at least one axis");
   for (std::size_t i = 0; i < axes_.size(); ++i) {
     const MasterAxis& a = axes_[i];
@@ -106,7 +108,10 @@ void Cia402Master::handle(const Received& r) noexcept {
       s.position = static_cast<double>(pdo->position_actual) / axes_[i].counts_per_unit;
       s.statusword = pdo->statusword;
       s.state = canopen::decode_state(pdo->statusword);
-      s.home_switch = (pdo->inputs & canopen::kHomeSwitchBit) != 0U;
+      const std::uint32_t inputs = canopen::expand_inputs(pdo->inputs);
+      s.home_switch = (inputs & canopen::kHomeSwitchBit) != 0U;
+      s.input_lines =
+          static_cast<std::uint8_t>((inputs & canopen::kUserLineMask) >> canopen::kUserLineShift);
       s.last_tpdo_cycle = cycle_;
       if (enabled_ && !faulted_) {
         char text[160];
@@ -177,6 +182,14 @@ void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::in
       faulted_ = true;
       std::snprintf(fault_, sizeof fault_, "CAN bus %s: bus-off (send failed)", bus_.url().c_str());
     }
+  }
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    const bool refresh =
+        cycle_ % canopen::kOutputRefreshCycles == i % canopen::kOutputRefreshCycles;
+    if (!refresh && sent_outputs_[i] == outputs_[i]) continue;
+    canopen::Rpdo2 pdo{static_cast<std::uint32_t>(outputs_[i]) << canopen::kUserLineShift};
+    if (bus_.send(canopen::encode(axes_[i].node, pdo)) == SendResult::sent)
+      sent_outputs_[i] = outputs_[i];
   }
   (void)bus_.send(canopen::sync_frame());
   heartbeat_if_due();
@@ -288,6 +301,7 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
                             " differs from mrroc's fixed mapping (see docs/hil.md)");
     };
     check_mapping(od::kRpdo1Mapping, od::kRpdo1Entries);
+    check_mapping(od::kRpdo2Mapping, od::kRpdo2Entries);
     check_mapping(od::kTpdo1Mapping, od::kTpdo1Entries);
     const std::uint16_t sw = static_cast<std::uint16_t>(sdo_read(n, od::kStatusword, 0));
     if (canopen::decode_state(sw) == DriveState::fault) {
@@ -327,18 +341,23 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
         {od::kErrorBehaviour, 1, canopen::error_behaviour::kNoChange, 1},
         {od::kAbortConnectionOption, 0, qs(canopen::abort_connection::kQuickStop), 2},
         {od::kQuickStopOption, 0, qs(canopen::quick_stop_option::kRampThenHold), 2},
+        // Its digital outputs: the lines set so far, then the mask that lets them out.
+        {od::kDigitalOutputs, 1, static_cast<std::uint32_t>(outputs_[i]) << canopen::kUserLineShift,
+         4},
+        {od::kDigitalOutputs, 2, canopen::kUserLineMask, 4},
     };
     for (const auto& o : supervision) {
       sdo_write(n, o.index, o.sub, o.value, o.size);
       if (const std::uint32_t back = sdo_read(n, o.index, o.sub); back != o.value)
-        throw HardwareError(who(i) + ": supervision object " + hex(o.index, 4) + ":" +
-                            std::to_string(o.sub) + " reads back " + hex(back, 8) +
-                            " after writing " + hex(o.value, 8) + " (see docs/hil.md)");
+        throw HardwareError(who(i) + ": object " + hex(o.index, 4) + ":" + std::to_string(o.sub) +
+                            " reads back " + hex(back, 8) + " after writing " + hex(o.value, 8) +
+                            " (see docs/hil.md)");
     }
     const auto actual = static_cast<std::int32_t>(sdo_read(n, od::kPositionActual, 0));
     held_[i] = actual;
     status_[i].position = static_cast<double>(actual) / a.counts_per_unit;
     status_[i].last_emcy = 0;
+    sent_outputs_[i] = outputs_[i];
   }
   (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::start, 0));
   // Step the drives to operation enabled, holding them where they are.

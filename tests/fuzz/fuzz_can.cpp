@@ -81,6 +81,11 @@ void check_decoders(const can_frame& f) {
                      canopen::decode_rpdo1(again)->target_position == p->target_position,
                  "RPDO1 round trip");
   }
+  if (const auto p = canopen::decode_rpdo2(f)) {
+    const auto q =
+        canopen::decode_rpdo2(canopen::encode(static_cast<std::uint8_t>(f.can_id & 0x7F), *p));
+    fuzz::expect(q && q->outputs == p->outputs, "RPDO2 round trip");
+  }
   if (const auto p = canopen::decode_tpdo1(f)) {
     const can_frame again = canopen::encode(static_cast<std::uint8_t>(f.can_id & 0x7F), *p);
     const auto q = canopen::decode_tpdo1(again);
@@ -88,6 +93,8 @@ void check_decoders(const can_frame& f) {
                      q->inputs == p->inputs,
                  "TPDO1 round trip");
     (void)canopen::decode_state(p->statusword);
+    fuzz::expect(canopen::compact_inputs(canopen::expand_inputs(p->inputs)) == p->inputs,
+                 "0x2001 expands to 0x60FD and back");
   }
   if (const auto e = canopen::decode_emcy(f)) {
     const auto again =

@@ -973,6 +973,11 @@ void can_seeds() {
         can_record(co::encode(1, co::Rpdo1{co::controlword::kEnableOperation, 100 * k}), kToDrive);
     bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
   }
+  // Digital outputs: the mask and lines by SDO, then lines by RPDO2 at a SYNC.
+  bring_up += can_record(co::encode_request(1, {true, 0x60FE, 2, 0x00FF0000, 4}), kToDrive);
+  bring_up += can_record(co::encode_request(1, {true, 0x60FE, 1, 0x00010000, 4}), kToDrive);
+  bring_up += can_record(co::encode(1, co::Rpdo2{0x00A50000}), kToDrive);
+  bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
   bring_up += can_record(co::encode(1, co::Rpdo1{co::controlword::kQuickStop, 0}), kToDrive);
   bring_up += can_record(raw_frame(0x080, {}), kToDrive | kCycle | k2ms);
   bring_up += can_record(co::encode(1, co::Rpdo1{co::controlword::kFaultReset, 0}), kToDrive);

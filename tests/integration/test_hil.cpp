@@ -181,7 +181,7 @@ TEST_F(Hil, DemoRunsOverTheVirtualBusAgainstTheEmulator) {
   // The EDP computed and showed the bus load of its cyclic traffic.
   EXPECT_TRUE(std::regex_search(
       r.output, std::regex("can: virtual:irb6 for robot 'irb6': 5 drives, cycle 2 ms, 11 frames "
-                           "per cycle, bus load 54 % nominal, 66 % worst case at 1000 kbit/s")))
+                           "per cycle, bus load 55 % nominal, 66 % worst case at 1000 kbit/s")))
       << r.output;
   EXPECT_TRUE(has(r.output, "robot 'irb6': all drives operation enabled")) << r.output;
   EXPECT_TRUE(has(r.output, "pose 3/3 reached: joints [0.0000, -1.5708, 0.0000, 0.0000, 0.0000]"))

@@ -182,6 +182,7 @@ class DriveRack {
       drives_.push_back(
           std::make_unique<Cia402Drive>(c, [this](const can_frame& f) { (void)bus_.send(f); }));
       positions_.push_back(0.3 * i);
+      lines_.push_back(0);
     }
     start_ = std::chrono::steady_clock::now();
     for (std::size_t i = 0; i < drives_.size(); ++i) drives_[i]->power_on(sample(i), now());
@@ -194,7 +195,14 @@ class DriveRack {
   double now() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   }
-  AxisSample sample(std::size_t i) const { return {positions_[i], 0.0, 0.0, positions_[i] > 0.5}; }
+  AxisSample sample(std::size_t i) const {
+    return {positions_[i], 0.0, 0.0, positions_[i] > 0.5, lines_[i]};
+  }
+  /// Sets drive i's digital input lines.
+  void set_input_lines(std::size_t i, std::uint8_t lines) {
+    std::lock_guard lock(mutex_);
+    lines_[i] = lines;
+  }
   template <typename F>
   auto with(F f) {
     std::lock_guard lock(mutex_);
@@ -220,6 +228,7 @@ class DriveRack {
   Bus& bus_;
   std::vector<std::unique_ptr<Cia402Drive>> drives_;
   std::vector<double> positions_;
+  std::vector<std::uint8_t> lines_;
   std::chrono::steady_clock::time_point start_;
   std::mutex mutex_;
   std::atomic<bool> stop_{false};
@@ -276,6 +285,54 @@ TEST(Cia402Master, BringsDrivesUpStreamsPositionsAndReadsThemBack) {
   // The home switch (closed above 0.5 rad of the axis' own coordinate) travels in the TPDO.
   EXPECT_FALSE(master.status(1).home_switch);
   EXPECT_TRUE(master.status(2).home_switch);
+  master.shut_down();
+}
+
+TEST(Cia402Master, DigitalLinesTravelBothWaysAndLostOutputsAreRefreshed) {
+  MemoryHub hub;
+  DriveRack rack(hub, 2);
+  Cia402Master master(hub.add(), axes(2), MasterOptions{});
+  master.bring_up(2000ms);
+  // Bring-up let the output lines out (mask 0x60FE sub 2) with every line off.
+  EXPECT_EQ(master.sdo_read(2, co::od::kDigitalOutputs, 2), co::kUserLineMask);
+  EXPECT_EQ(master.sdo_read(2, co::od::kDigitalOutputs, 1), 0U);
+  const auto stay = [](int) { return std::vector<double>{0.0, 0.0}; };
+  // Inputs: each drive's lines reach the master in its TPDO, beside the home switch.
+  rack.set_input_lines(0, 0x05);
+  rack.set_input_lines(1, 0x80);
+  run_cycles(master, 5, stay);
+  EXPECT_EQ(master.status(0).input_lines, 0x05);
+  EXPECT_EQ(master.status(1).input_lines, 0x80);
+  EXPECT_FALSE(master.status(1).home_switch);
+  EXPECT_EQ(master.sdo_read(1, co::od::kDigitalInputs, 0), 0x00050000U);
+  EXPECT_EQ(master.sdo_read(2, co::od::kDigitalInputsCompact, 0), 0x8000U);
+  // Outputs: set on one drive, applied by it (at a SYNC), the other's stay off.
+  master.set_outputs(1, 0xA0);
+  run_cycles(master, 3, stay);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->output_lines(), 0x00);
+    EXPECT_EQ(drives[1]->output_lines(), 0xA0);
+    return 0;
+  });
+  // A drive that lost them (here: cleared behind the master's back) gets them again within
+  // the refresh period.
+  master.sdo_write(2, co::od::kDigitalOutputs, 1, 0, 4);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[1]->output_lines(), 0x00);
+    return 0;
+  });
+  run_cycles(master, static_cast<int>(co::kOutputRefreshCycles) + 2, stay);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[1]->output_lines(), 0xA0);
+    return 0;
+  });
+  // Only lines under the mask come out.
+  master.sdo_write(2, co::od::kDigitalOutputs, 2, 0x00200000U, 4);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[1]->output_lines(), 0x20);
+    return 0;
+  });
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
   master.shut_down();
 }
 

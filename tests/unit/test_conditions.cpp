@@ -1,5 +1,6 @@
 // The stock conditions: delay on an injected clock, sensor thresholds with hysteresis, the
-// operator trigger across threads, and the robot-stopped condition on fresh readings only.
+// operator trigger across threads, the robot-stopped condition on fresh readings only, and the
+// binary-input condition with its timeout.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -166,4 +167,38 @@ TEST(RobotStoppedCondition, CountsConsecutiveFreshReadings) {
 
   EXPECT_THROW(ecp::RobotStoppedCondition(image, 0.0), Error);
   EXPECT_THROW(ecp::RobotStoppedCondition(image, 0.1, 0), Error);
+}
+
+TEST(InputCondition, WaitsForTheLineAndTimesOutNamingIt) {
+  FakeClock clock;
+  ecp::InputCondition on(17, true, 2.0, clock.function());
+  EXPECT_EQ(on.items() & edp::item::inputs, edp::item::inputs);
+  ecp::RobotImage robot;
+  EXPECT_FALSE(on.holds(robot, {}));  // no inputs read yet
+  robot.inputs = 0x10000U;            // line 16 on, 17 off
+  clock.now += 1s;
+  EXPECT_FALSE(on.holds(robot, {}));
+  EXPECT_NEAR(on.waited_s(), 1.0, 1e-9);
+  robot.inputs = 0x20000U;
+  EXPECT_TRUE(on.holds(robot, {}));
+  // Waiting for a line to turn off.
+  ecp::InputCondition off(17, false, 0.0, clock.function());
+  EXPECT_FALSE(off.holds(robot, {}));
+  robot.inputs = 0U;
+  EXPECT_TRUE(off.holds(robot, {}));
+  // The timeout names the line, the state and the time.
+  ecp::InputCondition timed(3, true, 2.0, clock.function());
+  EXPECT_FALSE(timed.holds(robot, {}));
+  clock.now += 2s;
+  try {
+    (void)timed.holds(robot, {});
+    FAIL() << "no timeout";
+  } catch (const ecp::GeneratorError& e) {
+    EXPECT_STREQ(e.what(), "input 3 did not turn on within 2.0 s");
+  }
+  // As a plain Condition it refuses: it needs the robot image.
+  EXPECT_THROW((void)on.check({}), Error);
+  EXPECT_THROW(ecp::InputCondition(32), Error);
+  EXPECT_THROW(ecp::InputCondition(-1), Error);
+  EXPECT_THROW(ecp::InputCondition(0, true, -1.0), Error);
 }

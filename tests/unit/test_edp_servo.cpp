@@ -537,8 +537,63 @@ TEST_F(EdpTest, UnreachableOrientationAndModelSelection) {
   EXPECT_EQ(query().kinematic_model_no, 1);
 }
 
+/// Hardware with 16 binary output lines (as the `can` plugin on a robot of two or more drives):
+/// axes that follow their setpoints exactly, and the outputs it was given.
+class SixteenOutputLines final : public Hardware {
+ public:
+  explicit SixteenOutputLines(std::size_t axes) : positions_(axes, 0.0) {}
+  [[nodiscard]] std::string name() const override { return "sixteen-lines"; }
+  [[nodiscard]] std::size_t axis_count() const override { return positions_.size(); }
+  void configure(const HardwareSetup&) override {}
+  void activate() override {}
+  void deactivate() override {}
+  CycleStatus read(std::span<AxisFeedback> out) override {
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = {positions_[i], 0.0, false};
+    return CycleStatus::ok;
+  }
+  CycleStatus write(std::span<const double> setpoints) override {
+    std::copy(setpoints.begin(), setpoints.end(), positions_.begin());
+    return CycleStatus::ok;
+  }
+  [[nodiscard]] bool binary_io() const override { return true; }
+  [[nodiscard]] std::uint32_t output_lines() const override { return 0xFFFFU; }
+  void write_outputs(std::uint32_t values) override { outputs = values; }
+  std::atomic<std::uint32_t> outputs{0};
+
+ private:
+  std::vector<double> positions_;
+};
+
+TEST(EdpBinaryIo, OutputsOnLinesThatDoNotExistAreRefusedNamingTheLine) {
+  const RobotModel model = test::stock_model("irb6");
+  SixteenOutputLines hardware(model.axes());
+  auto kinematics = make_arm_kinematics(model);
+  ServoLoop servo(hardware, model, kPeriod);
+  servo.start();
+  CommandInterpreter interpreter(servo, model, *kinematics, kPeriod);
+  Instruction io;
+  io.type = InstructionType::set;
+  io.set = item::outputs;
+  io.output_values = 0x18001;  // lines 0, 15 and 16: 16 does not exist
+  Reply r = interpreter.execute(io);
+  EXPECT_EQ(r.type, ReplyType::error);
+  EXPECT_EQ(r.error_code, error_code::bad_argument);
+  EXPECT_EQ(r.error_text,
+            "SET OUTPUTS 0x18001 refused: output line 16 does not exist (plugin 'sixteen-lines' "
+            "has lines 0xffff)");
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(hardware.outputs.load(), 0U);  // nothing was written
+  io.output_values = 0x8001;
+  r = interpreter.execute(io);
+  EXPECT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
+  for (int i = 0; i < 100 && hardware.outputs.load() != 0x8001U; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  EXPECT_EQ(hardware.outputs.load(), 0x8001U);
+  servo.stop();
+}
+
 TEST(EdpWithoutBinaryIo, OutputsAndInputsAreRefusedNotIgnored) {
-  // The mock plugin (as the `can` plugin) has no binary lines: SET OUTPUTS and GET INPUTS are
+  // The mock plugin has no binary lines: SET OUTPUTS and GET INPUTS are
   // refused as not supported, naming the plugin, and nothing else of the instruction is done.
   const RobotModel model = test::stock_model("irb6");
   auto hardware = test::configured_hardware(model, "mock", kPeriod);

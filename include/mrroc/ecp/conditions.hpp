@@ -110,4 +110,31 @@ class RobotStoppedCondition : public Condition {
   std::optional<std::int64_t> last_cycle_;
 };
 
+/// True when the robot's binary input `line` is `state` (paper, section 3: an initial condition
+/// on the robot image). In Wait the image's inputs are read from the EDP (GET INPUTS) before
+/// every check; in a guarded move the macro-step's image is used, which holds inputs only when
+/// the move's generator asks for them. With a timeout, a check after `timeout_s` seconds without
+/// the state throws GeneratorError naming the line, the state awaited and the time.
+class InputCondition : public RobotCondition {
+ public:
+  /// @param line  0..31.  @param timeout_s  [s], >= 0; 0 waits for ever.
+  /// @throws Error for a line or a timeout out of range.
+  explicit InputCondition(int line, bool state = true, double timeout_s = 0.0,
+                          SteadyClock clock = {});
+
+  [[nodiscard]] std::uint8_t items() const override { return edp::item::arm | edp::item::inputs; }
+  bool holds(const RobotImage& robot, const SensorList& sensors) override;
+  /// Seconds from the first check to the last (0 before the first check).
+  [[nodiscard]] double waited_s() const;
+  [[nodiscard]] int line() const { return line_; }
+
+ private:
+  int line_;
+  bool state_;
+  double timeout_s_;
+  SteadyClock clock_;
+  std::optional<std::chrono::steady_clock::time_point> start_;
+  std::chrono::steady_clock::time_point last_{};
+};
+
 }  // namespace mrroc::ecp

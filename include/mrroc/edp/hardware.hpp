@@ -106,6 +106,9 @@ class Hardware {
   /// the EDP refuses SET OUTPUTS and GET INPUTS (error not_supported) instead of ignoring the
   /// outputs and answering inputs that are always 0.
   [[nodiscard]] virtual bool binary_io() const { return false; }
+  /// The output lines that exist (bit i = line i), when binary_io(): the EDP refuses a SET
+  /// OUTPUTS that sets any other line (error bad_argument, naming the line). Default: all 32.
+  [[nodiscard]] virtual std::uint32_t output_lines() const { return 0xFFFFFFFFU; }
   /// Binary outputs of the robot controller (bit i = line i). Called from the servo thread.
   virtual void write_outputs(std::uint32_t values) { (void)values; }
   /// Binary inputs of the robot controller (bit i = line i). Called from the servo thread.

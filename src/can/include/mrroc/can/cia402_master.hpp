@@ -20,9 +20,14 @@
 /// master dies (no heartbeat, no SYNC) ramps to a standstill at its quick-stop deceleration.
 ///
 /// Cycle (`receive` then `send`, from the servo loop; no allocation, no blocking): `receive`
-/// drains the bus and checks each drive; `send` sends one RPDO1 per drive and then SYNC. A drive
-/// answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions sampled at the
-/// last SYNC (one cycle old).
+/// drains the bus and checks each drive; `send` sends one RPDO1 per drive, an RPDO2 with its
+/// digital outputs to each drive whose outputs changed (`set_outputs`) or whose refresh is due
+/// (every canopen::kOutputRefreshCycles cycles, staggered over the drives), and then SYNC. A
+/// drive answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions and
+/// digital inputs sampled at the last SYNC (one cycle old).
+///
+/// Digital lines (canopen.hpp): bring-up writes each drive's output mask 0x60FE sub 2 (its 8
+/// lines) and its outputs sub 1 (the lines set so far, 0 at first) and reads both back.
 ///
 /// Faults (after which `faulted()` is true and `fault_text()` says which drive, which axis and
 /// why): an EMCY with a non-zero code; a statusword in fault; a drive that left operation enabled
@@ -70,6 +75,7 @@ struct DriveStatus {
   std::uint16_t statusword = 0;
   canopen::DriveState state = canopen::DriveState::not_ready_to_switch_on;
   bool home_switch = false;
+  std::uint8_t input_lines = 0;       ///< the drive's 8 digital input lines (bit k = line k)
   std::uint64_t last_tpdo_cycle = 0;  ///< cycle number of the last TPDO
   std::uint16_t last_emcy = 0;
 };
@@ -90,6 +96,11 @@ class Cia402Master {
   /// While `quick_stop` is set the drives are told to quick-stop (targets are ignored by them);
   /// clearing it re-enables them (the caller must then send targets at the actual positions).
   void send(std::span<const double> targets, bool quick_stop) noexcept;
+
+  /// The drive's 8 digital output lines (bit k = line k), sent from the next `send` on.
+  void set_outputs(std::size_t axis, std::uint8_t lines) noexcept { outputs_[axis] = lines; }
+  /// The output lines last given to `set_outputs`.
+  [[nodiscard]] std::uint8_t outputs(std::size_t axis) const noexcept { return outputs_[axis]; }
 
   [[nodiscard]] std::size_t axis_count() const noexcept { return axes_.size(); }
   [[nodiscard]] const DriveStatus& status(std::size_t axis) const noexcept { return status_[axis]; }
@@ -122,7 +133,9 @@ class Cia402Master {
   MasterOptions options_;
   std::vector<DriveStatus> status_;
   std::vector<std::int32_t> targets_;
-  std::vector<std::int32_t> held_;  ///< bring-up / re-enable: targets at the actual positions
+  std::vector<std::int32_t> held_;     ///< bring-up / re-enable: targets at the actual positions
+  std::vector<std::uint8_t> outputs_;  ///< digital output lines to send
+  std::vector<std::int16_t> sent_outputs_;  ///< the lines last sent (-1: none yet)
   std::uint64_t cycle_ = 0;
   bool faulted_ = false;
   bool quick_stopping_ = false;

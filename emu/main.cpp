@@ -5,7 +5,9 @@
 // fast as they come). Faults can be injected (emu/faults.hpp). The scene's raw sensors (strain
 // gauges, range finders, encoders, an emulated camera: emu/sensors.hpp) are sampled from the
 // physics and published on LCM for the VSPs; the scene objects' poses for the console's 3D
-// view (emu/object_poses.hpp). docs/hil.md.
+// view (emu/object_poses.hpp). The drives' digital input lines follow the scene's wires (light
+// barriers, grasps, loop-backs: emu/drives.hpp); their output lines are printed when they change.
+// docs/hil.md.
 #include <fmt/format.h>
 #include <linux/can/error.h>
 #include <pthread.h>
@@ -71,6 +73,7 @@ struct Drive {
   std::size_t axis = 0;
   std::unique_ptr<can::Cia402Drive> drive;
   co::DriveState reported = co::DriveState::switch_on_disabled;
+  std::uint8_t outputs_reported = 0;  ///< the output lines last printed
   Port* port = nullptr;
 };
 
@@ -84,12 +87,14 @@ struct Port {
 
 struct RobotRun {
   std::vector<Drive*> drives;
+  emu::RobotDrives wiring;
   double enabled_at = -1.0;  ///< sim time all drives first reached operation enabled
   bool off = false;          ///< bus-off
   double off_until = -1.0;
   double drop = 0.0;
   std::uint64_t dropped = 0;
   std::vector<double> targets, feed_forward, position, velocity, force;
+  std::vector<std::uint8_t> outputs, inputs;  ///< per axis: the drives' digital lines
 };
 
 struct Scheduled {
@@ -127,6 +132,9 @@ class Emulator {
       run.position.assign(n, 0.0);
       run.velocity.assign(n, 0.0);
       run.force.assign(n, 0.0);
+      run.outputs.assign(n, 0);
+      run.inputs.assign(n, 0);
+      run.wiring = w;
       for (std::size_t i = 0; i < n; ++i) {
         can::DriveConfig c;
         c.node = static_cast<std::uint8_t>(w.nodes[i]);
@@ -153,6 +161,8 @@ class Emulator {
           "mrroc-axis-emu: robot '{}': {} drives on {} (nodes {}), {} counts "
           "per unit\n",
           robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit);
+      for (const emu::InputWire& input : w.inputs)
+        std::cout << "mrroc-axis-emu: " << emu::describe_input(robot, input) << "\n";
     }
     setup_sensors();
     grips_reported_.assign(world_.grasp_count(), false);
@@ -244,14 +254,31 @@ class Emulator {
 
   can::AxisSample axis_sample(std::size_t k, std::size_t i) const {
     const RobotRun& r = robots_[k];
-    return {r.position[i], r.velocity[i], r.force[i], world_.synchro_switch(k, i)};
+    return {r.position[i], r.velocity[i], r.force[i], world_.synchro_switch(k, i), r.inputs[i]};
   }
 
+  /// Robot k's axes and the drives' input lines, from the world now and the drives' outputs.
   void sample(std::size_t k) {
     RobotRun& r = robots_[k];
     world_.actuator_positions(k, r.position);
     world_.actuator_velocities(k, r.velocity);
     world_.actuator_forces(k, r.force);
+    for (std::size_t i = 0; i < r.drives.size(); ++i)
+      r.outputs[i] = r.drives[i]->drive->output_lines();
+    (void)emu::evaluate_inputs(r.wiring, world_, r.outputs, r.inputs);
+  }
+
+  /// A drive's output lines, printed when they changed.
+  void watch_outputs(Drive& d, double now) {
+    const std::uint8_t outputs = d.drive->output_lines();
+    if (outputs == d.outputs_reported) return;
+    d.outputs_reported = outputs;
+    std::cout << fmt::format(
+                     "mrroc-axis-emu: robot '{}' axis '{}' outputs 0x{:02X} at t = {:.3f} "
+                     "s\n",
+                     world_.robot(d.robot).name, world_.robot(d.robot).axis_names[d.axis], outputs,
+                     now)
+              << std::flush;
   }
 
   void dispatch(Port& port, const can::Received& r) {
@@ -306,6 +333,7 @@ class Emulator {
         d->drive->update(axis_sample(k, d->axis), now);
         all_enabled = all_enabled && d->drive->state() == co::DriveState::operation_enabled;
         watch(*d);
+        watch_outputs(*d, now);
       }
       if (all_enabled && r.enabled_at < 0.0) {
         r.enabled_at = now;

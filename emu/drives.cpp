@@ -1,15 +1,13 @@
 /// @file
-/// Reading the drive wiring of a scene (see drives.hpp).
+/// Reading the drive wiring of a scene and evaluating its input wires (see drives.hpp).
 #include "drives.hpp"
 
 #include <fmt/format.h>
-
 #include <fmt/ranges.h>
 
 #include <toml++/toml.h>
 #include <algorithm>
 #include <cmath>
-#include <optional>
 #include <set>
 
 #include "mrroc/core/error.hpp"

@@ -233,6 +233,75 @@ TEST_F(Hil, RntDemoRunsOnEmulatedDrivesWithinItsLimits) {
   expect_clean_shutdown(r, "rnt");
 }
 
+TEST_F(Hil, TaskWaitsForTheLightBarrierOnADriveInputThenSetsADriveOutput) {
+  // configs/conveyor-barrier.toml: the belt carries the part into the scene's light barrier
+  // (x 0.35..0.45 m: belt position s 1.65..1.75 m), wired to the IRb-6's column drive's input
+  // line 0 (input 16 of the EDP); the IRb-6 waits for it, moves above the part and sets output 0
+  // (the column drive's output line 0).
+  const fs::path file = fs::path(MRROC_SOURCE_DIR) / "configs/conveyor-barrier.toml";
+  const mrroc::ProcessSetConfig config = mrroc::load_process_set(file);
+  const mrroc::RobotConfig& irb6 = config.robots.at(0);
+  const mrroc::RobotModel model = mrroc::load_robot_model(irb6.model_dir);
+  const auto pose = irb6.ecp.args.get_double_rows("poses").at(0);
+  mrroc::comm::Bus bus(config.lcm_url);
+  mrroc::test::StateWatch arm(bus, "irb6");
+  mrroc::test::StateWatch belt(bus, "conveyor");
+  bus.start();
+  const RunResult r = launch(file);
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r.output, "input 0: presence of 'part'")) << r.output;
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("input 16 on after [0-9.]+ s"))) << r.output;
+  EXPECT_TRUE(has(r.output, "outputs set to 0x1")) << r.output;
+  // The output reached the drive: the emulator saw its line 0 go on, after the arm arrived.
+  const auto reached = r.output.find("pose 1/1 reached: joints [-1.0191");
+  const auto output = r.output.find("robot 'irb6' axis 'column' outputs 0x01 at t = ");
+  ASSERT_NE(reached, std::string::npos) << r.output;
+  ASSERT_NE(output, std::string::npos) << r.output;
+  EXPECT_LT(reached, output) << r.output;
+  // The arm left for the part only once the belt had brought the part into the barrier.
+  const auto arm_states = arm.history();
+  const auto belt_states = belt.history();
+  ASSERT_GT(arm_states.size(), 100u);
+  ASSERT_GT(belt_states.size(), 100u);
+  const auto departure = std::find_if(arm_states.begin(), arm_states.end(), [](const auto& s) {
+    return s.synchronised && !s.q_desired.empty() && s.q_desired[0] < -0.005;
+  });
+  ASSERT_NE(departure, arm_states.end()) << "the column never turned towards the belt";
+  double belt_at_departure = -1.0;
+  for (const auto& s : belt_states)
+    if (s.at <= departure->at && !s.q_desired.empty()) belt_at_departure = s.q_desired[0];
+  std::printf("the arm left for the part with the belt at s = %.4f m (barrier from 1.65 m)\n",
+              belt_at_departure);
+  EXPECT_GE(belt_at_departure, 1.65) << "the arm moved before the part reached the barrier";
+  EXPECT_LT(belt_at_departure, 1.699) << "the arm waited for the belt to stop, not for the barrier";
+  // Motion quality: every commanded state within the limits, the arm in motion on the way, and
+  // at the pose at the end.
+  const mrroc::test::MotionCheck motion =
+      mrroc::test::check_commanded_motion(arm_states, model, irb6.edp.servo_period_s);
+  // One quintic segment: in motion from its departure to its arrival, no standstill between.
+  auto arrival = departure;
+  for (auto it = departure; it != arm_states.end(); ++it)
+    if (it->max_speed > 1e-3) arrival = it;
+  int still = 0;
+  for (auto it = departure; it != arrival; ++it)
+    if (it->max_speed <= 1e-3) ++still;
+  const double travel_s = std::chrono::duration<double>(arrival->at - departure->at).count();
+  std::printf(
+      "arm: %.2f s in motion, %d states standing still on the way; %d states checked, velocity "
+      "up to %.0f %%, acceleration up to %.0f %% of the limits\n",
+      travel_s, still, motion.states, motion.worst_velocity_share * 100,
+      motion.worst_acceleration_share * 100);
+  EXPECT_GT(travel_s, 1.0) << "the move to the part";
+  EXPECT_EQ(still, 0) << "states of the arm standing still on its way to the part";
+  const auto& last = arm_states.back().q_desired;
+  ASSERT_EQ(last.size(), pose.size());
+  for (std::size_t j = 0; j < last.size(); ++j) EXPECT_NEAR(last[j], pose[j], 1e-3) << j;
+  EXPECT_FALSE(has(r.output, "no next macro-step")) << r.output;
+  EXPECT_FALSE(has(r.output, "refused")) << r.output;
+  expect_clean_shutdown(r);
+}
+
 TEST_F(Hil, DemoRunsLockStep) {
   const RunResult r = launch(demo("lockstep", "lock_step = true"));
   ASSERT_EQ(r.exit_code, 0) << r.output;

@@ -1,8 +1,8 @@
 // The EDP's `can` plugin against the real cell emulator (mrroc-axis-emu, lock-step, scene
 // configs/scenes/irb6.toml): bring-up of five emulated drives, cyclic positions out and back,
-// quick stop on emergency stop, and a drive fault seen as a plugin fault. By default over a
-// virtual bus; with MRROC_CAN_IFACE=vcan0 (the qemu test tests/hil) over SocketCAN on a real
-// kernel.
+// quick stop on emergency stop, binary I/O on the drives' digital lines, and a drive fault seen as
+// a plugin fault. By default over a virtual bus; with MRROC_CAN_IFACE=vcan0 (the qemu test
+// tests/hil) over SocketCAN on a real kernel.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -149,6 +149,44 @@ TEST(CanPlugin, DrivesTheEmulatedIrb6AndReadsItBack) {
   for (int k = 0; k < 20; ++k)
     ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
   hw->deactivate();
+}
+
+TEST(CanPlugin, BinaryLinesAreTheDrivesDigitalLines) {
+  // configs/scenes/irb6.toml wires the column drive's output line 0 to the lower arm drive's
+  // input line 0, and the lower arm drive's output line 7 to the column drive's input line 7.
+  const std::string url = bus_url();
+  Emulator emu(url);
+  auto hw = plugin(url);
+  ASSERT_TRUE(hw->binary_io());
+  EXPECT_EQ(hw->output_lines(), 0xFFFFU);  // two drives' eight lines
+  hw->activate();
+  std::vector<edp::AxisFeedback> fb(5);
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  std::vector<double> hold(5);
+  for (std::size_t i = 0; i < 5; ++i) hold[i] = fb[i].position;
+  const auto inputs_after = [&](std::uint32_t outputs) {
+    hw->write_outputs(outputs);
+    for (int k = 0; k < 10; ++k)
+      EXPECT_EQ(cycle(*hw, fb, hold), edp::CycleStatus::ok) << hw->fault_text();
+    return hw->read_inputs();
+  };
+  std::uint32_t in = inputs_after(0);
+  EXPECT_EQ(in & 0xFFFF0000U, 0U);
+  // Inputs 0..4 are the home switches, as the axes report them.
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_EQ(((in >> i) & 1U) != 0U, fb[i].synchro_switch) << i;
+  in = inputs_after(0x0001U);  // output 0: column drive, line 0 -> lower arm drive, line 0
+  EXPECT_EQ(in & 0xFFFF0000U, 1U << 24U) << std::hex << in;
+  in = inputs_after(0x8000U);  // output 15: lower arm drive, line 7 -> column drive, line 7
+  EXPECT_EQ(in & 0xFFFF0000U, 1U << 23U) << std::hex << in;
+  in = inputs_after(0x8001U);
+  EXPECT_EQ(in & 0xFFFF0000U, (1U << 23U) | (1U << 24U)) << std::hex << in;
+  in = inputs_after(0);
+  EXPECT_EQ(in & 0xFFFF0000U, 0U) << std::hex << in;
+  hw->deactivate();
+  // The emulator saw each change of the drives' output lines.
+  const std::string out = emu.output();
+  EXPECT_NE(out.find("robot 'irb6' axis 'column' outputs 0x01"), std::string::npos) << out;
+  EXPECT_NE(out.find("robot 'irb6' axis 'lower_arm' outputs 0x80"), std::string::npos) << out;
 }
 
 TEST(CanPlugin, InjectedDriveFaultIsAPluginFaultNamingTheDrive) {

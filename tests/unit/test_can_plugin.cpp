@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "emu_process.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/edp/hardware.hpp"
 
@@ -34,66 +35,22 @@ std::string bus_url() {
   return "virtual:plugin-test-" + std::to_string(::getpid());
 }
 
-/// mrroc-axis-emu as a child process, killed at the end.
-class Emulator {
+/// mrroc-axis-emu on configs/scenes/irb6.toml with the robot on `url`.
+class Emulator : public test::EmuProcess {
  public:
-  Emulator(const std::string& url, const std::vector<std::string>& extra = {},
-           bool lock_step = true) {
-    std::vector<std::string> args = {std::string(MRROC_BIN_DIR) + "/mrroc-axis-emu", "--scene",
-                                     std::string(MRROC_SOURCE_DIR) + "/configs/scenes/irb6.toml",
-                                     "--bus", "irb6=" + url};
-    if (lock_step) args.emplace_back("--lock-step");
-    args.insert(args.end(), extra.begin(), extra.end());
-    int out[2];
-    if (pipe(out) != 0) throw std::runtime_error("pipe");
-    pid_ = fork();
-    if (pid_ == 0) {
-      dup2(out[1], STDOUT_FILENO);
-      dup2(out[1], STDERR_FILENO);
-      close(out[0]);
-      close(out[1]);
-      std::vector<char*> argv;
-      for (auto& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      execv(argv[0], argv.data());
-      _exit(127);
-    }
-    close(out[1]);
-    // Ready when it says how it runs (after loading MuJoCo and powering the drives); slow under
-    // the qemu test's software emulation.
-    FILE* in = fdopen(out[0], "r");
-    char line[512];
-    while (std::fgets(line, sizeof line, in) != nullptr) {
-      std::fputs(line, stdout);
-      if (std::strstr(line, lock_step ? "; lock-step" : "; real time") != nullptr) break;
-    }
-    reader_ = std::thread([this, in] {
-      char rest[512];
-      while (std::fgets(rest, sizeof rest, in) != nullptr) {
-        std::fputs(rest, stdout);
-        std::lock_guard lock(mutex_);
-        output_ += rest;
-      }
-      std::fclose(in);
-    });
-  }
-  /// What it printed since it was ready.
-  std::string output() const {
-    std::lock_guard lock(mutex_);
-    return output_;
-  }
-  ~Emulator() {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    reader_.join();
-  }
+  explicit Emulator(const std::string& url, const std::vector<std::string>& extra = {},
+                    bool lock_step = true)
+      : EmuProcess(arguments(url, extra), lock_step) {}
 
  private:
-  pid_t pid_ = -1;
-  std::thread reader_;
-  mutable std::mutex mutex_;
-  std::string output_;
+  static std::vector<std::string> arguments(const std::string& url,
+                                            const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"--scene",
+                                     std::string(MRROC_SOURCE_DIR) + "/configs/scenes/irb6.toml",
+                                     "--bus", "irb6=" + url};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  }
 };
 
 std::unique_ptr<edp::Hardware> plugin(const std::string& url) {

@@ -3,16 +3,12 @@
 /// configs/scenes/conveyor-pick.toml, a virtual bus): a master sets the IRb-6 column drive's
 /// output 0 by SDO, the scene's loop-back wire brings it back on input 1 in the drive's TPDO1,
 /// and the emulator prints the wires at start and the outputs when they change.
-#include <signal.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -21,6 +17,7 @@
 
 #include <gtest/gtest.h>
 
+#include "emu_process.hpp"
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
 
@@ -28,78 +25,6 @@ namespace {
 
 namespace co = mrroc::can::canopen;
 using namespace std::chrono_literals;
-
-/// mrroc-axis-emu as a child process (lock-step), killed at the end.
-class Emulator {
- public:
-  explicit Emulator(const std::vector<std::string>& extra) {
-    std::vector<std::string> args = {
-        std::string(MRROC_BIN_DIR) + "/mrroc-axis-emu", "--scene",
-        std::string(MRROC_SOURCE_DIR) + "/configs/scenes/conveyor-pick.toml", "--lock-step"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    int out[2];
-    if (pipe(out) != 0) throw std::runtime_error("pipe");
-    pid_ = fork();
-    if (pid_ == 0) {
-      dup2(out[1], STDOUT_FILENO);
-      dup2(out[1], STDERR_FILENO);
-      close(out[0]);
-      close(out[1]);
-      std::vector<char*> argv;
-      for (auto& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      execv(argv[0], argv.data());
-      _exit(127);
-    }
-    close(out[1]);
-    FILE* in = fdopen(out[0], "r");
-    char line[512];
-    while (std::fgets(line, sizeof line, in) != nullptr) {
-      std::fputs(line, stdout);
-      startup_ += line;
-      if (std::strstr(line, "; lock-step") != nullptr) break;
-    }
-    reader_ = std::thread([this, in] {
-      char rest[512];
-      while (std::fgets(rest, sizeof rest, in) != nullptr) {
-        std::fputs(rest, stdout);
-        const std::lock_guard lock(mutex_);
-        output_ += rest;
-      }
-      std::fclose(in);
-    });
-  }
-  Emulator(const Emulator&) = delete;
-  Emulator& operator=(const Emulator&) = delete;
-  ~Emulator() {
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    reader_.join();
-  }
-  /// What it printed until it was ready.
-  [[nodiscard]] const std::string& startup() const { return startup_; }
-  /// What it printed since, once it contains `text` (or after `timeout`).
-  [[nodiscard]] std::string output_with(const std::string& text,
-                                        std::chrono::milliseconds timeout = 5000ms) const {
-    const auto until = std::chrono::steady_clock::now() + timeout;
-    for (;;) {
-      {
-        const std::lock_guard lock(mutex_);
-        if (output_.find(text) != std::string::npos || std::chrono::steady_clock::now() > until)
-          return output_;
-      }
-      std::this_thread::sleep_for(5ms);
-    }
-  }
-
- private:
-  pid_t pid_ = -1;
-  std::string startup_;
-  std::thread reader_;
-  mutable std::mutex mutex_;
-  std::string output_;
-};
 
 /// The master's side of one node on the bus.
 class Master {
@@ -165,7 +90,10 @@ std::uint32_t lines(std::uint32_t digital_inputs) {
 TEST(EmuLines, LoopBackInputFollowsTheOutputTheMasterSetsAndTheEmulatorPrintsIt) {
   const std::string pid = std::to_string(::getpid());
   const std::string url = "virtual:emu-lines-" + pid;
-  const Emulator emulator({"--bus", "irb6=" + url, "--bus", "conveyor=virtual:emu-belt-" + pid});
+  const mrroc::test::EmuProcess emulator(
+      {"--scene", std::string(MRROC_SOURCE_DIR) + "/configs/scenes/conveyor-pick.toml", "--bus",
+       "irb6=" + url, "--bus", "conveyor=virtual:emu-belt-" + pid},
+      /*lock_step=*/true);
   EXPECT_NE(emulator.startup().find("mrroc-axis-emu: robot 'irb6' axis 'column' input 0: "
                                     "presence of 'part' in x 0.35..0.45 y -0.75..-0.55 z "
                                     "0.70..1.00 m\n"),

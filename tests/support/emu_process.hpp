@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -22,7 +23,8 @@ class EmuProcess {
   /// `args`: the emulator's arguments (scene, buses, faults); `--lock-step` is added when
   /// `lock_step`.
   EmuProcess(const std::vector<std::string>& arguments, bool lock_step) {
-    std::vector<std::string> args{std::string(MRROC_BIN_DIR) + "/mrroc-axis-emu"};
+    std::vector<std::string> args{
+        (std::filesystem::path(MRROC_BIN_DIR) / "mrroc-axis-emu").string()};
     for (const std::string& a : arguments) args.push_back(a);
     if (lock_step) args.emplace_back("--lock-step");
     int out[2];

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <mutex>
 #include <regex>
 #include <stdexcept>
@@ -45,9 +46,9 @@ class Emulator : public test::EmuProcess {
  private:
   static std::vector<std::string> arguments(const std::string& url,
                                             const std::vector<std::string>& extra) {
-    std::vector<std::string> args = {"--scene",
-                                     std::string(MRROC_SOURCE_DIR) + "/configs/scenes/irb6.toml",
-                                     "--bus", "irb6=" + url};
+    const std::string scene =
+        (std::filesystem::path(MRROC_SOURCE_DIR) / "configs/scenes/irb6.toml").string();
+    std::vector<std::string> args = {"--scene", scene, "--bus", "irb6=" + url};
     args.insert(args.end(), extra.begin(), extra.end());
     return args;
   }

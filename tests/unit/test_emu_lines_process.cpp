@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -90,9 +91,10 @@ std::uint32_t lines(std::uint32_t digital_inputs) {
 TEST(EmuLines, LoopBackInputFollowsTheOutputTheMasterSetsAndTheEmulatorPrintsIt) {
   const std::string pid = std::to_string(::getpid());
   const std::string url = "virtual:emu-lines-" + pid;
+  const std::string scene =
+      (std::filesystem::path(MRROC_SOURCE_DIR) / "configs/scenes/conveyor-pick.toml").string();
   const mrroc::test::EmuProcess emulator(
-      {"--scene", std::string(MRROC_SOURCE_DIR) + "/configs/scenes/conveyor-pick.toml", "--bus",
-       "irb6=" + url, "--bus", "conveyor=virtual:emu-belt-" + pid},
+      {"--scene", scene, "--bus", "irb6=" + url, "--bus", "conveyor=virtual:emu-belt-" + pid},
       /*lock_step=*/true);
   EXPECT_NE(emulator.startup().find("mrroc-axis-emu: robot 'irb6' axis 'column' input 0: "
                                     "presence of 'part' in x 0.35..0.45 y -0.75..-0.55 z "

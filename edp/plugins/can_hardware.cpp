@@ -13,6 +13,9 @@
 ///   - `silent_cycles` (integer, default 10): cycles without an answer before a drive is lost.
 ///   - `bring_up_timeout_s` (number, default 5).
 ///   - `heartbeat_ms` (integer, default 100).
+///   - `digital_lines` (boolean, default true): the drives have mrroc's digital output lines
+///     (RPDO2 mapped to 0x60FE sub 1, canopen.hpp); false for drives without them: no outputs
+///     (the EDP refuses SET OUTPUTS), inputs as before.
 /// The cyclic traffic's bus load is computed at configure time and printed; a worst case above
 /// 100 % is refused, above 70 % warned about (docs/hil.md).
 ///
@@ -25,7 +28,9 @@
 /// synchronisation switches), inputs 16..23 the input lines 0..7 of axis 0's drive and 24..31
 /// those of axis 1's; outputs 0..7 are axis 0's drive's output lines 0..7 and 8..15 axis 1's
 /// (a one-axis robot has outputs 0..7 only; the EDP refuses the others). Inputs are sampled at
-/// the last SYNC, as the positions; outputs go out in the cycle after the SET (an RPDO2).
+/// the last SYNC, as the positions; outputs go out in the cycle after the SET (an RPDO2). When
+/// the plugin is destroyed (the EDP's end) it switches the outputs off; a bring-up after a fault
+/// sets them again.
 /// Emergency stop sends the drives quick stop (they decelerate at the robot's largest
 /// acceleration, in drive coordinates, and hold); release re-enables them where they stand.
 #include <Eigen/Dense>
@@ -53,6 +58,13 @@ class CanHardware final : public Hardware {
  public:
   [[nodiscard]] std::string name() const override { return "can"; }
   [[nodiscard]] std::size_t axis_count() const override { return axes_; }
+
+  CanHardware() = default;
+  CanHardware(const CanHardware&) = delete;
+  CanHardware& operator=(const CanHardware&) = delete;
+  ~CanHardware() override {
+    if (master_) master_->switch_outputs_off();
+  }
 
   void check(const HardwareSetup& setup) override { (void)read_settings(setup); }
 
@@ -101,6 +113,8 @@ class CanHardware final : public Hardware {
     options.period_s = setup.servo_period_s;
     options.silent_cycles = static_cast<int>(silent);
     options.heartbeat_ms = static_cast<std::uint16_t>(heartbeat);
+    options.digital_lines = settings.digital_lines;
+    digital_lines_ = settings.digital_lines;
     timeout_ = std::chrono::milliseconds(std::llround(timeout_s * 1000.0));
     period_s_ = setup.servo_period_s;
     bus_ = can::open_bus(url);
@@ -153,7 +167,10 @@ class CanHardware final : public Hardware {
   }
 
   [[nodiscard]] bool binary_io() const override { return true; }
-  [[nodiscard]] std::uint32_t output_lines() const override { return axes_ >= 2 ? 0xFFFFU : 0xFFU; }
+  [[nodiscard]] std::uint32_t output_lines() const override {
+    if (!digital_lines_) return 0;
+    return axes_ >= 2 ? 0xFFFFU : 0xFFU;
+  }
   void write_outputs(std::uint32_t values) override {
     for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 2); ++i)
       master_->set_outputs(i, static_cast<std::uint8_t>(values >> (8U * i)));
@@ -185,6 +202,7 @@ class CanHardware final : public Hardware {
     std::int64_t silent = 0;
     double timeout_s = 0.0;
     std::int64_t heartbeat = 0;
+    bool digital_lines = true;
     Eigen::MatrixXd coupling;
     Eigen::MatrixXd inverse;
     std::string load_text;
@@ -221,6 +239,7 @@ class CanHardware final : public Hardware {
     s.silent = params.get_int("silent_cycles", 10);
     s.timeout_s = params.get_double("bring_up_timeout_s", 5.0);
     s.heartbeat = params.get_int("heartbeat_ms", 100);
+    s.digital_lines = params.get_bool("digital_lines", true);
     params.reject_unread("robot.edp.params");
     try {
       can::check_bus_url(s.url);
@@ -262,8 +281,8 @@ class CanHardware final : public Hardware {
 
     // Bus load of the cyclic traffic.
     const double heartbeat_s = static_cast<double>(s.heartbeat) / 1000.0;
-    const can::canopen::BusLoad load =
-        can::canopen::cyclic_bus_load(axes, setup.servo_period_s, bitrate, heartbeat_s);
+    const can::canopen::BusLoad load = can::canopen::cyclic_bus_load(
+        axes, setup.servo_period_s, bitrate, heartbeat_s, s.digital_lines);
     s.load_text = fmt::format(
         "can: {} for robot '{}': {} drives, cycle {:.3g} ms, {} frames per cycle, bus load "
         "{:.0f} % nominal, {:.0f} % worst case at {:.0f} kbit/s",
@@ -294,6 +313,7 @@ class CanHardware final : public Hardware {
   double period_s_ = kDefaultServoPeriodS;
   bool active_ = false;
   bool first_read_ = true;
+  bool digital_lines_ = true;
   std::atomic<bool> quick_stop_{false};
   std::string load_text_;
 };

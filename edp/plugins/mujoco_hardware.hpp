@@ -117,6 +117,8 @@ class MujocoHardware : public Hardware {
   /// Emulated I/O: inputs 0..15 are the axes' synchronisation switches, inputs 16..31 read back
   /// outputs 0..15.
   [[nodiscard]] bool binary_io() const override { return true; }
+  /// Outputs 0..15: the ones the loop-back plug wires to inputs 16..31.
+  [[nodiscard]] std::uint32_t output_lines() const override { return 0xFFFFU; }
   void write_outputs(std::uint32_t values) override { outputs_ = values; }
   [[nodiscard]] std::uint32_t read_inputs() const override;
 

@@ -314,7 +314,7 @@ FrameBits frame_bits(int bytes) {
 }
 
 BusLoad cyclic_bus_load(std::size_t axes, double period_s, double bitrate_bps,
-                        double heartbeat_period_s) {
+                        double heartbeat_period_s, bool output_refresh) {
   BusLoad load;
   const auto n = static_cast<int>(axes);
   const FrameBits sync = frame_bits(0);
@@ -327,7 +327,7 @@ BusLoad cyclic_bus_load(std::size_t axes, double period_s, double bitrate_bps,
       heartbeat_period_s > 0.0 ? static_cast<double>(n) * period_s / heartbeat_period_s : 0.0;
   // Each drive's outputs are refreshed every kOutputRefreshCycles cycles (an RPDO2).
   const double refreshes_per_cycle =
-      static_cast<double>(n) / static_cast<double>(kOutputRefreshCycles);
+      output_refresh ? static_cast<double>(n) / static_cast<double>(kOutputRefreshCycles) : 0.0;
   load.bits_per_cycle_nominal = sync.nominal + n * (rpdo.nominal + tpdo.nominal) +
                                 heartbeats_per_cycle * heartbeat.nominal +
                                 refreshes_per_cycle * outputs.nominal;

@@ -183,7 +183,7 @@ void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::in
       std::snprintf(fault_, sizeof fault_, "CAN bus %s: bus-off (send failed)", bus_.url().c_str());
     }
   }
-  for (std::size_t i = 0; i < axes_.size(); ++i) {
+  for (std::size_t i = 0; i < axes_.size() && options_.digital_lines; ++i) {
     const bool refresh =
         cycle_ % canopen::kOutputRefreshCycles == i % canopen::kOutputRefreshCycles;
     if (!refresh && sent_outputs_[i] == outputs_[i]) continue;
@@ -292,16 +292,22 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
       throw HardwareError(who(i) + ": device type " + hex(type, 8) +
                           " is not a CiA 402 drive (expected 0x....0192)");
     const auto check_mapping = [&](std::uint16_t index, std::span<const std::uint32_t> entries) {
+      const auto differs = [&](const std::string& what, std::uint32_t read, std::uint32_t expected,
+                               int digits) {
+        return HardwareError(who(i) + ": PDO mapping " + hex(index, 4) + " " + what + " reads " +
+                             hex(read, digits) + ", mrroc's fixed mapping has " +
+                             hex(expected, digits) + " (see docs/hil.md)");
+      };
       const std::uint32_t count = sdo_read(n, index, 0);
-      bool same = count == entries.size();
-      for (std::size_t k = 0; same && k < entries.size(); ++k)
-        same = sdo_read(n, index, static_cast<std::uint8_t>(k + 1)) == entries[k];
-      if (!same)
-        throw HardwareError(who(i) + ": PDO mapping " + hex(index, 4) +
-                            " differs from mrroc's fixed mapping (see docs/hil.md)");
+      if (count != entries.size())
+        throw differs("sub 0 (entries)", count, static_cast<std::uint32_t>(entries.size()), 2);
+      for (std::size_t k = 0; k < entries.size(); ++k)
+        if (const std::uint32_t entry = sdo_read(n, index, static_cast<std::uint8_t>(k + 1));
+            entry != entries[k])
+          throw differs("sub " + std::to_string(k + 1), entry, entries[k], 8);
     };
     check_mapping(od::kRpdo1Mapping, od::kRpdo1Entries);
-    check_mapping(od::kRpdo2Mapping, od::kRpdo2Entries);
+    if (options_.digital_lines) check_mapping(od::kRpdo2Mapping, od::kRpdo2Entries);
     check_mapping(od::kTpdo1Mapping, od::kTpdo1Entries);
     const std::uint16_t sw = static_cast<std::uint16_t>(sdo_read(n, od::kStatusword, 0));
     if (canopen::decode_state(sw) == DriveState::fault) {
@@ -341,12 +347,13 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
         {od::kErrorBehaviour, 1, canopen::error_behaviour::kNoChange, 1},
         {od::kAbortConnectionOption, 0, qs(canopen::abort_connection::kQuickStop), 2},
         {od::kQuickStopOption, 0, qs(canopen::quick_stop_option::kRampThenHold), 2},
-        // Its digital outputs: the lines set so far, then the mask that lets them out.
+        // Its digital outputs: the mask that lets them out, then the lines set so far.
+        {od::kDigitalOutputs, 2, canopen::kUserLineMask, 4},
         {od::kDigitalOutputs, 1, static_cast<std::uint32_t>(outputs_[i]) << canopen::kUserLineShift,
          4},
-        {od::kDigitalOutputs, 2, canopen::kUserLineMask, 4},
     };
     for (const auto& o : supervision) {
+      if (o.index == od::kDigitalOutputs && !options_.digital_lines) continue;
       sdo_write(n, o.index, o.sub, o.value, o.size);
       if (const std::uint32_t back = sdo_read(n, o.index, o.sub); back != o.value)
         throw HardwareError(who(i) + ": object " + hex(o.index, 4) + ":" + std::to_string(o.sub) +
@@ -397,6 +404,19 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
     targets_[i] = held_[i];
   }
   enabled_ = true;
+}
+
+void Cia402Master::switch_outputs_off() noexcept {
+  if (!options_.digital_lines) return;
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    if (outputs_[i] == 0 && sent_outputs_[i] <= 0) continue;  // never switched on
+    try {
+      sdo_write(axes_[i].node, od::kDigitalOutputs, 1, 0, 4);
+      sent_outputs_[i] = 0;
+    } catch (...) {
+      // A drive that does not answer keeps what it had; nothing more can be done here.
+    }
+  }
 }
 
 void Cia402Master::shut_down() noexcept {

@@ -95,6 +95,9 @@ void check_decoders(const can_frame& f) {
     (void)canopen::decode_state(p->statusword);
     fuzz::expect(canopen::compact_inputs(canopen::expand_inputs(p->inputs)) == p->inputs,
                  "0x2001 expands to 0x60FD and back");
+    const auto any = static_cast<std::uint32_t>(p->position_actual);  // any 32 bits as 0x60FD
+    fuzz::expect(canopen::expand_inputs(canopen::compact_inputs(any)) == (any & 0x00FF00FFU),
+                 "0x60FD compacts to its bits 0..7 and 16..23");
   }
   if (const auto e = canopen::decode_emcy(f)) {
     const auto again =

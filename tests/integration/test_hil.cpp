@@ -259,13 +259,23 @@ TEST_F(Hil, TaskWaitsForTheLightBarrierOnADriveInputThenSetsADriveOutput) {
   ASSERT_NE(reached, std::string::npos) << r.output;
   ASSERT_NE(output, std::string::npos) << r.output;
   EXPECT_LT(reached, output) << r.output;
+  // The EDP switched the outputs off when it ended.
+  EXPECT_NE(r.output.find("robot 'irb6' axis 'column' outputs 0x00 at t = ", output),
+            std::string::npos)
+      << r.output;
   // The arm left for the part only once the belt had brought the part into the barrier.
   const auto arm_states = arm.history();
   const auto belt_states = belt.history();
   ASSERT_GT(arm_states.size(), 100u);
   ASSERT_GT(belt_states.size(), 100u);
-  const auto departure = std::find_if(arm_states.begin(), arm_states.end(), [](const auto& s) {
-    return s.synchronised && !s.q_desired.empty() && s.q_desired[0] < -0.005;
+  // The column's commanded angle once synchronised; the arm leaves when it first moves from it.
+  const auto synchronised = std::find_if(arm_states.begin(), arm_states.end(), [](const auto& s) {
+    return s.synchronised && !s.q_desired.empty();
+  });
+  ASSERT_NE(synchronised, arm_states.end());
+  const double column = synchronised->q_desired[0];
+  const auto departure = std::find_if(synchronised, arm_states.end(), [&](const auto& s) {
+    return !s.q_desired.empty() && s.q_desired[0] < column - 1e-4;
   });
   ASSERT_NE(departure, arm_states.end()) << "the column never turned towards the belt";
   double belt_at_departure = -1.0;

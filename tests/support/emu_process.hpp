@@ -30,6 +30,11 @@ class EmuProcess {
     int out[2];
     if (pipe(out) != 0) throw std::runtime_error("pipe");
     pid_ = fork();
+    if (pid_ < 0) {
+      close(out[0]);
+      close(out[1]);
+      throw std::runtime_error("fork of mrroc-axis-emu failed");
+    }
     if (pid_ == 0) {
       dup2(out[1], STDOUT_FILENO);
       dup2(out[1], STDERR_FILENO);
@@ -64,7 +69,7 @@ class EmuProcess {
   EmuProcess(const EmuProcess&) = delete;
   EmuProcess& operator=(const EmuProcess&) = delete;
   ~EmuProcess() {
-    kill(pid_, SIGTERM);
+    kill(pid_, SIGTERM);  // pid_ > 0: the constructor throws otherwise
     int status = 0;
     waitpid(pid_, &status, 0);
     reader_.join();

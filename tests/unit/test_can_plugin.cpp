@@ -130,8 +130,6 @@ TEST(CanPlugin, BinaryLinesAreTheDrivesDigitalLines) {
   };
   std::uint32_t in = inputs_after(0);
   EXPECT_EQ(in & 0xFFFF0000U, 0U);
-  // Inputs 0..4 are the home switches, as the axes report them.
-  for (std::size_t i = 0; i < 5; ++i) EXPECT_EQ(((in >> i) & 1U) != 0U, fb[i].synchro_switch) << i;
   in = inputs_after(0x0001U);  // output 0: column drive, line 0 -> lower arm drive, line 0
   EXPECT_EQ(in & 0xFFFF0000U, 1U << 24U) << std::hex << in;
   in = inputs_after(0x8000U);  // output 15: lower arm drive, line 7 -> column drive, line 7

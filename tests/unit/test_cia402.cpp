@@ -336,6 +336,59 @@ TEST(Cia402Master, DigitalLinesTravelBothWaysAndLostOutputsAreRefreshed) {
   master.shut_down();
 }
 
+TEST(Cia402Master, WithoutDigitalLinesNoOutputIsTouched) {
+  // Drives without mrroc's output lines: the master neither writes 0x60FE nor sends RPDO2.
+  MemoryHub hub;
+  DriveRack rack(hub, 1);
+  MasterOptions options;
+  options.digital_lines = false;
+  Cia402Master master(hub.add(), axes(1), options);
+  master.bring_up(2000ms);
+  EXPECT_EQ(master.sdo_read(1, co::od::kDigitalOutputs, 2), 0U);  // the power-on mask
+  master.sdo_write(1, co::od::kDigitalOutputs, 2, co::kUserLineMask, 4);
+  master.set_outputs(0, 0x0F);
+  run_cycles(master, static_cast<int>(co::kOutputRefreshCycles) + 2,
+             [](int) { return std::vector<double>{0.0}; });
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->output_lines(), 0x00);
+    return 0;
+  });
+  // The inputs still come in TPDO1.
+  rack.set_input_lines(0, 0x81);
+  run_cycles(master, 3, [](int) { return std::vector<double>{0.0}; });
+  EXPECT_EQ(master.status(0).input_lines, 0x81);
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  master.shut_down();
+}
+
+TEST(Cia402Master, SwitchOutputsOffClearsTheDrivesAndBringUpSetsThemAgain) {
+  MemoryHub hub;
+  DriveRack rack(hub, 2);
+  Cia402Master master(hub.add(), axes(2), MasterOptions{});
+  master.bring_up(2000ms);
+  const auto stay = [](int) { return std::vector<double>{0.0, 0.0}; };
+  master.set_outputs(0, 0x03);
+  run_cycles(master, 3, stay);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->output_lines(), 0x03);
+    return 0;
+  });
+  master.shut_down();
+  master.switch_outputs_off();
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->output_lines(), 0x00);
+    EXPECT_EQ(drives[1]->output_lines(), 0x00);
+    return 0;
+  });
+  EXPECT_EQ(master.outputs(0), 0x03);  // what the controller asked for is kept
+  master.bring_up(2000ms);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->output_lines(), 0x03);
+    return 0;
+  });
+  master.shut_down();
+}
+
 TEST(Cia402Master, InjectedDriveFaultIsReportedWithNodeAxisAndCode) {
   MemoryHub hub;
   DriveRack rack(hub, 2);

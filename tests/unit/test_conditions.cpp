@@ -174,8 +174,17 @@ TEST(InputCondition, WaitsForTheLineAndTimesOutNamingIt) {
   ecp::InputCondition on(17, true, 2.0, clock.function());
   EXPECT_EQ(on.items() & edp::item::inputs, edp::item::inputs);
   ecp::RobotImage robot;
-  EXPECT_FALSE(on.holds(robot, {}));  // no inputs read yet
-  robot.inputs = 0x10000U;            // line 16 on, 17 off
+  // An image without inputs (not read): an error naming the line, not a wait for ever.
+  try {
+    (void)on.holds(robot, {});
+    FAIL() << "no error without inputs";
+  } catch (const ecp::GeneratorError& e) {
+    EXPECT_NE(std::string(e.what()).find("input condition on line 17: the robot image has no "
+                                         "inputs"),
+              std::string::npos)
+        << e.what();
+  }
+  robot.inputs = 0x10000U;  // line 16 on, 17 off
   clock.now += 1s;
   EXPECT_FALSE(on.holds(robot, {}));
   EXPECT_NEAR(on.waited_s(), 1.0, 1e-9);

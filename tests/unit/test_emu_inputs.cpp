@@ -480,8 +480,6 @@ TEST(EmuInputs, GraspWiresFollowTheGripsAndInvertTurnsThemOver) {
     (void)mrroc::emu::evaluate_inputs(wiring[0], world, outputs, lines);
     g_heap.counting = false;
     allocations += g_heap.allocations;
-    // Line 0 and 2 always disagree (any grip vs. not the left one; the right stays open).
-    EXPECT_EQ(bit(lines[0], 0), !bit(lines[0], 2)) << "t = " << world.time() << " s";
   }
   ASSERT_TRUE(ok) << world.fault_text();
   EXPECT_EQ(allocations, 0);

@@ -113,8 +113,9 @@ class RobotStoppedCondition : public Condition {
 /// True when the robot's binary input `line` is `state` (paper, section 3: an initial condition
 /// on the robot image). In Wait the image's inputs are read from the EDP (GET INPUTS) before
 /// every check; in a guarded move the macro-step's image is used, which holds inputs only when
-/// the move's generator asks for them. With a timeout, a check after `timeout_s` seconds without
-/// the state throws GeneratorError naming the line, the state awaited and the time.
+/// the move's generator asks for them: a check of an image without inputs throws GeneratorError
+/// (rather than waiting for ever). With a timeout, a check after `timeout_s` seconds without the
+/// state throws GeneratorError naming the line, the state awaited and the time.
 class InputCondition : public RobotCondition {
  public:
   /// @param line  0..31.  @param timeout_s  [s], >= 0; 0 waits for ever.

@@ -21,12 +21,15 @@ InputCondition::InputCondition(int line, bool state, double timeout_s, SteadyClo
 bool InputCondition::holds(const RobotImage& robot, const SensorList&) {
   last_ = clock_();
   if (!start_) start_ = last_;
-  if (robot.inputs && (((*robot.inputs >> static_cast<unsigned>(line_)) & 1U) != 0U) == state_)
-    return true;
+  if (!robot.inputs)
+    throw GeneratorError(fmt::format(
+        "input condition on line {}: the robot image has no inputs (read them with item INPUTS: "
+        "Wait does; a guarded move's generator must ask for them)",
+        line_));
+  if ((((*robot.inputs >> static_cast<unsigned>(line_)) & 1U) != 0U) == state_) return true;
   if (timeout_s_ > 0.0 && waited_s() >= timeout_s_)
-    throw GeneratorError(fmt::format("input {} did not turn {} within {:.1f} s{}", line_,
-                                     state_ ? "on" : "off", timeout_s_,
-                                     robot.inputs ? "" : " (the robot image has no inputs)"));
+    throw GeneratorError(fmt::format("input {} did not turn {} within {:.1f} s", line_,
+                                     state_ ? "on" : "off", timeout_s_));
   return false;
 }
 

@@ -306,9 +306,10 @@ struct FrameBits {
 };
 FrameBits frame_bits(int bytes);
 /// Bus load of one robot's cyclic traffic: one SYNC, an RPDO1 and a TPDO1 per axis each cycle,
-/// plus heartbeats and the outputs' refresh (an RPDO2 per axis every kOutputRefreshCycles
-/// cycles). A change of the outputs adds one RPDO2 per drive whose outputs changed, in that cycle
-/// only; it is not counted. Loads are fractions of the bus' capacity (0.7 = 70 %).
+/// plus heartbeats and, with `output_refresh`, the outputs' refresh (an RPDO2 per axis every
+/// kOutputRefreshCycles cycles), both averaged over the cycles. A change of the outputs adds one
+/// RPDO2 per drive whose outputs changed, in that cycle only; it is not counted. Loads are
+/// fractions of the bus' capacity (0.7 = 70 %).
 struct BusLoad {
   int frames_per_cycle = 0;
   double bits_per_cycle_nominal = 0.0;
@@ -317,7 +318,7 @@ struct BusLoad {
   double load_worst = 0.0;
 };
 BusLoad cyclic_bus_load(std::size_t axes, double period_s, double bitrate_bps,
-                        double heartbeat_period_s);
+                        double heartbeat_period_s, bool output_refresh = true);
 /// Largest worst-case load the EDP accepts without a warning (see docs/hil.md).
 inline constexpr double kRecommendedMaxLoad = 0.70;
 

@@ -26,8 +26,11 @@
 /// drive answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions and
 /// digital inputs sampled at the last SYNC (one cycle old).
 ///
-/// Digital lines (canopen.hpp): bring-up writes each drive's output mask 0x60FE sub 2 (its 8
-/// lines) and its outputs sub 1 (the lines set so far, 0 at first) and reads both back.
+/// Digital lines (canopen.hpp), unless `MasterOptions::digital_lines` is false: bring-up checks
+/// the RPDO2 mapping, writes each drive's output mask 0x60FE sub 2 (its 8 lines) and then its
+/// outputs sub 1 (the lines set so far, 0 at first) and reads both back. `switch_outputs_off`
+/// (the EDP's exit) switches every drive's outputs off by SDO. Without digital lines the master
+/// neither checks 0x1601 nor touches 0x60FE nor sends RPDO2; the inputs still come in TPDO1.
 ///
 /// Faults (after which `faulted()` is true and `fault_text()` says which drive, which axis and
 /// why): an EMCY with a non-zero code; a statusword in fault; a drive that left operation enabled
@@ -67,6 +70,8 @@ struct MasterOptions {
   std::uint16_t master_heartbeat_ms = 10;  ///< the master's heartbeat period (1..1000 ms)
   /// Drives' heartbeat consumer time for the master (0x1016); must exceed master_heartbeat_ms.
   std::uint16_t heartbeat_consumer_ms = 50;
+  /// The drives have mrroc's digital output lines (RPDO2, 0x60FE); false for drives without them.
+  bool digital_lines = true;
 };
 
 /// What the master knows about one drive after `receive`.
@@ -87,6 +92,11 @@ class Cia402Master {
   /// Brings every drive to operation enabled at its actual position.
   /// @throws mrroc::HardwareError naming the bus, node, axis and the step that failed.
   void bring_up(std::chrono::milliseconds timeout);
+  /// Switches the output lines off (an SDO write of 0x60FE sub 1 to each drive that had lines on
+  /// or to switch on; blocking, for
+  /// the end of the controller's run: the drives hold their outputs otherwise). The lines given
+  /// to `set_outputs` are kept and written again by the next bring-up. Never throws.
+  void switch_outputs_off() noexcept;
   /// Disables the drives (brakes on) and sends them to NMT pre-operational. Never throws.
   void shut_down() noexcept;
 

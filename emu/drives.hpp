@@ -43,12 +43,13 @@
 #include <vector>
 
 #include "cell_world.hpp"
+#include "mrroc/can/canopen.hpp"
 #include "mrroc/core/error.hpp"
 
 namespace mrroc::emu {
 
 /// Digital lines per drive, inputs and outputs alike (0x60FD bits 16..23, 0x60FE bits 16..23).
-inline constexpr int kDriveLines = 8;
+inline constexpr int kDriveLines = static_cast<int>(can::canopen::kUserLines);
 
 /// What drives a digital input line.
 enum class InputSource {

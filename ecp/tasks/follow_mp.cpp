@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "binary_outputs.hpp"
 #include "mrroc/ecp/task.hpp"
 
 namespace mrroc::ecp {
@@ -28,20 +29,11 @@ MRROC_REGISTER_ECP_TASK("follow_mp", FollowMp);
 class SetOutputs : public EcpTask {
  public:
   explicit SetOutputs(TaskContext& context)
-      : context_(context), outputs_(context.args.get_int("outputs")) {
+      : context_(context), outputs_(outputs_argument(context.args, "outputs")) {
     context.args.reject_unread("set_outputs arguments");
-    if (outputs_ < 0 || outputs_ > 0xFFFFFFFFLL)
-      throw ConfigError(context.args.location_of("outputs"),
-                        fmt::format("outputs {} is outside 0..0xFFFFFFFF", outputs_));
   }
   void main_task() override {
-    edp::Instruction& c = context_.robot.image().command;
-    c = edp::Instruction{};
-    c.type = edp::InstructionType::set_get;
-    c.set = edp::item::outputs;
-    c.get = edp::item::inputs;
-    c.output_values = static_cast<std::uint32_t>(outputs_);
-    context_.robot.execute();
+    set_outputs(context_.robot, outputs_, /*get_inputs=*/true);
     // The inputs as the EDP read them in the cycle before the outputs changed.
     context_.reporter.info(fmt::format("outputs set to {:#x}; inputs {:#x}", outputs_,
                                        context_.robot.image().inputs.value_or(0)));
@@ -49,7 +41,7 @@ class SetOutputs : public EcpTask {
 
  private:
   TaskContext& context_;
-  std::int64_t outputs_;
+  std::uint32_t outputs_;
 };
 
 MRROC_REGISTER_ECP_TASK("set_outputs", SetOutputs);

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <optional>
 
+#include "binary_outputs.hpp"
 #include "joint_motion_options.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/ecp/conditions.hpp"
@@ -38,13 +39,7 @@ class VisitJointPoses : public EcpTask {
         throw ConfigError(args.location_of("wait_timeout"),
                           fmt::format("'wait_timeout' = {} s must be >= 0 s", wait_timeout_));
     }
-    if (args.has("outputs_at_end")) {
-      const std::int64_t bits = args.get_int("outputs_at_end");
-      if (bits < 0 || bits > 0xFFFFFFFFLL)
-        throw ConfigError(args.location_of("outputs_at_end"),
-                          fmt::format("'outputs_at_end' = {} is outside 0..0xFFFFFFFF", bits));
-      outputs_at_end_ = static_cast<std::uint32_t>(bits);
-    }
+    if (args.has("outputs_at_end")) outputs_at_end_ = outputs_argument(args, "outputs_at_end");
     args.reject_unread("robot.ecp.args");
     // Validate every pose and option before anything moves, naming where they were written:
     // the options, each pose on its own (arity, joint limits), then the paths between them.
@@ -79,12 +74,7 @@ class VisitJointPoses : public EcpTask {
                                          poses_.size(), fmt::join(robot.image().joints, ", ")));
     }
     if (outputs_at_end_) {
-      edp::Instruction& c = robot.image().command;
-      c = edp::Instruction{};
-      c.type = edp::InstructionType::set;
-      c.set = edp::item::outputs;
-      c.output_values = *outputs_at_end_;
-      robot.execute();
+      set_outputs(robot, *outputs_at_end_, /*get_inputs=*/false);
       context_.reporter.info(fmt::format("outputs set to {:#x}", *outputs_at_end_));
     }
   }

@@ -278,6 +278,8 @@ int run(const std::string& config_path, const std::string& robot_name) {
     auto overrun_quiet_until = std::chrono::steady_clock::now();
     std::int64_t overruns_unreported = 0;
     double worst_unreported_us = 0;
+    double worst_work_us = 0;       // the longest cycle's work since the last overrun report
+    double worst_lock_wait_us = 0;  // the servo thread's longest wait for its lock, likewise
     // Shutdown never stops a moving robot dead: on SIGINT/SIGTERM a robot in motion is first
     // brought to a standstill within its acceleration limits (the emergency-stop ramp), for at
     // most kShutdownRampLimit, while its state still goes out; then the servo loop stops.
@@ -340,15 +342,27 @@ int run(const std::string& config_path, const std::string& robot_name) {
 
       overruns_unreported += window.overruns;
       worst_unreported_us = std::max(worst_unreported_us, window.worst_overrun_us);
+      worst_work_us = std::max(worst_work_us, window.worst_work_us);
+      worst_lock_wait_us = std::max(worst_lock_wait_us, window.worst_lock_wait_us);
       if (overruns_unreported > 0 && now >= overrun_quiet_until) {
+        // The cycles' own work and lock waits beside the lateness: short ones mean the thread
+        // was ready and the host (or a thread above it) did not run it.
         reporter.report(
             Severity::warning, edp::error_code::servo_overrun,
             fmt::format("servo loop overrun: {} cycle(s) woke more than one period "
                         "({:.0f} us) late, the worst {:.0f} us; missed periods were "
-                        "skipped",
-                        overruns_unreported, robot.edp.servo_period_s * 1e6, worst_unreported_us));
+                        "skipped; the longest cycle worked {:.0f} us and waited {:.0f} us for "
+                        "its lock{}",
+                        overruns_unreported, robot.edp.servo_period_s * 1e6, worst_unreported_us,
+                        worst_work_us, worst_lock_wait_us,
+                        worst_work_us < robot.edp.servo_period_s * 1e6
+                            ? " (the thread was ready and not run: a host stall or a thread "
+                              "above it)"
+                            : ""));
         overruns_unreported = 0;
         worst_unreported_us = 0;
+        worst_work_us = 0;
+        worst_lock_wait_us = 0;
         overrun_quiet_until = now + kOverrunReportPeriod;
       }
       if (now >= next_report) {

@@ -30,6 +30,9 @@ timespec from_ns(std::int64_t ns) {
   t.tv_nsec = static_cast<long>(ns % 1000000000LL);
   return t;
 }
+/// The longest a motion from rest waits for its lookahead: the pauses of a shared host (about
+/// 60 ms, BENCHMARKS) and more, not a lone long macro-step's whole lookahead.
+constexpr double kMaxStartHoldS = 0.2;
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
 }
@@ -95,8 +98,9 @@ void ServoLoop::run() {
   if (!fifo) prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   {
     std::lock_guard lock(mutex_);
-    scheduling_ = fifo ? "SCHED_FIFO 80" : "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)";
-    if (lock_step_) scheduling_ += ", lock-step";
+    std::snprintf(scheduling_, sizeof scheduling_, "%s%s",
+                  fifo ? "SCHED_FIFO 80" : "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)",
+                  lock_step_ ? ", lock-step" : "");
   }
   if (lock_step_) {
     run_lock_step();
@@ -111,8 +115,11 @@ void ServoLoop::run() {
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &wake, nullptr) == EINTR) {
     }
     clock_gettime(CLOCK_MONOTONIC, &now);
-    const std::int64_t late_ns = to_ns(now) - deadline;
+    const std::int64_t woke = to_ns(now);
+    const std::int64_t late_ns = woke - deadline;
     cycle(late_ns, period_ns);
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    work_ns_ = to_ns(now) - woke;  // recorded with the next cycle
     deadline += period_ns;
     // After an overrun, skip the periods already missed instead of running a burst of cycles.
     if (late_ns > period_ns) deadline += (late_ns / period_ns) * period_ns;
@@ -130,12 +137,19 @@ bool ServoLoop::awaiting_successor() const {
          queue_.empty() && !faulted_ && !emergency_stop_;
 }
 
+bool ServoLoop::at_rest() const {
+  for (std::size_t i = 0; i < axes_; ++i)
+    if (end_velocity_[i] != 0.0) return false;
+  return true;
+}
+
 bool ServoLoop::awaiting_lookahead() const {
   // At the start of macro-step k, its client may have sent up to k + lookahead - 2 (the reply to
   // k + lookahead - 1 is the reading taken in k): waiting for those cannot deadlock.
   if (current_ || queue_.empty() || faulted_ || emergency_stop_ || mode_ != Mode::hold)
     return false;
   if (!queue_.back().promises_successor()) return false;  // the motion's end is queued
+  if (queue_.back().id <= waived_upto_) return false;      // the client said none follows
   const std::size_t known = queue_.size() - 1;
   return lookahead_ >= 3 && known < static_cast<std::size_t>(lookahead_ - 2);
 }
@@ -186,11 +200,21 @@ void ServoLoop::store_reading(std::uint64_t id, int step_no) {
 }
 
 void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
+  // How long the servo thread waits for its mutex (every holder only copies; measured so that an
+  // overrun report can tell a held lock from a late wake-up).
+  std::int64_t lock_wait_ns = 0;
+  auto lock_timed = [&] {
+    timespec t0{};
+    timespec t1{};
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    mutex_.lock();
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    lock_wait_ns = std::max(lock_wait_ns, to_ns(t1) - to_ns(t0));
+  };
   bool reset = false;
-  {
-    std::lock_guard lock(mutex_);
-    reset = reset_pending_;
-  }
+  lock_timed();
+  reset = reset_pending_;
+  mutex_.unlock();
   if (reset) {
     try {
       hardware_.deactivate();
@@ -225,8 +249,9 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
   std::array<std::int8_t, kMaxAxes> algorithm{};
   std::array<std::int8_t, kMaxAxes> parameter_set{};
   bool notify = false;
+  lock_timed();
   {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(mutex_, std::adopt_lock);
     feedback_ = sample_;
     latest_.inputs = inputs;
     latest_.device = device_sample_;
@@ -269,7 +294,7 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
     notify = notify_pending_;
     notify_pending_ = false;
     // Counted after the cycle's reading took the counter (latest_.cycle), as before the write.
-    timing_.record(late_ns, period_ns);
+    timing_.record(late_ns, period_ns, work_ns_, lock_wait_ns);
   }
   if (notify) changed_.notify();
 
@@ -418,7 +443,22 @@ void ServoLoop::motion_cycle() {
     store_reading(after_stop_id_, after_stop_step_);
     after_stop_id_ = 0;
   }
-  if (!current_ && !queue_.empty()) start_next_macro_step();
+  if (!current_ && !queue_.empty()) {
+    // A motion from rest starts once the successors its client may already send are queued (at
+    // most the time the lookahead covers, and kMaxStartHoldS): a client held back just after the
+    // first macro-step
+    // would otherwise leave the robot with no queue to ride that pause on, and of a group of
+    // robots moving together the one whose client is late would start late.
+    const std::int64_t hold_limit =
+        std::min(static_cast<std::int64_t>(lookahead_ - 1) * queue_.front().steps,
+                 static_cast<std::int64_t>(std::ceil(kMaxStartHoldS / period_s_)));
+    if (!lock_step_ && at_rest() && awaiting_lookahead() && start_held_cycles_ < hold_limit) {
+      ++start_held_cycles_;
+      return;
+    }
+    start_held_cycles_ = 0;
+    start_next_macro_step();
+  }
   if (!current_) return;
   MacroStep& m = *current_;
   ++m.step;
@@ -563,10 +603,11 @@ std::int64_t ServoLoop::queued_steps() const {
 }
 
 std::vector<double> ServoLoop::planned_end() const {
-  std::lock_guard lock(mutex_);
-  const AxisArray& end = !queue_.empty() ? queue_.back().target
-                         : current_      ? current_->target
-                                         : desired_;
+  AxisArray end{};
+  {
+    std::lock_guard lock(mutex_);
+    end = !queue_.empty() ? queue_.back().target : current_ ? current_->target : desired_;
+  }
   return {end.begin(), end.begin() + static_cast<std::ptrdiff_t>(axes_)};
 }
 
@@ -596,10 +637,13 @@ std::optional<Reading> ServoLoop::wait_reply(std::uint64_t id, std::uint64_t due
 }
 
 std::string ServoLoop::refusal(std::uint64_t id) const {
-  std::lock_guard lock(mutex_);
-  return refused_first_ != 0 && id >= refused_first_ && id <= refused_last_
-             ? std::string(refused_text_)
-             : std::string{};
+  char text[sizeof refused_text_] = {};
+  {
+    std::lock_guard lock(mutex_);
+    if (refused_first_ != 0 && id >= refused_first_ && id <= refused_last_)
+      std::memcpy(text, refused_text_, sizeof text);
+  }
+  return text;
 }
 
 int ServoLoop::refusal_code(std::uint64_t id) const {
@@ -678,19 +722,33 @@ void ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
 }
 
 void ServoLoop::enable_trace(std::size_t capacity) {
+  std::vector<TraceSample> fresh(capacity);  // allocated (and freed) outside the lock
   std::lock_guard lock(mutex_);
-  trace_.assign(capacity, TraceSample{});
+  trace_.swap(fresh);
   trace_count_ = 0;
 }
 
 std::vector<TraceSample> ServoLoop::trace() const {
+  std::size_t capacity = 0;
+  {
+    std::lock_guard lock(mutex_);
+    capacity = trace_.size();
+  }
+  std::vector<TraceSample> out(capacity);  // trace_ keeps its size once the loop runs
   std::lock_guard lock(mutex_);
-  return {trace_.begin(), trace_.begin() + static_cast<std::ptrdiff_t>(trace_count_)};
+  const std::size_t n = std::min(trace_count_, out.size());
+  std::copy_n(trace_.begin(), n, out.begin());
+  out.resize(n);  // shrinks: no allocation
+  return out;
 }
 
 std::string ServoLoop::fault_text() const {
-  std::lock_guard lock(mutex_);
-  return fault_;
+  char text[sizeof fault_] = {};
+  {
+    std::lock_guard lock(mutex_);
+    std::memcpy(text, fault_, sizeof text);
+  }
+  return text;
 }
 
 TimingWindow ServoLoop::take_timing_window() {
@@ -699,21 +757,27 @@ TimingWindow ServoLoop::take_timing_window() {
 }
 
 TimingStats ServoLoop::timing() const {
-  std::vector<float> samples;
-  std::string scheduling;
+  // Allocated before the lock: the servo thread may wait for it, and an allocation can wait for
+  // the kernel's memory map, which other threads of this process hold without priority
+  // inheritance.
+  std::vector<float> samples(ServoTiming::kSamples);
+  char scheduling[sizeof scheduling_] = {};
+  std::size_t n = 0;
   {
     std::lock_guard lock(mutex_);
-    timing_.samples(samples);
-    scheduling = scheduling_;
+    n = timing_.samples(samples.data());
+    std::memcpy(scheduling, scheduling_, sizeof scheduling);
   }
+  samples.resize(n);
   std::sort(samples.begin(), samples.end());
-  TimingStats t;
-  {
-    std::lock_guard lock(mutex_);
-    t = timing_.stats(samples, period_s_);
-  }
-  t.scheduling = std::move(scheduling);
+  TimingStats t = timing_stats(samples);
+  t.scheduling = scheduling;
   return t;
+}
+
+TimingStats ServoLoop::timing_stats(const std::vector<float>& sorted) const {
+  std::lock_guard lock(mutex_);
+  return timing_.stats(sorted, period_s_);  // TimingStats' string stays empty here: no allocation
 }
 
 }  // namespace mrroc::edp

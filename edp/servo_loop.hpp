@@ -177,6 +177,8 @@ class ServoLoop {
   [[nodiscard]] bool faulted() const { return faulted_.load(); }
   [[nodiscard]] std::string fault_text() const;
 
+  /// Lateness statistics. Nothing under the lock the servo thread shares allocates: the samples
+  /// are copied into memory allocated before.
   [[nodiscard]] TimingStats timing() const;
   /// Lateness since the previous call (the first call: since start()).
   TimingWindow take_timing_window();
@@ -195,13 +197,16 @@ class ServoLoop {
 
   void run();
   void run_lock_step();
+  [[nodiscard]] TimingStats timing_stats(const std::vector<float>& sorted) const;
   /// Lock-step: something for the next cycle to do (mutex_ held).
   [[nodiscard]] bool has_work() const;
   /// Lock-step: the next cycle would end a macro-step whose promised successor is not queued.
   [[nodiscard]] bool awaiting_successor() const;
-  /// Lock-step: the next macro-step would start before the successors its client may already
-  /// have sent are queued.
+  /// The next macro-step would start before the successors its client may already have sent
+  /// are queued (lock-step: before every macro-step; real time: before a motion from rest).
   [[nodiscard]] bool awaiting_lookahead() const;
+  /// The last macro-step ended at rest (or none ran): a new one starts a motion from rest.
+  [[nodiscard]] bool at_rest() const;
   /// One cycle that woke `late_ns` after its deadline (lock-step: 0 of 1): read, plan (and
   /// record the lateness) under the mutex, write.
   void cycle(std::int64_t late_ns, std::int64_t period_ns);
@@ -258,6 +263,7 @@ class ServoLoop {
   std::uint64_t refused_first_ = 0;  ///< the refused range: the macro-step refused at its start
   std::uint64_t refused_last_ = 0;   ///< ... and the newest one dropped with it
   bool after_ramp_ = false;          ///< the robot stands where a lost successor's ramp left it
+  std::int64_t start_held_cycles_ = 0;  ///< cycles a motion from rest waited for its lookahead
   char refused_text_[384] = {};
   int refused_code_ = 0;
   AxisArray offset_{};                           ///< joint = raw + offset (valid once synchronised)
@@ -279,7 +285,8 @@ class ServoLoop {
   std::vector<TraceSample> trace_;  ///< preallocated by enable_trace
   std::size_t trace_count_ = 0;
   ServoTiming timing_;
-  std::string scheduling_;
+  std::int64_t work_ns_ = 0;  ///< servo thread only: the last cycle's work, wake-up to write end
+  char scheduling_[80] = {};
 };
 
 }  // namespace mrroc::edp

@@ -4,7 +4,11 @@
 
 namespace mrroc::edp {
 
-void ServoTiming::record(std::int64_t late_ns, std::int64_t period_ns) {
+void ServoTiming::record(std::int64_t late_ns, std::int64_t period_ns, std::int64_t work_ns,
+                         std::int64_t lock_wait_ns) {
+  window_.worst_work_us = std::max(window_.worst_work_us, static_cast<double>(work_ns) / 1000.0);
+  window_.worst_lock_wait_us =
+      std::max(window_.worst_lock_wait_us, static_cast<double>(lock_wait_ns) / 1000.0);
   const double late_us = static_cast<double>(late_ns) / 1000.0;
   lateness_us_[next_] = static_cast<float>(late_us);
   next_ = (next_ + 1) % kSamples;
@@ -20,9 +24,10 @@ void ServoTiming::record(std::int64_t late_ns, std::int64_t period_ns) {
   }
 }
 
-void ServoTiming::samples(std::vector<float>& out) const {
+std::size_t ServoTiming::samples(float* out) const {
   const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(cycles_), kSamples);
-  out.assign(lateness_us_.begin(), lateness_us_.begin() + static_cast<std::ptrdiff_t>(n));
+  std::copy_n(lateness_us_.begin(), n, out);
+  return n;
 }
 
 TimingStats ServoTiming::stats(const std::vector<float>& sorted, double period_s) const {

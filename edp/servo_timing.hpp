@@ -31,6 +31,12 @@ struct TimingWindow {
   /// The worst overrun in the window: how late that cycle woke [us] (0 if none in the window).
   double worst_overrun_us = 0;
   std::int64_t overruns = 0;  ///< overruns in the window
+  /// The longest a cycle of the window worked, from its wake-up to its write's end [us]: an
+  /// overrun after short cycles is a wake-up the scheduler or the host held back, not the
+  /// cycle's own work.
+  double worst_work_us = 0;
+  /// The longest a cycle of the window waited for the servo loop's mutex [us].
+  double worst_lock_wait_us = 0;
 };
 
 class ServoTiming {
@@ -38,11 +44,14 @@ class ServoTiming {
   static constexpr std::size_t kSamples = 1 << 16;
   ServoTiming() : lateness_us_(kSamples, 0.0F) {}
 
-  /// One cycle that woke `late_ns` after its deadline (lock-step: 0).
-  void record(std::int64_t late_ns, std::int64_t period_ns);
+  /// One cycle that woke `late_ns` after its deadline (lock-step: 0); the previous cycle worked
+  /// `work_ns` (wake-up to the end of its write) and this one waited `lock_wait_ns` for the lock.
+  void record(std::int64_t late_ns, std::int64_t period_ns, std::int64_t work_ns = 0,
+              std::int64_t lock_wait_ns = 0);
   [[nodiscard]] std::int64_t cycles() const { return cycles_; }
-  /// The samples in the ring (copied out, to sort without the lock).
-  void samples(std::vector<float>& out) const;
+  /// Copies the samples in the ring into `out` (room for kSamples, allocated by the caller
+  /// before it takes the lock: nothing under the servo loop's lock allocates); returns how many.
+  std::size_t samples(float* out) const;
   /// Statistics over `sorted` samples (from samples(), sorted).
   [[nodiscard]] TimingStats stats(const std::vector<float>& sorted, double period_s) const;
   TimingWindow take_window();

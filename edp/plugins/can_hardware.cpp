@@ -37,6 +37,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -122,7 +123,10 @@ class CanHardware final : public Hardware {
     master_ = std::make_unique<can::Cia402Master>(*bus_, std::move(axes), options);
     a_.resize(n);
     q_.resize(n);
-    q_previous_.resize(n);
+    a_sampled_.resize(n);
+    a_velocity_.resize(n);
+    q_velocity_.resize(n);
+    sample_cycle_.assign(axes_, 0);
     target_a_.assign(axes_, 0.0);
     first_read_ = true;
   }
@@ -143,13 +147,30 @@ class CanHardware final : public Hardware {
     for (std::size_t i = 0; i < axes_; ++i)
       a_(static_cast<Eigen::Index>(i)) = master_->status(i).position;
     q_.noalias() = inverse_ * a_;
+    // Velocity from each drive's last two TPDOs and the cycles between them: a TPDO that comes
+    // a cycle late (a drive, or an emulator on a busy host) leaves the estimate as it was, not 0
+    // (a standstill that did not happen), and the one after it is not read as twice the speed.
+    for (std::size_t i = 0; i < axes_; ++i) {
+      const auto k = static_cast<Eigen::Index>(i);
+      const std::uint64_t at = master_->status(i).last_tpdo_cycle;
+      if (first_read_) {
+        a_velocity_(k) = 0.0;
+      } else if (at != sample_cycle_[i]) {
+        a_velocity_(k) =
+            (a_(k) - a_sampled_(k)) / (static_cast<double>(at - sample_cycle_[i]) * period_s_);
+      } else {
+        continue;  // no new TPDO from this drive in this cycle
+      }
+      a_sampled_(k) = a_(k);
+      sample_cycle_[i] = at;
+    }
+    q_velocity_.noalias() = inverse_ * a_velocity_;
     for (std::size_t i = 0; i < axes_; ++i) {
       const auto k = static_cast<Eigen::Index>(i);
       out[i].position = q_(k);
-      out[i].velocity = first_read_ ? 0.0 : (q_(k) - q_previous_(k)) / period_s_;
+      out[i].velocity = q_velocity_(k);
       out[i].synchro_switch = master_->status(i).home_switch;
     }
-    q_previous_ = q_;
     first_read_ = false;
     return master_->faulted() ? CycleStatus::fault : CycleStatus::ok;
   }
@@ -307,7 +328,10 @@ class CanHardware final : public Hardware {
   Eigen::MatrixXd inverse_;
   Eigen::VectorXd a_;
   Eigen::VectorXd q_;
-  Eigen::VectorXd q_previous_;
+  Eigen::VectorXd a_sampled_;   ///< each drive's position in its last TPDO used for velocity
+  Eigen::VectorXd a_velocity_;  ///< drive velocities [units/s] from their last two TPDOs
+  Eigen::VectorXd q_velocity_;  ///< joint velocities [rad/s]
+  std::vector<std::uint64_t> sample_cycle_;  ///< the master's cycle of each a_sampled_
   std::vector<double> target_a_;
   std::chrono::milliseconds timeout_{5000};
   double period_s_ = kDefaultServoPeriodS;

@@ -249,9 +249,13 @@ TEST_F(Lookahead, ARefusedMacroStepTakesTheQueueBehindItAlongAndIsReportedOnce) 
   // A motion from rest to 0.5 rad/s on the column in 300 steps (2.5 rad/s^2 at most; limit 3)
   // whose successor never comes: the ramp carries the column 0.042 rad past the target.
   q[0] = q0 + 0.15;
+  // (A motion from rest first waits up to 0.2 s for the successors its client may send.)
   const Reply first = interpreter_->execute(set_joints(q, 300, 297, true));
   ASSERT_EQ(first.type, ReplyType::data) << first.error_text;
-  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+  while (servo_->lost_successors() == 0 && std::chrono::steady_clock::now() < give_up)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the ramp ends (0.17 s)
   ASSERT_EQ(servo_->lost_successors(), 1);
   // The planned continuation (0.75 rad/s) is too abrupt from where the ramp left the robot (at
   // rest, 0.04 rad past the target). With a lookahead of 4 the first three replies come before

@@ -149,7 +149,7 @@ bool ServoLoop::awaiting_lookahead() const {
   if (current_ || queue_.empty() || faulted_ || emergency_stop_ || mode_ != Mode::hold)
     return false;
   if (!queue_.back().promises_successor()) return false;  // the motion's end is queued
-  if (queue_.back().id <= waived_upto_) return false;      // the client said none follows
+  if (queue_.back().id <= waived_upto_) return false;     // the client said none follows
   const std::size_t known = queue_.size() - 1;
   return lookahead_ >= 3 && known < static_cast<std::size_t>(lookahead_ - 2);
 }

@@ -259,10 +259,10 @@ class ServoLoop {
   bool reset_pending_ = false;
   std::int64_t lost_successors_ = 0;
   std::int64_t planned_stops_ = 0;
-  std::uint64_t waived_upto_ = 0;    ///< macro-steps up to this id need no successor
-  std::uint64_t refused_first_ = 0;  ///< the refused range: the macro-step refused at its start
-  std::uint64_t refused_last_ = 0;   ///< ... and the newest one dropped with it
-  bool after_ramp_ = false;          ///< the robot stands where a lost successor's ramp left it
+  std::uint64_t waived_upto_ = 0;       ///< macro-steps up to this id need no successor
+  std::uint64_t refused_first_ = 0;     ///< the refused range: the macro-step refused at its start
+  std::uint64_t refused_last_ = 0;      ///< ... and the newest one dropped with it
+  bool after_ramp_ = false;             ///< the robot stands where a lost successor's ramp left it
   std::int64_t start_held_cycles_ = 0;  ///< cycles a motion from rest waited for its lookahead
   char refused_text_[384] = {};
   int refused_code_ = 0;

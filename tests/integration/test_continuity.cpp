@@ -156,9 +156,10 @@ TEST(Continuity, AnEcpStoppedJustAfterTheCarryStartedCausesNoStandstill) {
   const int r = check_motion(right.history(), model, 0.002, "right");
   EXPECT_GT(l, 200) << "too few states of the carry from the left EDP";
   EXPECT_GT(r, 200) << "too few states of the carry from the right EDP";
-  std::printf("right ECP stopped 100 ms just after the carry's first macro-step: grip distance "
-              "within %.3f mm\n",
-              deviation_mm);
+  std::printf(
+      "right ECP stopped 100 ms just after the carry's first macro-step: grip distance "
+      "within %.3f mm\n",
+      deviation_mm);
 }
 
 TEST(Continuity, AMpStopped50MsMidCarryCausesNoStandstill) {

@@ -26,7 +26,10 @@ struct MacroStep {
   AxisArray end_velocity{};    ///< chosen when it starts
   int steps = 1;
   int value_in_step_no = 1;
-  int step = 0;  ///< servo steps done
+  int step = 0;  ///< servo steps done (whole ones: the floor of `progress`)
+  /// Servo steps done, fractional while the servo loop catches up on its time line after a
+  /// stall (docs/edp.md, "Catch-up"); equal to `step` otherwise.
+  double progress = 0.0;
   /// Its reading comes before its last step: the ECP promised the next macro-step in time.
   [[nodiscard]] bool promises_successor() const { return value_in_step_no < steps; }
 };

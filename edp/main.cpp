@@ -350,10 +350,14 @@ int run(const std::string& config_path, const std::string& robot_name) {
         reporter.report(
             Severity::warning, edp::error_code::servo_overrun,
             fmt::format("servo loop overrun: {} cycle(s) woke more than one period "
-                        "({:.0f} us) late, the worst {:.0f} us; missed periods were "
-                        "skipped; the longest cycle worked {:.0f} us and waited {:.0f} us for "
-                        "its lock{}",
+                        "({:.0f} us) late, the worst {:.0f} us; {}; the longest cycle worked "
+                        "{:.0f} us and waited {:.0f} us for its lock{}",
                         overruns_unreported, robot.edp.servo_period_s * 1e6, worst_unreported_us,
+                        hardware->simulated()
+                            ? std::string("missed periods were skipped")
+                            : fmt::format("missed periods were skipped, and a motion makes up "
+                                          "their servo steps ({} so far)",
+                                          servo.caught_up_steps()),
                         worst_work_us, worst_lock_wait_us,
                         worst_work_us < robot.edp.servo_period_s * 1e6
                             ? " (the thread was ready and not run: a host stall or a thread "

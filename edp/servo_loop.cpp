@@ -33,6 +33,15 @@ timespec from_ns(std::int64_t ns) {
 /// The longest a motion from rest waits for its lookahead: the pauses of a shared host (about
 /// 60 ms, BENCHMARKS) and more, not a lone long macro-step's whole lookahead.
 constexpr double kMaxStartHoldS = 0.2;
+/// Catch-up (hardware that keeps its own clock): the motion runs at most this much faster than
+/// planned while it makes up the servo steps of periods a stall took from it ...
+constexpr double kMaxWarp = 0.25;
+/// ... changes that rate by at most this share of a joint's acceleration limit ...
+constexpr double kWarpAccelerationShare = 0.2;
+/// ... and not at all while a joint's planned acceleration uses more than this share of its
+/// limit, nor beyond this share of a joint's velocity limit.
+constexpr double kWarpQuietAccelerationShare = 0.6;
+constexpr double kWarpVelocityShare = 0.9;
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
 }
@@ -51,6 +60,7 @@ ServoLoop::ServoLoop(Hardware& hardware, const RobotModel& model, double period_
     throw HardwareError(fmt::format("hardware plugin '{}' has {} axes, robot model '{}' has {}",
                                     hardware_.name(), hardware_.axis_count(), model.name, axes_));
   device_ = hardware_.device();
+  keeps_time_ = !hardware_.simulated();
   if (device_.command.size() > kMaxDeviceFields || device_.reply.size() > kMaxDeviceFields)
     throw HardwareError(
         fmt::format("hardware plugin '{}': device '{}' has {} command and {} reply "
@@ -117,7 +127,7 @@ void ServoLoop::run() {
     clock_gettime(CLOCK_MONOTONIC, &now);
     const std::int64_t woke = to_ns(now);
     const std::int64_t late_ns = woke - deadline;
-    cycle(late_ns, period_ns);
+    cycle(late_ns, period_ns, keeps_time_ ? late_ns / period_ns : std::int64_t{0});
     clock_gettime(CLOCK_MONOTONIC, &now);
     work_ns_ = to_ns(now) - woke;  // recorded with the next cycle
     deadline += period_ns;
@@ -169,7 +179,7 @@ void ServoLoop::run_lock_step() {
       return !running_.load() || (!awaiting_successor() && !awaiting_lookahead()) || reset_pending_;
     });
     if (!running_.load(std::memory_order_relaxed)) break;
-    cycle(0, 1);
+    cycle(0, 1, 0);
   }
 }
 
@@ -199,7 +209,7 @@ void ServoLoop::store_reading(std::uint64_t id, int step_no) {
   notify_pending_ = true;
 }
 
-void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
+void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns, std::int64_t missed) {
   // How long the servo thread waits for its mutex (every holder only copies; measured so that an
   // overrun report can tell a held lock from a late wake-up).
   std::int64_t lock_wait_ns = 0;
@@ -277,7 +287,7 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
         set_fault(hardware_.fault_text().c_str());
       }
     }
-    plan_cycle();
+    plan_cycle(missed);
     write_outputs = outputs_pending_;
     outputs_pending_ = false;
     outputs = outputs_;
@@ -324,7 +334,7 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns) {
   }
 }
 
-void ServoLoop::plan_cycle() {
+void ServoLoop::plan_cycle(std::int64_t missed) {
   const bool synced = synchronised_.load(std::memory_order_relaxed);
   const std::span<const AxisFeedback> fb(feedback_.data(), axes_);
   latest_.cycle = timing_.cycles();
@@ -364,8 +374,9 @@ void ServoLoop::plan_cycle() {
       notify_pending_ = true;
     }
   } else {
-    motion_cycle();
+    motion_cycle(synced ? catch_up_advance(missed) : 1.0);
   }
+  warp_velocity_ = commanded_velocity_;
   if (synced && !faulted_)
     for (std::size_t i = 0; i < axes_; ++i)
       commanded_velocity_[i] = (desired_[i] - previous_desired[i]) / period_s_;
@@ -380,6 +391,45 @@ void ServoLoop::plan_cycle() {
     t.desired = desired_;
     t.measured = latest_.joints;
   }
+}
+
+double ServoLoop::catch_up_advance(std::int64_t missed) {
+  // Hardware that keeps its own clock (drives) went on while this thread was held: the motion
+  // fell behind its planned time line by the periods it missed, and a robot moving with others
+  // would stay behind them for the rest of the motion. It makes them up by running a little
+  // faster than planned (the warp), within the joints' limits, starting and ending that smoothly.
+  const bool in_motion = current_.has_value() || (!queue_.empty() && !at_rest());
+  if (!keeps_time_ || !in_motion) {
+    lag_steps_ = 0.0;
+    warp_ = 0.0;
+    return 1.0;
+  }
+  if (missed > 0) {
+    lag_steps_ += static_cast<double>(missed);
+    caught_up_total_ += missed;
+  }
+  if (lag_steps_ <= 0.0 && warp_ <= 0.0) return 1.0;
+  // The planned velocity and acceleration of the last cycle, without the warp.
+  double top = kMaxWarp;
+  double step = kMaxWarp;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    const double v = std::abs(commanded_velocity_[i]) / (1.0 + warp_);
+    const double a = std::abs(commanded_velocity_[i] - warp_velocity_[i]) / period_s_;
+    if (a > kWarpQuietAccelerationShare * model_.max_acceleration[i]) step = 0.0;
+    if (v > 1e-9) {
+      top = std::min(top, kWarpVelocityShare * model_.max_velocity[i] / v - 1.0);
+      step = std::min(step, kWarpAccelerationShare * model_.max_acceleration[i] * period_s_ / v);
+    }
+  }
+  top = std::max(top, 0.0);
+  // Towards the top rate while the lag lasts, and back to none as it runs out: the lag left
+  // when the rate falls from w by `step` a cycle is about w^2 / (2 step) + w.
+  const double braking = step > 0.0 ? warp_ * warp_ / (2.0 * step) + warp_ : 0.0;
+  const double wanted = lag_steps_ > braking ? top : 0.0;
+  warp_ = std::clamp(wanted, warp_ - step, warp_ + step);
+  warp_ = std::clamp(warp_, 0.0, std::max(lag_steps_, 0.0));
+  lag_steps_ -= warp_;
+  return 1.0 + warp_;
 }
 
 void ServoLoop::start_next_macro_step() {
@@ -434,7 +484,7 @@ void ServoLoop::start_next_macro_step() {
   notify_pending_ = true;  // a queue slot is free
 }
 
-void ServoLoop::motion_cycle() {
+void ServoLoop::motion_cycle(double advance) {
   if (hold_at_measured_ && !current_ && queue_.empty()) {
     hold_at_measured_ = false;
     for (std::size_t i = 0; i < axes_; ++i) desired_[i] = latest_.joints[i];
@@ -445,10 +495,9 @@ void ServoLoop::motion_cycle() {
   }
   if (!current_ && !queue_.empty()) {
     // A motion from rest starts once the successors its client may already send are queued (at
-    // most the time the lookahead covers, and kMaxStartHoldS): a client held back just after the
-    // first macro-step
-    // would otherwise leave the robot with no queue to ride that pause on, and of a group of
-    // robots moving together the one whose client is late would start late.
+    // most the time the lookahead covers, and kMaxStartHoldS): a client held back just after
+    // the first macro-step would otherwise leave the robot with no queue to ride that pause on,
+    // and of a group of robots moving together the one whose client is late would start late.
     const std::int64_t hold_limit =
         std::min(static_cast<std::int64_t>(lookahead_ - 1) * queue_.front().steps,
                  static_cast<std::int64_t>(std::ceil(kMaxStartHoldS / period_s_)));
@@ -459,43 +508,61 @@ void ServoLoop::motion_cycle() {
     start_held_cycles_ = 0;
     start_next_macro_step();
   }
-  if (!current_) return;
-  MacroStep& m = *current_;
-  ++m.step;
-  if (m.step >= m.steps) {
-    for (std::size_t i = 0; i < axes_; ++i) desired_[i] = m.target[i];
-  } else {
-    const double s = static_cast<double>(m.step) / static_cast<double>(m.steps);
-    const double duration = static_cast<double>(m.steps) * period_s_;
-    for (std::size_t i = 0; i < axes_; ++i)
-      desired_[i] = blend_position(m.start[i], m.target[i], m.start_velocity[i], m.end_velocity[i],
-                                   duration, s);
-  }
-  latest_.desired = desired_;
-  if (m.step == m.value_in_step_no) store_reading(m.id, m.step);
-  if (m.step < m.steps) return;
-  // A reading before the last step promises the next macro-step in time (the paper: one step
-  // early suffices for a seamless transition); in or after the last step it does not.
-  const bool promised_successor = m.promises_successor();
-  if (!promised_successor && m.value_in_step_no > m.steps) {
-    after_stop_id_ = m.id;
-    after_stop_step_ = m.steps + 1;
-  }
-  end_velocity_ = m.end_velocity;
-  current_.reset();
-  notify_pending_ = true;
-  if (promised_successor && queue_.empty()) {
-    // The ECP read this macro-step early to send the next one in time, and none came: the link
-    // or the ECP is lost, or the host held it back longer than the lookahead covers (or, when
-    // the client waived it, the task paused or stopped). Bring the robot to a standstill within
-    // its acceleration limits instead of stopping it dead.
-    if (m.id <= waived_upto_)
-      ++planned_stops_;
-    else
-      ++lost_successors_;
-    mode_ = Mode::stopping;
-    after_ramp_ = true;
-    end_velocity_.fill(0.0);  // the ramp ends at rest
+  // Whole steps as planned; only a catch-up (advance > 1) makes `progress` fractional, and then
+  // the part of the advance past a macro-step's end is taken in its successor in the same cycle.
+  constexpr double kEps = 1e-9;
+  double left = advance;
+  while (current_) {
+    MacroStep& m = *current_;
+    const double before = m.progress;
+    m.progress += left;
+    left = 0.0;
+    const auto steps = static_cast<double>(m.steps);
+    if (m.progress >= steps - kEps) {
+      m.step = m.steps;
+      left = std::max(0.0, m.progress - steps);
+      for (std::size_t i = 0; i < axes_; ++i) desired_[i] = m.target[i];
+    } else {
+      m.step = static_cast<int>(std::floor(m.progress + kEps));
+      const double s = m.progress / steps;
+      const double duration = steps * period_s_;
+      for (std::size_t i = 0; i < axes_; ++i)
+        desired_[i] = blend_position(m.start[i], m.target[i], m.start_velocity[i],
+                                     m.end_velocity[i], duration, s);
+    }
+    latest_.desired = desired_;
+    const auto reading_step = static_cast<double>(m.value_in_step_no);
+    if (m.value_in_step_no <= m.steps && before < reading_step - kEps &&
+        m.progress >= reading_step - kEps)
+      store_reading(m.id, m.value_in_step_no);
+    if (m.step < m.steps) return;
+    // A reading before the last step promises the next macro-step in time (the paper: one step
+    // early suffices for a seamless transition); in or after the last step it does not.
+    const bool promised_successor = m.promises_successor();
+    if (!promised_successor && m.value_in_step_no > m.steps) {
+      after_stop_id_ = m.id;
+      after_stop_step_ = m.steps + 1;
+    }
+    end_velocity_ = m.end_velocity;
+    const std::uint64_t id = m.id;
+    current_.reset();
+    notify_pending_ = true;
+    if (promised_successor && queue_.empty()) {
+      // The ECP read this macro-step early to send the next one in time, and none came: the
+      // link or the ECP is lost, or the host held it back longer than the lookahead covers (or,
+      // when the client waived it, the task paused or stopped). Bring the robot to a standstill
+      // within its acceleration limits instead of stopping it dead.
+      if (id <= waived_upto_)
+        ++planned_stops_;
+      else
+        ++lost_successors_;
+      mode_ = Mode::stopping;
+      after_ramp_ = true;
+      end_velocity_.fill(0.0);  // the ramp ends at rest
+      return;
+    }
+    if (left <= kEps || queue_.empty()) return;
+    start_next_macro_step();  // continues in this cycle with what is left of the advance
   }
 }
 
@@ -533,6 +600,11 @@ void ServoLoop::release_emergency_stop() {
 bool ServoLoop::emergency_stopped() const {
   std::lock_guard lock(mutex_);
   return emergency_stop_;
+}
+
+std::int64_t ServoLoop::caught_up_steps() const {
+  std::lock_guard lock(mutex_);
+  return caught_up_total_;
 }
 
 std::int64_t ServoLoop::lost_successors() const {

@@ -150,6 +150,12 @@ class ServoLoop {
   /// Macro-steps that promised a successor (value_in_step_no < motion_steps) which never came;
   /// each brought the robot to a standstill within its acceleration limits.
   [[nodiscard]] std::int64_t lost_successors() const;
+  /// Servo steps of missed periods (the loop woke late) that the motion made up since start:
+  /// on hardware that keeps its own clock (Hardware::simulated() false) a motion runs up to 25 %
+  /// faster than planned, within the joints' limits, until it is back on its time line, so that
+  /// robots moving together stay in step when one servo thread is held back (docs/edp.md,
+  /// "Catch-up"). 0 on simulated hardware, whose time stands still with the loop.
+  [[nodiscard]] std::int64_t caught_up_steps() const;
   /// The client said no macro-step follows those queued (it pauses or stops on purpose): if the
   /// last of them promised a successor, the stopping ramp at its end is a planned stop.
   void waive_successor();
@@ -209,10 +215,14 @@ class ServoLoop {
   [[nodiscard]] bool at_rest() const;
   /// One cycle that woke `late_ns` after its deadline (lock-step: 0 of 1): read, plan (and
   /// record the lateness) under the mutex, write.
-  void cycle(std::int64_t late_ns, std::int64_t period_ns);
+  /// `missed`: the periods before it that the loop missed (it woke that late); 0 in lock-step.
+  void cycle(std::int64_t late_ns, std::int64_t period_ns, std::int64_t missed);
   /// The part of a cycle that decides the setpoints (mutex_ held; no hardware call).
-  void plan_cycle();
-  void motion_cycle();
+  void plan_cycle(std::int64_t missed);
+  /// Advances the motion by `advance` servo steps (1: as planned; more while catching up).
+  void motion_cycle(double advance);
+  /// The servo steps this cycle advances the motion (see "Catch-up" in docs/edp.md).
+  double catch_up_advance(std::int64_t missed);
   void start_next_macro_step();
   void set_fault(const char* text);
   void store_reading(std::uint64_t id, int step_no);
@@ -286,6 +296,13 @@ class ServoLoop {
   std::size_t trace_count_ = 0;
   ServoTiming timing_;
   std::int64_t work_ns_ = 0;  ///< servo thread only: the last cycle's work, wake-up to write end
+  /// The hardware keeps its own clock (Hardware::simulated() false): the servo steps of missed
+  /// periods are made up (catch_up_advance).
+  bool keeps_time_ = false;
+  double lag_steps_ = 0.0;            ///< servo steps the motion is behind its planned time line
+  double warp_ = 0.0;                 ///< how much faster than planned it runs now (0: as planned)
+  AxisArray warp_velocity_{};         ///< the commanded velocity of the cycle before the last
+  std::int64_t caught_up_total_ = 0;  ///< missed servo steps taken up for catch-up
   char scheduling_[80] = {};
 };
 

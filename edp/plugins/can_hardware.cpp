@@ -13,6 +13,11 @@
 ///   - `silent_cycles` (integer, default 10): cycles without an answer before a drive is lost.
 ///   - `bring_up_timeout_s` (number, default 5).
 ///   - `heartbeat_ms` (integer, default 100).
+///   - `heartbeat_timeout_ms` (integer, 11..65535): the drives' consumer time for the master's
+///     heartbeat (0x1016 sub 1); the master sends its heartbeat every 10 ms. Default 50 ms on
+///     SocketCAN; 150 ms on a virtual bus, whose drives are emulated on this same host: a shared
+///     host stops one CPU for up to 60 ms while the other runs on (measured with
+///     scripts/stall-check, docs/operating.md), and the emulated drives must ride through that.
 ///   - `digital_lines` (boolean, default true): the drives have mrroc's digital output lines
 ///     (RPDO2 mapped to 0x60FE sub 1, canopen.hpp); false for drives without them: no outputs
 ///     (the EDP refuses SET OUTPUTS), inputs as before.
@@ -92,6 +97,7 @@ class CanHardware final : public Hardware {
     const std::int64_t silent = settings.silent;
     const double timeout_s = settings.timeout_s;
     const std::int64_t heartbeat = settings.heartbeat;
+    const std::int64_t heartbeat_timeout = settings.heartbeat_timeout;
     const std::string& url = settings.url;
 
     std::vector<can::MasterAxis> axes;
@@ -114,6 +120,7 @@ class CanHardware final : public Hardware {
     options.period_s = setup.servo_period_s;
     options.silent_cycles = static_cast<int>(silent);
     options.heartbeat_ms = static_cast<std::uint16_t>(heartbeat);
+    options.heartbeat_consumer_ms = static_cast<std::uint16_t>(heartbeat_timeout);
     options.digital_lines = settings.digital_lines;
     digital_lines_ = settings.digital_lines;
     timeout_ = std::chrono::milliseconds(std::llround(timeout_s * 1000.0));
@@ -223,6 +230,7 @@ class CanHardware final : public Hardware {
     std::int64_t silent = 0;
     double timeout_s = 0.0;
     std::int64_t heartbeat = 0;
+    std::int64_t heartbeat_timeout = 0;
     bool digital_lines = true;
     Eigen::MatrixXd coupling;
     Eigen::MatrixXd inverse;
@@ -260,6 +268,8 @@ class CanHardware final : public Hardware {
     s.silent = params.get_int("silent_cycles", 10);
     s.timeout_s = params.get_double("bring_up_timeout_s", 5.0);
     s.heartbeat = params.get_int("heartbeat_ms", 100);
+    s.heartbeat_timeout =
+        params.get_int("heartbeat_timeout_ms", s.url.rfind("virtual:", 0) == 0 ? 150 : 50);
     s.digital_lines = params.get_bool("digital_lines", true);
     params.reject_unread("robot.edp.params");
     try {
@@ -283,6 +293,14 @@ class CanHardware final : public Hardware {
     if (s.silent < 2 || s.silent > 1000)
       throw ConfigError(params.location_of("silent_cycles"),
                         fmt::format("'silent_cycles' = {} must be in 2..1000", s.silent));
+    if (const can::MasterOptions defaults;
+        s.heartbeat_timeout <= defaults.master_heartbeat_ms || s.heartbeat_timeout > 65535)
+      throw ConfigError(
+          params.location_of("heartbeat_timeout_ms"),
+          fmt::format("'heartbeat_timeout_ms' = {} ms must be in {}..65535 ms (longer than the "
+                      "master's heartbeat period, {} ms)",
+                      s.heartbeat_timeout, defaults.master_heartbeat_ms + 1,
+                      defaults.master_heartbeat_ms));
     if (s.heartbeat < 0 || s.heartbeat > 65535)
       throw ConfigError(params.location_of("heartbeat_ms"),
                         fmt::format("'heartbeat_ms' = {} ms must be in 0..65535 ms", s.heartbeat));

@@ -445,8 +445,10 @@ void Cia402Drive::update(const AxisSample& sample, double now_s) {
       heartbeat_armed_ = false;
       communication_error(canopen::emcy::kHeartbeatError, now_s);
     }
-    const double sync_loss_s =
-        config_.sync_loss_periods * static_cast<double>(cycle_period_us_) * 1e-6;
+    // Never shorter than the master's heartbeat supervision: a master that stalls (its host) for
+    // less than the consumer time it set is not lost by this drive's SYNC watch either.
+    const double sync_loss_s = std::max(
+        config_.sync_loss_periods * static_cast<double>(cycle_period_us_) * 1e-6, heartbeat_s);
     if (sync_armed_ && cycle_period_us_ != 0 && now_s - last_sync_s_ > sync_loss_s) {
       sync_armed_ = false;
       communication_error(canopen::emcy::kCommunication, now_s);

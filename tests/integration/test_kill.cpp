@@ -49,10 +49,11 @@ TEST(Kill, EdpKilledMidMotionDrivesQuickStopThroughTheirSupervision) {
       std::chrono::duration<double>(Clock::now() - r.killed_at).count();
   EXPECT_EQ(r.exit_code, 4) << r.output;
   EXPECT_TRUE(has(r.output, "edp/irb6 ended while the task was running (code 137)")) << r.output;
-  // Every drive of the arm lost its master's heartbeat (0x1016, 50 ms) or SYNC (0x1006, 25
-  // periods = 50 ms) and quick-stopped (0x6007 = 3) at its quick-stop deceleration.
-  // Stated bound: 50 ms after the last heartbeat or SYNC, + 10 ms heartbeat period, + 40 ms
-  // for a shared host holding the emulator back = 100 ms from the kill.
+  // Every drive of the arm lost its master's heartbeat (0x1016: 150 ms, the can plugin's
+  // default on a virtual bus, whose drives are emulated on this shared host) or SYNC (as long)
+  // and quick-stopped (0x6007 = 3) at its quick-stop deceleration.
+  // Stated bound: 150 ms after the last heartbeat or SYNC, + 10 ms heartbeat period, + 40 ms
+  // for a shared host holding the emulator back = 200 ms from the kill.
   for (const char* axis :
        {"'column'", "'lower_arm'", "'upper_arm'", "'wrist_pitch'", "'wrist_roll'"}) {
     std::smatch m;
@@ -66,8 +67,8 @@ TEST(Kill, EdpKilledMidMotionDrivesQuickStopThroughTheirSupervision) {
     const double after_ms = (std::stod(m[2].str()) - killed_wall) * 1000.0;
     std::printf("EDP killed: drive %s quick stop after %.1f ms (EMCY 0x%s)\n", axis, after_ms,
                 m[1].str().substr(0, 4).c_str());
-    EXPECT_GT(after_ms, 30.0) << axis;
-    EXPECT_LT(after_ms, 100.0) << axis;
+    EXPECT_GT(after_ms, 130.0) << axis;
+    EXPECT_LT(after_ms, 200.0) << axis;
   }
   EXPECT_FALSE(has(r.output, "drive fault, EMCY 0x8130")) << r.output;
   expect_nothing_left();

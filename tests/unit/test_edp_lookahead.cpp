@@ -56,11 +56,41 @@ TEST(MacroStepQueue, KeepsOrderWrapsAroundAndKnowsWhenFull) {
   EXPECT_TRUE(q.empty());
 }
 
+/// The mujoco plugin as hardware that keeps its own clock (simulated() false, as drives): the
+/// servo loop makes up the periods it misses. Its write() can hold the servo thread once.
+class ClockedHardware final : public Hardware {
+ public:
+  explicit ClockedHardware(std::unique_ptr<Hardware> inner) : inner_(std::move(inner)) {}
+  std::string name() const override { return "clocked"; }
+  std::size_t axis_count() const override { return inner_->axis_count(); }
+  void configure(const HardwareSetup& setup) override { inner_->configure(setup); }
+  void activate() override { inner_->activate(); }
+  void deactivate() override { inner_->deactivate(); }
+  CycleStatus read(std::span<AxisFeedback> out) override { return inner_->read(out); }
+  CycleStatus write(std::span<const double> setpoints) override {
+    const CycleStatus status = inner_->write(setpoints);
+    if (const int ms = stall_ms_.exchange(0); ms > 0)
+      std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+    return status;
+  }
+  /// The next write() holds the servo thread `ms` milliseconds.
+  void stall_once(int ms) { stall_ms_ = ms; }
+
+ private:
+  std::unique_ptr<Hardware> inner_;
+  std::atomic<int> stall_ms_{0};
+};
+
 class Lookahead : public ::testing::Test {
  protected:
-  void start(int depth) {
+  void start(int depth, bool keeps_time = false) {
     model_ = test::stock_model("irb6");
     hardware_ = test::configured_hardware(model_, "mujoco", kPeriod);
+    if (keeps_time) {
+      auto clocked = std::make_unique<ClockedHardware>(std::move(hardware_));
+      clocked_ = clocked.get();
+      hardware_ = std::move(clocked);
+    }
     kinematics_ = make_arm_kinematics(model_);
     servo_ = std::make_unique<ServoLoop>(*hardware_, model_, kPeriod);
     servo_->set_limit_guard(kinematics_.get());
@@ -94,6 +124,8 @@ class Lookahead : public ::testing::Test {
     while (first < v.size() && v[first] == 0.0) ++first;
     return {v.begin() + static_cast<std::ptrdiff_t>(first), v.end()};
   }
+
+  ClockedHardware* clocked_ = nullptr;
 
   struct StallRun {
     int off = -1;         ///< cruise servo steps commanded at a velocity other than 0.1 rad/s
@@ -240,6 +272,54 @@ TEST_F(Lookahead, OneExchangeAnswersAsSetThenQuery) {
   const Reply last = interpreter_->execute(set_joints(q, 80, 81, true));
   ASSERT_EQ(last.type, ReplyType::data) << last.error_text;
   EXPECT_EQ(interpreter_->execute(query).error_code, error_code::query_unexpected);
+}
+
+TEST_F(Lookahead, AServoThreadHeldOnClockedHardwareMakesUpTheMissedStepsWithinTheLimits) {
+  // Drives keep their own clock: when the servo thread is held 30 ms mid-motion (a host stall),
+  // the motion makes up the 15 servo steps it missed by running a little faster, within the
+  // limits, instead of lagging behind its plan (and behind a robot it moves with) to the end.
+  start(8, true);
+  std::vector<double> q = model_.synchro_joint_positions;
+  const double cruise = 0.1;  // rad/s
+  const auto plan = test::cruise(q[0], cruise, 60, 10, 60, kPeriod);
+  int planned_steps = 0;
+  for (const auto& [target, steps] : plan) planned_steps += steps;
+  const std::int64_t from = servo_->latest().cycle;
+  for (std::size_t k = 0; k < plan.size(); ++k) {
+    if (k == 20) clocked_->stall_once(30);
+    q[0] = plan[k].first;
+    const int n = plan[k].second;
+    const int value = k + 1 == plan.size() ? n + 1 : n - 3;
+    const Reply r = interpreter_->execute(set_joints(q, n, value, true));
+    ASSERT_EQ(r.type, ReplyType::data) << k << ": " << r.error_text;
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(servo_->lost_successors(), 0);
+  const std::vector<double> v = column_velocities(from);
+  int moving = 0;
+  for (std::size_t i = 0; i < v.size(); ++i)
+    if (v[i] != 0.0) moving = static_cast<int>(i) + 1;
+  // The fastest of the cruise (the ramps from and to rest excepted: their cubic blends peak
+  // above the cruise as planned) and the hardest change of velocity of the whole motion.
+  double fastest = 0.0;
+  double hardest = 0.0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (i > 70 && static_cast<int>(i) < moving - 80) fastest = std::max(fastest, std::abs(v[i]));
+    if (i > 0) hardest = std::max(hardest, std::abs(v[i] - v[i - 1]) / kPeriod);
+  }
+  if (std::getenv("MRROC_TEST_DUMP") != nullptr)
+    for (std::size_t i = 0; i < v.size(); ++i) std::printf("v %zu %.5f\n", i, v[i]);
+  std::printf(
+      "held 30 ms: %lld steps made up; %d cycles in motion for %d planned steps; fastest %.4f "
+      "rad/s (cruise %.1f), hardest %.3f rad/s^2 (limit %.1f)\n",
+      static_cast<long long>(servo_->caught_up_steps()), moving, planned_steps, fastest, cruise,
+      hardest, model_.max_acceleration[0]);
+  EXPECT_GE(servo_->caught_up_steps(), 12);
+  // Back on its time line: the motion ended the missed periods sooner than planned (to a step).
+  EXPECT_LE(moving, planned_steps - servo_->caught_up_steps() + 1);
+  EXPECT_GT(fastest, cruise * 1.1) << "no catch-up seen in the cruise";
+  EXPECT_LE(fastest, cruise * 1.25 + 1e-9);
+  EXPECT_LE(hardest, model_.max_acceleration[0] + 1e-9);
 }
 
 TEST_F(Lookahead, ARefusedMacroStepTakesTheQueueBehindItAlongAndIsReportedOnce) {

@@ -23,7 +23,8 @@
 ///    heartbeat consumer 0x1016 sub 1 (producer node << 16 | time ms; armed by the first
 ///    heartbeat of that node, re-armed by the next one): no heartbeat for longer than the time ->
 ///    EMCY 0x8130; SYNC supervision with 0x1006 (cycle period, us; armed by the first SYNC):
-///    no SYNC for longer than `sync_loss_periods` periods -> EMCY 0x8100. Either communication
+///    no SYNC for longer than `sync_loss_periods` periods, and never less than the heartbeat
+///    consumer time -> EMCY 0x8100. Either communication
 ///    error then changes the NMT state as 0x1029 sub 1 says (0 pre-operational, 1 none,
 ///    2 stopped) and, in operation enabled, reacts as 0x6007 says (0 none, 1 fault (brake),
 ///    2 disable voltage (brake), 3 quick stop as 0x605A says). Never configured (0x1016 sub 1 = 0,
@@ -61,9 +62,10 @@ struct DriveConfig {
   double quick_stop_deceleration = 5.0;  ///< [units/s^2] (0x6085 is in counts/s^2)
   /// 0x60C2 (the master sets it to its cycle)
   double interpolation_period_s = kDefaultServoPeriodS;
-  /// SYNC supervision: no SYNC for this many 0x1006 periods is a communication error. A
-  /// drive's own (manufacturer) setting; 25 periods (50 ms at 2 ms) tolerates a shared host
-  /// holding the emulator or the EDP back for 20 ms or more (a CI run saw 22 ms).
+  /// SYNC supervision: no SYNC for this many 0x1006 periods, and for no less than the
+  /// heartbeat consumer time 0x1016 the master set, is a communication error. A drive's own
+  /// (manufacturer) setting; the master's consumer time makes the two supervisions agree (a
+  /// master stalled by its host stops both its heartbeat and its SYNCs).
   double sync_loss_periods = 25.0;
 };
 

@@ -12,9 +12,12 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/mp/task.hpp"
+#include "mrroc/robot/robot_model.hpp"
 #include "straight_path.hpp"
 
 namespace mrroc::mp {
@@ -37,10 +40,13 @@ Eigen::Matrix3d grip_orientation(double side) {
 
 class BarCarryGenerator : public Generator {
  public:
-  BarCarryGenerator(std::vector<Eigen::Isometry3d> bases, double bar_length,
+  /// `kinematics`: each robot's, to find where its grip stands after a stop (resume).
+  BarCarryGenerator(std::vector<Eigen::Isometry3d> bases,
+                    std::vector<std::unique_ptr<edp::ArmKinematics>> kinematics, double bar_length,
                     std::vector<Eigen::Vector3d> path, double speed, int motion_steps,
                     double servo_period_s)
       : bases_(std::move(bases)),
+        kinematics_(std::move(kinematics)),
         half_(bar_length / 2.0),
         start_(path.front()),
         path_(path, std::vector<double>(path.size() - 1, speed), motion_steps * servo_period_s),
@@ -77,7 +83,26 @@ class BarCarryGenerator : public Generator {
     return true;
   }
 
+  bool resume(const ImageList& robots, const ecp::SensorList&) override {
+    // The group stopped in the carry (the approach and the dwell end at rest anyway): the bar's
+    // centre is where the two grips stand now, and the rest of the path goes on from there.
+    if (approaching_) return false;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < robots.size(); ++i) {
+      if (robots[i]->joints.empty()) return false;
+      centre += (bases_[i] * kinematics_[i]->forward(robots[i]->joints)).translation();
+    }
+    centre /= static_cast<double>(robots.size());  // the grips sit at the centre -+ half the bar
+    path_ = path_.rest_from(centre);
+    Eigen::Vector3d next;
+    if (!path_.next(next)) return false;
+    ++resumes_;
+    command(robots, next, steps_, path_.at_end() ? steps_ + 1 : std::max(1, steps_ - 3));
+    return true;
+  }
+
   [[nodiscard]] double max_deviation() const { return max_deviation_; }
+  [[nodiscard]] int resumes() const { return resumes_; }
   [[nodiscard]] int macro_steps() const { return macro_total_; }
 
  private:
@@ -113,11 +138,13 @@ class BarCarryGenerator : public Generator {
   }
 
   std::vector<Eigen::Isometry3d> bases_;
+  std::vector<std::unique_ptr<edp::ArmKinematics>> kinematics_;
   double half_;
   Eigen::Vector3d start_;
   StraightPath path_;
   int steps_;
   int macro_total_ = 0;
+  int resumes_ = 0;
   bool approaching_ = true;
   bool dwelled_ = false;
   double max_deviation_ = 0.0;
@@ -155,15 +182,27 @@ class CarryBar : public MpTask {
     parallel(robots_, [](Robot& r) { r.start_task(); });  // follow_mp: synchronise
     context_.reporter.info("both robots synchronised; carrying the bar");
     std::vector<Eigen::Isometry3d> bases;
-    for (Robot* r : robots_) bases.push_back(frame_of(context_.config.robot(r->name()).base));
-    BarCarryGenerator generator(bases, bar_length_, path_, speed_, motion_steps_,
+    std::vector<std::unique_ptr<RobotModel>> models;  // the kinematics refer to them
+    std::vector<std::unique_ptr<edp::ArmKinematics>> kinematics;
+    for (Robot* r : robots_) {
+      const RobotConfig& robot = context_.config.robot(r->name());
+      bases.push_back(frame_of(robot.base));
+      models.push_back(std::make_unique<RobotModel>(load_robot_model(robot.model_dir)));
+      kinematics.push_back(edp::make_arm_kinematics(*models.back()));
+    }
+    BarCarryGenerator generator(bases, std::move(kinematics), bar_length_, path_, speed_,
+                                motion_steps_,
                                 context_.config.robot(robots_[0]->name()).edp.servo_period_s);
     Move(robots_, {}, generator);
     const double deviation = generator.max_deviation();
     context_.reporter.info(fmt::format(
         "bar carried along {} points in {} macro-steps; grip distance within {:.3f} mm of its "
-        "start value (bar length {:.3f} m)",
-        path_.size(), generator.macro_steps(), deviation * 1e3, bar_length_));
+        "start value (bar length {:.3f} m){}",
+        path_.size(), generator.macro_steps(), deviation * 1e3, bar_length_,
+        generator.resumes() > 0
+            ? fmt::format("; the robots stopped together and resumed from rest {} time(s)",
+                          generator.resumes())
+            : std::string()));
     if (deviation > tolerance_)
       throw Error(
           fmt::format("the robots did not keep the bar rigid: grip distance deviated "

@@ -32,6 +32,23 @@ class StraightPath {
     return true;
   }
 
+  /// The rest of this path from `here` (where it was left, at rest): a segment from `here` to
+  /// the end of the current segment, at its speed, then the segments not begun yet.
+  [[nodiscard]] StraightPath rest_from(const Eigen::Vector3d& here) const {
+    const std::size_t next = started_ ? segment_ + 1 : 0;
+    std::vector<Eigen::Vector3d> points{here};
+    std::vector<double> speeds;
+    for (std::size_t k = std::max<std::size_t>(next, 1); k < points_.size(); ++k) {
+      points.push_back(points_[k]);
+      speeds.push_back(speeds_[k - 1]);
+    }
+    if (speeds.empty()) {  // at the path's end: stay there
+      points.push_back(points_.back());
+      speeds.push_back(speeds_.back());
+    }
+    return StraightPath(std::move(points), std::move(speeds), macro_step_s_);
+  }
+
   /// Whether the point next() gave last is the path's end.
   [[nodiscard]] bool at_end() const {
     return started_ && segment_ + 2 == points_.size() && macro_ == macros_;

@@ -15,6 +15,7 @@
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/process.hpp"
 #include "mrroc/mp/task.hpp"
+#include "mrroc/msg/edp_instruction.hpp"
 #include "mrroc/msg/robot_state.hpp"
 
 namespace mrroc::mp {
@@ -147,22 +148,69 @@ void request_task_stop() { g_task_stop.store(true); }
 void clear_task_stop() { g_task_stop.store(false); }
 bool task_stop_requested() { return g_task_stop.load(); }
 
+namespace {
+/// A refusal the generator may answer by re-planning from where the robots stand.
+bool replannable(const EcpFailed& e) {
+  return e.code() == edp::error_code::too_fast || e.code() == edp::error_code::too_abrupt;
+}
+
+/// The group stops together: every robot's motion ends (its EDP finishes what it queued and comes
+/// to rest), then Move waits until every EDP reports its robot still, and reads where each stands.
+void stop_group(const RobotList& robots) {
+  parallel(robots, [](Robot& r) { r.end_motion(); });
+  constexpr auto kPoll = std::chrono::milliseconds(10);
+  constexpr auto kLimit = std::chrono::seconds(5);
+  const auto give_up = std::chrono::steady_clock::now() + kLimit;
+  // A state broadcast after this moment (they come every 20 ms) that says still, for every robot.
+  std::vector<std::int64_t> from;
+  for (Robot* r : robots) from.push_back(r->state_image().state_servo_step);
+  for (;;) {
+    bool still = true;
+    for (std::size_t i = 0; i < robots.size(); ++i) {
+      const RobotImage s = robots[i]->state_image();
+      still = still && s.state_servo_step > from[i] && !s.moving;
+    }
+    if (still) break;
+    if (std::chrono::steady_clock::now() >= give_up)
+      throw Error(fmt::format("the robots did not come to rest within {} s after a refusal",
+                              kLimit.count()));
+    std::this_thread::sleep_for(kPoll);
+  }
+  parallel(robots, [](Robot& r) { r.end_motion(); });  // the joints where they stand
+}
+}  // namespace
+
 void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator) {
+  constexpr int kMaxRefusals = 3;
   ImageList images;
   for (Robot* r : robots) images.push_back(&r->image());
   refresh(sensors);
   for (RobotImage* image : images) image->commanded = false;
   if (!generator.first_step(images, sensors)) return;
+  int refusals = 0;
   try {
-    do {
+    for (;;) {
       if (stopping()) throw ecp::TaskStopped("MP stopped on request");
       RobotList step;
       for (Robot* r : robots)
         if (r->image().commanded) step.push_back(r);
-      parallel(step, [](Robot& r) { r.next_pose(); });
+      try {
+        parallel(step, [](Robot& r) { r.next_pose(); });
+        refusals = 0;
+      } catch (const EcpFailed& e) {
+        // A robot had to stop for want of macro-steps and the planned continuation is too fast
+        // or too abrupt from where it stands: the whole group stops and resumes from rest.
+        if (!replannable(e) || ++refusals > kMaxRefusals) throw;
+        stop_group(robots);
+        for (RobotImage* image : images) image->commanded = false;
+        refresh(sensors);
+        if (!generator.resume(images, sensors)) throw;
+        continue;
+      }
       refresh(sensors);
       for (RobotImage* image : images) image->commanded = false;
-    } while (generator.next_step(images, sensors));
+      if (!generator.next_step(images, sensors)) break;
+    }
   } catch (...) {
     // Leave no robot half-way in a continuous motion: end it on every robot that still answers.
     for (Robot* r : robots) {

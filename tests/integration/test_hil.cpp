@@ -8,6 +8,7 @@
 //   dropped frames-> tolerated while no drive misses `silent_cycles` answers in a row.
 #include <gtest/gtest.h>
 
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include "launch_helpers.hpp"
@@ -19,6 +20,7 @@
 #include "state_watch.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -26,6 +28,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 
 namespace fs = std::filesystem;
 
@@ -360,6 +363,67 @@ TEST_F(Hil, TwoRobotsCarryTheBarInOneEmulatedWorld) {
       forces.size(), forces[forces.size() / 2], forces[forces.size() * 99 / 100], c.peak,
       kGripForceBound);
   EXPECT_LT(c.peak, kGripForceBound) << r.output;
+}
+
+namespace {
+/// tight-bar-can.toml with `victim` (the MP or one ECP) stopped (SIGSTOP) for 400 ms 3.5 s after
+/// the carry began: longer than the lookahead covers, so both EDPs run dry and bring their robots
+/// to rest; the MP's next pose is then too abrupt from there, the group stops together and the
+/// generator resumes the carry from rest. Judged by the bar, the motion and the end.
+void expect_the_carry_to_resume_after_a_stop_of(const std::string& victim) {
+  const fs::path file = fs::path(MRROC_SOURCE_DIR) / "configs/tight-bar-can.toml";
+  const mrroc::ProcessSetConfig config = mrroc::load_process_set(file);
+  const mrroc::RobotModel model = mrroc::load_robot_model(config.robots.at(0).model_dir);
+  mrroc::comm::Bus bus(config.lcm_url);
+  GripWatch grip(bus);
+  mrroc::test::StateWatch left(bus, "left");
+  mrroc::test::StateWatch right(bus, "right");
+  bus.start();
+  const RunResult r = mrroc::test::launch_and_act(
+      file.string(), victim, "carrying the bar", std::chrono::milliseconds(3500), [](pid_t pid) {
+        kill(pid, SIGSTOP);
+        std::this_thread::sleep_for(std::chrono::milliseconds(400));
+        kill(pid, SIGCONT);
+      });
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_NE(r.killed_at, mrroc::test::Clock::time_point{}) << victim << " was never stopped";
+  EXPECT_TRUE(has(r.output, "no next macro-step from the ECP in time")) << "no standstill";
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      r.output, m, std::regex("the robots stopped together and resumed from rest ([0-9]+) time")))
+      << r.output;
+  EXPECT_TRUE(has(r.output, "task 'carry_bar' finished")) << r.output;
+  // Both robots within their limits throughout, the ramps to rest included, and both back at the
+  // path's end.
+  const auto l = mrroc::test::check_commanded_motion(left.history(), model, 0.002);
+  const auto rr = mrroc::test::check_commanded_motion(right.history(), model, 0.002);
+  EXPECT_GT(l.states, 200);
+  EXPECT_GT(rr.states, 200);
+  const auto held = grip.held();
+  ASSERT_GT(held.size(), 1000U);
+  EXPECT_NEAR(held.back().z, 1.10, 0.002);
+  EXPECT_NEAR(held.back().x, 1.00, 0.002);
+  double peak = 0.0;
+  for (const auto& s : held) peak = std::max(peak, s.internal);
+  std::printf(
+      "%s stopped 400 ms mid-carry: resumed %s time(s); bar's internal force up to %.2f N (bound "
+      "%.0f N); velocity up to %.0f %% / %.0f %%, acceleration up to %.0f %% / %.0f %% of the "
+      "limits (left / right)\n",
+      victim.c_str(), m[1].str().c_str(), peak, kGripForceBound, l.worst_velocity_share * 100,
+      rr.worst_velocity_share * 100, l.worst_acceleration_share * 100,
+      rr.worst_acceleration_share * 100);
+  EXPECT_LT(peak, kGripForceBound) << r.output;
+  expect_clean_shutdown(r, "left");
+}
+}  // namespace
+
+TEST_F(Hil, AnEcpStopped400MsMidCarryStopsTheGroupTogetherAndTheCarryResumes) {
+  expect_the_carry_to_resume_after_a_stop_of("ecp/right");
+}
+
+TEST_F(Hil, TheMpStopped400MsMidCarryStopsTheGroupTogetherAndTheCarryResumes) {
+  expect_the_carry_to_resume_after_a_stop_of("mp");
 }
 
 TEST_F(Hil, ARobotOffBy5mmStrainsTheBarBeyondTheBound) {

@@ -107,12 +107,25 @@ class Generator {
   virtual bool first_step(const ImageList& robots, const ecp::SensorList& sensors) = 0;
   /// Called after every robot's reply: next commands, or false when the terminal condition holds.
   virtual bool next_step(const ImageList& robots, const ecp::SensorList& sensors) = 0;
+  /// The robots of the motion were brought to rest away from the path this generator planned:
+  /// the queues of their EDPs ran dry (a client held back longer than the lookahead covers) and
+  /// the next macro-step was then refused by one of them as too fast or too abrupt from where it
+  /// stands (error `too_fast` / `too_abrupt`). Move has ended the motion on every robot of the
+  /// group (END_MOTION) and waited until all stood still; `robots` hold their measured joints
+  /// there. Prepare commands that continue the coordinated motion from rest and return true;
+  /// false (the default) makes Move fail with the refusal.
+  virtual bool resume(const ImageList& /*robots*/, const ecp::SensorList& /*sensors*/) {
+    return false;
+  }
 };
 
 /// Move on the MP level: each macro-step sends NEXT_POSE to every commanded robot at once (one
 /// thread per robot) and waits for all replies before the next step; ends every robot's motion
-/// with END_MOTION. @throws EcpFailed / TimeoutError from any robot (END_MOTION is sent to every
-/// robot first: their EDPs finish the macro-step they run and hold).
+/// with END_MOTION. When a robot's EDP refuses a macro-step as too fast or too abrupt (it had to
+/// stop for want of macro-steps), the whole group stops: END_MOTION to every robot, a wait until
+/// all stand still (at most 5 s), and the generator's `resume` re-plans from there (at most 3
+/// refusals in a row). @throws EcpFailed / TimeoutError from any robot (END_MOTION is sent to
+/// every robot first: their EDPs finish the macro-step they run and hold).
 void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator);
 
 /// An MP-level condition (paper, section 4): decides from the images of several robots and the

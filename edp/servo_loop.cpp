@@ -38,9 +38,11 @@ constexpr double kMaxStartHoldS = 0.2;
 constexpr double kMaxWarp = 0.25;
 /// ... changes that rate by at most this share of a joint's acceleration limit ...
 constexpr double kWarpAccelerationShare = 0.2;
-/// ... and not at all while a joint's planned acceleration uses more than this share of its
-/// limit, nor beyond this share of a joint's velocity limit.
-constexpr double kWarpQuietAccelerationShare = 0.6;
+/// ... runs faster only while no joint's planned acceleration, now or in the macro-steps queued,
+/// uses more than this share of its limit (and winds the rate down otherwise): sped up by 25 %, a
+/// planned acceleration grows by (1.25)^2, and 0.44 x 1.5625 + 0.2 < 1 ...
+constexpr double kWarpPlannedAccelerationShare = 0.44;
+/// ... and never beyond this share of a joint's velocity limit.
 constexpr double kWarpVelocityShare = 0.9;
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
@@ -412,16 +414,39 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
   // The planned velocity and acceleration of the last cycle, without the warp.
   double top = kMaxWarp;
   double step = kMaxWarp;
+  bool hard = false;  // a planned acceleration, now or queued, leaves too little room
   for (std::size_t i = 0; i < axes_; ++i) {
     const double v = std::abs(commanded_velocity_[i]) / (1.0 + warp_);
-    const double a = std::abs(commanded_velocity_[i] - warp_velocity_[i]) / period_s_;
-    if (a > kWarpQuietAccelerationShare * model_.max_acceleration[i]) step = 0.0;
+    const double a =
+        std::abs(commanded_velocity_[i] - warp_velocity_[i]) / period_s_ / (1.0 + warp_);
+    hard = hard || a > kWarpPlannedAccelerationShare * model_.max_acceleration[i];
     if (v > 1e-9) {
       top = std::min(top, kWarpVelocityShare * model_.max_velocity[i] / v - 1.0);
       step = std::min(step, kWarpAccelerationShare * model_.max_acceleration[i] * period_s_ / v);
     }
   }
-  top = std::max(top, 0.0);
+  // The macro-steps queued: the change of their mean velocities, a planned acceleration the
+  // warp must have wound down before (the lookahead gives it that time).
+  if (current_ && !hard) {
+    AxisArray from = current_->target;
+    AxisArray velocity{};
+    double duration = static_cast<double>(current_->steps) * period_s_;
+    for (std::size_t i = 0; i < axes_; ++i)
+      velocity[i] = (current_->target[i] - current_->start[i]) / duration;
+    for (std::size_t k = 0; k < queue_.size() && !hard; ++k) {
+      const MacroStep& next = queue_.at(k);
+      const double next_duration = static_cast<double>(next.steps) * period_s_;
+      for (std::size_t i = 0; i < axes_; ++i) {
+        const double v = (next.target[i] - from[i]) / next_duration;
+        hard = hard || std::abs(v - velocity[i]) / (0.5 * (duration + next_duration)) >
+                           kWarpPlannedAccelerationShare * model_.max_acceleration[i];
+        velocity[i] = v;
+        from[i] = next.target[i];
+      }
+      duration = next_duration;
+    }
+  }
+  top = hard ? 0.0 : std::max(top, 0.0);
   // Towards the top rate while the lag lasts, and back to none as it runs out: the lag left
   // when the rate falls from w by `step` a cycle is about w^2 / (2 step) + w.
   const double braking = step > 0.0 ? warp_ * warp_ / (2.0 * step) + warp_ : 0.0;

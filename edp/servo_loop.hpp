@@ -302,6 +302,7 @@ class ServoLoop {
   double lag_steps_ = 0.0;            ///< servo steps the motion is behind its planned time line
   double warp_ = 0.0;                 ///< how much faster than planned it runs now (0: as planned)
   AxisArray warp_velocity_{};         ///< the commanded velocity of the cycle before the last
+  double previous_rate_ = 1.0;        ///< the rate (1 + warp) of the cycle before the last
   std::int64_t caught_up_total_ = 0;  ///< missed servo steps taken up for catch-up
   char scheduling_[80] = {};
 };

@@ -201,10 +201,15 @@ void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& ge
         // A robot had to stop for want of macro-steps and the planned continuation is too fast
         // or too abrupt from where it stands: the whole group stops and resumes from rest.
         if (!replannable(e) || ++refusals > kMaxRefusals) throw;
-        stop_group(robots);
+        const std::exception_ptr refusal = std::current_exception();
+        try {
+          stop_group(robots);
+        } catch (...) {
+          std::rethrow_exception(refusal);  // the refusal says what happened first
+        }
         for (RobotImage* image : images) image->commanded = false;
         refresh(sensors);
-        if (!generator.resume(images, sensors)) throw;
+        if (!generator.resume(images, sensors)) std::rethrow_exception(refusal);
         continue;
       }
       refresh(sensors);

@@ -10,7 +10,9 @@
 ///   - `bitrate` (number, bit/s, default 1000000): the bus' bit rate, for the bus-load check.
 ///   - `following_error_window` (number, rad, default 0.05) and `following_error_timeout_ms`
 ///     (integer, default 50): the drives' following-error monitor.
-///   - `silent_cycles` (integer, default 10): cycles without an answer before a drive is lost.
+///   - `silent_cycles` (integer, 2..1000): cycles without an answer before a drive is lost.
+///     Default 10 on SocketCAN; on a virtual bus as many as make 150 ms (75 at 2 ms), as the
+///     heartbeat timeout: the emulator's CPU may stop for up to 60 ms while the EDP's runs on.
 ///   - `bring_up_timeout_s` (number, default 5).
 ///   - `heartbeat_ms` (integer, default 100).
 ///   - `heartbeat_timeout_ms` (integer, 11..65535): the drives' consumer time for the master's
@@ -265,11 +267,13 @@ class CanHardware final : public Hardware {
     const double bitrate = params.get_double("bitrate", 1e6);
     s.window = params.get_double("following_error_window", 0.05);
     s.window_ms = params.get_int("following_error_timeout_ms", 50);
-    s.silent = params.get_int("silent_cycles", 10);
+    const bool emulated = s.url.rfind("virtual:", 0) == 0;  // drives emulated on this host
+    s.silent = params.get_int(
+        "silent_cycles",
+        emulated ? static_cast<std::int64_t>(std::ceil(0.150 / setup.servo_period_s - 1e-9)) : 10);
     s.timeout_s = params.get_double("bring_up_timeout_s", 5.0);
     s.heartbeat = params.get_int("heartbeat_ms", 100);
-    s.heartbeat_timeout =
-        params.get_int("heartbeat_timeout_ms", s.url.rfind("virtual:", 0) == 0 ? 150 : 50);
+    s.heartbeat_timeout = params.get_int("heartbeat_timeout_ms", emulated ? 150 : 50);
     s.digital_lines = params.get_bool("digital_lines", true);
     params.reject_unread("robot.edp.params");
     try {

@@ -38,6 +38,9 @@ Eigen::Matrix3d grip_orientation(double side) {
   return r;
 }
 
+/// A carry resumed from rest takes at least this long to the end of the interrupted segment.
+constexpr double kMinResumeSegmentS = 0.5;
+
 class BarCarryGenerator : public Generator {
  public:
   /// `kinematics`: each robot's, to find where its grip stands after a stop (resume).
@@ -93,7 +96,7 @@ class BarCarryGenerator : public Generator {
       centre += (bases_[i] * kinematics_[i]->forward(robots[i]->joints)).translation();
     }
     centre /= static_cast<double>(robots.size());  // the grips sit at the centre -+ half the bar
-    path_ = path_.rest_from(centre);
+    path_ = path_.rest_from(centre, kMinResumeSegmentS);
     Eigen::Vector3d next;
     if (!path_.next(next)) return false;
     ++resumes_;

@@ -33,8 +33,10 @@ class StraightPath {
   }
 
   /// The rest of this path from `here` (where it was left, at rest): a segment from `here` to
-  /// the end of the current segment, at its speed, then the segments not begun yet.
-  [[nodiscard]] StraightPath rest_from(const Eigen::Vector3d& here) const {
+  /// the end of the current segment, at its speed but taking at least `min_first_s` (a short
+  /// remainder at the full speed would start from rest too abruptly), then the segments not
+  /// begun yet.
+  [[nodiscard]] StraightPath rest_from(const Eigen::Vector3d& here, double min_first_s) const {
     const std::size_t next = started_ ? segment_ + 1 : 0;
     std::vector<Eigen::Vector3d> points{here};
     std::vector<double> speeds;
@@ -46,7 +48,9 @@ class StraightPath {
       points.push_back(points_.back());
       speeds.push_back(speeds_.back());
     }
-    return StraightPath(std::move(points), std::move(speeds), macro_step_s_);
+    StraightPath rest(std::move(points), std::move(speeds), macro_step_s_);
+    rest.min_first_s_ = min_first_s;
+    return rest;
   }
 
   /// Whether the point next() gave last is the path's end.
@@ -60,7 +64,8 @@ class StraightPath {
     segment_ = segment;
     from_ = points_[segment];
     to_ = points_[segment + 1];
-    const double duration = 1.875 * (to_ - from_).norm() / speeds_[segment];
+    double duration = 1.875 * (to_ - from_).norm() / speeds_[segment];
+    if (segment == 0) duration = std::max(duration, min_first_s_);
     macros_ = std::max(1, static_cast<int>(std::ceil(duration / macro_step_s_)));
     macro_ = 0;
     return true;
@@ -69,6 +74,7 @@ class StraightPath {
   std::vector<Eigen::Vector3d> points_;
   std::vector<double> speeds_;
   double macro_step_s_;
+  double min_first_s_ = 0.0;  ///< the first segment takes at least this long [s]
   bool started_ = false;
   std::size_t segment_ = 0;
   int macro_ = 0;

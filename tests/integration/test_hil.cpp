@@ -504,7 +504,7 @@ TEST_F(Hil, SilentNodeIsDetected) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_TRUE(std::regex_search(
       r.output, std::regex("\\[srp\\].*edp/irb6 .*drive node 4 \\(axis 'wrist_pitch'\\) on "
-                           "virtual:irb6: silent: no TPDO for 25 cycles \\(50 ms\\)")))
+                           "virtual:irb6: silent: no TPDO for 75 cycles \\(150 ms\\)")))
       << r.output;
   EXPECT_TRUE(has(r.output, "the robot is held")) << r.output;
   expect_clean_shutdown(r);

@@ -4,10 +4,12 @@
 //   EDP terminated  -> (SIGTERM) the EDP first ramps the arm down within its acceleration limits,
 //                      then exits; the task fails or the launcher stops the set (exit 1 or 4).
 //   EDP killed      -> every drive misses its master's heartbeat (0x1016) or SYNC (0x1006) and
-//                      quick-stops (0x6007 = 3, EMCY 0x8130 or 0x8100) 50 ms after the last
-//                      one; the launcher stops the set, exit 4.
-//   emulator killed -> the EDP finds its drives silent within 10 cycles (20 ms) and holds; the
-//                      task fails or the launcher stops the set (exit 1 or 4).
+//                      quick-stops (0x6007 = 3, EMCY 0x8130 or 0x8100) 150 ms after the last
+//                      one (the can plugin's default on a virtual bus); the launcher stops the
+//                      set, exit 4.
+//   emulator killed -> the EDP finds its drives silent within 75 cycles (150 ms, the default on
+//                      a virtual bus) and holds; the task fails or the launcher stops the set
+//                      (exit 1 or 4).
 //   ECP killed      -> the EDP gets no next macro-step and ramps the arm down to standstill
 //                      within its acceleration limits (SRP: "no next macro-step from the ECP
 //                      in time"); the launcher stops the set, exit 4. Measured from the EDP's
@@ -95,7 +97,7 @@ TEST(Kill, EmulatorKilledMidMotionTheEdpHolds) {
   const LaunchRun r =
       launch_and_kill(demo(), "emu", "pose 1/3 reached", std::chrono::milliseconds(300));
   EXPECT_TRUE(r.exit_code == 1 || r.exit_code == 4) << r.output;
-  EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6.*silent: no TPDO for 25 cycles")))
+  EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6.*silent: no TPDO for 75 cycles")))
       << r.output;
   EXPECT_TRUE(has(r.output, "the robot is held")) << r.output;
   expect_nothing_left();

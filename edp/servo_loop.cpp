@@ -49,6 +49,8 @@ constexpr double kWarpQueuedAccelerationShare = 0.15;
 /// least this share of the acceleration limit where the planned motion left less.
 constexpr double kWarpVelocityShare = 0.9;
 constexpr double kWarpMinimumUnwindShare = 0.2;
+/// Macro-steps that must be queued behind the running one for the motion to run faster.
+constexpr std::size_t kWarpQueuedMacroSteps = 2;
 std::chrono::nanoseconds seconds(double s) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::duration<double>(s));
 }
@@ -463,6 +465,9 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
       duration = next_duration;
     }
   }
+  // Running faster takes the client's time: only while it is ahead (two macro-steps queued
+  // behind the running one), so that a catch-up never makes the queue run dry.
+  if (queue_.size() < kWarpQueuedMacroSteps) hard = true;
   top = hard ? 0.0 : std::max(top, 0.0);
   // Towards the top rate while the lag lasts, and back to none before it runs out: winding down
   // from w by `down` a cycle takes up about w^2 / (2 down) + w of it. A small lead left at the

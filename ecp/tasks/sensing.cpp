@@ -202,14 +202,19 @@ class Touch : public Touching {
   void main_task() override { (void)touch(); }
 };
 
+/// Macro-steps of travel that ForceFollowing's ramp-up over 25 macro-steps costs.
+constexpr int kRampTravelMacroSteps = 12;
+
 /// Force-compliant motion: each macro-step the tip advances along the surface and its height
 /// follows the force error (an admittance: dz = gain * (pressing - set force)).
 class ForceFollowing : public Generator {
  public:
-  ForceFollowing(const WristSensor& wrist, const Eigen::Isometry3d& start, Eigen::Vector3d step,
-                 int macro_steps, double set_force, double gain, int motion_steps,
-                 const Eigen::Isometry3d& tool)
+  /// `tip`: the arm's kinematics with `tool` set (where the tip stands after a stop, resume).
+  ForceFollowing(const WristSensor& wrist, const edp::ArmKinematics& tip,
+                 const Eigen::Isometry3d& start, Eigen::Vector3d step, int macro_steps,
+                 double set_force, double gain, int motion_steps, const Eigen::Isometry3d& tool)
       : wrist_(wrist),
+        tip_(tip),
         pose_(start),
         step_(std::move(step)),
         left_(macro_steps),
@@ -235,7 +240,21 @@ class ForceFollowing : public Generator {
     command(robot, std::clamp(gain_ * (set_force_ - f), -2e-4, 2e-4));
     return true;
   }
+  /// The EDP brought the robot to rest (a macro-step came late) and refused the next one as too
+  /// abrupt from there: go on along the surface from where the tip is held, ramping the speed
+  /// up again from rest, as at the start.
+  bool resume(RobotImage& robot, const SensorList&) override {
+    if (robot.desired_joints.empty()) return false;
+    const Eigen::Isometry3d held = tip_.forward(robot.desired_joints);
+    pose_.translation() = held.translation();
+    done_ = 0;
+    left_ += kRampTravelMacroSteps;  // the new ramp costs its travel again
+    ++resumes_;
+    command(robot, 0.0);
+    return true;
+  }
   [[nodiscard]] const std::vector<double>& forces() const { return forces_; }
+  [[nodiscard]] int resumes() const { return resumes_; }
 
  private:
   void command(RobotImage& robot, double down) {
@@ -257,6 +276,7 @@ class ForceFollowing : public Generator {
   }
 
   const WristSensor& wrist_;
+  const edp::ArmKinematics& tip_;
   Eigen::Isometry3d pose_;
   Eigen::Vector3d step_;
   int left_;
@@ -265,6 +285,7 @@ class ForceFollowing : public Generator {
   Eigen::Isometry3d tool_;
   std::vector<double> forces_;
   int done_ = 0;
+  int resumes_ = 0;
 };
 
 class FollowSurface : public Touching {
@@ -296,12 +317,13 @@ class FollowSurface : public Touching {
     const int motion_steps = motion_steps_;
     const double dt = motion_steps * context_.servo_period_s;
     // Ramping up costs 12 macro-steps of travel (see ForceFollowing::command).
-    const int macro_steps = static_cast<int>(std::ceil(length_ / (follow_speed_ * dt))) + 12;
+    const int macro_steps =
+        static_cast<int>(std::ceil(length_ / (follow_speed_ * dt))) + kRampTravelMacroSteps;
     Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
     start.linear() = down_;
     start.translation() = stop;
-    ForceFollowing follow(*wrist_, start, direction_ * follow_speed_ * dt, macro_steps, force_,
-                          gain_, motion_steps, tool_);
+    ForceFollowing follow(*wrist_, *tip_, start, direction_ * follow_speed_ * dt, macro_steps,
+                          force_, gain_, motion_steps, tool_);
     Move(robot, {wrist_.get()}, follow);
     robot.read_state();
     const std::vector<double>& f = follow.forces();
@@ -319,9 +341,12 @@ class FollowSurface : public Touching {
     context_.reporter.info(fmt::format(
         "followed the surface for {:.3f} m: contact force mean {:.2f} N, rms error {:.2f} N, "
         "largest error {:.2f} N (set {:.1f} N, tolerance {:.1f} N, {} macro-steps after {:.1f} s "
-        "settling)",
+        "settling){}",
         (end - stop).norm(), sum / static_cast<double>(n), std::sqrt(sum2 / static_cast<double>(n)),
-        worst, force_, tolerance_, n, settle_));
+        worst, force_, tolerance_, n, settle_,
+        follow.resumes() > 0 ? fmt::format("; resumed from rest {} time(s) after a late macro-step",
+                                           follow.resumes())
+                             : std::string()));
     if (worst > tolerance_)
       throw FatalError(fmt::format("the contact force left {:.1f} +- {:.1f} N by {:.2f} N", force_,
                                    tolerance_, worst - tolerance_));

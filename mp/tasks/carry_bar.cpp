@@ -92,8 +92,12 @@ class BarCarryGenerator : public Generator {
     if (approaching_) return false;
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     for (std::size_t i = 0; i < robots.size(); ++i) {
-      if (robots[i]->joints.empty()) return false;
-      centre += (bases_[i] * kinematics_[i]->forward(robots[i]->joints)).translation();
+      // Where each EDP holds its robot (the commanded joints): the next macro-step starts there,
+      // and the drives' following error (measured joints) would be a jump from rest.
+      const std::vector<double>& q =
+          robots[i]->desired_joints.empty() ? robots[i]->joints : robots[i]->desired_joints;
+      if (q.empty()) return false;
+      centre += (bases_[i] * kinematics_[i]->forward(q)).translation();
     }
     centre /= static_cast<double>(robots.size());  // the grips sit at the centre -+ half the bar
     path_ = path_.rest_from(centre, kMinResumeSegmentS);

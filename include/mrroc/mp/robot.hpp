@@ -111,9 +111,10 @@ class Generator {
   /// the queues of their EDPs ran dry (a client held back longer than the lookahead covers) and
   /// the next macro-step was then refused by one of them as too fast or too abrupt from where it
   /// stands (error `too_fast` / `too_abrupt`). Move has ended the motion on every robot of the
-  /// group (END_MOTION) and waited until all stood still; `robots` hold their measured joints
-  /// there. Prepare commands that continue the coordinated motion from rest and return true;
-  /// false (the default) makes Move fail with the refusal.
+  /// group (END_MOTION) and waited until all stood still; `robots` hold their measured and
+  /// commanded joints there (start from the commanded ones: the EDP holds the robot there). Prepare
+  /// commands that continue the coordinated motion from rest and return true; false (the default)
+  /// makes Move fail with the refusal.
   virtual bool resume(const ImageList& /*robots*/, const ecp::SensorList& /*sensors*/) {
     return false;
   }

@@ -210,6 +210,10 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     due_ = Due::arm_reading;
     return Reply{};
   }
+  // A reading while the robot stands with nothing queued ends the motion a refusal belonged to
+  // (an MP or ECP that stopped it reads where it stands before it re-plans): the new plan's
+  // first SET is not answered with the old refusal.
+  if (servo_.stopped()) refusal_reported_ = std::max(refusal_reported_, servo_.refused_upto());
   due_ = Due::get;
   return Reply{};
 }

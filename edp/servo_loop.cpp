@@ -31,7 +31,7 @@ timespec from_ns(std::int64_t ns) {
   return t;
 }
 /// The longest a motion from rest waits for its lookahead: the pauses of a shared host (about
-/// 60 ms, BENCHMARKS) and more, not a lone long macro-step's whole lookahead.
+/// 60 ms, docs/operating.md) and more, not a lone long macro-step's whole lookahead.
 constexpr double kMaxStartHoldS = 0.2;
 /// Catch-up (hardware that keeps its own clock): the motion runs at most this much faster than
 /// planned while it makes up the servo steps of periods a stall took from it ...

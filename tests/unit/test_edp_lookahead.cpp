@@ -307,8 +307,6 @@ TEST_F(Lookahead, AServoThreadHeldOnClockedHardwareMakesUpTheMissedStepsWithinTh
     if (i > 70 && static_cast<int>(i) < moving - 80) fastest = std::max(fastest, std::abs(v[i]));
     if (i > 0) hardest = std::max(hardest, std::abs(v[i] - v[i - 1]) / kPeriod);
   }
-  if (std::getenv("MRROC_TEST_DUMP") != nullptr)
-    for (std::size_t i = 0; i < v.size(); ++i) std::printf("v %zu %.5f\n", i, v[i]);
   std::printf(
       "held 30 ms: %lld steps made up; %d cycles in motion for %d planned steps; fastest %.4f "
       "rad/s (cruise %.1f), hardest %.3f rad/s^2 (limit %.1f)\n",

@@ -50,6 +50,10 @@
 
 namespace {
 
+/// Real time: the longest hold-up of this process whose physics steps are made up afterwards [s]
+/// (a shared host stops a CPU for up to 60 ms: docs/operating.md).
+constexpr double kMaxCatchUpS = 0.1;
+
 using namespace mrroc;
 namespace co = can::canopen;
 
@@ -83,6 +87,10 @@ struct Port {
   std::vector<Drive*> drives;
   std::uint64_t syncs = 0;
   double period_s = kDefaultServoPeriodS;
+  /// Real time: a frame received that was sent after the physics step now due; it is dispatched
+  /// after that step (run_real_time).
+  bool held = false;
+  can::Received held_frame;
 };
 
 struct RobotRun {
@@ -290,12 +298,6 @@ class Emulator {
     }
   }
 
-  void drain() {
-    can::Received r;
-    for (auto& p : ports_)
-      while (p->bus->receive(r, std::chrono::nanoseconds(0))) dispatch(*p, r);
-  }
-
   void physics_step() {
     for (std::size_t k = 0; k < robots_.size(); ++k) {
       RobotRun& r = robots_[k];
@@ -412,33 +414,68 @@ class Emulator {
     return stop_requested() || (options_.run_for_s > 0.0 && world_.time() >= options_.run_for_s);
   }
 
+  /// Dispatches every frame sent up to `until_ns` (CLOCK_MONOTONIC) and holds the first later
+  /// one of each bus for the next step.
+  void drain_until(std::int64_t until_ns, std::int64_t realtime_minus_monotonic_ns) {
+    can::Received r;
+    for (auto& p : ports_) {
+      if (p->held) {
+        if (p->held_frame.timestamp_ns - realtime_minus_monotonic_ns > until_ns) continue;
+        p->held = false;
+        dispatch(*p, p->held_frame);
+      }
+      while (p->bus->receive(r, std::chrono::nanoseconds(0))) {
+        if (r.timestamp_ns != 0 && r.timestamp_ns - realtime_minus_monotonic_ns > until_ns) {
+          p->held = true;
+          p->held_frame = r;
+          break;
+        }
+        dispatch(*p, r);
+      }
+    }
+  }
+
+  /// Real time: one physics step per timestep of the monotonic clock, and every frame dispatched
+  /// between the steps of the time it was sent. After this process was held up (the host ran
+  /// something else), the steps it owes run back to back, each with the frames of its time: so a
+  /// drive answers each SYNC with the axis as it was at that SYNC, as a real one, not with one
+  /// sample repeated for every SYNC that queued up meanwhile (a master read that as the axis
+  /// standing still mid-motion). A hold-up longer than kMaxCatchUpS is not made up:
+  /// the world loses that time.
   void run_real_time() {
     const auto step_ns = static_cast<std::int64_t>(std::llround(world_.timestep() * 1e9));
-    timespec ts{};
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    auto now_ns = [] {
+    const auto clock_ns = [](clockid_t clock) {
       timespec t{};
-      clock_gettime(CLOCK_MONOTONIC, &t);
+      clock_gettime(clock, &t);
       return static_cast<std::int64_t>(t.tv_sec) * 1000000000LL + t.tv_nsec;
     };
+    const auto now_ns = [&] { return clock_ns(CLOCK_MONOTONIC); };
+    const auto max_behind_ns = static_cast<std::int64_t>(kMaxCatchUpS * 1e9);
     std::int64_t deadline = now_ns();
     can::Received r;
     while (!done()) {
       deadline += step_ns;
       for (;;) {
-        drain();
+        const std::int64_t offset = clock_ns(CLOCK_REALTIME) - now_ns();
+        drain_until(deadline, offset);
         const std::int64_t left = deadline - now_ns();
         if (left <= 0) break;
-        if (ports_.size() == 1) {
-          if (ports_[0]->bus->receive(r, std::chrono::nanoseconds(left))) dispatch(*ports_[0], r);
+        if (ports_.size() == 1 && !ports_[0]->held) {
+          if (ports_[0]->bus->receive(r, std::chrono::nanoseconds(left))) {
+            if (r.timestamp_ns != 0 && r.timestamp_ns - offset > deadline) {
+              ports_[0]->held = true;
+              ports_[0]->held_frame = r;
+            } else {
+              dispatch(*ports_[0], r);
+            }
+          }
         } else {
           std::this_thread::sleep_for(
               std::chrono::nanoseconds(std::min<std::int64_t>(left, 200000)));
         }
       }
       physics_step();
-      // After a long stall, do not run a burst of steps to catch up.
-      if (now_ns() - deadline > 20 * step_ns) deadline = now_ns();
+      if (now_ns() - deadline > max_behind_ns) deadline = now_ns();
     }
   }
 

@@ -1,0 +1,137 @@
+#pragma once
+/// @file
+/// What the master configures in one drive, planned from the drive's EDS/DCF (eds.hpp) and the
+/// process set's config, and checked against the file before anything is sent.
+///
+/// The master maps, by SDO at bring-up (CiA 301: COB-ID invalid, mapping count 0, entries,
+/// count, transmission type, COB-ID valid; each read back), whatever the drive's defaults are:
+///   RPDO1  controlword 0x6040 + the position target: 0x607A (cyclic synchronous position) or
+///          0x60C1 sub 1 (interpolated position); synchronous (type 1), every cycle.
+///   RPDO2  digital outputs 0x60FE sub 1, when the drive has them; synchronous, sent when the
+///          outputs change and every canopen::kOutputRefreshCycles cycles.
+///   TPDO1  statusword 0x6041 + position actual value 0x6064; synchronous, every SYNC.
+///   TPDO2  digital inputs 0x60FD (all 32 bits: bit 2 home switch, bits 16..23 the drive's input
+///          lines); synchronous acyclic (type 0): sampled at a SYNC and sent when it changed.
+/// A PDO already configured so (the drive's defaults, or a DCF) is only read, not written. Every
+/// other RPDO and TPDO of the drive is switched off (COB-ID bit 31), so that a drive's default
+/// TPDOs do not load the bus. COB-IDs are the predefined connection set's (0x200 + node,
+/// 0x300 + node, 0x180 + node, 0x280 + node).
+///
+/// Objects the master needs from every drive: 0x1000, 0x1016 sub 1, 0x1017, 0x6040, 0x6041,
+/// 0x6060, 0x6064, 0x60FD (home switch) and the target of the mode, all of them mappable where
+/// they are mapped; the PDO objects (0x1400/0x1600 x 1..2, 0x1800/0x1A00 x 1..2) with room for
+/// two entries. Used when present (and then checked): 0x1006, 0x1029 sub 1, 0x6007, 0x605A,
+/// 0x6065, 0x6066, 0x6085, 0x60C2, 0x60FE.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mrroc/can/eds.hpp"
+#include "mrroc/core/error.hpp"
+
+namespace mrroc::can {
+
+/// One mapped object: index << 16 | sub << 8 | bits, as mapping entries are written.
+struct PdoEntry {
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  std::uint8_t bits = 0;
+  [[nodiscard]] std::uint32_t raw() const noexcept {
+    return (static_cast<std::uint32_t>(index) << 16U) | (static_cast<std::uint32_t>(sub) << 8U) |
+           bits;
+  }
+  static PdoEntry from_raw(std::uint32_t raw) noexcept {
+    return {static_cast<std::uint16_t>(raw >> 16U), static_cast<std::uint8_t>(raw >> 8U),
+            static_cast<std::uint8_t>(raw)};
+  }
+  bool operator==(const PdoEntry&) const = default;
+};
+
+/// PDO transmission types (0x1400/0x1800 sub 2).
+namespace transmission {
+inline constexpr std::uint8_t kSyncAcyclic = 0;  ///< at a SYNC, when the data changed
+inline constexpr std::uint8_t kSyncEvery = 1;    ///< every SYNC (1..240: every n-th)
+inline constexpr std::uint8_t kEventManufacturer = 254;
+inline constexpr std::uint8_t kEventProfile = 255;
+}  // namespace transmission
+/// COB-ID bit 31: the PDO does not exist (switched off).
+inline constexpr std::uint32_t kPdoInvalid = 0x80000000U;
+
+struct PdoPlan {
+  bool receive = false;  ///< RPDO (master -> drive) or TPDO
+  int number = 1;        ///< 1-based
+  std::uint32_t cob_id = 0;
+  std::uint8_t transmission = transmission::kSyncEvery;
+  std::vector<PdoEntry> entries;
+  [[nodiscard]] std::uint16_t communication_index() const noexcept {
+    return static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + number - 1);
+  }
+  [[nodiscard]] std::uint16_t mapping_index() const noexcept {
+    return static_cast<std::uint16_t>((receive ? 0x1600 : 0x1A00) + number - 1);
+  }
+  /// "RPDO1", "TPDO2"
+  [[nodiscard]] std::string name() const;
+};
+
+struct DriveIdentity {
+  std::uint32_t vendor = 0;
+  std::uint32_t product = 0;
+  std::optional<std::uint32_t> revision;
+};
+
+/// An SDO write the config asks for at bring-up (after the master's own, before enabling).
+struct SdoWrite {
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  std::uint64_t value = 0;
+  std::uint8_t size = 0;  ///< bytes, from the object's type in the EDS
+  SourceLocation where;   ///< in the config
+};
+
+/// What the config asks of one drive.
+struct DriveRequest {
+  std::uint8_t node = 1;
+  std::string axis;                  ///< for messages
+  std::optional<std::int8_t> mode;   ///< default: CSP if supported, else IP
+  bool outputs = true;               ///< use 0x60FE when the drive has it
+  std::optional<DriveIdentity> identity;
+  std::vector<SdoWrite> writes;      ///< index, sub and value; sizes filled in by plan_drive
+  SourceLocation where;              ///< of the drive's settings in the config
+};
+
+struct DrivePlan {
+  std::shared_ptr<const eds::Dictionary> eds;
+  std::uint8_t node = 1;
+  std::string axis;
+  std::int8_t mode = eds::mode::kCyclicSyncPosition;
+  PdoPlan target;                     ///< RPDO1
+  std::optional<PdoPlan> outputs;     ///< RPDO2, when the drive has 0x60FE and outputs are used
+  PdoPlan status;                     ///< TPDO1
+  PdoPlan inputs;                     ///< TPDO2
+  std::vector<PdoPlan> switched_off;  ///< every other PDO the drive has (entries empty)
+  std::optional<DriveIdentity> identity;
+  std::vector<SdoWrite> writes;
+  /// Optional objects the drive has (the master writes them only then).
+  bool has(std::uint16_t index, std::uint8_t sub = 0) const {
+    return eds->entry(index, sub) != nullptr;
+  }
+  /// The object that takes the position target (0x607A or 0x60C1 sub 1).
+  [[nodiscard]] PdoEntry target_entry() const { return target.entries.at(1); }
+};
+
+/// Plans the drive and checks every object the master will touch against its file.
+/// @throws ConfigErrors with every problem, each naming the EDS `file:line` (or the config's
+/// location for a value the file does not have), the node and the object.
+DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequest& request);
+
+/// The built-in description of mrroc's emulated drive (configs/drives/emu-csp.eds), for drives
+/// whose config names no file.
+std::shared_ptr<const eds::Dictionary> default_drive_eds();
+
+/// The object's name from the file, or its CiA 301/402 name, with its index:
+/// "0x6041 statusword". Never throws.
+std::string object_name(const eds::Dictionary* eds, std::uint16_t index, std::uint8_t sub);
+
+}  // namespace mrroc::can

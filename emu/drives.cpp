@@ -256,10 +256,40 @@ std::vector<RobotDrives> read_drive_wiring(const std::filesystem::path& file,
     if (t != nullptr) {
       for (const auto& [key, node] : *t)
         if (key != "bus" && key != "nodes" && key != "counts_per_unit" && key != "current_limit" &&
-            key != "input")
+            key != "input" && key != "eds")
           throw fail(node, fmt::format("unknown key '{}' in [scene.robot.drives] (allowed: bus, "
-                                       "nodes, counts_per_unit, current_limit, input)",
+                                       "nodes, counts_per_unit, current_limit, eds, input)",
                                        key.str()));
+      if (const toml::node* eds = t->get("eds")) {
+        // One file for every drive, or one per axis; relative to the scene file.
+        std::vector<std::string> names;
+        if (const toml::array* list = eds->as_array()) {
+          for (const auto& v : *list) names.push_back(v.value<std::string>().value_or(""));
+        } else {
+          names.assign(n, eds->value<std::string>().value_or(""));
+        }
+        if (names.size() != n ||
+            std::any_of(names.begin(), names.end(), [](const auto& x) { return x.empty(); }))
+          throw fail(*eds, fmt::format("'eds' must be a file name or {} file names (robot '{}' "
+                                       "has {} axes)",
+                                       n, robot.name, n));
+        std::map<std::string, std::shared_ptr<const can::eds::Dictionary>> loaded;
+        for (const std::string& name : names) {
+          std::filesystem::path path(name);
+          if (path.is_relative()) path = file.parent_path() / path;
+          auto& slot = loaded[path.lexically_normal().string()];
+          if (!slot) {
+            try {
+              slot = std::make_shared<can::eds::Dictionary>(
+                  can::eds::Dictionary::load(path.lexically_normal()));
+            } catch (const ConfigError& e) {
+              if (e.where().line > 0) throw;  // the EDS file's own line
+              throw fail(*eds, e.message() + " (" + path.lexically_normal().string() + ")");
+            }
+          }
+          d.eds.push_back(slot);
+        }
+      }
       if (const toml::node* bus = t->get("bus")) {
         if (!bus->is_string()) throw fail(*bus, "'bus' must be a string such as \"virtual:cell1\"");
         d.bus = **bus->as_string();

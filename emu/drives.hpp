@@ -12,6 +12,9 @@
 ///     counts_per_unit = 100000      # encoder counts per rad (or m), default 100000
 ///     current_limit = [400, ...]    # |force| a drive may hold for 50 ms [N m or N]; one number
 ///                                   # or one per axis; default: the actuator's forcerange
+///     eds = "../drives/emu-ip.eds"  # the drives' EDS/DCF (relative to the scene file): one for
+///                                   # all or one per axis; default: mrroc's emulated drive
+///                                   # (configs/drives/emu-csp.eds)
 ///
 ///     [[scene.robot.drives.input]]     # a digital input line of one of this robot's drives
 ///     axis = "column"                  # the drive: axis name or 0-based index
@@ -38,12 +41,14 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "cell_world.hpp"
 #include "mrroc/can/canopen.hpp"
+#include "mrroc/can/eds.hpp"
 #include "mrroc/core/error.hpp"
 
 namespace mrroc::emu {
@@ -79,7 +84,9 @@ struct RobotDrives {
   std::vector<int> nodes;
   double counts_per_unit = 100000.0;
   std::vector<double> current_limit;  ///< per axis [N m or N]
-  std::vector<InputWire> inputs;      ///< in file order
+  /// Per axis, the drive's EDS/DCF; empty: mrroc's emulated drive's.
+  std::vector<std::shared_ptr<const can::eds::Dictionary>> eds;
+  std::vector<InputWire> inputs;  ///< in file order
 };
 
 /// One entry per robot of `world`, in robot order. @throws ConfigError ("file:line: error: ...")

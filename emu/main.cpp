@@ -148,6 +148,7 @@ class Emulator {
         c.node = static_cast<std::uint8_t>(w.nodes[i]);
         c.counts_per_unit = w.counts_per_unit;
         c.current_limit = w.current_limit[i];
+        if (i < w.eds.size()) c.eds = w.eds[i];
         auto d = std::make_unique<Drive>();
         d->robot = k;
         d->axis = i;
@@ -165,10 +166,17 @@ class Emulator {
         run.drives.push_back(d.get());
         drives_.push_back(std::move(d));
       }
+      std::vector<std::string> products;
+      for (const Drive* d : run.drives) {
+        const std::string name = d->drive->description().device().product_name;
+        if (std::find(products.begin(), products.end(), name) == products.end())
+          products.push_back(name);
+      }
       std::cout << fmt::format(
           "mrroc-axis-emu: robot '{}': {} drives on {} (nodes {}), {} counts "
-          "per unit\n",
-          robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit);
+          "per unit, {}\n",
+          robot.name, n, w.bus, fmt::join(w.nodes, ","), w.counts_per_unit,
+          fmt::join(products, ", "));
       for (const emu::InputWire& input : w.inputs)
         std::cout << "mrroc-axis-emu: " << emu::describe_input(robot, input) << "\n";
     }

@@ -20,9 +20,18 @@
 ///     SocketCAN; 150 ms on a virtual bus, whose drives are emulated on this same host: a shared
 ///     host stops one CPU for up to 60 ms while the other runs on (measured with
 ///     scripts/stall-check, docs/operating.md), and the emulated drives must ride through that.
-///   - `digital_lines` (boolean, default true): the drives have mrroc's digital output lines
-///     (RPDO2 mapped to 0x60FE sub 1, canopen.hpp); false for drives without them: no outputs
-///     (the EDP refuses SET OUTPUTS), inputs as before.
+///   - `digital_lines` (boolean, default true): use the drives' digital output lines (0x60FE,
+///     where a drive's file has it); false: no outputs (the EDP refuses SET OUTPUTS), inputs as
+///     before.
+///   - `eds` (string, or a list of one per axis): the drives' EDS or DCF files (relative to the
+///     config file); default: mrroc's emulated drive (configs/drives/emu-csp.eds). Every object
+///     the master touches is checked against it (drive_setup.hpp), here and at `--check`.
+///   - `mode` ("csp" or "ip", or a list of one per axis; default: csp where the drive supports
+///     it, else ip): cyclic synchronous position or interpolated position.
+///   - `identity` ([vendor, product] or [vendor, product, revision], or a list of one such row per
+///     axis): what 0x1018 of each drive must say; bring-up refuses a drive that says otherwise.
+///   - `sdo` (list of rows [node, index, sub, value]; node 0: every drive): SDO writes at
+///     bring-up, after the master's own, each checked against the drive's file and read back.
 /// The cyclic traffic's bus load is computed at configure time and printed; a worst case above
 /// 100 % is refused, above 70 % warned about (docs/hil.md).
 ///
@@ -46,6 +55,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -55,6 +66,9 @@
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_master.hpp"
+#include "mrroc/can/drive_setup.hpp"
+#include "mrroc/can/eds.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/core/error.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
@@ -116,6 +130,7 @@ class CanHardware final : public Hardware {
       a.quick_stop_deceleration = decel;
       a.following_error_window = window;
       a.following_error_timeout_ms = static_cast<std::uint16_t>(window_ms);
+      a.plan = settings.plans[i];
       axes.push_back(a);
     }
     can::MasterOptions options;
@@ -124,7 +139,6 @@ class CanHardware final : public Hardware {
     options.heartbeat_ms = static_cast<std::uint16_t>(heartbeat);
     options.heartbeat_consumer_ms = static_cast<std::uint16_t>(heartbeat_timeout);
     options.digital_lines = settings.digital_lines;
-    digital_lines_ = settings.digital_lines;
     timeout_ = std::chrono::milliseconds(std::llround(timeout_s * 1000.0));
     period_s_ = setup.servo_period_s;
     bus_ = can::open_bus(url);
@@ -142,6 +156,8 @@ class CanHardware final : public Hardware {
 
   void activate() override {
     master_->bring_up(timeout_);
+    for (std::size_t i = 0; i < axes_; ++i)
+      std::fprintf(stderr, "can: %s\n", master_->bring_up_report(i).c_str());
     active_ = true;
     first_read_ = true;
   }
@@ -198,8 +214,10 @@ class CanHardware final : public Hardware {
 
   [[nodiscard]] bool binary_io() const override { return true; }
   [[nodiscard]] std::uint32_t output_lines() const override {
-    if (!digital_lines_) return 0;
-    return axes_ >= 2 ? 0xFFFFU : 0xFFU;
+    std::uint32_t lines = 0;
+    for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 2); ++i)
+      if (master_ && master_->has_outputs(i)) lines |= 0xFFU << (8U * i);
+    return lines;
   }
   void write_outputs(std::uint32_t values) override {
     for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 2); ++i)
@@ -238,7 +256,114 @@ class CanHardware final : public Hardware {
     Eigen::MatrixXd inverse;
     std::string load_text;
     double load_worst = 0.0;
+    std::vector<can::DrivePlan> plans;  ///< per axis
   };
+
+  /// The drives' files and what the config asks of each, planned and checked (all errors of
+  /// every drive at once).
+  static std::vector<can::DrivePlan> plan_drives(const Params& params, const RobotModel& model,
+                                                 const std::vector<std::int64_t>& nodes,
+                                                 bool outputs) {
+    const std::size_t axes = model.axes();
+    ConfigErrorList errors;
+    // A string for every axis, or a list of one per axis.
+    const auto per_axis = [&](const char* key) -> std::vector<std::string> {
+      if (!params.has(key)) return std::vector<std::string>(axes);
+      if (std::holds_alternative<std::string>(params.values().at(key)))
+        return std::vector<std::string>(axes, params.get_string(key));
+      std::vector<std::string> v = params.get_strings(key);
+      if (v.size() != axes)
+        throw ConfigError(params.location_of(key),
+                          fmt::format("'{}' lists {} values, robot '{}' has {} axes", key, v.size(),
+                                      model.name, axes));
+      return v;
+    };
+    const std::vector<std::string> files = per_axis("eds");
+    const std::vector<std::string> modes = per_axis("mode");
+    std::vector<std::vector<double>> identities(axes);
+    if (params.has("identity")) {
+      const ParamValue& v = params.values().at("identity");
+      if (std::holds_alternative<std::vector<double>>(v)) {
+        identities.assign(axes, params.get_doubles("identity"));
+      } else {
+        identities = params.get_double_rows("identity");
+        if (identities.size() != axes)
+          throw ConfigError(params.location_of("identity"),
+                            fmt::format("'identity' has {} rows, robot '{}' has {} axes",
+                                        identities.size(), model.name, axes));
+      }
+    }
+    const std::vector<std::vector<double>> sdo =
+        params.has("sdo") ? params.get_double_rows("sdo") : std::vector<std::vector<double>>{};
+    const auto integer = [](double v, double lo, double hi) {
+      return v == std::floor(v) && v >= lo && v <= hi;
+    };
+    for (const auto& row : sdo)
+      if (row.size() != 4 || !integer(row[0], 0, 127) || !integer(row[1], 0, 0xFFFF) ||
+          !integer(row[2], 0, 0xFF) || !integer(row[3], -2147483648.0, 4294967295.0))
+        throw ConfigError(params.location_of("sdo"),
+                          "each row of 'sdo' is [node (0: every drive), index, sub, value], "
+                          "integers: node 0..127, index 0..0xFFFF, sub 0..255, value of 32 bits");
+    const std::filesystem::path base =
+        std::filesystem::path(params.location_of("eds").file).parent_path();
+    std::map<std::string, std::shared_ptr<const can::eds::Dictionary>> loaded;
+    std::vector<can::DrivePlan> plans;
+    for (std::size_t i = 0; i < axes; ++i) {
+      can::DriveRequest request;
+      request.node = static_cast<std::uint8_t>(nodes[i]);
+      request.axis = model.joint_names[i];
+      request.outputs = outputs;
+      request.where = params.has("eds") ? params.location_of("eds") : params.location();
+      if (!modes[i].empty()) {
+        if (modes[i] == "csp")
+          request.mode = can::eds::mode::kCyclicSyncPosition;
+        else if (modes[i] == "ip")
+          request.mode = can::eds::mode::kInterpolatedPosition;
+        else
+          throw ConfigError(params.location_of("mode"),
+                            fmt::format("'mode' = \"{}\": mrroc drives in \"csp\" (cyclic "
+                                        "synchronous position) or \"ip\" (interpolated position)",
+                                        modes[i]));
+      }
+      if (const auto& id = identities[i]; !id.empty()) {
+        if ((id.size() != 2 && id.size() != 3) || !std::all_of(id.begin(), id.end(), [&](double v) {
+              return integer(v, 0, 4294967295.0);
+            }))
+          throw ConfigError(params.location_of("identity"),
+                            "'identity' is [vendor, product] or [vendor, product, revision], "
+                            "unsigned 32-bit integers (0x1018 sub 1, 2, 3)");
+        can::DriveIdentity identity;
+        identity.vendor = static_cast<std::uint32_t>(id[0]);
+        identity.product = static_cast<std::uint32_t>(id[1]);
+        if (id.size() == 3) identity.revision = static_cast<std::uint32_t>(id[2]);
+        request.identity = identity;
+      }
+      for (const auto& row : sdo)
+        if (row[0] == 0 || static_cast<std::int64_t>(row[0]) == nodes[i])
+          request.writes.push_back({static_cast<std::uint16_t>(row[1]),
+                                    static_cast<std::uint8_t>(row[2]),
+                                    static_cast<std::uint64_t>(static_cast<std::int64_t>(row[3])),
+                                    0, params.location_of("sdo")});
+      std::shared_ptr<const can::eds::Dictionary> file;
+      if (files[i].empty()) {
+        file = can::default_drive_eds();
+      } else {
+        std::filesystem::path path(files[i]);
+        if (path.is_relative()) path = base / path;
+        auto& slot = loaded[path.lexically_normal().string()];
+        if (!slot && !errors.run(params.location_of("eds"), [&] {
+              slot = std::make_shared<can::eds::Dictionary>(
+                  can::eds::Dictionary::load(path.lexically_normal()));
+            }))
+          continue;
+        file = slot;
+        if (!file) continue;
+      }
+      errors.run(request.where, [&] { plans.push_back(can::plan_drive(file, request)); });
+    }
+    errors.throw_if_any();
+    return plans;
+  }
 
   /// Reads and checks every parameter, the coupling and the bus load; opens nothing.
   /// @throws ConfigError naming the key, the value, its unit and the limit.
@@ -275,6 +400,7 @@ class CanHardware final : public Hardware {
     s.heartbeat = params.get_int("heartbeat_ms", 100);
     s.heartbeat_timeout = params.get_int("heartbeat_timeout_ms", emulated ? 150 : 50);
     s.digital_lines = params.get_bool("digital_lines", true);
+    s.plans = plan_drives(params, model, s.nodes, s.digital_lines);
     params.reject_unread("robot.edp.params");
     try {
       can::check_bus_url(s.url);
@@ -359,7 +485,6 @@ class CanHardware final : public Hardware {
   double period_s_ = kDefaultServoPeriodS;
   bool active_ = false;
   bool first_read_ = true;
-  bool digital_lines_ = true;
   std::atomic<bool> quick_stop_{false};
   std::string load_text_;
 };

@@ -157,10 +157,14 @@ can_frame encode(std::uint8_t node, const Rpdo2& pdo) {
   return f;
 }
 can_frame encode(std::uint8_t node, const Tpdo1& pdo) {
-  can_frame f = frame(tpdo1_id(node), 8);
+  can_frame f = frame(tpdo1_id(node), 6);
   put16(f.data, pdo.statusword);
   put32(f.data + 2, static_cast<std::uint32_t>(pdo.position_actual));
-  put16(f.data + 6, pdo.inputs);
+  return f;
+}
+can_frame encode(std::uint8_t node, const Tpdo2& pdo) {
+  can_frame f = frame(tpdo2_id(node), 4);
+  put32(f.data, pdo.inputs);
   return f;
 }
 std::optional<Rpdo1> decode_rpdo1(const can_frame& f) {
@@ -172,8 +176,12 @@ std::optional<Rpdo2> decode_rpdo2(const can_frame& f) {
   return Rpdo2{get32(f.data)};
 }
 std::optional<Tpdo1> decode_tpdo1(const can_frame& f) {
-  if (!plain(f, 8)) return std::nullopt;
-  return Tpdo1{get16(f.data), static_cast<std::int32_t>(get32(f.data + 2)), get16(f.data + 6)};
+  if (!plain(f, 6)) return std::nullopt;
+  return Tpdo1{get16(f.data), static_cast<std::int32_t>(get32(f.data + 2))};
+}
+std::optional<Tpdo2> decode_tpdo2(const can_frame& f) {
+  if (!plain(f, 4)) return std::nullopt;
+  return Tpdo2{get32(f.data)};
 }
 
 can_frame encode_emcy(std::uint8_t node, const Emergency& e) {
@@ -222,10 +230,18 @@ std::string_view describe_sdo_abort(std::uint32_t code) {
     case sdo_abort::kTimeout: return "SDO protocol timed out";
     case sdo_abort::kCommandSpecifier: return "command specifier not valid or unknown";
     case sdo_abort::kReadOnly: return "attempt to write a read only object";
+    case sdo_abort::kUnsupportedAccess: return "unsupported access to an object";
+    case sdo_abort::kWriteOnly: return "attempt to read a write only object";
     case sdo_abort::kNoObject: return "object does not exist in the object dictionary";
+    case sdo_abort::kNotMappable: return "object cannot be mapped to the PDO";
+    case sdo_abort::kPdoTooLong:
+      return "the number and length of the objects to be mapped would "
+             "exceed the PDO length";
     case sdo_abort::kLengthMismatch: return "data type does not match, length does not match";
     case sdo_abort::kNoSubindex: return "sub-index does not exist";
     case sdo_abort::kValueRange: return "value range of parameter exceeded";
+    case sdo_abort::kValueTooHigh: return "value of parameter written too high";
+    case sdo_abort::kValueTooLow: return "value of parameter written too low";
     case sdo_abort::kDeviceState: return "data cannot be transferred because of the device state";
     default: return "unknown abort code";
   }
@@ -320,14 +336,15 @@ BusLoad cyclic_bus_load(std::size_t axes, double period_s, double bitrate_bps,
   const FrameBits sync = frame_bits(0);
   const FrameBits rpdo = frame_bits(6);
   const FrameBits outputs = frame_bits(4);
-  const FrameBits tpdo = frame_bits(8);
+  const FrameBits tpdo = frame_bits(6);
   const FrameBits heartbeat = frame_bits(1);
   load.frames_per_cycle = 1 + 2 * n;
   const double heartbeats_per_cycle =
       heartbeat_period_s > 0.0 ? static_cast<double>(n) * period_s / heartbeat_period_s : 0.0;
   // Each drive's outputs are refreshed every kOutputRefreshCycles cycles (an RPDO2).
   const double refreshes_per_cycle =
-      output_refresh ? static_cast<double>(n) / static_cast<double>(kOutputRefreshCycles) : 0.0;
+      (output_refresh ? static_cast<double>(n) / static_cast<double>(kOutputRefreshCycles) : 0.0) +
+      static_cast<double>(n) * period_s / (kInputEventTimerMs * 1e-3);
   load.bits_per_cycle_nominal = sync.nominal + n * (rpdo.nominal + tpdo.nominal) +
                                 heartbeats_per_cycle * heartbeat.nominal +
                                 refreshes_per_cycle * outputs.nominal;

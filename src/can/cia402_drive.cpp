@@ -13,8 +13,105 @@ using canopen::DriveState;
 using canopen::NmtState;
 namespace od = canopen::od;
 
+namespace {
+constexpr std::uint32_t key(std::uint16_t index, std::uint8_t sub) {
+  return (static_cast<std::uint32_t>(index) << 8U) | sub;
+}
+bool is_rpdo_communication(std::uint16_t i) { return i >= 0x1400 && i < 0x1600; }
+bool is_rpdo_mapping(std::uint16_t i) { return i >= 0x1600 && i < 0x1800; }
+bool is_tpdo_communication(std::uint16_t i) { return i >= 0x1800 && i < 0x1A00; }
+bool is_tpdo_mapping(std::uint16_t i) { return i >= 0x1A00 && i < 0x1C00; }
+std::uint64_t width_mask(int bits) {
+  return bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << static_cast<unsigned>(bits)) - 1U;
+}
+}  // namespace
+
 Cia402Drive::Cia402Drive(const DriveConfig& config, Output output)
-    : config_(config), output_(std::move(output)) {}
+    : config_(config),
+      output_(std::move(output)),
+      eds_(config.eds ? config.eds : default_drive_eds()),
+      supported_modes_(eds_->supported_modes()) {
+  reset_store(false);
+}
+
+std::uint64_t Cia402Drive::stored(std::uint16_t index, std::uint8_t sub) const {
+  const auto it = store_.find(key(index, sub));
+  return it == store_.end() ? 0U : it->second;
+}
+
+void Cia402Drive::reset_store(bool communication_only) {
+  for (const auto& [index, object] : eds_->objects()) {
+    if (communication_only && (index < 0x1000 || index >= 0x2000)) continue;
+    for (const auto& [sub, entry] : object.entries)
+      if (const auto v = eds_->value(index, sub, config_.node))
+        store_[key(index, sub)] = *v & width_mask(eds::bit_size(entry.data_type));
+  }
+  refresh_pdos();
+}
+
+void Cia402Drive::refresh_pdos() {
+  rpdos_.clear();
+  tpdos_.clear();
+  for (const auto& [index, object] : eds_->objects()) {
+    const bool receive = is_rpdo_communication(index);
+    if (!receive && !is_tpdo_communication(index)) continue;
+    const std::uint32_t cob = static_cast<std::uint32_t>(stored(index, 1));
+    if ((cob & kPdoInvalid) != 0U || eds_->entry(index, 1) == nullptr) continue;
+    ActivePdo p;
+    p.number = index - (receive ? 0x1400 : 0x1800) + 1;
+    p.id = cob & CAN_SFF_MASK;
+    p.transmission = static_cast<std::uint8_t>(stored(index, 2));
+    p.inhibit_s = static_cast<double>(stored(index, 3)) * 100e-6;
+    p.event_timer_s = static_cast<double>(stored(index, 5)) * 1e-3;
+    const auto map = static_cast<std::uint16_t>(index + 0x200);
+    const auto count = stored(map, 0);
+    for (std::uint64_t k = 1; k <= count && k < 0x41; ++k)
+      p.entries.push_back(PdoEntry::from_raw(
+          static_cast<std::uint32_t>(stored(map, static_cast<std::uint8_t>(k)))));
+    (receive ? rpdos_ : tpdos_).push_back(std::move(p));
+  }
+}
+
+bool Cia402Drive::mappable(const PdoEntry& m, bool receive) const {
+  const eds::Entry* e = eds_->entry(m.index, m.sub);
+  if (e == nullptr || !e->pdo_mappable || eds::bit_size(e->data_type) != m.bits) return false;
+  return receive ? eds::writable(e->access) : eds::readable(e->access);
+}
+
+std::uint32_t Cia402Drive::check_pdo_write(std::uint16_t index, std::uint8_t sub,
+                                           std::uint64_t raw) const {
+  namespace abort = canopen::sdo_abort;
+  const bool mapping = is_rpdo_mapping(index) || is_tpdo_mapping(index);
+  const bool receive = is_rpdo_mapping(index) || is_rpdo_communication(index);
+  const auto communication = static_cast<std::uint16_t>(mapping ? index - 0x200 : index);
+  const bool on = (stored(communication, 1) & kPdoInvalid) == 0U;
+  if (mapping) {
+    if (sub == 0) {
+      if (on) return abort::kUnsupportedAccess;  // switch the PDO off first
+      int bits = 0;
+      for (std::uint64_t k = 1; k <= raw; ++k) {
+        if (eds_->entry(index, static_cast<std::uint8_t>(k)) == nullptr) return abort::kValueRange;
+        const PdoEntry m = PdoEntry::from_raw(
+            static_cast<std::uint32_t>(stored(index, static_cast<std::uint8_t>(k))));
+        if (!mappable(m, receive)) return abort::kNotMappable;
+        bits += m.bits;
+      }
+      return bits > 64 ? abort::kPdoTooLong : 0U;
+    }
+    if (stored(index, 0) != 0U) return abort::kUnsupportedAccess;  // set the count to 0 first
+    if (raw != 0U && !mappable(PdoEntry::from_raw(static_cast<std::uint32_t>(raw)), receive))
+      return abort::kNotMappable;
+    return 0U;
+  }
+  if (sub == 1) {
+    if ((raw & 0x20000000U) != 0U) return abort::kValueRange;  // 29-bit identifiers: none
+    if (on && (raw & kPdoInvalid) == 0U &&
+        (raw & CAN_SFF_MASK) != (stored(index, 1) & CAN_SFF_MASK))
+      return abort::kValueRange;  // a PDO that is on keeps its identifier
+  }
+  if (sub == 2 && raw > 240 && raw < (receive ? 254U : 252U)) return abort::kValueRange;
+  return 0U;
+}
 
 void Cia402Drive::send(const can_frame& frame) {
   if (!silent_ && output_) output_(frame);
@@ -49,6 +146,9 @@ std::uint16_t Cia402Drive::statusword() const noexcept {
   sw |= canopen::statusword::kRemote;
   if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeCyclicSyncPosition)
     sw |= canopen::statusword::kFollowingTarget;
+  if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeInterpolatedPosition &&
+      (controlword_ & canopen::controlword::kEnableIpMode) != 0U)
+    sw |= canopen::statusword::kIpModeActive;
   if (following_error_) sw |= canopen::statusword::kFollowingError;
   if (std::abs(to_ - sample_.position) * config_.counts_per_unit < 10.0)
     sw |= canopen::statusword::kTargetReached;
@@ -62,9 +162,12 @@ void Cia402Drive::power_on(const AxisSample& sample, double now_s) {
   demand_velocity_ = 0.0;
   target_ = 0;
   target_valid_ = false;
-  rpdo_pending_ = false;
-  rpdo2_pending_ = false;
   outputs_ = output_mask_ = 0;
+  uploading_ = false;
+  reset_store(false);
+  mode_ = eds_->entry(od::kModesOfOperation, 0) != nullptr
+              ? static_cast<std::int8_t>(stored(od::kModesOfOperation, 0))
+              : canopen::kModeCyclicSyncPosition;
   controlword_ = 0;
   following_error_ = false;
   following_error_since_s_ = over_current_since_s_ = -1.0;
@@ -141,18 +244,15 @@ void Cia402Drive::on_sync(double now_s) {
   ++syncs_;
   last_sync_s_ = now_s;
   sync_armed_ = cycle_period_us_ != 0;
-  if (rpdo_pending_) {
-    rpdo_pending_ = false;
-    apply_controlword(rpdo_.controlword, now_s);
-    target_ = rpdo_.target_position;
-    target_valid_ = true;
+  for (ActivePdo& p : rpdos_) {
+    if (!p.pending) continue;
+    p.pending = false;
+    apply_rpdo(p, p.frame, now_s);
   }
-  if (rpdo2_pending_) {
-    rpdo2_pending_ = false;
-    outputs_ = rpdo2_outputs_;
-  }
-  if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeCyclicSyncPosition &&
-      target_valid_) {
+  const bool interpolating = mode_ == canopen::kModeCyclicSyncPosition ||
+                             (mode_ == canopen::kModeInterpolatedPosition &&
+                              (controlword_ & canopen::controlword::kEnableIpMode) != 0U);
+  if (state_ == DriveState::operation_enabled && interpolating && target_valid_) {
     // Velocity from target to target (the master's stream is uniform even when the SYNCs
     // arrive with jitter).
     const double previous = to_;
@@ -161,11 +261,49 @@ void Cia402Drive::on_sync(double now_s) {
     segment_start_s_ = now_s;
     demand_velocity_ = (to_ - previous) / config_.interpolation_period_s;
   }
-  canopen::Tpdo1 tpdo;
-  tpdo.statusword = statusword();
-  tpdo.position_actual = counts(sample_.position);
-  tpdo.inputs = canopen::compact_inputs(digital_inputs());
-  send(canopen::encode(config_.node, tpdo));
+  for (ActivePdo& p : tpdos_) {
+    if (p.transmission == transmission::kSyncAcyclic)
+      send_tpdo(p, now_s, true);
+    else if (p.transmission <= 240 && ++p.syncs % p.transmission == 0)
+      send_tpdo(p, now_s, false);
+  }
+}
+
+void Cia402Drive::apply_rpdo(const ActivePdo& p, const can_frame& frame, double now_s) {
+  int bits = 0;
+  for (const PdoEntry& m : p.entries) bits += m.bits;
+  if (frame.len * 8 < bits) return;  // shorter than the mapping: not processed (CiA 301)
+  std::uint64_t data = 0;
+  for (int b = 0; b < frame.len && b < 8; ++b)
+    data |= static_cast<std::uint64_t>(frame.data[b]) << (8U * static_cast<unsigned>(b));
+  int at = 0;
+  for (const PdoEntry& m : p.entries) {
+    const std::uint64_t raw = (data >> static_cast<unsigned>(at)) & width_mask(m.bits);
+    at += m.bits;
+    if (m.index >= 0x0001 && m.index <= 0x0007) continue;  // a dummy entry
+    (void)write_object(m.index, m.sub, raw, now_s);
+  }
+}
+
+void Cia402Drive::send_tpdo(ActivePdo& p, double now_s, bool only_if_changed) {
+  can_frame f{};
+  f.can_id = p.id;
+  std::uint64_t data = 0;
+  int at = 0;
+  for (const PdoEntry& m : p.entries) {
+    data |= (read_object(m.index, m.sub) & width_mask(m.bits)) << static_cast<unsigned>(at);
+    at += m.bits;
+  }
+  f.len = static_cast<std::uint8_t>((at + 7) / 8);
+  for (int b = 0; b < f.len; ++b)
+    f.data[b] = static_cast<std::uint8_t>(data >> (8U * static_cast<unsigned>(b)));
+  if (only_if_changed && p.sent && f.len == p.frame.len &&
+      std::equal(f.data, f.data + f.len, p.frame.data))
+    return;
+  p.frame = f;
+  p.sent = true;
+  p.last_sent_s = now_s;
+  send(f);
 }
 
 void Cia402Drive::communication_error(std::uint16_t code, double now_s) {
@@ -216,16 +354,178 @@ void Cia402Drive::on_nmt(const can_frame& frame, double now_s) {
     case canopen::NmtCommand::reset_node: power_on(sample_, now_s); break;
     case canopen::NmtCommand::reset_communication:
       nmt_ = NmtState::pre_operational;
+      reset_store(true);
       reset_communication_objects();
       send(canopen::heartbeat_frame(config_.node, NmtState::boot_up));
       break;
   }
 }
 
+std::uint64_t Cia402Drive::read_object(std::uint16_t index, std::uint8_t sub) const {
+  const auto u16 = [](std::int64_t v) { return static_cast<std::uint64_t>(v) & 0xFFFFU; };
+  switch (index) {
+    case od::kErrorRegister: return state_ == DriveState::fault ? 1U : 0U;
+    case od::kErrorCode: return last_emcy_;
+    case od::kCommunicationCyclePeriod: return cycle_period_us_;
+    case od::kConsumerHeartbeatTime: return sub == 1 ? consumer_heartbeat_ : stored(index, sub);
+    case od::kHeartbeatTime: return heartbeat_ms_;
+    case od::kErrorBehaviour: return sub == 1 ? error_behaviour_ : stored(index, sub);
+    case od::kAbortConnectionOption: return u16(abort_connection_);
+    case od::kQuickStopOption: return u16(quick_stop_option_);
+    case od::kControlword: return controlword_;
+    case od::kStatusword: return statusword();
+    case od::kModesOfOperation:
+    case od::kModesDisplay: return static_cast<std::uint8_t>(mode_);
+    case od::kPositionActual: return static_cast<std::uint32_t>(counts(sample_.position));
+    case od::kVelocityActual:
+      return static_cast<std::uint32_t>(static_cast<std::int32_t>(std::clamp(
+          std::round(sample_.velocity * config_.counts_per_unit), -2147483648.0, 2147483647.0)));
+    case od::kFollowingErrorWindow: return config_.following_error_window;
+    case od::kFollowingErrorTimeout: return config_.following_error_timeout_ms;
+    case od::kTorqueActual:
+    case od::kCurrentActual: {
+      const double per_mille =
+          std::isfinite(config_.current_limit) && config_.current_limit > 0.0
+              ? std::clamp(1000.0 * sample_.force / config_.current_limit, -32768.0, 32767.0)
+              : 0.0;
+      return u16(static_cast<std::int16_t>(per_mille));
+    }
+    case od::kTargetPosition: return static_cast<std::uint32_t>(target_);
+    case od::kInterpolationData:
+      return sub == 1 ? static_cast<std::uint32_t>(target_) : stored(index, sub);
+    case od::kQuickStopDeceleration:
+      return static_cast<std::uint32_t>(
+          std::lround(config_.quick_stop_deceleration * config_.counts_per_unit));
+    case od::kInterpolationPeriod:
+      if (sub == 1)
+        return static_cast<std::uint32_t>(std::lround(config_.interpolation_period_s * 1000.0));
+      return sub == 2 ? 0xFDU : stored(index, sub);
+    case od::kDigitalInputs: return digital_inputs();
+    case od::kDigitalOutputs:
+      return sub == 1 ? outputs_ : sub == 2 ? output_mask_ : stored(index, sub);
+    default: return stored(index, sub);
+  }
+}
+
+std::uint32_t Cia402Drive::write_object(std::uint16_t index, std::uint8_t sub, std::uint64_t raw,
+                                        double now_s) {
+  namespace abort = canopen::sdo_abort;
+  const auto v = static_cast<std::uint32_t>(raw);
+  const auto i16 = [&] { return static_cast<std::int16_t>(static_cast<std::uint16_t>(v)); };
+  switch (index) {
+    case od::kCommunicationCyclePeriod:
+      cycle_period_us_ = v;
+      sync_armed_ = false;  // re-armed by the next SYNC
+      return 0U;
+    case od::kConsumerHeartbeatTime:
+      if (sub != 1) break;
+      if ((v >> 16U) > canopen::kMaxNode || (v >> 23U) != 0) return abort::kValueRange;
+      consumer_heartbeat_ = v;
+      heartbeat_armed_ = false;  // re-armed by the producer's next heartbeat
+      return 0U;
+    case od::kErrorBehaviour:
+      if (sub != 1) break;
+      if (v > canopen::error_behaviour::kStopped) return abort::kValueRange;
+      error_behaviour_ = static_cast<std::uint8_t>(v);
+      return 0U;
+    case od::kAbortConnectionOption:
+      if (i16() < canopen::abort_connection::kNoAction ||
+          i16() > canopen::abort_connection::kQuickStop)
+        return abort::kValueRange;
+      abort_connection_ = i16();
+      return 0U;
+    case od::kQuickStopOption:
+      if (i16() != canopen::quick_stop_option::kRampThenDisabled &&
+          i16() != canopen::quick_stop_option::kRampThenHold)
+        return abort::kValueRange;
+      quick_stop_option_ = i16();
+      return 0U;
+    case od::kHeartbeatTime:
+      heartbeat_ms_ = static_cast<std::uint16_t>(v);
+      next_heartbeat_s_ = now_s;
+      return 0U;
+    case od::kControlword: apply_controlword(static_cast<std::uint16_t>(v), now_s); return 0U;
+    case od::kModesOfOperation: {
+      const auto mode = static_cast<std::int8_t>(static_cast<std::uint8_t>(v));
+      if (supported_modes_ != 0 ? (supported_modes_ & eds::mode_bit(mode)) == 0U
+                                : mode != canopen::kModeCyclicSyncPosition)
+        return abort::kValueRange;
+      if (state_ == DriveState::operation_enabled && mode != mode_) return abort::kDeviceState;
+      mode_ = mode;
+      return 0U;
+    }
+    case od::kFollowingErrorWindow: config_.following_error_window = v; return 0U;
+    case od::kFollowingErrorTimeout:
+      config_.following_error_timeout_ms = static_cast<std::uint16_t>(v);
+      return 0U;
+    case od::kTargetPosition:
+      target_ = static_cast<std::int32_t>(v);
+      target_valid_ = true;
+      return 0U;
+    case od::kInterpolationData:
+      if (sub != 1) break;
+      target_ = static_cast<std::int32_t>(v);
+      target_valid_ = true;
+      return 0U;
+    case od::kQuickStopDeceleration:
+      if (v == 0) return abort::kValueRange;
+      config_.quick_stop_deceleration = static_cast<double>(v) / config_.counts_per_unit;
+      return 0U;
+    case od::kInterpolationPeriod:
+      // Kept as milliseconds (sub 1) with exponent -3 (sub 2); other exponents are refused.
+      if (sub == 2) return v == 0xFDU ? 0U : abort::kValueRange;
+      if (sub != 1) break;
+      if (v == 0) return abort::kValueRange;
+      if (state_ == DriveState::operation_enabled) return abort::kDeviceState;
+      config_.interpolation_period_s = static_cast<double>(v) / 1000.0;
+      return 0U;
+    case od::kDigitalOutputs:
+      if (sub == 1) outputs_ = v;
+      if (sub == 2) output_mask_ = v;
+      if (sub == 1 || sub == 2) return 0U;
+      break;
+    default: break;
+  }
+  if (is_rpdo_communication(index) || is_rpdo_mapping(index) || is_tpdo_communication(index) ||
+      is_tpdo_mapping(index)) {
+    if (const std::uint32_t code = check_pdo_write(index, sub, raw); code != 0) return code;
+    store_[key(index, sub)] = raw;
+    refresh_pdos();
+    return 0U;
+  }
+  store_[key(index, sub)] = raw;
+  return 0U;
+}
+
+void Cia402Drive::upload_segment(const can_frame& frame) {
+  namespace abort = canopen::sdo_abort;
+  can_frame f{};
+  f.can_id = canopen::sdo_response_id(config_.node);
+  f.len = 8;
+  const bool toggle = (frame.data[0] & 0x10U) != 0U;
+  if (!uploading_ || toggle != upload_toggle_) {
+    uploading_ = false;
+    f.data[0] = 0x80;
+    const std::uint32_t code = uploading_ ? abort::kToggleBit : abort::kCommandSpecifier;
+    for (int b = 0; b < 4; ++b)
+      f.data[4 + b] = static_cast<std::uint8_t>(code >> (8U * static_cast<unsigned>(b)));
+    send(f);
+    return;
+  }
+  const std::size_t n = std::min<std::size_t>(7, upload_.size() - upload_at_);
+  std::copy_n(upload_.begin() + static_cast<std::ptrdiff_t>(upload_at_), n, f.data + 1);
+  upload_at_ += n;
+  const bool last = upload_at_ >= upload_.size();
+  f.data[0] =
+      static_cast<std::uint8_t>((toggle ? 0x10U : 0U) | ((7U - n) << 1U) | (last ? 1U : 0U));
+  upload_toggle_ = !upload_toggle_;
+  if (last) uploading_ = false;
+  send(f);
+}
+
 void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
   namespace abort = canopen::sdo_abort;
   canopen::SdoResponse r;
-  const auto request = canopen::decode_request(frame);
   if (frame.len >= 4) {
     r.index = static_cast<std::uint16_t>(frame.data[1] | (frame.data[2] << 8U));
     r.subindex = frame.data[3];
@@ -235,176 +535,69 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
     r.abort_code = code;
     send(canopen::encode_response(config_.node, r));
   };
+  if (frame.len == 8 && (frame.data[0] & 0xEFU) == 0x60U) return upload_segment(frame);
+  if (frame.len == 8 && frame.data[0] == 0x80U) {  // the client aborts
+    uploading_ = false;
+    return;
+  }
+  uploading_ = false;
+  const auto request = canopen::decode_request(frame);
   if (!request) return fail(abort::kCommandSpecifier);
   const canopen::SdoRequest& q = *request;
-  const auto read = [&](std::uint32_t value, std::uint8_t size) {
-    if (q.write) return fail(abort::kReadOnly);
-    r.value = value;
-    r.size = size;
-    send(canopen::encode_response(config_.node, r));
-  };
-  const auto writable = [&](std::uint8_t size, std::uint32_t current,
-                            const std::function<std::uint32_t(std::uint32_t)>& set) {
-    if (!q.write) {
-      r.value = current;
-      r.size = size;
-      send(canopen::encode_response(config_.node, r));
-      return;
+  const eds::Entry* e = eds_->entry(q.index, q.subindex);
+  if (e == nullptr)
+    return fail(eds_->object(q.index) != nullptr ? abort::kNoSubindex : abort::kNoObject);
+  const int bits = eds::bit_size(e->data_type);
+  const auto bytes = static_cast<std::uint8_t>(bits <= 8 ? 1 : bits / 8);
+  if (!q.write) {
+    if (e->access == eds::Access::wo) return fail(abort::kWriteOnly);
+    if (eds::is_string(e->data_type)) {
+      upload_ = e->value ? e->value->text : std::string();
+      if (upload_.size() <= 4) {
+        can_frame f{};
+        f.can_id = canopen::sdo_response_id(config_.node);
+        f.len = 8;
+        f.data[0] = static_cast<std::uint8_t>(0x43U | ((4U - upload_.size()) << 2U));
+        f.data[1] = frame.data[1];
+        f.data[2] = frame.data[2];
+        f.data[3] = frame.data[3];
+        std::copy(upload_.begin(), upload_.end(), f.data + 4);
+        return send(f);
+      }
+      can_frame f{};  // initiate a segmented upload, size indicated
+      f.can_id = canopen::sdo_response_id(config_.node);
+      f.len = 8;
+      f.data[0] = 0x41;
+      f.data[1] = frame.data[1];
+      f.data[2] = frame.data[2];
+      f.data[3] = frame.data[3];
+      const auto size = static_cast<std::uint32_t>(upload_.size());
+      for (int b = 0; b < 4; ++b)
+        f.data[4 + b] = static_cast<std::uint8_t>(size >> (8U * static_cast<unsigned>(b)));
+      upload_at_ = 0;
+      upload_toggle_ = false;
+      uploading_ = true;
+      return send(f);
     }
-    if (q.size != size) return fail(abort::kLengthMismatch);
-    if (const std::uint32_t code = set(q.value); code != 0) return fail(code);
-    r.write_confirmed = true;
-    send(canopen::encode_response(config_.node, r));
-  };
-  const auto no_sub = [&](std::uint8_t last) { return q.subindex > last; };
-  switch (q.index) {
-    case od::kDeviceType:
-      return no_sub(0) ? fail(abort::kNoSubindex) : read(od::kServoDeviceType, 4);
-    case od::kErrorRegister:
-      return no_sub(0) ? fail(abort::kNoSubindex) : read(state_ == DriveState::fault ? 1U : 0U, 1);
-    case od::kCommunicationCyclePeriod:
-      if (no_sub(0)) return fail(abort::kNoSubindex);
-      return writable(4, cycle_period_us_, [&](std::uint32_t v) {
-        cycle_period_us_ = v;
-        sync_armed_ = false;  // re-armed by the next SYNC
-        return 0U;
-      });
-    case od::kConsumerHeartbeatTime:
-      if (no_sub(1)) return fail(abort::kNoSubindex);
-      if (q.subindex == 0) return read(1, 1);
-      return writable(4, consumer_heartbeat_, [&](std::uint32_t v) {
-        if ((v >> 16U) > canopen::kMaxNode || (v >> 23U) != 0) return abort::kValueRange;
-        consumer_heartbeat_ = v;
-        heartbeat_armed_ = false;  // re-armed by the producer's next heartbeat
-        return 0U;
-      });
-    case od::kErrorBehaviour:
-      if (no_sub(1)) return fail(abort::kNoSubindex);
-      if (q.subindex == 0) return read(1, 1);
-      return writable(1, error_behaviour_, [&](std::uint32_t v) {
-        if (v > canopen::error_behaviour::kStopped) return abort::kValueRange;
-        error_behaviour_ = static_cast<std::uint8_t>(v);
-        return 0U;
-      });
-    case od::kAbortConnectionOption:
-      if (no_sub(0)) return fail(abort::kNoSubindex);
-      return writable(2, static_cast<std::uint16_t>(abort_connection_), [&](std::uint32_t v) {
-        const auto code = static_cast<std::int16_t>(static_cast<std::uint16_t>(v));
-        if (code < canopen::abort_connection::kNoAction ||
-            code > canopen::abort_connection::kQuickStop)
-          return abort::kValueRange;
-        abort_connection_ = code;
-        return 0U;
-      });
-    case od::kQuickStopOption:
-      if (no_sub(0)) return fail(abort::kNoSubindex);
-      return writable(2, static_cast<std::uint16_t>(quick_stop_option_), [&](std::uint32_t v) {
-        const auto code = static_cast<std::int16_t>(static_cast<std::uint16_t>(v));
-        if (code != canopen::quick_stop_option::kRampThenDisabled &&
-            code != canopen::quick_stop_option::kRampThenHold)
-          return abort::kValueRange;
-        quick_stop_option_ = code;
-        return 0U;
-      });
-    case od::kHeartbeatTime:
-      if (no_sub(0)) return fail(abort::kNoSubindex);
-      return writable(2, heartbeat_ms_, [&](std::uint32_t v) {
-        heartbeat_ms_ = static_cast<std::uint16_t>(v);
-        next_heartbeat_s_ = now_s;
-        return 0U;
-      });
-    case od::kRpdo1Mapping:
-    case od::kRpdo2Mapping:
-    case od::kTpdo1Mapping: {
-      const std::span<const std::uint32_t> entries =
-          q.index == od::kRpdo1Mapping   ? std::span<const std::uint32_t>(od::kRpdo1Entries)
-          : q.index == od::kRpdo2Mapping ? std::span<const std::uint32_t>(od::kRpdo2Entries)
-                                         : std::span<const std::uint32_t>(od::kTpdo1Entries);
-      if (q.subindex > entries.size()) return fail(abort::kNoSubindex);
-      if (q.subindex == 0) return read(static_cast<std::uint32_t>(entries.size()), 1);
-      return read(entries[q.subindex - 1U], 4);
-    }
-    case od::kDigitalInputsCompact:
-      return no_sub(0) ? fail(abort::kNoSubindex)
-                       : read(canopen::compact_inputs(digital_inputs()), 2);
-    case od::kDigitalOutputs:
-      if (no_sub(2)) return fail(abort::kNoSubindex);
-      if (q.subindex == 0) return read(2, 1);
-      return writable(4, q.subindex == 1 ? outputs_ : output_mask_, [&](std::uint32_t v) {
-        (q.subindex == 1 ? outputs_ : output_mask_) = v;
-        return 0U;
-      });
-    case od::kEncoderResolution:
-      return read(static_cast<std::uint32_t>(std::lround(config_.counts_per_unit)), 4);
-    case od::kControlword:
-      return writable(2, controlword_, [&](std::uint32_t v) {
-        apply_controlword(static_cast<std::uint16_t>(v), now_s);
-        return 0U;
-      });
-    case od::kStatusword: return read(statusword(), 2);
-    case od::kModesOfOperation:
-      return writable(1, static_cast<std::uint8_t>(mode_), [&](std::uint32_t v) {
-        const auto mode = static_cast<std::int8_t>(v);
-        if (mode != canopen::kModeCyclicSyncPosition) return abort::kValueRange;
-        if (state_ == DriveState::operation_enabled) return abort::kDeviceState;
-        mode_ = mode;
-        return 0U;
-      });
-    case od::kModesDisplay: return read(static_cast<std::uint8_t>(mode_), 1);
-    case od::kPositionActual: return read(static_cast<std::uint32_t>(counts(sample_.position)), 4);
-    case od::kFollowingErrorWindow:
-      return writable(4, config_.following_error_window, [&](std::uint32_t v) {
-        config_.following_error_window = v;
-        return 0U;
-      });
-    case od::kFollowingErrorTimeout:
-      return writable(2, config_.following_error_timeout_ms, [&](std::uint32_t v) {
-        config_.following_error_timeout_ms = static_cast<std::uint16_t>(v);
-        return 0U;
-      });
-    case od::kCurrentActual: {
-      const double per_mille =
-          std::isfinite(config_.current_limit) && config_.current_limit > 0.0
-              ? std::clamp(1000.0 * sample_.force / config_.current_limit, -32768.0, 32767.0)
-              : 0.0;
-      return read(static_cast<std::uint16_t>(static_cast<std::int16_t>(per_mille)), 2);
-    }
-    case od::kTargetPosition:
-      return writable(4, static_cast<std::uint32_t>(target_), [&](std::uint32_t v) {
-        target_ = static_cast<std::int32_t>(v);
-        target_valid_ = true;
-        return 0U;
-      });
-    case od::kQuickStopDeceleration:
-      return writable(4,
-                      static_cast<std::uint32_t>(
-                          std::lround(config_.quick_stop_deceleration * config_.counts_per_unit)),
-                      [&](std::uint32_t v) {
-                        if (v == 0) return abort::kValueRange;
-                        config_.quick_stop_deceleration =
-                            static_cast<double>(v) / config_.counts_per_unit;
-                        return 0U;
-                      });
-    case od::kDigitalInputs:
-      return no_sub(0) ? fail(abort::kNoSubindex) : read(digital_inputs(), 4);
-    case od::kInterpolationPeriod: {
-      if (q.subindex == 0) return read(2, 1);
-      if (q.subindex > 2) return fail(abort::kNoSubindex);
-      // Kept as milliseconds (sub 1) with exponent -3 (sub 2); other exponents are refused.
-      if (q.subindex == 2)
-        return writable(1, 0xFDU,
-                        [&](std::uint32_t v) { return v == 0xFDU ? 0U : abort::kValueRange; });
-      return writable(
-          1, static_cast<std::uint32_t>(std::lround(config_.interpolation_period_s * 1000.0)),
-          [&](std::uint32_t v) {
-            if (v == 0) return abort::kValueRange;
-            if (state_ == DriveState::operation_enabled) return abort::kDeviceState;
-            config_.interpolation_period_s = static_cast<double>(v) / 1000.0;
-            return 0U;
-          });
-    }
-    default: return fail(abort::kNoObject);
+    if (bits <= 0 || bits > 32) return fail(abort::kUnsupportedAccess);
+    r.value = static_cast<std::uint32_t>(read_object(q.index, q.subindex) & width_mask(bits));
+    r.size = bytes;
+    return send(canopen::encode_response(config_.node, r));
   }
+  if (!eds::writable(e->access)) return fail(abort::kReadOnly);
+  if (bits <= 0 || bits > 32) return fail(abort::kUnsupportedAccess);
+  if (q.size != bytes) return fail(abort::kLengthMismatch);
+  const std::uint64_t raw = q.value & width_mask(bits);
+  if (eds::out_of_range(*e, raw)) {
+    const std::int64_t value = eds::as_signed(*e, raw);
+    return fail(e->high_limit && value > *e->high_limit ? abort::kValueTooHigh
+                : e->low_limit && value < *e->low_limit ? abort::kValueTooLow
+                                                        : abort::kValueRange);
+  }
+  if (const std::uint32_t code = write_object(q.index, q.subindex, raw, now_s); code != 0)
+    return fail(code);
+  r.write_confirmed = true;
+  send(canopen::encode_response(config_.node, r));
 }
 
 void Cia402Drive::on_frame(const can_frame& frame, double now_s) {
@@ -414,18 +607,15 @@ void Cia402Drive::on_frame(const can_frame& frame, double now_s) {
   if (id.function == canopen::kSyncId && id.node == 0) return on_sync(now_s);
   if (id.function == 0x700U && id.node != config_.node) return on_heartbeat(frame, now_s);
   if (nmt_ == NmtState::boot_up || nmt_ == NmtState::stopped) return;
-  if (id.node != config_.node) return;
   if (frame.can_id == canopen::sdo_request_id(config_.node)) return on_sdo(frame, now_s);
-  if (frame.can_id == canopen::rpdo1_id(config_.node) && nmt_ == NmtState::operational) {
-    if (const auto pdo = canopen::decode_rpdo1(frame)) {
-      rpdo_ = *pdo;
-      rpdo_pending_ = true;
-    }
-  }
-  if (frame.can_id == canopen::rpdo2_id(config_.node) && nmt_ == NmtState::operational) {
-    if (const auto pdo = canopen::decode_rpdo2(frame)) {
-      rpdo2_outputs_ = pdo->outputs;
-      rpdo2_pending_ = true;
+  if (nmt_ != NmtState::operational) return;
+  for (ActivePdo& p : rpdos_) {
+    if (p.id != frame.can_id) continue;
+    if (p.transmission <= 240) {
+      p.pending = true;
+      p.frame = frame;
+    } else {
+      apply_rpdo(p, frame, now_s);
     }
   }
 }
@@ -440,6 +630,12 @@ void Cia402Drive::update(const AxisSample& sample, double now_s) {
     next_heartbeat_s_ = now_s + heartbeat_ms_ / 1000.0;
   }
   if (nmt_ == NmtState::operational) {
+    for (ActivePdo& p : tpdos_) {
+      if (p.transmission < transmission::kEventManufacturer) continue;
+      if (p.sent && now_s - p.last_sent_s < p.inhibit_s) continue;
+      const bool timer = p.event_timer_s > 0.0 && now_s - p.last_sent_s >= p.event_timer_s;
+      send_tpdo(p, now_s, !timer);
+    }
     const double heartbeat_s = static_cast<double>(consumer_heartbeat_ & 0xFFFFU) / 1000.0;
     if (heartbeat_armed_ && heartbeat_s > 0.0 && now_s - last_heartbeat_s_ > heartbeat_s) {
       heartbeat_armed_ = false;

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <thread>
 
 #include "mrroc/core/error.hpp"
@@ -66,6 +67,24 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
                         std::to_string(options_.heartbeat_consumer_ms) +
                         " ms must exceed the master's heartbeat period " +
                         std::to_string(options_.master_heartbeat_ms) + " ms");
+  enable_command_.assign(axes_.size(), canopen::controlword::kEnableOperation);
+  reports_.assign(axes_.size(), std::string());
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    MasterAxis& a = axes_[i];
+    if (!a.plan.eds) {
+      DriveRequest request;
+      request.node = a.node;
+      request.axis = a.name;
+      request.outputs = options_.digital_lines;
+      a.plan = plan_drive(default_drive_eds(), request);
+    }
+    if (a.plan.node != a.node)
+      throw HardwareError(bus_.url() + ": axis '" + a.name + "': its drive plan is for node " +
+                          std::to_string(a.plan.node) + ", the axis has node " +
+                          std::to_string(a.node));
+    if (a.plan.mode == canopen::kModeInterpolatedPosition)
+      enable_command_[i] |= canopen::controlword::kEnableIpMode;
+  }
   const double ms = options_.period_s * 1000.0;
   if (!(ms >= 1.0) || std::abs(ms - std::round(ms)) > 1e-9 || ms > 255.0)
     throw HardwareError(bus_.url() + ": cycle " + std::to_string(options_.period_s) +
@@ -102,16 +121,27 @@ void Cia402Master::handle(const Received& r) noexcept {
   for (std::size_t i = 0; i < axes_.size(); ++i) {
     if (axes_[i].node != id.node) continue;
     DriveStatus& s = status_[i];
-    if (r.frame.can_id == canopen::tpdo1_id(id.node)) {
+    if (r.frame.can_id == canopen::heartbeat_id(id.node) && r.frame.len == 1 &&
+        r.frame.data[0] == static_cast<std::uint8_t>(canopen::NmtState::boot_up)) {
+      // A drive that boots while it is driven has lost its configuration (a power cut, a reset
+      // of its own): the axis is lost until a bring-up configures it again.
+      if (enabled_) set_fault(i, "rebooted (boot-up message): its configuration is lost");
+      return;
+    }
+    if (r.frame.can_id == axes_[i].plan.inputs.cob_id) {
+      if (const auto pdo = canopen::decode_tpdo2(r.frame)) {
+        s.home_switch = (pdo->inputs & canopen::kHomeSwitchBit) != 0U;
+        s.input_lines = static_cast<std::uint8_t>((pdo->inputs & canopen::kUserLineMask) >>
+                                                  canopen::kUserLineShift);
+      }
+      return;
+    }
+    if (r.frame.can_id == axes_[i].plan.status.cob_id) {
       const auto pdo = canopen::decode_tpdo1(r.frame);
       if (!pdo) return;
       s.position = static_cast<double>(pdo->position_actual) / axes_[i].counts_per_unit;
       s.statusword = pdo->statusword;
       s.state = canopen::decode_state(pdo->statusword);
-      const std::uint32_t inputs = canopen::expand_inputs(pdo->inputs);
-      s.home_switch = (inputs & canopen::kHomeSwitchBit) != 0U;
-      s.input_lines =
-          static_cast<std::uint8_t>((inputs & canopen::kUserLineMask) >> canopen::kUserLineShift);
       s.last_tpdo_cycle = cycle_;
       if (enabled_ && !faulted_) {
         char text[160];
@@ -175,7 +205,9 @@ void Cia402Master::heartbeat_if_due() noexcept {
 
 void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets) {
   for (std::size_t i = 0; i < axes_.size(); ++i) {
-    canopen::Rpdo1 pdo{controlword, targets[i]};
+    canopen::Rpdo1 pdo{
+        controlword == canopen::controlword::kEnableOperation ? enable_command_[i] : controlword,
+        targets[i]};
     targets_[i] = targets[i];
     const SendResult result = bus_.send(canopen::encode(axes_[i].node, pdo));
     if (result == SendResult::bus_off && !faulted_) {
@@ -183,7 +215,8 @@ void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::in
       std::snprintf(fault_, sizeof fault_, "CAN bus %s: bus-off (send failed)", bus_.url().c_str());
     }
   }
-  for (std::size_t i = 0; i < axes_.size() && options_.digital_lines; ++i) {
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    if (!has_outputs(i)) continue;
     const bool refresh =
         cycle_ % canopen::kOutputRefreshCycles == i % canopen::kOutputRefreshCycles;
     if (!refresh && sent_outputs_[i] == outputs_[i]) continue;
@@ -271,102 +304,277 @@ void Cia402Master::sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_
   (void)sdo_transfer(node, q);
 }
 
+bool Cia402Master::sdo_frame(std::uint8_t node, can_frame& out) {
+  const auto deadline = std::chrono::steady_clock::now() + options_.sdo_timeout;
+  Received r;
+  for (;;) {
+    heartbeat_if_due();
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= deadline) return false;
+    if (!bus_.receive(r, std::min(deadline, next_heartbeat_) - now)) continue;
+    if (r.frame.can_id != canopen::sdo_response_id(node)) {
+      handle(r);
+      continue;
+    }
+    out = r.frame;
+    return true;
+  }
+}
+
+std::string Cia402Master::sdo_read_bytes(std::uint8_t node, std::uint16_t index,
+                                         std::uint8_t subindex) {
+  const std::string what = "an SDO read of " + hex(index, 4) + ":" + std::to_string(subindex);
+  const auto fail = [&](const std::string& why) {
+    return HardwareError(bus_.url() + " node " + std::to_string(node) + ": " + what + " " + why);
+  };
+  can_frame q{};
+  q.can_id = canopen::sdo_request_id(node);
+  q.len = 8;
+  q.data[0] = 0x40;
+  q.data[1] = static_cast<std::uint8_t>(index);
+  q.data[2] = static_cast<std::uint8_t>(index >> 8U);
+  q.data[3] = subindex;
+  (void)bus_.send(q);
+  can_frame f{};
+  for (;;) {
+    if (!sdo_frame(node, f)) throw fail("got no answer");
+    if (f.len == 8 && f.data[1] == q.data[1] && f.data[2] == q.data[2] && f.data[3] == subindex)
+      break;
+  }
+  const auto u32 = [](const std::uint8_t* d) {
+    return static_cast<std::uint32_t>(d[0]) | (static_cast<std::uint32_t>(d[1]) << 8U) |
+           (static_cast<std::uint32_t>(d[2]) << 16U) | (static_cast<std::uint32_t>(d[3]) << 24U);
+  };
+  if (f.data[0] == 0x80U) {
+    const std::uint32_t code = u32(f.data + 4);
+    throw fail("aborted: " + hex(code, 8) + " " + std::string(canopen::describe_sdo_abort(code)));
+  }
+  if ((f.data[0] & 0xE2U) == 0x42U) {  // expedited
+    const std::size_t n = (f.data[0] & 0x01U) != 0U ? 4U - ((f.data[0] >> 2U) & 0x3U) : 4U;
+    return std::string(reinterpret_cast<const char*>(f.data + 4), n);
+  }
+  if ((f.data[0] & 0xE2U) != 0x40U) throw fail("got command specifier " + hex(f.data[0], 2));
+  const std::size_t size = (f.data[0] & 0x01U) != 0U ? u32(f.data + 4) : 0U;
+  std::string out;
+  bool toggle = false;
+  for (;;) {
+    can_frame seg{};
+    seg.can_id = canopen::sdo_request_id(node);
+    seg.len = 8;
+    seg.data[0] = static_cast<std::uint8_t>(0x60U | (toggle ? 0x10U : 0U));
+    (void)bus_.send(seg);
+    if (!sdo_frame(node, f))
+      throw fail("got no answer to upload segment " + std::to_string(out.size() / 7));
+    if (f.data[0] == 0x80U) {
+      const std::uint32_t code = u32(f.data + 4);
+      throw fail("aborted: " + hex(code, 8) + " " + std::string(canopen::describe_sdo_abort(code)));
+    }
+    if ((f.data[0] & 0xE0U) != 0x00U || ((f.data[0] & 0x10U) != 0U) != toggle)
+      throw fail("got a segment out of order (" + hex(f.data[0], 2) + ")");
+    const std::size_t n = 7U - ((f.data[0] >> 1U) & 0x7U);
+    out.append(reinterpret_cast<const char*>(f.data + 1), n);
+    if ((f.data[0] & 0x01U) != 0U) break;
+    if (out.size() > 4096) throw fail("is longer than 4096 bytes");
+    toggle = !toggle;
+  }
+  if (size != 0 && out.size() != size)
+    throw fail("announced " + std::to_string(size) + " bytes and sent " +
+               std::to_string(out.size()));
+  return out;
+}
+
+void Cia402Master::wait_boot_up(std::size_t i) {
+  const std::uint8_t n = axes_[i].node;
+  (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::reset_communication, n));
+  const auto deadline = std::chrono::steady_clock::now() + options_.boot_up_timeout;
+  Received r;
+  for (;;) {
+    heartbeat_if_due();
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= deadline)
+      throw HardwareError(who(i) + ": no boot-up message (" + hex(canopen::heartbeat_id(n), 3) +
+                          " with 0x00) within " + std::to_string(options_.boot_up_timeout.count()) +
+                          " ms of NMT reset communication; is the drive powered, on this bus, "
+                          "at this node id and bit rate?");
+    if (!bus_.receive(r, std::min(deadline, next_heartbeat_) - now)) continue;
+    if (!r.is_error() && r.frame.can_id == canopen::heartbeat_id(n) && r.frame.len == 1 &&
+        r.frame.data[0] == static_cast<std::uint8_t>(canopen::NmtState::boot_up))
+      return;
+    handle(r);
+  }
+}
+
+void Cia402Master::write_checked(std::size_t i, std::uint16_t index, std::uint8_t sub,
+                                 std::uint32_t value, std::uint8_t size) {
+  const std::uint8_t n = axes_[i].node;
+  sdo_write(n, index, sub, value, size);
+  if (const std::uint32_t back = sdo_read(n, index, sub); back != value)
+    throw HardwareError(who(i) + ": " + object_name(axes_[i].plan.eds.get(), index, sub) +
+                        " reads back " + hex(back, 8) + " after writing " + hex(value, 8) +
+                        " (see docs/hil.md)");
+}
+
+void Cia402Master::configure_pdo(std::size_t i, const PdoPlan& p) {
+  const std::uint8_t n = axes_[i].node;
+  const std::uint16_t comm = p.communication_index();
+  const std::uint16_t map = p.mapping_index();
+  // Read what the drive has; write only what differs (a DCF's drive is already right).
+  const std::uint32_t cob = sdo_read(n, comm, 1);
+  if (p.entries.empty()) {  // a PDO mrroc does not use: off
+    if ((cob & kPdoInvalid) == 0U) {
+      write_checked(i, comm, 1, cob | kPdoInvalid, 4);
+      switched_off_.push_back(p.name());
+    }
+    return;
+  }
+  bool same = (cob & (kPdoInvalid | CAN_SFF_MASK)) == p.cob_id &&
+              sdo_read(n, comm, 2) == p.transmission && sdo_read(n, map, 0) == p.entries.size() &&
+              (p.event_timer_ms == 0 || sdo_read(n, comm, 5) == p.event_timer_ms);
+  for (std::size_t k = 0; same && k < p.entries.size(); ++k)
+    same = sdo_read(n, map, static_cast<std::uint8_t>(k + 1)) == p.entries[k].raw();
+  if (same) return;
+  written_.push_back(p.name());
+  // CiA 301's order: the PDO off, its mapping emptied, the entries, their count, the
+  // transmission type, the PDO on.
+  write_checked(i, comm, 1, (cob & ~CAN_SFF_MASK) | kPdoInvalid | (p.cob_id & CAN_SFF_MASK), 4);
+  write_checked(i, map, 0, 0, 1);
+  for (std::size_t k = 0; k < p.entries.size(); ++k)
+    write_checked(i, map, static_cast<std::uint8_t>(k + 1), p.entries[k].raw(), 4);
+  write_checked(i, map, 0, static_cast<std::uint32_t>(p.entries.size()), 1);
+  write_checked(i, comm, 2, p.transmission, 1);
+  if (p.event_timer_ms != 0) write_checked(i, comm, 5, p.event_timer_ms, 2);
+  write_checked(i, comm, 1, p.cob_id, 4);
+}
+
+void Cia402Master::configure_drive(std::size_t i) {
+  const MasterAxis& a = axes_[i];
+  const DrivePlan& plan = a.plan;
+  const std::uint8_t n = a.node;
+  written_.clear();
+  switched_off_.clear();
+  wait_boot_up(i);
+  std::uint32_t type = 0;
+  try {
+    type = sdo_read(n, od::kDeviceType, 0);
+  } catch (const HardwareError& e) {
+    throw HardwareError("axis '" + a.name + "': " + e.what());
+  }
+  if ((type & 0xFFFFU) != 0x0192U)
+    throw HardwareError(who(i) + ": device type " + hex(type, 8) +
+                        " is not a CiA 402 drive (expected 0x....0192)");
+  if (plan.identity) {
+    const std::uint32_t vendor = sdo_read(n, od::kIdentity, 1);
+    const std::uint32_t product = sdo_read(n, od::kIdentity, 2);
+    const std::uint32_t revision = plan.identity->revision ? sdo_read(n, od::kIdentity, 3) : 0U;
+    if (vendor != plan.identity->vendor || product != plan.identity->product ||
+        (plan.identity->revision && revision != *plan.identity->revision)) {
+      const auto text = [&](std::uint32_t v, std::uint32_t p, std::optional<std::uint32_t> r) {
+        return "vendor " + hex(v, 8) + ", product " + hex(p, 8) +
+               (r ? ", revision " + hex(*r, 8) : std::string());
+      };
+      throw HardwareError(
+          who(i) + ": the drive is " +
+          text(vendor, product,
+               plan.identity->revision ? std::optional<std::uint32_t>(revision) : std::nullopt) +
+          " (0x1018), the config expects " +
+          text(plan.identity->vendor, plan.identity->product, plan.identity->revision) +
+          " (its EDS: " + plan.eds->file() + ")");
+    }
+  }
+  const std::uint16_t sw = static_cast<std::uint16_t>(sdo_read(n, od::kStatusword, 0));
+  if (canopen::decode_state(sw) == DriveState::fault) {
+    sdo_write(n, od::kControlword, 0, canopen::controlword::kDisableVoltage, 2);
+    sdo_write(n, od::kControlword, 0, canopen::controlword::kFaultReset, 2);
+  }
+  sdo_write(n, od::kControlword, 0, canopen::controlword::kDisableVoltage, 2);
+  // PDOs: the drive's own first switched off (a default TPDO on the COB-ID mrroc maps must not
+  // answer the SYNC while the mapping changes), then mrroc's.
+  for (const PdoPlan& off : plan.switched_off) configure_pdo(i, off);
+  configure_pdo(i, plan.target);
+  if (plan.outputs && options_.digital_lines) configure_pdo(i, *plan.outputs);
+  configure_pdo(i, plan.status);
+  configure_pdo(i, plan.inputs);
+  write_checked(i, od::kModesOfOperation, 0, static_cast<std::uint8_t>(plan.mode), 1);
+  if (plan.has(od::kInterpolationPeriod, 1)) {
+    sdo_write(n, od::kInterpolationPeriod, 1,
+              static_cast<std::uint32_t>(std::lround(options_.period_s * 1000.0)), 1);
+    if (plan.has(od::kInterpolationPeriod, 2))
+      sdo_write(n, od::kInterpolationPeriod, 2, 0xFDU, 1);  // 10^-3 s
+  }
+  if (plan.has(od::kFollowingErrorWindow))
+    sdo_write(n, od::kFollowingErrorWindow, 0,
+              static_cast<std::uint32_t>(std::lround(a.following_error_window * a.counts_per_unit)),
+              4);
+  if (plan.has(od::kFollowingErrorTimeout))
+    sdo_write(n, od::kFollowingErrorTimeout, 0, a.following_error_timeout_ms, 2);
+  if (plan.has(od::kQuickStopDeceleration))
+    sdo_write(n, od::kQuickStopDeceleration, 0,
+              static_cast<std::uint32_t>(
+                  std::max(1L, std::lround(a.quick_stop_deceleration * a.counts_per_unit))),
+              4);
+  sdo_write(n, od::kHeartbeatTime, 0, options_.heartbeat_ms, 2);
+  // Supervision of the master: heartbeat consumer, SYNC period, reaction (see the header).
+  const auto period_us = static_cast<std::uint32_t>(std::lround(options_.period_s * 1e6));
+  const std::uint32_t consumer =
+      (static_cast<std::uint32_t>(options_.master_node) << 16U) | options_.heartbeat_consumer_ms;
+  const auto qs = [](std::int16_t v) {
+    return static_cast<std::uint32_t>(static_cast<std::uint16_t>(v));
+  };
+  const struct {
+    std::uint16_t index;
+    std::uint8_t sub;
+    std::uint32_t value;
+    std::uint8_t size;
+  } supervision[] = {
+      {od::kCommunicationCyclePeriod, 0, period_us, 4},
+      {od::kConsumerHeartbeatTime, 1, consumer, 4},
+      {od::kErrorBehaviour, 1, canopen::error_behaviour::kNoChange, 1},
+      {od::kAbortConnectionOption, 0, qs(canopen::abort_connection::kQuickStop), 2},
+      {od::kQuickStopOption, 0, qs(canopen::quick_stop_option::kRampThenHold), 2},
+      // Its digital outputs: the mask that lets them out, then the lines set so far.
+      {od::kDigitalOutputs, 2, canopen::kUserLineMask, 4},
+      {od::kDigitalOutputs, 1, static_cast<std::uint32_t>(outputs_[i]) << canopen::kUserLineShift,
+       4},
+  };
+  for (const auto& o : supervision) {
+    if (o.index == od::kDigitalOutputs && !has_outputs(i)) continue;
+    if (!plan.has(o.index, o.sub)) continue;  // plan_drive required the ones that must be
+    write_checked(i, o.index, o.sub, o.value, o.size);
+  }
+  for (const SdoWrite& w : plan.writes)
+    write_checked(i, w.index, w.sub, static_cast<std::uint32_t>(w.value), w.size);
+  const auto actual = static_cast<std::int32_t>(sdo_read(n, od::kPositionActual, 0));
+  held_[i] = actual;
+  status_[i].position = static_cast<double>(actual) / a.counts_per_unit;
+  const std::uint32_t inputs = sdo_read(n, od::kDigitalInputs, 0);
+  status_[i].home_switch = (inputs & canopen::kHomeSwitchBit) != 0U;
+  status_[i].input_lines =
+      static_cast<std::uint8_t>((inputs & canopen::kUserLineMask) >> canopen::kUserLineShift);
+  status_[i].last_emcy = 0;
+  sent_outputs_[i] = outputs_[i];
+  const auto list = [](const std::vector<std::string>& names) {
+    std::string out;
+    for (const std::string& name : names) out += (out.empty() ? "" : ", ") + name;
+    return out.empty() ? std::string("none") : out;
+  };
+  const std::string file = std::filesystem::path(plan.eds->file()).filename().string();
+  reports_[i] = "node " + std::to_string(n) + " (axis '" + a.name + "'): " +
+                (plan.eds->device().product_name.empty() ? std::string("drive")
+                                                         : plan.eds->device().product_name) +
+                " (" + file + "), " + std::string(eds::mode_name(plan.mode)) +
+                "; PDOs written: " + list(written_) + "; switched off: " + list(switched_off_);
+}
+
 void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
   enabled_ = false;
   faulted_ = false;
   quick_stopping_ = false;
   fault_[0] = '\0';
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
   // Configure every drive over SDO (pre-operational: no PDOs yet).
   (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::enter_pre_operational, 0));
-  for (std::size_t i = 0; i < axes_.size(); ++i) {
-    const MasterAxis& a = axes_[i];
-    const std::uint8_t n = a.node;
-    std::uint32_t type = 0;
-    try {
-      type = sdo_read(n, od::kDeviceType, 0);
-    } catch (const HardwareError& e) {
-      throw HardwareError("axis '" + a.name + "': " + e.what());
-    }
-    if ((type & 0xFFFFU) != 0x0192U)
-      throw HardwareError(who(i) + ": device type " + hex(type, 8) +
-                          " is not a CiA 402 drive (expected 0x....0192)");
-    const auto check_mapping = [&](std::uint16_t index, std::span<const std::uint32_t> entries) {
-      const auto differs = [&](const std::string& what, std::uint32_t read, std::uint32_t expected,
-                               int digits) {
-        return HardwareError(who(i) + ": PDO mapping " + hex(index, 4) + " " + what + " reads " +
-                             hex(read, digits) + ", mrroc's fixed mapping has " +
-                             hex(expected, digits) + " (see docs/hil.md)");
-      };
-      const std::uint32_t count = sdo_read(n, index, 0);
-      if (count != entries.size())
-        throw differs("sub 0 (entries)", count, static_cast<std::uint32_t>(entries.size()), 2);
-      for (std::size_t k = 0; k < entries.size(); ++k)
-        if (const std::uint32_t entry = sdo_read(n, index, static_cast<std::uint8_t>(k + 1));
-            entry != entries[k])
-          throw differs("sub " + std::to_string(k + 1), entry, entries[k], 8);
-    };
-    check_mapping(od::kRpdo1Mapping, od::kRpdo1Entries);
-    if (options_.digital_lines) check_mapping(od::kRpdo2Mapping, od::kRpdo2Entries);
-    check_mapping(od::kTpdo1Mapping, od::kTpdo1Entries);
-    const std::uint16_t sw = static_cast<std::uint16_t>(sdo_read(n, od::kStatusword, 0));
-    if (canopen::decode_state(sw) == DriveState::fault) {
-      sdo_write(n, od::kControlword, 0, canopen::controlword::kDisableVoltage, 2);
-      sdo_write(n, od::kControlword, 0, canopen::controlword::kFaultReset, 2);
-    }
-    sdo_write(n, od::kControlword, 0, canopen::controlword::kDisableVoltage, 2);
-    sdo_write(n, od::kModesOfOperation, 0,
-              static_cast<std::uint8_t>(canopen::kModeCyclicSyncPosition), 1);
-    sdo_write(n, od::kInterpolationPeriod, 1,
-              static_cast<std::uint32_t>(std::lround(options_.period_s * 1000.0)), 1);
-    sdo_write(n, od::kInterpolationPeriod, 2, 0xFDU, 1);  // 10^-3 s
-    sdo_write(n, od::kFollowingErrorWindow, 0,
-              static_cast<std::uint32_t>(std::lround(a.following_error_window * a.counts_per_unit)),
-              4);
-    sdo_write(n, od::kFollowingErrorTimeout, 0, a.following_error_timeout_ms, 2);
-    sdo_write(n, od::kQuickStopDeceleration, 0,
-              static_cast<std::uint32_t>(
-                  std::max(1L, std::lround(a.quick_stop_deceleration * a.counts_per_unit))),
-              4);
-    sdo_write(n, od::kHeartbeatTime, 0, options_.heartbeat_ms, 2);
-    // Supervision of the master: heartbeat consumer, SYNC period, reaction (see the header).
-    const auto period_us = static_cast<std::uint32_t>(std::lround(options_.period_s * 1e6));
-    const std::uint32_t consumer =
-        (static_cast<std::uint32_t>(options_.master_node) << 16U) | options_.heartbeat_consumer_ms;
-    const auto qs = [](std::int16_t v) {
-      return static_cast<std::uint32_t>(static_cast<std::uint16_t>(v));
-    };
-    const struct {
-      std::uint16_t index;
-      std::uint8_t sub;
-      std::uint32_t value;
-      std::uint8_t size;
-    } supervision[] = {
-        {od::kCommunicationCyclePeriod, 0, period_us, 4},
-        {od::kConsumerHeartbeatTime, 1, consumer, 4},
-        {od::kErrorBehaviour, 1, canopen::error_behaviour::kNoChange, 1},
-        {od::kAbortConnectionOption, 0, qs(canopen::abort_connection::kQuickStop), 2},
-        {od::kQuickStopOption, 0, qs(canopen::quick_stop_option::kRampThenHold), 2},
-        // Its digital outputs: the mask that lets them out, then the lines set so far.
-        {od::kDigitalOutputs, 2, canopen::kUserLineMask, 4},
-        {od::kDigitalOutputs, 1, static_cast<std::uint32_t>(outputs_[i]) << canopen::kUserLineShift,
-         4},
-    };
-    for (const auto& o : supervision) {
-      if (o.index == od::kDigitalOutputs && !options_.digital_lines) continue;
-      sdo_write(n, o.index, o.sub, o.value, o.size);
-      if (const std::uint32_t back = sdo_read(n, o.index, o.sub); back != o.value)
-        throw HardwareError(who(i) + ": object " + hex(o.index, 4) + ":" + std::to_string(o.sub) +
-                            " reads back " + hex(back, 8) + " after writing " + hex(o.value, 8) +
-                            " (see docs/hil.md)");
-    }
-    const auto actual = static_cast<std::int32_t>(sdo_read(n, od::kPositionActual, 0));
-    held_[i] = actual;
-    status_[i].position = static_cast<double>(actual) / a.counts_per_unit;
-    status_[i].last_emcy = 0;
-    sent_outputs_[i] = outputs_[i];
-  }
+  for (std::size_t i = 0; i < axes_.size(); ++i) configure_drive(i);
   (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::start, 0));
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
   // Step the drives to operation enabled, holding them where they are.
   const auto period = std::chrono::duration<double>(options_.period_s);
   const std::uint16_t steps[] = {canopen::controlword::kShutdown, canopen::controlword::kSwitchOn,
@@ -407,8 +615,8 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
 }
 
 void Cia402Master::switch_outputs_off() noexcept {
-  if (!options_.digital_lines) return;
   for (std::size_t i = 0; i < axes_.size(); ++i) {
+    if (!has_outputs(i)) continue;
     if (outputs_[i] == 0 && sent_outputs_[i] <= 0) continue;  // never switched on
     try {
       sdo_write(axes_[i].node, od::kDigitalOutputs, 1, 0, 4);

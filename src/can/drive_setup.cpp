@@ -4,6 +4,7 @@
 
 #include <cstdio>
 
+#include "mrroc/can/canopen.hpp"
 #include "mrroc/config/check.hpp"
 
 namespace mrroc::can {
@@ -11,9 +12,7 @@ namespace mrroc::can {
 extern const char* const kDefaultDriveEdsText;  // default_eds.cpp, generated from the file
 extern const char* const kDefaultDriveEdsName;
 
-std::string PdoPlan::name() const {
-  return (receive ? "RPDO" : "TPDO") + std::to_string(number);
-}
+std::string PdoPlan::name() const { return (receive ? "RPDO" : "TPDO") + std::to_string(number); }
 
 namespace {
 
@@ -25,8 +24,10 @@ const char* known_name(std::uint16_t index, std::uint8_t sub) {
     case 0x1016: return "consumer heartbeat time";
     case 0x1017: return "producer heartbeat time";
     case 0x1018:
-      return sub == 1 ? "vendor-ID" : sub == 2 ? "product code" : sub == 3 ? "revision number"
-                                                                           : "identity object";
+      return sub == 1   ? "vendor-ID"
+             : sub == 2 ? "product code"
+             : sub == 3 ? "revision number"
+                        : "identity object";
     case 0x1029: return "error behaviour";
     case 0x6007: return "abort connection option code";
     case 0x6040: return "controlword";
@@ -68,7 +69,8 @@ std::string object_name(const eds::Dictionary* eds, std::uint16_t index, std::ui
   else
     std::snprintf(id, sizeof id, "0x%04X", index);
   std::string name;
-  if (const eds::Entry* e = eds != nullptr ? eds->entry(index, sub) : nullptr; e && !e->name.empty())
+  if (const eds::Entry* e = eds != nullptr ? eds->entry(index, sub) : nullptr;
+      e && !e->name.empty())
     name = e->name;
   else if (const char* k = known_name(index, sub))
     name = k;
@@ -101,16 +103,16 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
                         const std::string& why) -> const eds::Entry* {
     const eds::Entry* e = d.entry(index, sub);
     if (e == nullptr) {
-      problem(request.where, d.file() + " has no object " + name(index, sub) + ", which mrroc " +
-                                 why);
+      problem(request.where,
+              d.file() + " has no object " + name(index, sub) + ", which mrroc " + why);
       return nullptr;
     }
     if (write && !eds::writable(e->access))
       problem(d.where(*e), name(index, sub) + " is '" + std::string(eds::to_string(e->access)) +
                                "' (AccessType), mrroc writes it: " + why);
     if (map && !e->pdo_mappable)
-      problem(d.where(*e), name(index, sub) + " cannot be mapped (PDOMapping=0); mrroc maps it: " +
-                               why);
+      problem(d.where(*e),
+              name(index, sub) + " cannot be mapped (PDOMapping=0); mrroc maps it: " + why);
     return e;
   };
   // An optional object: when present, mrroc writes it, so it must be writable.
@@ -155,8 +157,7 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
   const bool ip = plan.mode == eds::mode::kInterpolatedPosition;
   const PdoEntry target = ip ? PdoEntry{0x60C1, 1, 32} : PdoEntry{0x607A, 0, 32};
 
-  if (const eds::Entry* e = need(0x1000, 0, false, false, "reads to see a CiA 402 drive"))
-    (void)e;
+  if (const eds::Entry* e = need(0x1000, 0, false, false, "reads to see a CiA 402 drive")) (void)e;
   need(0x6040, 0, true, true, "sends the controlword every cycle");
   need(0x6041, 0, false, true, "reads the statusword every cycle");
   need(0x6060, 0, true, false, "sets the mode of operation");
@@ -206,10 +207,13 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
     return p;
   };
   plan.target = pdo(true, 1, 0x200, transmission::kSyncEvery, {{0x6040, 0, 16}, target});
-  if (outputs)
-    plan.outputs = pdo(true, 2, 0x300, transmission::kSyncEvery, {{0x60FE, 1, 32}});
+  if (outputs) plan.outputs = pdo(true, 2, 0x300, transmission::kSyncEvery, {{0x60FE, 1, 32}});
   plan.status = pdo(false, 1, 0x180, transmission::kSyncEvery, {{0x6041, 0, 16}, {0x6064, 0, 32}});
-  plan.inputs = pdo(false, 2, 0x280, transmission::kSyncAcyclic, {{0x60FD, 0, 32}});
+  plan.inputs = pdo(false, 2, 0x280, transmission::kEventProfile, {{0x60FD, 0, 32}});
+  plan.inputs.event_timer_ms = canopen::kInputEventTimerMs;
+  need(plan.inputs.communication_index(), 5, true, false,
+       "sets TPDO2's event timer (the inputs are sent when they change and at least every " +
+           std::to_string(canopen::kInputEventTimerMs) + " ms)");
   for (int k = 1; k <= 512; ++k) {
     for (const bool receive : {true, false}) {
       const auto comm = static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + k - 1);
@@ -233,8 +237,8 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
   for (SdoWrite w : request.writes) {
     const eds::Entry* e = d.entry(w.index, w.sub);
     if (e == nullptr) {
-      errors.add(ConfigError(w.where, who + ": " + d.file() + " has no object " +
-                                          name(w.index, w.sub) + " to write"));
+      errors.add(ConfigError(
+          w.where, who + ": " + d.file() + " has no object " + name(w.index, w.sub) + " to write"));
       continue;
     }
     if (!eds::writable(e->access)) {

@@ -119,8 +119,8 @@ std::optional<std::string> out_of_range(const Entry& e, std::uint64_t raw) {
   const std::int64_t v = as_signed(e, raw);
   if (e.low_limit && !big_unsigned && v < *e.low_limit)
     return std::to_string(v) + " below the low limit " + std::to_string(*e.low_limit);
-  if (e.high_limit && (big_unsigned ? raw > static_cast<std::uint64_t>(*e.high_limit)
-                                    : v > *e.high_limit))
+  if (e.high_limit &&
+      (big_unsigned ? raw > static_cast<std::uint64_t>(*e.high_limit) : v > *e.high_limit))
     return std::to_string(v) + " above the high limit " + std::to_string(*e.high_limit);
   return std::nullopt;
 }
@@ -239,8 +239,9 @@ class Reader {
       } else {
         const auto [v, negative] = integer(term, line, what);
         if (negative) {
-          if (any || negative_sum) fail(line, what + " '" + std::string(text) + "': a negative " +
-                                                  "number must stand alone");
+          if (any || negative_sum)
+            fail(line,
+                 what + " '" + std::string(text) + "': a negative " + "number must stand alone");
           negative_sum = true;
         }
         sum += v;
@@ -287,8 +288,8 @@ class Reader {
     if (a == "rwr") return Access::rwr;
     if (a == "rww") return Access::rww;
     if (a == "const") return Access::constant;
-    fail(k->line, "AccessType '" + std::string(trim(k->value)) +
-                      "' is none of ro, wo, rw, rwr, rww, const");
+    fail(k->line,
+         "AccessType '" + std::string(trim(k->value)) + "' is none of ro, wo, rw, rwr, rww, const");
   }
 
   bool flag(const Section& s, const char* key) const {
@@ -314,8 +315,8 @@ class Reader {
       if (k == nullptr || trim(k->value).empty() || is_string(e.data_type) ||
           e.data_type == type::kReal32 || e.data_type == type::kReal64)
         return std::nullopt;
-      const Value v = value(k->value, e.data_type, k->line, s.get("lowlimit") == k ? "LowLimit"
-                                                                                    : "HighLimit");
+      const Value v =
+          value(k->value, e.data_type, k->line, s.get("lowlimit") == k ? "LowLimit" : "HighLimit");
       return as_signed(e, v.raw);
     };
     e.low_limit = limit("lowlimit");
@@ -431,8 +432,8 @@ Dictionary Dictionary::parse(std::string_view text, std::string file) {
     if (k == nullptr || trim(k->value).empty()) return 0;
     const auto [v, negative] = r.integer(k->value, k->line, k == nullptr ? "" : key);
     if (negative || v > max)
-      r.fail(k->line, std::string(key) + " " + k->value + " is out of range 0.." +
-                          std::to_string(max));
+      r.fail(k->line,
+             std::string(key) + " " + k->value + " is out of range 0.." + std::to_string(max));
     return v;
   };
   if (const Section* info = section("deviceinfo")) {
@@ -534,8 +535,9 @@ Dictionary Dictionary::parse(std::string_view text, std::string file) {
     if (const Key* k = s.get("subnumber"); k != nullptr && s.get("compactsubobj") == nullptr) {
       const std::uint64_t n = number(s, "subnumber", 255);
       if (n != o.entries.size())
-        r.fail(k->line, "SubNumber " + std::to_string(n) + " of [" + s.name + "], but the file has " +
-                            std::to_string(o.entries.size()) + " [" + s.name + "subN] sections");
+        r.fail(k->line, "SubNumber " + std::to_string(n) + " of [" + s.name +
+                            "], but the file has " + std::to_string(o.entries.size()) + " [" +
+                            s.name + "subN] sections");
     }
     if (o.entries.empty())
       r.fail(s.line, "[" + s.name + "] is an ARRAY or RECORD without sub-objects (no SubNumber " +
@@ -556,8 +558,8 @@ Dictionary Dictionary::parse(std::string_view text, std::string file) {
       if (d.objects_.count(static_cast<std::uint16_t>(v)) == 0) {
         char b[8];
         std::snprintf(b, sizeof b, "%04X", static_cast<unsigned>(v));
-        r.fail(entry->line, "[" + s->name + "] lists object 0x" + b + ", which has no [" + b +
-                                "] section");
+        r.fail(entry->line,
+               "[" + s->name + "] lists object 0x" + b + ", which has no [" + b + "] section");
       }
     }
   }

@@ -170,6 +170,7 @@ class Hil : public ::testing::Test {
             "scene = \"" + (source / "scenes/irb6.toml").string() + "\"\n" + emulator_extra);
     replace(text, "model = \"../robots/irb6\"",
             "model = \"" + (fs::path(MRROC_SOURCE_DIR) / "robots/irb6").string() + "\"");
+    replace_all(text, "\"drives/", "\"" + (source / "drives").string() + "/");
     const fs::path file = dir_ / (name + ".toml");
     std::ofstream(file) << text;
     return file;
@@ -184,7 +185,23 @@ TEST_F(Hil, DemoRunsOverTheVirtualBusAgainstTheEmulator) {
   // The EDP computed and showed the bus load of its cyclic traffic.
   EXPECT_TRUE(std::regex_search(
       r.output, std::regex("can: virtual:irb6 for robot 'irb6': 5 drives, cycle 2 ms, 11 frames "
-                           "per cycle, bus load 55 % nominal, 66 % worst case at 1000 kbit/s")))
+                           "per cycle, bus load 54 % nominal, 66 % worst case at 1000 kbit/s")))
+      << r.output;
+  // Three kinds of drive, as their EDS files describe them; the master remapped two kinds and
+  // left the one whose defaults are its mapping as it was.
+  EXPECT_TRUE(has(r.output, "100000 counts per unit, EMU-CSP-1, EMU-PP-3, EMU-IP-2")) << r.output;
+  EXPECT_TRUE(has(r.output,
+                  "can: node 1 (axis 'column'): EMU-CSP-1 (emu-csp.eds), cyclic "
+                  "synchronous position; PDOs written: none; switched off: none"))
+      << r.output;
+  EXPECT_TRUE(has(r.output,
+                  "can: node 2 (axis 'lower_arm'): EMU-PP-3 (emu-pp-split.eds), cyclic "
+                  "synchronous position; PDOs written: RPDO1, RPDO2, TPDO1, TPDO2; "
+                  "switched off: TPDO3"))
+      << r.output;
+  EXPECT_TRUE(has(r.output,
+                  "can: node 3 (axis 'upper_arm'): EMU-IP-2 (emu-ip.eds), cyclic "
+                  "synchronous position; PDOs written: RPDO1, TPDO1, TPDO2"))
       << r.output;
   EXPECT_TRUE(has(r.output, "robot 'irb6': all drives operation enabled")) << r.output;
   EXPECT_TRUE(has(r.output, "pose 3/3 reached: joints [0.0000, -1.5708, 0.0000, 0.0000, 0.0000]"))
@@ -206,6 +223,11 @@ TEST_F(Hil, RntDemoRunsOnEmulatedDrivesWithinItsLimits) {
   bus.stop();
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r.output, "can: virtual:rnt for robot 'rnt': 6 drives, cycle 3 ms")) << r.output;
+  // Drives that default to interpolated position, driven in it (0x60C1 sub 1 remapped in).
+  EXPECT_TRUE(has(r.output,
+                  "can: node 6 (axis 'wrist_roll'): EMU-IP-2 (emu-ip.eds), interpolated "
+                  "position; PDOs written: TPDO1, TPDO2"))
+      << r.output;
   EXPECT_TRUE(has(r.output, "robot 'rnt': all drives operation enabled")) << r.output;
   for (std::size_t i = 1; i <= poses.size(); ++i)
     EXPECT_TRUE(has(r.output,
@@ -319,6 +341,9 @@ TEST_F(Hil, DemoRunsLockStep) {
   const RunResult r = launch(demo("lockstep", "lock_step = true"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r.output, "lock-step")) << r.output;
+  EXPECT_TRUE(has(r.output, "EMU-CSP-1, EMU-PP-3, EMU-IP-2")) << r.output;
+  EXPECT_TRUE(has(r.output, "PDOs written: RPDO1, RPDO2, TPDO1, TPDO2; switched off: TPDO3"))
+      << r.output;
   EXPECT_TRUE(has(r.output, "pose 3/3 reached")) << r.output;
   expect_clean_shutdown(r);
 }

@@ -222,7 +222,12 @@ TEST(LaunchRestart, AnEdpOnCanDrivesIsRestartedOnlyAfterTheOperatorAcknowledges)
   replace("servo_period_ms = 2.0",
           "servo_period_ms = 2.0\nrestart = \"on-failure\"\nmax_restarts = 2\n"
           "restart_backoff_s = 0.2\n\n[robot.edp.params]\nbus = \"virtual:irb6\"\n"
-          "nodes = [1, 2, 3, 4, 5]\ncounts_per_unit = 100000\nsilent_cycles = 25\n");
+          "nodes = [1, 2, 3, 4, 5]\ncounts_per_unit = 100000\nsilent_cycles = 25\neds = [\"" +
+              (kSource / "configs/drives/emu-csp.eds").string() + "\", \"" +
+              (kSource / "configs/drives/emu-pp-split.eds").string() + "\", \"" +
+              (kSource / "configs/drives/emu-ip.eds").string() + "\", \"" +
+              (kSource / "configs/drives/emu-ip.eds").string() + "\", \"" +
+              (kSource / "configs/drives/emu-pp-split.eds").string() + "\"]\n");
   const fs::path config = dir / "can.toml";
   std::ofstream(config) << "[emulator]\nscene = \""
                         << (kSource / "configs/scenes/irb6.toml").string() << "\"\n\n"

@@ -11,12 +11,15 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <thread>
 #include <vector>
 
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_drive.hpp"
 #include "mrroc/can/cia402_master.hpp"
+#include "mrroc/can/drive_setup.hpp"
+#include "mrroc/can/eds.hpp"
 #include "mrroc/core/error.hpp"
 
 namespace mrroc::can {
@@ -56,15 +59,17 @@ TEST(Canopen, DeviceControlTransitionsFollowCia402) {
 }
 
 TEST(Canopen, PdoEmcyAndSdoCodecsRoundTrip) {
-  const co::Tpdo1 t{0x1237, -123456789, co::kHomeSwitchBit};
+  const co::Tpdo1 t{0x1237, -123456789};
   const can_frame tf = co::encode(5, t);
   EXPECT_EQ(tf.can_id, 0x185U);
-  EXPECT_EQ(tf.len, 8);
+  EXPECT_EQ(tf.len, 6);
   const auto t2 = co::decode_tpdo1(tf);
   ASSERT_TRUE(t2);
   EXPECT_EQ(t2->statusword, t.statusword);
   EXPECT_EQ(t2->position_actual, t.position_actual);
-  EXPECT_EQ(t2->inputs, t.inputs);
+  const can_frame inputs = co::encode(5, co::Tpdo2{0x00A50004});
+  EXPECT_EQ(inputs.can_id, 0x285U);
+  EXPECT_EQ(co::decode_tpdo2(inputs)->inputs, 0x00A50004U);
   can_frame short_frame = tf;
   short_frame.len = 5;
   EXPECT_FALSE(co::decode_tpdo1(short_frame));
@@ -103,12 +108,13 @@ TEST(Canopen, BusLoadMatchesTheFrameArithmetic) {
   EXPECT_EQ(co::frame_bits(8).nominal, 111);
   EXPECT_EQ(co::frame_bits(8).worst, 135);
   EXPECT_EQ(co::frame_bits(0).nominal, 47);
-  // Five IRb-6 axes at 2 ms on 1 Mbit/s: SYNC + 5 RPDO1 (6 bytes) + 5 TPDO (8 bytes), and an
-  // RPDO2 (4 bytes) per axis every 50 cycles.
+  // Five IRb-6 axes at 2 ms on 1 Mbit/s: SYNC + 5 RPDO1 (6 bytes) + 5 TPDO1 (6 bytes), and an
+  // RPDO2 (4 bytes) per axis every 50 cycles ...
   const co::BusLoad irb6 = co::cyclic_bus_load(5, 0.002, 1e6, 0.0);
   EXPECT_EQ(irb6.frames_per_cycle, 11);
   EXPECT_EQ(co::frame_bits(4).nominal, 79);
-  EXPECT_NEAR(irb6.load_nominal, (47 + 5 * (95 + 111) + 5.0 / 50.0 * 79) / 2000.0, 1e-12);
+  // ... and a TPDO2 (4 bytes) per axis every 10 ms (the inputs' event timer): 1 per cycle.
+  EXPECT_NEAR(irb6.load_nominal, (47 + 5 * (95 + 95) + (5.0 / 50.0 + 1.0) * 79) / 2000.0, 1e-12);
   EXPECT_LT(irb6.load_worst, co::kRecommendedMaxLoad);
   // Six axes at 1 kHz do not fit one 1 Mbit/s bus; at 2 ms they do (nominally).
   EXPECT_GT(co::cyclic_bus_load(6, 0.001, 1e6, 0.0).load_nominal, 1.0);
@@ -175,10 +181,14 @@ class MemoryHub {
 /// Drives on their own thread, each moving a perfect axis (position = demand) in 1 ms steps.
 class DriveRack {
  public:
-  DriveRack(MemoryHub& hub, int count) : bus_(hub.add()) {
+  /// `files`: each drive's EDS (default: mrroc's emulated drive).
+  DriveRack(MemoryHub& hub, int count,
+            const std::vector<std::shared_ptr<const eds::Dictionary>>& files = {})
+      : bus_(hub.add()) {
     for (int i = 0; i < count; ++i) {
       DriveConfig c;
       c.node = static_cast<std::uint8_t>(i + 1);
+      if (static_cast<std::size_t>(i) < files.size()) c.eds = files[static_cast<std::size_t>(i)];
       drives_.push_back(
           std::make_unique<Cia402Drive>(c, [this](const can_frame& f) { (void)bus_.send(f); }));
       positions_.push_back(0.3 * i);
@@ -305,7 +315,7 @@ TEST(Cia402Master, DigitalLinesTravelBothWaysAndLostOutputsAreRefreshed) {
   EXPECT_EQ(master.status(1).input_lines, 0x80);
   EXPECT_FALSE(master.status(1).home_switch);
   EXPECT_EQ(master.sdo_read(1, co::od::kDigitalInputs, 0), 0x00050000U);
-  EXPECT_EQ(master.sdo_read(2, co::od::kDigitalInputsCompact, 0), 0x8000U);
+  EXPECT_EQ(master.sdo_read(2, co::od::kDigitalInputs, 0), 0x00800000U);
   // Outputs: set on one drive, applied by it (at a SYNC), the other's stay off.
   master.set_outputs(1, 0xA0);
   run_cycles(master, 3, stay);
@@ -488,7 +498,7 @@ TEST(Cia402Master, StaleQuickStopTpdosAfterReleaseAreNoFaultButALaterOneIs) {
   const co::Tpdo1 stale{
       static_cast<std::uint16_t>(co::state_bits(co::DriveState::quick_stop_active) |
                                  co::statusword::kVoltageEnabled),
-      0, 0};
+      0};
   // Release, then a TPDO the drive sent before it saw the re-enable: no fault.
   master.send(std::vector<double>{master.status(0).position}, false);
   (void)late.send(co::encode(1, stale));
@@ -755,7 +765,10 @@ TEST(Cia402Master, NoDriveOnTheBusIsAClearError) {
   } catch (const HardwareError& e) {
     const std::string text = e.what();
     EXPECT_NE(text.find("axis 'axis0'"), std::string::npos) << text;
-    EXPECT_NE(text.find("no answer to an SDO read of 0x1000"), std::string::npos) << text;
+    EXPECT_NE(text.find("node 1 (axis 'axis0'): no boot-up message (0x701 with 0x00) within 1000 "
+                        "ms of NMT reset communication"),
+              std::string::npos)
+        << text;
   }
 }
 
@@ -777,13 +790,196 @@ TEST(Cia402Drive, SdoServerAnswersAndRefuses) {
   master.sdo_write(1, co::od::kFollowingErrorWindow, 0, 777, 4);
   EXPECT_EQ(master.sdo_read(1, co::od::kFollowingErrorWindow, 0), 777U);
   try {
-    master.sdo_read(1, 0x6502, 0);
+    master.sdo_read(1, 0x2345, 0);
     FAIL();
   } catch (const HardwareError& e) {
     EXPECT_NE(std::string(e.what()).find("0x06020000"), std::string::npos) << e.what();
   }
   EXPECT_THROW(master.sdo_write(1, co::od::kStatusword, 0, 1, 2), HardwareError);  // read only
   EXPECT_THROW(master.sdo_write(1, co::od::kModesOfOperation, 0, 1, 1), HardwareError);  // range
+}
+
+std::shared_ptr<const eds::Dictionary> drive_file(const std::string& name) {
+  return std::make_shared<eds::Dictionary>(
+      eds::Dictionary::load(std::string(MRROC_SOURCE_DIR) + "/configs/drives/" + name));
+}
+
+/// The axes of `files`' drives, each planned from its file.
+std::vector<MasterAxis> planned_axes(
+    const std::vector<std::shared_ptr<const eds::Dictionary>>& files,
+    std::optional<std::int8_t> mode = std::nullopt) {
+  std::vector<MasterAxis> out = axes(static_cast<int>(files.size()));
+  for (std::size_t i = 0; i < files.size(); ++i) {
+    DriveRequest request;
+    request.node = out[i].node;
+    request.axis = out[i].name;
+    request.mode = mode;
+    out[i].plan = plan_drive(files[i], request);
+  }
+  return out;
+}
+
+TEST(Cia402Master, MapsDrivesOfThreeFilesWhateverTheirDefaultsAndDrivesThem) {
+  MemoryHub hub;
+  const std::vector files{drive_file("emu-csp.eds"), drive_file("emu-ip.eds"),
+                          drive_file("emu-pp-split.eds")};
+  DriveRack rack(hub, 3, files);
+  Bus& spy = hub.add();
+  Cia402Master master(hub.add(), planned_axes(files), MasterOptions{});
+  // The drives' own defaults before bring-up: node 2 maps 0x60C1 and torque, node 3 splits.
+  EXPECT_EQ(master.sdo_read(2, 0x1600, 2), 0x60C10120U);
+  EXPECT_EQ(master.sdo_read(3, 0x1A00, 2), 0x60610008U);
+  EXPECT_EQ(master.sdo_read(2, co::od::kModesDisplay, 0), 7U);
+  master.bring_up(2000ms);
+  for (std::uint8_t n = 1; n <= 3; ++n) {
+    EXPECT_EQ(master.sdo_read(n, 0x1A00, 0), 2U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A00, 1), 0x60410010U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A00, 2), 0x60640020U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A01, 1), 0x60FD0020U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1801, 2), 255U) << int{n};  // inputs: on change, and
+    EXPECT_EQ(master.sdo_read(n, 0x1801, 5), 10U) << int{n};   // every 10 ms
+    EXPECT_EQ(master.sdo_read(n, 0x1600, 2), 0x607A0020U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, co::od::kModesDisplay, 0), 8U) << int{n};
+  }
+  EXPECT_FALSE(master.has_outputs(1));  // the IP drive has no 0x60FE
+  EXPECT_TRUE(master.has_outputs(2));
+  // Drive them: each follows a ramp; only mrroc's PDOs are on the bus.
+  Received r;
+  while (spy.receive(r, 0ms)) {
+  }
+  rack.set_input_lines(2, 0x42);
+  const std::vector<double> start{master.status(0).position, master.status(1).position,
+                                  master.status(2).position};
+  run_cycles(master, 100, [&](int k) {
+    std::vector<double> t = start;
+    for (double& x : t) x += 0.001 * k;
+    return t;
+  });
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  for (std::size_t i = 0; i < 3; ++i)
+    EXPECT_NEAR(master.status(i).position, start[i] + 0.098, 0.0025) << i;
+  EXPECT_EQ(master.status(2).input_lines, 0x42);
+  std::set<canid_t> ids;
+  while (spy.receive(r, 0ms)) ids.insert(r.frame.can_id);
+  for (const canid_t id : ids)
+    EXPECT_TRUE(id == co::kSyncId || (id >= 0x181 && id <= 0x183) || (id >= 0x201 && id <= 0x203) ||
+                (id >= 0x281 && id <= 0x283) || id == 0x301 || id == 0x303 ||
+                id == co::heartbeat_id(co::kDefaultMasterNode) || (id >= 0x701 && id <= 0x703))
+        << std::hex << "a frame 0x" << id << " on the bus";
+  EXPECT_EQ(ids.count(0x283), 1U);  // the inputs that changed
+  EXPECT_EQ(ids.count(0x302), 0U);  // no outputs to the drive without them
+}
+
+TEST(Cia402Master, DrivesInInterpolatedPositionMode) {
+  MemoryHub hub;
+  const std::vector files{drive_file("emu-ip.eds")};
+  DriveRack rack(hub, 1, files);
+  Cia402Master master(hub.add(), planned_axes(files, eds::mode::kInterpolatedPosition),
+                      MasterOptions{});
+  master.bring_up(2000ms);
+  EXPECT_EQ(master.sdo_read(1, 0x1600, 2), 0x60C10120U);
+  EXPECT_EQ(master.sdo_read(1, co::od::kModesDisplay, 0), 7U);
+  const double start = master.status(0).position;
+  run_cycles(master, 100, [&](int k) { return std::vector<double>{start - 0.001 * k}; });
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_NEAR(master.status(0).position, start - 0.098, 0.0025);
+  EXPECT_NE(master.status(0).statusword & co::statusword::kIpModeActive, 0);
+}
+
+TEST(Cia402Master, RefusesADriveWhoseIdentityDiffersNamingBoth) {
+  MemoryHub hub;
+  const std::vector files{drive_file("emu-ip.eds")};
+  DriveRack rack(hub, 1, files);
+  std::vector<MasterAxis> a = planned_axes(files);
+  a[0].plan.identity = DriveIdentity{0xA11, 0x1, 0x00010000};
+  Cia402Master master(hub.add(), a, MasterOptions{});
+  try {
+    master.bring_up(2000ms);
+    FAIL() << "brought up a drive of another identity";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "node 1 (axis 'axis0'): the drive is vendor 0x00000A11, product 0x00000002, "
+                  "revision 0x00020003 (0x1018), the config expects vendor 0x00000A11, product "
+                  "0x00000001, revision 0x00010000"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(Cia402Master, ADriveThatRebootsMidRunIsAFaultNamingTheNode) {
+  MemoryHub hub;
+  DriveRack rack(hub, 2);
+  Cia402Master master(hub.add(), axes(2), MasterOptions{});
+  master.bring_up(2000ms);
+  run_cycles(master, 10, [&](int) {
+    return std::vector<double>{master.status(0).position, master.status(1).position};
+  });
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  rack.with([&](auto& drives, auto&) {
+    drives[1]->power_on(AxisSample{}, rack.now());
+    return 0;
+  });
+  run_cycles(master, 5, [&](int) {
+    return std::vector<double>{master.status(0).position, master.status(1).position};
+  });
+  ASSERT_TRUE(master.faulted());
+  EXPECT_NE(std::string(master.fault_text()).find("drive node 2 (axis 'axis1')"), std::string::npos)
+      << master.fault_text();
+  EXPECT_NE(std::string(master.fault_text()).find("rebooted (boot-up message)"), std::string::npos)
+      << master.fault_text();
+  // The other drive was quick-stopped.
+  run_cycles(master, 5, [&](int) {
+    return std::vector<double>{master.status(0).position, master.status(1).position};
+  });
+  EXPECT_EQ(master.status(0).state, co::DriveState::quick_stop_active);
+  // An operator's restart configures it again.
+  master.bring_up(2000ms);
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_EQ(master.sdo_read(2, 0x1017, 0), 100U);
+}
+
+/// The SDO abort code of a write (0 when written).
+std::uint32_t write_abort(Cia402Master& master, std::uint16_t index, std::uint8_t sub,
+                          std::uint32_t value, std::uint8_t size) {
+  try {
+    master.sdo_write(1, index, sub, value, size);
+    return 0;
+  } catch (const HardwareError& e) {
+    const std::string text = e.what();
+    const auto at = text.find("aborted: 0x");
+    return at == std::string::npos
+               ? 1U
+               : static_cast<std::uint32_t>(std::stoul(text.substr(at + 11, 8), nullptr, 16));
+  }
+}
+
+TEST(Cia402Drive, AnswersAsItsFileSaysWithTheAbortCodesOfADevice) {
+  MemoryHub hub;
+  const std::vector files{drive_file("emu-pp-split.eds")};
+  DriveRack rack(hub, 1, files);
+  Cia402Master master(hub.add(), axes(1), MasterOptions{});
+  namespace abort = co::sdo_abort;
+  EXPECT_EQ(write_abort(master, 0x1A00, 1, 0x60640020, 4), abort::kUnsupportedAccess);  // PDO on
+  EXPECT_EQ(write_abort(master, 0x1800, 1, 0x80000181, 4), 0U);                         // off
+  EXPECT_EQ(write_abort(master, 0x1A00, 1, 0x60640020, 4), abort::kUnsupportedAccess);  // count
+  EXPECT_EQ(write_abort(master, 0x1A00, 0, 0, 1), 0U);
+  EXPECT_EQ(write_abort(master, 0x1A00, 1, 0x60650020, 4), abort::kNotMappable);  // 0x6065
+  EXPECT_EQ(write_abort(master, 0x1A00, 1, 0x60640010, 4), abort::kNotMappable);  // wrong length
+  EXPECT_EQ(write_abort(master, 0x1A00, 1, 0x60640020, 4), 0U);
+  EXPECT_EQ(write_abort(master, 0x1A00, 2, 0x606C0020, 4), 0U);
+  EXPECT_EQ(write_abort(master, 0x1A00, 3, 0x60410010, 4), 0U);
+  EXPECT_EQ(write_abort(master, 0x1A00, 0, 3, 1), abort::kPdoTooLong);  // 80 bits
+  EXPECT_EQ(write_abort(master, 0x1A00, 0, 2, 1), 0U);
+  EXPECT_EQ(write_abort(master, 0x1800, 2, 245, 1), abort::kValueRange);  // no such type
+  EXPECT_EQ(write_abort(master, 0x1A00, 0, 9, 1), abort::kValueTooHigh);  // HighLimit 8
+  EXPECT_EQ(write_abort(master, co::od::kModesOfOperation, 0, 7, 1), abort::kValueRange);  // IP
+  EXPECT_EQ(write_abort(master, co::od::kModesOfOperation, 0, 9, 1), 0U);                  // CSV
+  EXPECT_EQ(write_abort(master, co::od::kStatusword, 0, 1, 2), abort::kReadOnly);
+  EXPECT_EQ(write_abort(master, co::od::kControlword, 0, 6, 4), abort::kLengthMismatch);
+  EXPECT_EQ(write_abort(master, 0x2001, 0, 1, 2), abort::kNoObject);  // no manufacturer objects
+  EXPECT_EQ(write_abort(master, 0x1018, 7, 1, 4), abort::kNoSubindex);
+  // A string longer than 4 bytes comes segmented.
+  EXPECT_EQ(master.sdo_read_bytes(1, 0x1008, 0), "EMU-PP-3");
 }
 
 }  // namespace

@@ -149,7 +149,8 @@ TEST(DrivePlan, MapsWhatTheServoLoopNeedsOnEachFile) {
   EXPECT_EQ(csp.target_entry(), (PdoEntry{0x607A, 0, 32}));
   ASSERT_TRUE(csp.outputs);
   EXPECT_EQ(csp.inputs.cob_id, 0x281U);
-  EXPECT_EQ(csp.inputs.transmission, transmission::kSyncAcyclic);
+  EXPECT_EQ(csp.inputs.transmission, transmission::kEventProfile);
+  EXPECT_EQ(csp.inputs.event_timer_ms, 10);
   EXPECT_EQ(csp.switched_off.size(), 4U);  // RPDO3, RPDO4, TPDO3, TPDO4
 
   // Defaults to interpolated position, supports CSP: CSP chosen; no outputs on this drive.
@@ -197,10 +198,10 @@ TEST(DrivePlan, RefusesWhatTheFileDoesNotHaveNamingNodeObjectAndLine) {
   }
   // A read-only controlword is the file's problem: its line is named.
   std::string text(eds::Dictionary::load(drives_dir() + "emu-csp.eds").file());
-  const auto broken = std::make_shared<eds::Dictionary>(eds::Dictionary::parse(
-      "[1000]\nDataType=7\nAccessType=const\nDefaultValue=0x20192\n"
-      "[6040]\nDataType=6\nAccessType=ro\nPDOMapping=1\n",
-      "broken.eds"));
+  const auto broken = std::make_shared<eds::Dictionary>(
+      eds::Dictionary::parse("[1000]\nDataType=7\nAccessType=const\nDefaultValue=0x20192\n"
+                             "[6040]\nDataType=6\nAccessType=ro\nPDOMapping=1\n",
+                             "broken.eds"));
   try {
     (void)plan_drive(broken, request(5));
     FAIL() << "no error";

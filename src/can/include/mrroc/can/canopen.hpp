@@ -4,18 +4,22 @@
 /// docs/hil.md describes it for users; this header is the reference for the numbers.
 ///
 /// Identifiers: the predefined connection set with 11-bit COB-IDs, node ids 1..127.
-///   NMT 0x000, SYNC 0x080, EMCY 0x080+n, TPDO1 0x180+n, RPDO1 0x200+n, RPDO2 0x300+n,
-///   SDO server->client 0x580+n, SDO client->server 0x600+n, heartbeat / boot-up 0x700+n.
+///   NMT 0x000, SYNC 0x080, EMCY 0x080+n, TPDO1 0x180+n, TPDO2 0x280+n, RPDO1 0x200+n,
+///   RPDO2 0x300+n, SDO server->client 0x580+n, SDO client->server 0x600+n, heartbeat /
+///   boot-up 0x700+n.
 ///
-/// Fixed PDO mapping (the master checks the mapping objects by SDO):
-///   RPDO1 (master -> drive, 6 bytes, every cycle): 0x6040 controlword (u16), 0x607A target
-///         position (i32).
+/// The PDOs the master maps into every drive at bring-up (drive_setup.hpp; standard objects only):
+///   RPDO1 (master -> drive, 6 bytes, every cycle): 0x6040 controlword (u16), the position
+///         target (i32): 0x607A target position, or 0x60C1 sub 1 in interpolated position mode.
 ///   RPDO2 (master -> drive, 4 bytes, when the outputs change and every kOutputRefreshCycles
-///         cycles): 0x60FE sub 1 digital outputs (u32; lines 0..7 are bits 16..23).
-///   TPDO1 (drive -> master, 8 bytes, every cycle): 0x6041 statusword (u16), 0x6064 position
-///         actual value (i32), 0x2001 digital inputs, compact (u16; see compact_inputs()).
-/// All three are synchronous (transmission type 1): a drive applies the RPDOs received before a
-/// SYNC at that SYNC and answers every SYNC with a TPDO sampled at the SYNC.
+///         cycles; drives with outputs only): 0x60FE sub 1 digital outputs (u32; lines 0..7 are
+///         bits 16..23).
+///   TPDO1 (drive -> master, 6 bytes, every SYNC): 0x6041 statusword (u16), 0x6064 position
+///         actual value (i32).
+///   TPDO2 (drive -> master, 4 bytes, event-driven: when it changes and at least every
+///         kInputEventTimerMs): 0x60FD digital inputs (u32).
+/// RPDOs are synchronous (transmission type 1): a drive applies the RPDOs received before a SYNC
+/// at that SYNC; TPDOs are sampled at the SYNC.
 ///
 /// Digital lines. 0x60FD (u32, read only) is CiA 402's digital inputs: bit 2 home switch, bits
 /// 16..23 the drive's input lines 0..7 (manufacturer-specific bits). 0x60FE (CiA 402 digital
@@ -38,6 +42,7 @@ inline constexpr canid_t kNmtId = 0x000;
 inline constexpr canid_t kSyncId = 0x080;
 inline constexpr canid_t emcy_id(std::uint8_t node) { return 0x080U + node; }
 inline constexpr canid_t tpdo1_id(std::uint8_t node) { return 0x180U + node; }
+inline constexpr canid_t tpdo2_id(std::uint8_t node) { return 0x280U + node; }
 inline constexpr canid_t rpdo1_id(std::uint8_t node) { return 0x200U + node; }
 inline constexpr canid_t rpdo2_id(std::uint8_t node) { return 0x300U + node; }
 inline constexpr canid_t sdo_response_id(std::uint8_t node) { return 0x580U + node; }
@@ -88,9 +93,7 @@ inline constexpr std::uint16_t kTpdo1Mapping = 0x1A00;
 /// Error behaviour: sub 0 = 1, sub 1 = u8 NMT reaction to a communication error while
 /// operational: 0 enter pre-operational, 1 no change, 2 enter stopped.
 inline constexpr std::uint16_t kErrorBehaviour = 0x1029;
-/// u16, 0x60FD compacted (compact_inputs()): bit 2 home switch, bits 8..15 input lines 0..7
-inline constexpr std::uint16_t kDigitalInputsCompact = 0x2001;
-inline constexpr std::uint16_t kEncoderResolution = 0x2002;  ///< u32, counts per revolution / m
+inline constexpr std::uint16_t kIdentity = 0x1018;  ///< sub 1 vendor, 2 product, 3 revision
 /// i16 abort connection option code (CiA 402): the device control reaction to a communication
 /// error (heartbeat or SYNC lost): 0 none, 1 fault, 2 disable voltage, 3 quick stop.
 inline constexpr std::uint16_t kAbortConnectionOption = 0x6007;
@@ -111,11 +114,17 @@ inline constexpr std::uint16_t kDigitalInputs = 0x60FD;          ///< u32, bit 2
 /// Digital outputs: sub 0 = 2, sub 1 = u32 outputs, sub 2 = u32 bit mask (lines in bits 16..23)
 inline constexpr std::uint16_t kDigitalOutputs = 0x60FE;
 inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;  ///< sub 1: u8 value, sub 2: i8 exp
+inline constexpr std::uint16_t kInterpolationData = 0x60C1;    ///< sub 1: i32 target [counts]
+inline constexpr std::uint16_t kVelocityActual = 0x606C;       ///< i32 [counts/s]
+inline constexpr std::uint16_t kTorqueActual = 0x6077;         ///< i16 [per mille of rated]
+inline constexpr std::uint16_t kErrorCode = 0x603F;            ///< u16, the last EMCY's code
+inline constexpr std::uint16_t kSupportedModes = 0x6502;       ///< u32, bit m-1 = mode m
 inline constexpr std::uint32_t kServoDeviceType = 0x00020192;
-/// The fixed mapping entries (index << 16 | sub << 8 | bits).
+/// The mapping entries the master writes (index << 16 | sub << 8 | bits; drive_setup.hpp).
 inline constexpr std::array<std::uint32_t, 2> kRpdo1Entries{0x60400010, 0x607A0020};
 inline constexpr std::array<std::uint32_t, 1> kRpdo2Entries{0x60FE0120};
-inline constexpr std::array<std::uint32_t, 3> kTpdo1Entries{0x60410010, 0x60640020, 0x20010010};
+inline constexpr std::array<std::uint32_t, 2> kTpdo1Entries{0x60410010, 0x60640020};
+inline constexpr std::array<std::uint32_t, 1> kTpdo2Entries{0x60FD0020};
 }  // namespace od
 
 /// Values of the supervision objects.
@@ -139,6 +148,7 @@ inline constexpr std::uint8_t kDefaultMasterNode = 0x7F;
 
 /// Modes of operation (0x6060) used.
 inline constexpr std::int8_t kModeHoming = 6;
+inline constexpr std::int8_t kModeInterpolatedPosition = 7;
 inline constexpr std::int8_t kModeCyclicSyncPosition = 8;
 
 // --- CiA 402 drive state machine -----------------------------------------------------------------
@@ -168,6 +178,7 @@ inline constexpr std::uint16_t kWarning = 1U << 7;
 inline constexpr std::uint16_t kRemote = 1U << 9;
 inline constexpr std::uint16_t kTargetReached = 1U << 10;
 inline constexpr std::uint16_t kFollowingTarget = 1U << 12;  ///< CSP: drive follows the target
+inline constexpr std::uint16_t kIpModeActive = 1U << 12;     ///< IP: interpolation active
 inline constexpr std::uint16_t kFollowingError = 1U << 13;   ///< CSP: following error
 }  // namespace statusword
 /// The state bits (0-3, 5, 6) of a statusword for a state.
@@ -192,6 +203,8 @@ inline constexpr std::uint16_t kEnableOperation = 0x000F;
 inline constexpr std::uint16_t kDisableVoltage = 0x0000;
 inline constexpr std::uint16_t kQuickStop = 0x0002;
 inline constexpr std::uint16_t kFaultReset = 0x0080;
+/// Operation mode specific bit 4: in interpolated position mode, "enable ip mode".
+inline constexpr std::uint16_t kEnableIpMode = 0x0010;
 }  // namespace controlword
 /// Decodes bits 0-3 and 7 of a controlword (bit 7 counts as fault reset here; the edge is the
 /// drive's business).
@@ -211,7 +224,9 @@ struct Rpdo2 {
 struct Tpdo1 {
   std::uint16_t statusword = 0;
   std::int32_t position_actual = 0;  ///< [counts]
-  std::uint16_t inputs = 0;          ///< 0x2001: compact_inputs() of 0x60FD
+};
+struct Tpdo2 {
+  std::uint32_t inputs = 0;  ///< 0x60FD
 };
 inline constexpr std::uint16_t kHomeSwitchBit = 1U << 2;
 /// A drive's digital lines (inputs and outputs): 8, in bits 16..23 of 0x60FD and 0x60FE.
@@ -221,22 +236,18 @@ inline constexpr std::uint32_t kUserLineMask = 0xFFU << kUserLineShift;
 /// The master refreshes each drive's outputs (RPDO2) at least this often [cycles], so that a
 /// lost frame is repaired (a drive holds its outputs between RPDO2s).
 inline constexpr std::uint64_t kOutputRefreshCycles = 50;
-/// 0x60FD (u32) in 16 bits for TPDO1's 0x2001: bits 0..7 as 0x60FD's, bits 8..15 = 0x60FD's
-/// bits 16..23 (the input lines).
-inline constexpr std::uint16_t compact_inputs(std::uint32_t inputs) {
-  return static_cast<std::uint16_t>((inputs & 0xFFU) | ((inputs >> 8U) & 0xFF00U));
-}
-/// The inverse of compact_inputs() (0x60FD's other bits read 0).
-inline constexpr std::uint32_t expand_inputs(std::uint16_t compact) {
-  return (compact & 0xFFU) | ((static_cast<std::uint32_t>(compact) & 0xFF00U) << 8U);
-}
+/// A drive sends its inputs (TPDO2) at least this often [ms] (its event timer), as well as when
+/// they change, so that a lost frame is repaired.
+inline constexpr std::uint16_t kInputEventTimerMs = 10;
 can_frame encode(std::uint8_t node, const Rpdo1& pdo);
 can_frame encode(std::uint8_t node, const Rpdo2& pdo);
 can_frame encode(std::uint8_t node, const Tpdo1& pdo);
+can_frame encode(std::uint8_t node, const Tpdo2& pdo);
 /// Decode a PDO's payload; nullopt when the length is wrong.
 std::optional<Rpdo1> decode_rpdo1(const can_frame& frame);
 std::optional<Rpdo2> decode_rpdo2(const can_frame& frame);
 std::optional<Tpdo1> decode_tpdo1(const can_frame& frame);
+std::optional<Tpdo2> decode_tpdo2(const can_frame& frame);
 
 // --- EMCY ----------------------------------------------------------------------------------------
 namespace emcy {
@@ -265,10 +276,16 @@ inline constexpr std::uint32_t kToggleBit = 0x05030000;
 inline constexpr std::uint32_t kTimeout = 0x05040000;
 inline constexpr std::uint32_t kCommandSpecifier = 0x05040001;
 inline constexpr std::uint32_t kReadOnly = 0x06010002;
+inline constexpr std::uint32_t kUnsupportedAccess = 0x06010000;
+inline constexpr std::uint32_t kWriteOnly = 0x06010001;
 inline constexpr std::uint32_t kNoObject = 0x06020000;
+inline constexpr std::uint32_t kNotMappable = 0x06040041;
+inline constexpr std::uint32_t kPdoTooLong = 0x06040042;
 inline constexpr std::uint32_t kLengthMismatch = 0x06070010;
 inline constexpr std::uint32_t kNoSubindex = 0x06090011;
 inline constexpr std::uint32_t kValueRange = 0x06090030;
+inline constexpr std::uint32_t kValueTooHigh = 0x06090031;
+inline constexpr std::uint32_t kValueTooLow = 0x06090032;
 inline constexpr std::uint32_t kDeviceState = 0x08000022;
 }  // namespace sdo_abort
 std::string_view describe_sdo_abort(std::uint32_t code);
@@ -307,8 +324,9 @@ struct FrameBits {
 FrameBits frame_bits(int bytes);
 /// Bus load of one robot's cyclic traffic: one SYNC, an RPDO1 and a TPDO1 per axis each cycle,
 /// plus heartbeats and, with `output_refresh`, the outputs' refresh (an RPDO2 per axis every
-/// kOutputRefreshCycles cycles), both averaged over the cycles. A change of the outputs adds one
-/// RPDO2 per drive whose outputs changed, in that cycle only; it is not counted. Loads are
+/// kOutputRefreshCycles cycles) and the inputs' refresh (a TPDO2 per axis every
+/// kInputEventTimerMs), all averaged over the cycles. A change of the outputs or the inputs adds
+/// one RPDO2 or TPDO2 per drive concerned, in that cycle only; it is not counted. Loads are
 /// fractions of the bus' capacity (0.7 = 70 %).
 struct BusLoad {
   int frames_per_cycle = 0;

@@ -11,11 +11,27 @@
 /// Behaviour:
 ///  - NMT: boot-up message at power-on, then pre-operational (SDO only); start -> operational
 ///    (PDOs, SYNC); stop; reset node (back to power-on) and reset communication.
-///  - CiA 402 device control (transitions 2-12, 15, 16), modes 8 (cyclic synchronous position).
-///  - At each SYNC (operational only): the RPDO1 received since the last SYNC takes effect
-///    (controlword, then target position), and a TPDO1 sampled at the SYNC is sent.
-///  - CSP: the demand moves linearly from the previous target to the new one over one
-///    interpolation period (0x60C2), so the axis follows a ramp, not steps.
+///  - Its object dictionary is its EDS/DCF (`DriveConfig::eds`, eds.hpp; mrroc's emulated drive,
+///    configs/drives/emu-csp.eds, when none is given): the objects that exist, their access,
+///    type, limits and defaults, its PDOs' default mappings and the modes it supports (0x6502).
+///    SDO (expedited; segmented upload of strings) answers as a device does: abort 0x06020000
+///    for an object the file lacks, 0x06090011 a sub-index, 0x06010002 a write of a read-only
+///    object, 0x06010001 a read of a write-only one, 0x06070010 a wrong length, 0x06090031 /
+///    0x06090032 a value above / below the file's limits, 0x06040041 a mapping of an object that
+///    cannot be mapped, 0x06040042 a mapping longer than 64 bits, 0x06010000 a mapping changed
+///    while its PDO is on or its count is not 0 (CiA 301's order: COB-ID bit 31, count 0,
+///    entries, count, COB-ID), 0x06090030 a mode the file does not list.
+///  - PDOs as their communication and mapping objects say (any number, any mapping of up to 64
+///    bits): RPDOs of transmission type 0..240 take effect at the next SYNC, 254/255 at once;
+///    TPDOs of type 1..240 are sampled and sent every n-th SYNC, type 0 at a SYNC when their data
+///    changed, 254/255 when their data changed (no sooner than the inhibit time, sub 3) and when
+///    the event timer (sub 5) runs out.
+///  - CiA 402 device control (transitions 2-12, 15, 16). Modes that move the axis: 8 (cyclic
+///    synchronous position, target 0x607A) and 7 (interpolated position, target 0x60C1 sub 1,
+///    while controlword bit 4 "enable ip mode" is set); in the other modes the file lists the
+///    drive holds its position.
+///  - CSP and IP: at each SYNC the demand moves linearly from the previous target to the new one
+///    over one interpolation period (0x60C2), so the axis follows a ramp, not steps.
 ///  - Monitors (operation enabled): following error |demand - actual| > 0x6065 counts for longer
 ///    than 0x6066 ms -> fault, EMCY 0x8611; |force| above the current limit for longer than
 ///    `over_current_time_s` -> fault, EMCY 0x2310. A fault stops the axis (brake) at once.
@@ -33,9 +49,9 @@
 ///  - Quick stop: the demand decelerates at 0x6085 from the axis' velocity to standstill; then
 ///    quick stop option code 0x605A 6 holds in quick stop active (until enable operation or
 ///    disable voltage), 2 goes to switch on disabled (brake).
-///  - Digital lines: 0x60FD (and TPDO1's 0x2001) show the home switch and the axis' 8 input
-///    lines (`AxisSample::input_lines`); 0x60FE sub 1 and sub 2 (outputs and their mask, by SDO
-///    or RPDO2, which takes effect at the next SYNC) set the 8 output lines (`output_lines()`).
+///  - Digital lines: 0x60FD shows the home switch and the axis' 8 input lines
+///    (`AxisSample::input_lines`); 0x60FE sub 1 and sub 2 (outputs and their mask, by SDO or
+///    PDO), where the file has it, set the 8 output lines (`output_lines()`).
 ///    Outputs hold through faults and communication errors; power-on and NMT reset node clear
 ///    them and their mask.
 ///  - Heartbeat every 0x1017 ms when non-zero.
@@ -43,17 +59,27 @@
 ///    (the node neither sends nor receives: a dead or disconnected node).
 #include <linux/can.h>
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "mrroc/can/canopen.hpp"
+#include "mrroc/can/drive_setup.hpp"
+#include "mrroc/can/eds.hpp"
 #include "mrroc/core/time.hpp"
 
 namespace mrroc::can {
 
 struct DriveConfig {
-  std::uint8_t node = 1;                          ///< node id 1..127
+  std::uint8_t node = 1;  ///< node id 1..127
+  /// The drive's EDS/DCF; null: mrroc's emulated drive (default_drive_eds()).
+  std::shared_ptr<const eds::Dictionary> eds;
   double counts_per_unit = 100000.0;              ///< encoder counts per rad (or per m)
   std::uint32_t following_error_window = 20000;   ///< [counts] (0x6065; 0 switches it off)
   std::uint16_t following_error_timeout_ms = 10;  ///< 0x6066
@@ -105,6 +131,8 @@ class Cia402Drive {
   [[nodiscard]] canopen::NmtState nmt_state() const noexcept { return nmt_; }
   [[nodiscard]] std::uint16_t statusword() const noexcept;
   [[nodiscard]] std::uint8_t node() const noexcept { return config_.node; }
+  /// The drive's EDS/DCF.
+  [[nodiscard]] const eds::Dictionary& description() const noexcept { return *eds_; }
   [[nodiscard]] std::uint16_t last_emcy() const noexcept { return last_emcy_; }
   [[nodiscard]] std::uint64_t syncs() const noexcept { return syncs_; }
   /// EMCY code of the last communication error the supervision reacted to (0x8130 heartbeat,
@@ -144,18 +172,56 @@ class Cia402Drive {
   void reset_communication_objects() noexcept;
   [[nodiscard]] double position_of(std::int32_t counts) const noexcept;
 
+  /// A PDO that is on (COB-ID bit 31 clear), as its communication and mapping objects say.
+  struct ActivePdo {
+    int number = 0;
+    canid_t id = 0;
+    std::uint8_t transmission = 0;
+    double inhibit_s = 0.0;
+    double event_timer_s = 0.0;
+    std::vector<PdoEntry> entries;
+    bool pending = false;  ///< RPDO: received since the last SYNC
+    can_frame frame{};     ///< RPDO: the one received; TPDO: the one last sent
+    std::uint32_t syncs = 0;
+    bool sent = false;
+    double last_sent_s = 0.0;
+  };
+  /// The object's value now: the drive's state for the objects it acts on, else the stored one.
+  [[nodiscard]] std::uint64_t read_object(std::uint16_t index, std::uint8_t sub) const;
+  /// Writes an object (SDO or RPDO; checked against the file by the SDO server already): the
+  /// drive acts on it, or stores it. Returns an SDO abort code, 0 when written.
+  std::uint32_t write_object(std::uint16_t index, std::uint8_t sub, std::uint64_t raw,
+                             double now_s);
+  /// The mapping rules of CiA 301 for a write to a PDO's objects; 0 when allowed.
+  [[nodiscard]] std::uint32_t check_pdo_write(std::uint16_t index, std::uint8_t sub,
+                                              std::uint64_t raw) const;
+  [[nodiscard]] bool mappable(const PdoEntry& entry, bool receive) const;
+  /// Every object to its file's value (the communication objects 0x1000..0x1FFF only, or all).
+  void reset_store(bool communication_only);
+  void refresh_pdos();
+  void apply_rpdo(const ActivePdo& pdo, const can_frame& frame, double now_s);
+  void send_tpdo(ActivePdo& pdo, double now_s, bool only_if_changed);
+  [[nodiscard]] std::uint64_t stored(std::uint16_t index, std::uint8_t sub) const;
+  void upload_segment(const can_frame& frame);
+
   DriveConfig config_;
   Output output_;
+  std::shared_ptr<const eds::Dictionary> eds_;
+  std::map<std::uint32_t, std::uint64_t> store_;  ///< index << 8 | sub
+  std::vector<ActivePdo> rpdos_;
+  std::vector<ActivePdo> tpdos_;
+  /// A segmented upload in progress (strings): its data, how much is sent, the toggle bit.
+  std::string upload_;
+  std::size_t upload_at_ = 0;
+  bool upload_toggle_ = false;
+  bool uploading_ = false;
+  std::uint32_t supported_modes_ = 0;
+
   canopen::NmtState nmt_ = canopen::NmtState::boot_up;
   canopen::DriveState state_ = canopen::DriveState::not_ready_to_switch_on;
   bool silent_ = false;
   double zero_ = 0.0;  ///< axis position at power-on (encoder zero) [units]
   AxisSample sample_{};
-  // RPDO1 received since the last SYNC.
-  bool rpdo_pending_ = false;
-  canopen::Rpdo1 rpdo_{};
-  bool rpdo2_pending_ = false;  ///< RPDO2 received since the last SYNC
-  std::uint32_t rpdo2_outputs_ = 0;
   std::uint32_t outputs_ = 0;      ///< 0x60FE sub 1
   std::uint32_t output_mask_ = 0;  ///< 0x60FE sub 2
   std::uint16_t controlword_ = 0;

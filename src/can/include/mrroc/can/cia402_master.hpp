@@ -3,12 +3,16 @@
 /// The master side of mrroc's drive protocol (canopen.hpp): brings a robot's CiA 402 drives on
 /// one CAN bus to operation enabled and streams cyclic synchronous positions to them.
 ///
-/// Bring-up (`bring_up`, blocking, not for the servo loop): every node must answer an SDO read
-/// of its device type (a CiA 402 servo drive) and show the fixed PDO mapping; the master then
-/// writes mode 8 (CSP), the interpolation period (= the cycle), the following-error window and
-/// time, the quick-stop deceleration and the heartbeat time; resets a drive that is in fault;
-/// starts the nodes (NMT) and steps the drives through shutdown -> switch on -> enable operation
-/// with the target held at each drive's actual position, so nothing moves.
+/// Bring-up (`bring_up`, blocking, not for the servo loop), drive by drive, as each one's plan
+/// (drive_setup.hpp, from its EDS/DCF) says: NMT reset communication and its boot-up message;
+/// its device type (a CiA 402 drive) and, when the config gives one, its identity (0x1018);
+/// its PDOs mapped by SDO (each read first, written only where it differs, read back), the
+/// drive's other PDOs switched off; the mode (cyclic synchronous position, or interpolated
+/// position), the interpolation period (= the cycle), the following-error window and time, the
+/// quick-stop deceleration and the heartbeat time, where the drive has them; the config's own
+/// SDO writes; a drive in fault is reset. Then it starts the nodes (NMT) and steps the drives
+/// through shutdown -> switch on -> enable operation with the target held at each drive's actual
+/// position, so nothing moves.
 ///
 /// Supervision (CiA 301/402): the master produces its own heartbeat (COB-ID 0x700 + `master_node`,
 /// every `master_heartbeat_ms`, from `send` and while waiting for SDO answers) and bring-up makes
@@ -23,19 +27,21 @@
 /// drains the bus and checks each drive; `send` sends one RPDO1 per drive, an RPDO2 with its
 /// digital outputs to each drive whose outputs changed (`set_outputs`) or whose refresh is due
 /// (every canopen::kOutputRefreshCycles cycles, staggered over the drives), and then SYNC. A
-/// drive answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions and
-/// digital inputs sampled at the last SYNC (one cycle old).
+/// drive answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions sampled
+/// at the last SYNC (one cycle old); its digital inputs come in TPDO2, sampled at a SYNC too,
+/// sent when they change (bring-up reads them first by SDO).
 ///
-/// Digital lines (canopen.hpp), unless `MasterOptions::digital_lines` is false: bring-up checks
-/// the RPDO2 mapping, writes each drive's output mask 0x60FE sub 2 (its 8 lines) and then its
-/// outputs sub 1 (the lines set so far, 0 at first) and reads both back. `switch_outputs_off`
-/// (the EDP's exit) switches every drive's outputs off by SDO. Without digital lines the master
-/// neither checks 0x1601 nor touches 0x60FE nor sends RPDO2; the inputs still come in TPDO1.
+/// Digital outputs (canopen.hpp), for the drives that have 0x60FE and unless
+/// `MasterOptions::digital_lines` is false: bring-up maps RPDO2, writes each such drive's output
+/// mask 0x60FE sub 2 (its 8 lines) and then its outputs sub 1 (the lines set so far, 0 at first)
+/// and reads both back. `switch_outputs_off` (the EDP's exit) switches every drive's outputs off
+/// by SDO.
 ///
 /// Faults (after which `faulted()` is true and `fault_text()` says which drive, which axis and
 /// why): an EMCY with a non-zero code; a statusword in fault; a drive that left operation enabled
 /// by itself; no TPDO from a drive for `silent_cycles` cycles; the bus going bus-off (error frame
-/// or failed send). On a fault the master quick-stops every other drive.
+/// or failed send); a boot-up message from a drive (it rebooted and lost its configuration). On a
+/// fault the master quick-stops every other drive.
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -45,6 +51,7 @@
 
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
+#include "mrroc/can/drive_setup.hpp"
 #include "mrroc/core/time.hpp"
 
 namespace mrroc::can {
@@ -57,6 +64,9 @@ struct MasterAxis {
   double quick_stop_deceleration = 5.0;  ///< [units/s^2]
   double following_error_window = 0.2;   ///< [units]
   std::uint16_t following_error_timeout_ms = 10;
+  /// What to configure in the drive, from its EDS/DCF (plan_drive); without a file (plan.eds
+  /// null) the master plans the drive from mrroc's emulated drive's file (default_drive_eds()).
+  DrivePlan plan;
 };
 
 struct MasterOptions {
@@ -70,8 +80,10 @@ struct MasterOptions {
   std::uint16_t master_heartbeat_ms = 10;  ///< the master's heartbeat period (1..1000 ms)
   /// Drives' heartbeat consumer time for the master (0x1016); must exceed master_heartbeat_ms.
   std::uint16_t heartbeat_consumer_ms = 50;
-  /// The drives have mrroc's digital output lines (RPDO2, 0x60FE); false for drives without them.
+  /// Use the drives' digital output lines (RPDO2, 0x60FE) where they have them; false: none.
   bool digital_lines = true;
+  /// How long a drive may take to send its boot-up message after NMT reset communication.
+  std::chrono::milliseconds boot_up_timeout{1000};
 };
 
 /// What the master knows about one drive after `receive`.
@@ -113,6 +125,17 @@ class Cia402Master {
   [[nodiscard]] std::uint8_t outputs(std::size_t axis) const noexcept { return outputs_[axis]; }
 
   [[nodiscard]] std::size_t axis_count() const noexcept { return axes_.size(); }
+  /// The drive has digital outputs the master drives (0x60FE mapped into its RPDO2).
+  [[nodiscard]] bool has_outputs(std::size_t axis) const noexcept {
+    return options_.digital_lines && axes_[axis].plan.outputs.has_value();
+  }
+  [[nodiscard]] const DrivePlan& plan(std::size_t axis) const noexcept { return axes_[axis].plan; }
+  /// What the last bring-up did to the drive, one line: "node 2 (axis 'lower_arm'): EMU-PP-3
+  /// (emu-pp-split.eds), cyclic synchronous position; PDOs written: RPDO1, TPDO1, TPDO2; switched
+  /// off: TPDO3".
+  [[nodiscard]] const std::string& bring_up_report(std::size_t axis) const noexcept {
+    return reports_[axis];
+  }
   [[nodiscard]] const DriveStatus& status(std::size_t axis) const noexcept { return status_[axis]; }
   [[nodiscard]] bool faulted() const noexcept { return faulted_; }
   [[nodiscard]] const char* fault_text() const noexcept { return fault_; }
@@ -126,12 +149,24 @@ class Cia402Master {
   std::uint32_t sdo_read(std::uint8_t node, std::uint16_t index, std::uint8_t subindex);
   void sdo_write(std::uint8_t node, std::uint16_t index, std::uint8_t subindex, std::uint32_t value,
                  std::uint8_t size);
+  /// A value of any length (strings: 0x1008 device name, ...), segmented where it is longer than
+  /// 4 bytes. @throws mrroc::HardwareError naming the abort code.
+  std::string sdo_read_bytes(std::uint8_t node, std::uint16_t index, std::uint8_t subindex);
 
  private:
   void handle(const Received& frame) noexcept;
   /// One expedited SDO transfer with retries; frames of other kinds are handled meanwhile.
   canopen::SdoResponse sdo_transfer(std::uint8_t node, const canopen::SdoRequest& request);
   void set_fault(std::size_t axis, const char* what) noexcept;
+  /// Bring-up of one drive over SDO (pre-operational).
+  void configure_drive(std::size_t axis);
+  void configure_pdo(std::size_t axis, const PdoPlan& pdo);
+  void wait_boot_up(std::size_t axis);
+  /// Writes and reads back; @throws naming the object and both values when they differ.
+  void write_checked(std::size_t axis, std::uint16_t index, std::uint8_t sub, std::uint32_t value,
+                     std::uint8_t size);
+  /// Waits for one SDO response frame of `node` (other frames are handled meanwhile).
+  bool sdo_frame(std::uint8_t node, can_frame& out);
   [[nodiscard]] std::string who(std::size_t axis) const;
   [[nodiscard]] std::int32_t counts(std::size_t axis, double position) const noexcept;
   void cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets);
@@ -146,6 +181,11 @@ class Cia402Master {
   std::vector<std::int32_t> held_;     ///< bring-up / re-enable: targets at the actual positions
   std::vector<std::uint8_t> outputs_;  ///< digital output lines to send
   std::vector<std::int16_t> sent_outputs_;  ///< the lines last sent (-1: none yet)
+  std::vector<std::uint16_t> enable_command_;
+  std::vector<std::string> reports_;
+  std::vector<std::string> written_;       ///< bring-up: the PDOs written, of the drive in hand
+  std::vector<std::string> switched_off_;  ///< bring-up: the drive's PDOs switched off  ///< enable
+                                           ///< operation (+ enable ip mode in IP)
   std::uint64_t cycle_ = 0;
   bool faulted_ = false;
   bool quick_stopping_ = false;

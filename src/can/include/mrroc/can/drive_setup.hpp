@@ -11,7 +11,10 @@
 ///          outputs change and every canopen::kOutputRefreshCycles cycles.
 ///   TPDO1  statusword 0x6041 + position actual value 0x6064; synchronous, every SYNC.
 ///   TPDO2  digital inputs 0x60FD (all 32 bits: bit 2 home switch, bits 16..23 the drive's input
-///          lines); synchronous acyclic (type 0): sampled at a SYNC and sent when it changed.
+///          lines); event-driven (type 255): sent when they change, and at least every
+///          canopen::kInputEventTimerMs (its event timer, sub 5), so that a frame lost on the
+///          way is repaired (a change alone, type 0, would leave a lost home switch edge lost:
+///          a synchronisation failed so with a fifth of the frames dropped).
 /// A PDO already configured so (the drive's defaults, or a DCF) is only read, not written. Every
 /// other RPDO and TPDO of the drive is switched off (COB-ID bit 31), so that a drive's default
 /// TPDOs do not load the bus. COB-IDs are the predefined connection set's (0x200 + node,
@@ -20,8 +23,8 @@
 /// Objects the master needs from every drive: 0x1000, 0x1016 sub 1, 0x1017, 0x6040, 0x6041,
 /// 0x6060, 0x6064, 0x60FD (home switch) and the target of the mode, all of them mappable where
 /// they are mapped; the PDO objects (0x1400/0x1600 x 1..2, 0x1800/0x1A00 x 1..2) with room for
-/// two entries. Used when present (and then checked): 0x1006, 0x1029 sub 1, 0x6007, 0x605A,
-/// 0x6065, 0x6066, 0x6085, 0x60C2, 0x60FE.
+/// two entries, and TPDO2's event timer (0x1801 sub 5). Used when present (and then checked):
+/// 0x1006, 0x1029 sub 1, 0x6007, 0x605A, 0x6065, 0x6066, 0x6085, 0x60C2, 0x60FE.
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -64,6 +67,7 @@ struct PdoPlan {
   int number = 1;        ///< 1-based
   std::uint32_t cob_id = 0;
   std::uint8_t transmission = transmission::kSyncEvery;
+  std::uint16_t event_timer_ms = 0;  ///< TPDO of type 254/255: sub 5 (0: none)
   std::vector<PdoEntry> entries;
   [[nodiscard]] std::uint16_t communication_index() const noexcept {
     return static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + number - 1);
@@ -93,12 +97,12 @@ struct SdoWrite {
 /// What the config asks of one drive.
 struct DriveRequest {
   std::uint8_t node = 1;
-  std::string axis;                  ///< for messages
-  std::optional<std::int8_t> mode;   ///< default: CSP if supported, else IP
-  bool outputs = true;               ///< use 0x60FE when the drive has it
+  std::string axis;                 ///< for messages
+  std::optional<std::int8_t> mode;  ///< default: CSP if supported, else IP
+  bool outputs = true;              ///< use 0x60FE when the drive has it
   std::optional<DriveIdentity> identity;
-  std::vector<SdoWrite> writes;      ///< index, sub and value; sizes filled in by plan_drive
-  SourceLocation where;              ///< of the drive's settings in the config
+  std::vector<SdoWrite> writes;  ///< index, sub and value; sizes filled in by plan_drive
+  SourceLocation where;          ///< of the drive's settings in the config
 };
 
 struct DrivePlan {

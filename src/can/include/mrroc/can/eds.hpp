@@ -143,9 +143,7 @@ class Dictionary {
   [[nodiscard]] const DeviceInfo& device() const noexcept { return device_; }
   /// A DCF's `[DeviceComissioning] NodeID`.
   [[nodiscard]] std::optional<std::uint8_t> node_id() const noexcept { return node_id_; }
-  [[nodiscard]] const std::map<std::uint16_t, Object>& objects() const noexcept {
-    return objects_;
-  }
+  [[nodiscard]] const std::map<std::uint16_t, Object>& objects() const noexcept { return objects_; }
   [[nodiscard]] const Object* object(std::uint16_t index) const noexcept;
   [[nodiscard]] const Entry* entry(std::uint16_t index, std::uint8_t sub) const noexcept;
   /// The entry's number for a device with `node` (its $NODEID added); nullopt when the entry,

@@ -209,6 +209,35 @@ std::string_view describe_emcy(std::uint16_t code) {
     case emcy::kHeartbeatError: return "heartbeat / life guard error";
     case emcy::kRecoveredFromBusOff: return "recovered from bus-off";
     case emcy::kFollowingError: return "following error";
+    // CiA 301 and the drive profile CiA 402's error codes drives commonly send.
+    case 0x1000: return "generic error";
+    case 0x2110: return "short circuit / earth leakage (input)";
+    case 0x2220: return "continuous over-current (device input side)";
+    case 0x2311: return "continuous over-current no. 1";
+    case 0x2320: return "short circuit / earth leakage (motor side)";
+    case 0x2350: return "load level fault (I2t, thermal state)";
+    case 0x3110: return "mains over-voltage";
+    case 0x3120: return "mains under-voltage";
+    case 0x3210: return "DC link over-voltage";
+    case 0x3220: return "DC link under-voltage";
+    case 0x4210: return "excess temperature device";
+    case 0x4310: return "excess temperature drive";
+    case 0x5113: return "supply voltage low";
+    case 0x5441: return "safety: safe torque off active";
+    case 0x6010: return "software reset (watchdog)";
+    case 0x6320: return "parameter error";
+    case 0x7121: return "motor blocked";
+    case 0x7300: return "sensor";
+    case 0x7310: return "speed sensor";
+    case 0x7320: return "position sensor";
+    case 0x8110: return "CAN overrun (objects lost)";
+    case 0x8120: return "CAN in error passive mode";
+    case 0x8210: return "PDO not processed due to length error";
+    case 0x8220: return "PDO length exceeded";
+    case 0x8400: return "velocity speed controller (deviation)";
+    case 0x8500: return "position controller";
+    case 0x8612: return "reference limit (position limit switch)";
+    case 0xFF00: return "manufacturer-specific";
     default: break;
   }
   switch (code & 0xF000U) {

@@ -224,6 +224,66 @@ TEST(ConfigCheck, ReachesRealDevicePluginParametersTheSetsVspNamesAndTheMpTasksP
   fs::remove_all(dir);
 }
 
+TEST(ConfigCheck, ChecksEveryDriveAgainstItsEdsNamingFileLineNodeAndObject) {
+  // The `can` plugin's drives described by their EDS files: a file without digital inputs and
+  // with a read-only controlword, a mode the drive lacks, an SDO write to an object the file does
+  // not have, and a file that does not parse. Every problem of every drive, in one run.
+  BrokenConfig c;
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-check-eds-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "lacking.eds") << "[1000]\nDataType=7\nAccessType=const\nDefaultValue="
+                                        "0x20192\n[6040]\nDataType=6\nAccessType=ro\n"
+                                        "PDOMapping=1\n";
+  std::ofstream(dir / "broken.eds") << "[DeviceInfo]\nVendorNumber=0x12\n[6041\n";
+  c.file = dir / "drives.toml";
+  const std::string drives = (kSource / "configs/drives/").string();
+  c.lines = {
+      "[system]",
+      "name = \"eds-drives\"",
+      "[mp]",
+      "task = \"start_and_wait\"",
+      "[[robot]]",
+      "name = \"irb6\"",
+      "model = \"" + (kSource / "robots/irb6").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"can\"",
+      "[robot.edp.params]",
+      "bus = \"virtual:irb6\"",
+      "eds = [\"" + drives + "emu-csp.eds\", \"lacking.eds\", \"" + drives + "emu-csp.eds\", \"" +
+          drives + "emu-ip.eds\", \"broken.eds\"]",
+      "mode = \"ip\"",
+      "sdo = [[3, 0x2345, 0, 7]]",
+      "[robot.ecp]",
+      "task = \"visit_joint_poses\"",
+      "[robot.ecp.args]",
+      "poses = [[0.0, -1.5708, 0.0, 0.0, 0.0]]",
+  };
+  c.write();
+  const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  const std::string at_eds = c.file.string() + ":" + std::to_string(c.line_of("eds = ")) + ": ";
+  for (const std::string& line : {
+           at_eds +
+               "error: node 1 (axis 'column'): the drive does not support interpolated "
+               "position (0x6502 = 0x000000A0 at " +
+               drives + "emu-csp.eds:",
+           (dir / "lacking.eds").string() +
+               ":5: error: node 2 (axis 'lower_arm'): 0x6040 (controlword) is 'ro' "
+               "(AccessType), mrroc writes it",
+           at_eds + "error: node 2 (axis 'lower_arm'): " + (dir / "lacking.eds").string() +
+               " has no object 0x60FD (digital inputs), which mrroc reads the home switch",
+           c.file.string() + ":" + std::to_string(c.line_of("sdo = ")) +
+               ": error: node 3 (axis 'upper_arm'): " + drives +
+               "emu-csp.eds has no object 0x2345 to write",
+           (dir / "broken.eds").string() + ":3: error: section header without ']'",
+       })
+    EXPECT_NE(out.find(line), std::string::npos) << "expected: " << line << "\n" << out;
+  // The interpolated position drive (emu-ip.eds) has what mrroc needs: nothing about node 4.
+  EXPECT_EQ(out.find("node 4 ("), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+
 TEST(ConfigCheck, ChecksTheEmulatorsSceneAndTheSetsRobotsAgainstIt) {
   // The cell emulator checks its scene (the file, its drives, sensors) and the [emulator] faults,
   // and the set's robots on emulated buses against the scene: the robot exists, bus, node ids,

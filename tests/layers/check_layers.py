@@ -52,7 +52,8 @@ PROCESSES = {
     "ui": PUBLIC_AREAS,
     "srp": PUBLIC_AREAS,
     "launch": PUBLIC_AREAS,
-    "tools": PUBLIC_AREAS,
+    # mrroc-can, the commissioning tool, speaks CANopen itself.
+    "tools": PUBLIC_AREAS | {"can"},
 }
 # Third-party headers bound to a layer: prefix -> areas (library or "process:<name>") allowed.
 EXTERNAL = {

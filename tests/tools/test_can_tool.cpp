@@ -75,17 +75,17 @@ TEST(CanTool, EdsCheckNamesFileLineNodeAndObject) {
   EXPECT_EQ(bad_code, 2) << bad_text;
   EXPECT_TRUE(has(bad_text, bad.string() + ":4: error: LowLimit 'x' is not a number")) << bad_text;
   // A drive without digital inputs (no home switch) and with a read-only controlword.
-  const fs::path lacking = temp_file(
-      "lacking.eds",
-      "[1000]\nDataType=7\nAccessType=const\nDefaultValue=0x20192\n"
-      "[6040]\nParameterName=Controlword\nDataType=6\nAccessType=ro\nPDOMapping=1\n");
+  const fs::path lacking =
+      temp_file("lacking.eds",
+                "[1000]\nDataType=7\nAccessType=const\nDefaultValue=0x20192\n"
+                "[6040]\nParameterName=Controlword\nDataType=6\nAccessType=ro\nPDOMapping=1\n");
   const auto [code, text] = run({tool(), "eds", "check", lacking.string(), "--node", "4"});
   EXPECT_EQ(code, 2) << text;
   EXPECT_TRUE(has(text, lacking.string() + ":5: error: node 4 (axis 'axis'): 0x6040 (Controlword) "
                                            "is 'ro' (AccessType)"))
       << text;
-  EXPECT_TRUE(has(text, "node 4 (axis 'axis'): " + lacking.string() +
-                            " has no object 0x60FD (digital inputs)"))
+  EXPECT_TRUE(has(
+      text, "node 4 (axis 'axis'): " + lacking.string() + " has no object 0x60FD (digital inputs)"))
       << text;
 }
 
@@ -101,14 +101,17 @@ TEST(CanTool, ScansRecordsAndPythonCanReadsTheRecordingFrameForFrame) {
   std::this_thread::sleep_for(300ms);
   const auto [scan_code, scan] = run({tool(), "--bus", "virtual:irb6", "scan", "--to", "7"});
   EXPECT_EQ(scan_code, 0) << scan;
-  EXPECT_TRUE(has(scan, "node 1: device type 0x00020192 (CiA 402 drive), vendor 0x00000A11, "
-                        "product 0x00000001, revision 0x00010000, name 'EMU-CSP-1'"))
+  EXPECT_TRUE(has(scan,
+                  "node 1: device type 0x00020192 (CiA 402 drive), vendor 0x00000A11, "
+                  "product 0x00000001, revision 0x00010000, name 'EMU-CSP-1'"))
       << scan;
-  EXPECT_TRUE(has(scan, "node 3: device type 0x00020192 (CiA 402 drive), vendor 0x00000A11, "
-                        "product 0x00000002, revision 0x00020003, name 'EMU-IP-2'"))
+  EXPECT_TRUE(has(scan,
+                  "node 3: device type 0x00020192 (CiA 402 drive), vendor 0x00000A11, "
+                  "product 0x00000002, revision 0x00020003, name 'EMU-IP-2'"))
       << scan;
   EXPECT_TRUE(has(scan, "5 node(s) answered on virtual:irb6 (nodes 1..7)")) << scan;
-  const auto [read_code, read] = run({tool(), "--bus", "virtual:irb6", "sdo", "read", "2", "1018:2"});
+  const auto [read_code, read] =
+      run({tool(), "--bus", "virtual:irb6", "sdo", "read", "2", "1018:2"});
   EXPECT_EQ(read_code, 0) << read;
   EXPECT_TRUE(has(read, "= 3 (0x00000003)")) << read;
   const auto [abort_code, abort] =
@@ -117,8 +120,9 @@ TEST(CanTool, ScansRecordsAndPythonCanReadsTheRecordingFrameForFrame) {
   EXPECT_TRUE(has(abort, "aborted: 0x06010002 attempt to write a read only object")) << abort;
   const auto [pdo_code, pdo] = run({tool(), "--bus", "virtual:irb6", "pdo", "3"});
   EXPECT_EQ(pdo_code, 0) << pdo;
-  EXPECT_TRUE(has(pdo, "TPDO1 0x183, type 1: 0x6041 (statusword) + 0x6077 (torque actual value) + "
-                       "0x6064 (position actual value)"))
+  EXPECT_TRUE(has(pdo,
+                  "TPDO1 0x183, type 1: 0x6041 (statusword) + 0x6077 (torque actual value) + "
+                  "0x6064 (position actual value)"))
       << pdo;
   std::vector<std::string> seen;  // "ID#DATA" as candump writes them
   mrroc::can::Received r;
@@ -158,8 +162,8 @@ TEST(CanTool, ScansRecordsAndPythonCanReadsTheRecordingFrameForFrame) {
   // saw appear in it, in the same order, one after the other.
   ASSERT_GE(read_back.size(), seen.size());
   const auto start = std::search(read_back.begin(), read_back.end(), seen.begin(), seen.end());
-  EXPECT_NE(start, read_back.end()) << "python-can read " << read_back.size()
-                                    << " frames; the test saw " << seen.size();
+  EXPECT_NE(start, read_back.end())
+      << "python-can read " << read_back.size() << " frames; the test saw " << seen.size();
   std::printf("recorded %zu frames; python-can read them back; the test's %zu among them\n",
               read_back.size(), seen.size());
   fs::remove(log);

@@ -850,14 +850,22 @@ TEST(Cia402Master, MapsDrivesOfThreeFilesWhateverTheirDefaultsAndDrivesThem) {
   rack.set_input_lines(2, 0x42);
   const std::vector<double> start{master.status(0).position, master.status(1).position,
                                   master.status(2).position};
-  run_cycles(master, 100, [&](int k) {
+  // A ramp of 0.1 rad over 100 cycles, then held: each drive follows it (its position rises
+  // while the targets do) and ends at the last target, however late its thread runs.
+  std::vector<double> midway(3);
+  run_cycles(master, 120, [&](int k) {
+    if (k == 60)
+      for (std::size_t i = 0; i < 3; ++i) midway[i] = master.status(i).position;
     std::vector<double> t = start;
-    for (double& x : t) x += 0.001 * k;
+    for (double& x : t) x += 0.001 * std::min(k, 99);
     return t;
   });
   ASSERT_FALSE(master.faulted()) << master.fault_text();
-  for (std::size_t i = 0; i < 3; ++i)
-    EXPECT_NEAR(master.status(i).position, start[i] + 0.098, 0.0025) << i;
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_GT(midway[i], start[i] + 0.02) << i;
+    EXPECT_LT(midway[i], start[i] + 0.061) << i;
+    EXPECT_NEAR(master.status(i).position, start[i] + 0.099, 1e-5) << i;
+  }
   EXPECT_EQ(master.status(2).input_lines, 0x42);
   std::set<canid_t> ids;
   while (spy.receive(r, 0ms)) ids.insert(r.frame.can_id);
@@ -880,9 +888,10 @@ TEST(Cia402Master, DrivesInInterpolatedPositionMode) {
   EXPECT_EQ(master.sdo_read(1, 0x1600, 2), 0x60C10120U);
   EXPECT_EQ(master.sdo_read(1, co::od::kModesDisplay, 0), 7U);
   const double start = master.status(0).position;
-  run_cycles(master, 100, [&](int k) { return std::vector<double>{start - 0.001 * k}; });
+  run_cycles(master, 120,
+             [&](int k) { return std::vector<double>{start - 0.001 * std::min(k, 99)}; });
   ASSERT_FALSE(master.faulted()) << master.fault_text();
-  EXPECT_NEAR(master.status(0).position, start - 0.098, 0.0025);
+  EXPECT_NEAR(master.status(0).position, start - 0.099, 1e-5);
   EXPECT_NE(master.status(0).statusword & co::statusword::kIpModeActive, 0);
 }
 

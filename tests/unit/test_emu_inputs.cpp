@@ -204,7 +204,7 @@ TEST(EmuInputs, ConfigErrorsNameTheFileLineKeyAndLimit) {
   };
   has(drives_error("inputs = []\n"),
       "d.toml:15: error: unknown key 'inputs' in [scene.robot.drives] (allowed: bus, nodes, "
-      "counts_per_unit, current_limit, input)");
+      "counts_per_unit, current_limit, eds, input)");
   has(drives_error("input = 3\n"),
       "d.toml:15: error: robot 'irb6': 'input' must be [[scene.robot.drives.input]] tables");
   // And a good one: each source, by name and by index.

@@ -55,8 +55,8 @@ std::pair<std::uint16_t, std::uint8_t> object_of(const std::string& text) {
   const std::uint64_t i = number(index, "object index");
   const std::uint64_t s = colon == std::string::npos ? 0 : number(text.substr(colon + 1), "sub");
   if (i > 0xFFFF || s > 0xFF)
-    throw ConfigError(fmt::format("object '{}' is not index[:sub] (index 0..0xFFFF, sub 0..255)",
-                                  text));
+    throw ConfigError(
+        fmt::format("object '{}' is not index[:sub] (index 0..0xFFFF, sub 0..255)", text));
   return {static_cast<std::uint16_t>(i), static_cast<std::uint8_t>(s)};
 }
 
@@ -108,11 +108,12 @@ int eds_check(const std::string& file, int node, const std::string& mode) {
       const auto comm = static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + k);
       if (d->object(comm) == nullptr) continue;
       const std::uint64_t cob = d->value(comm, 1, n).value_or(kPdoInvalid);
-      std::cout << fmt::format(
-          "  {}PDO{} {}: {}\n", receive ? "R" : "T", k + 1,
-          (cob & kPdoInvalid) != 0U ? "off" : hex(cob & CAN_SFF_MASK, 3) + fmt::format(
-                                                  ", type {}", d->value(comm, 2, n).value_or(0)),
-          mapping_text(*d, static_cast<std::uint16_t>(comm + 0x200), n));
+      std::cout << fmt::format("  {}PDO{} {}: {}\n", receive ? "R" : "T", k + 1,
+                               (cob & kPdoInvalid) != 0U
+                                   ? "off"
+                                   : hex(cob & CAN_SFF_MASK, 3) +
+                                         fmt::format(", type {}", d->value(comm, 2, n).value_or(0)),
+                               mapping_text(*d, static_cast<std::uint16_t>(comm + 0x200), n));
     }
   DriveRequest request;
   request.node = n;
@@ -122,8 +123,8 @@ int eds_check(const std::string& file, int node, const std::string& mode) {
   if (mode == "ip") request.mode = eds::mode::kInterpolatedPosition;
   const DrivePlan plan = plan_drive(d, request);
   std::cout << fmt::format("mrroc will drive it in {} and map:\n", eds::mode_name(plan.mode));
-  for (const PdoPlan* p : {&plan.target, plan.outputs ? &*plan.outputs : nullptr, &plan.status,
-                           &plan.inputs}) {
+  for (const PdoPlan* p :
+       {&plan.target, plan.outputs ? &*plan.outputs : nullptr, &plan.status, &plan.inputs}) {
     if (p == nullptr) continue;
     std::string entries;
     for (const PdoEntry& e : p->entries)
@@ -136,13 +137,17 @@ int eds_check(const std::string& file, int node, const std::string& mode) {
   for (const PdoPlan& p : plan.switched_off) off += (off.empty() ? "" : ", ") + p.name();
   if (!off.empty()) std::cout << "  switched off: " << off << "\n";
   std::string missing;
-  for (const auto& [index, sub] :
-       {std::pair<std::uint16_t, std::uint8_t>{0x1006, 0}, {0x1029, 1}, {0x6007, 0}, {0x605A, 0},
-        {0x6065, 0}, {0x6066, 0}, {0x6085, 0}, {0x60C2, 1}})
+  for (const auto& [index, sub] : {std::pair<std::uint16_t, std::uint8_t>{0x1006, 0},
+                                   {0x1029, 1},
+                                   {0x6007, 0},
+                                   {0x605A, 0},
+                                   {0x6065, 0},
+                                   {0x6066, 0},
+                                   {0x6085, 0},
+                                   {0x60C2, 1}})
     if (d->entry(index, sub) == nullptr)
       missing += (missing.empty() ? "" : ", ") + object_name(nullptr, index, sub);
-  if (!missing.empty())
-    std::cout << "  not in the file, so not configured: " << missing << "\n";
+  if (!missing.empty()) std::cout << "  not in the file, so not configured: " << missing << "\n";
   std::cout << "ok: mrroc can drive it\n";
   return 0;
 }
@@ -160,11 +165,11 @@ int scan(Bus& bus, int first, int last, int timeout_ms) {
     ++found;
     std::string identity;
     try {
-      identity = fmt::format(
-          "vendor {}, product {}, revision {}",
-          hex(c->sdo_read(static_cast<std::uint8_t>(node), co::od::kIdentity, 1), 8),
-          hex(c->sdo_read(static_cast<std::uint8_t>(node), co::od::kIdentity, 2), 8),
-          hex(c->sdo_read(static_cast<std::uint8_t>(node), co::od::kIdentity, 3), 8));
+      identity =
+          fmt::format("vendor {}, product {}, revision {}",
+                      hex(c->sdo_read(static_cast<std::uint8_t>(node), co::od::kIdentity, 1), 8),
+                      hex(c->sdo_read(static_cast<std::uint8_t>(node), co::od::kIdentity, 2), 8),
+                      hex(c->sdo_read(static_cast<std::uint8_t>(node), co::od::kIdentity, 3), 8));
     } catch (const HardwareError& e) {
       identity = std::string("identity: ") + e.what();
     }
@@ -175,8 +180,7 @@ int scan(Bus& bus, int first, int last, int timeout_ms) {
       name = "(no 0x1008)";
     }
     std::cout << fmt::format("node {}: device type {}{}, {}, name '{}'\n", node, hex(type, 8),
-                             (type & 0xFFFFU) == 0x0192U ? " (CiA 402 drive)" : "", identity,
-                             name);
+                             (type & 0xFFFFU) == 0x0192U ? " (CiA 402 drive)" : "", identity, name);
   }
   std::cout << fmt::format("{} node(s) answered on {} (nodes {}..{})\n", found, bus.url(), first,
                            last);
@@ -207,7 +211,8 @@ std::string describe(const can_frame& f, const eds::Dictionary* eds) {
   if ((f.can_id & CAN_ERR_FLAG) != 0U) return "error frame";
   const co::CobId id = co::split_id(f.can_id);
   const auto u32 = [&](int at) {
-    return static_cast<std::uint32_t>(f.data[at]) | (static_cast<std::uint32_t>(f.data[at + 1]) << 8U) |
+    return static_cast<std::uint32_t>(f.data[at]) |
+           (static_cast<std::uint32_t>(f.data[at + 1]) << 8U) |
            (static_cast<std::uint32_t>(f.data[at + 2]) << 16U) |
            (static_cast<std::uint32_t>(f.data[at + 3]) << 24U);
   };
@@ -218,8 +223,9 @@ std::string describe(const can_frame& f, const eds::Dictionary* eds) {
                                                      {0x81, "reset node"},
                                                      {0x82, "reset communication"}};
     const auto it = commands.find(f.data[0]);
-    return fmt::format("NMT {} {}", it == commands.end() ? "?" : it->second,
-                       f.data[1] == 0 ? std::string("all nodes") : fmt::format("node {}", f.data[1]));
+    return fmt::format(
+        "NMT {} {}", it == commands.end() ? "?" : it->second,
+        f.data[1] == 0 ? std::string("all nodes") : fmt::format("node {}", f.data[1]));
   }
   if (f.can_id == co::kSyncId) return "SYNC";
   if (id.function == 0x080 && f.len == 8) {
@@ -239,10 +245,10 @@ std::string describe(const can_frame& f, const eds::Dictionary* eds) {
                          co::describe_sdo_abort(u32(4)));
     return fmt::format("{} node {}: {} (command {})", dir, id.node, object, hex(f.data[0], 2));
   }
-  const bool tpdo = id.function == 0x180 || id.function == 0x280 || id.function == 0x380 ||
-                    id.function == 0x480;
-  const bool rpdo = id.function == 0x200 || id.function == 0x300 || id.function == 0x400 ||
-                    id.function == 0x500;
+  const bool tpdo =
+      id.function == 0x180 || id.function == 0x280 || id.function == 0x380 || id.function == 0x480;
+  const bool rpdo =
+      id.function == 0x200 || id.function == 0x300 || id.function == 0x400 || id.function == 0x500;
   if (tpdo || rpdo) {
     const int number = (id.function - (tpdo ? 0x180 : 0x200)) / 0x100 + 1;
     std::string out = fmt::format("{}PDO{} node {}", tpdo ? "T" : "R", number, id.node);
@@ -260,8 +266,8 @@ std::string describe(const can_frame& f, const eds::Dictionary* eds) {
         const std::uint64_t raw = (data >> static_cast<unsigned>(at)) & mask;
         at += e.bits;
         const eds::Entry* entry = eds->entry(e.index, e.sub);
-        const std::int64_t v = entry != nullptr ? eds::as_signed(*entry, raw)
-                                                : static_cast<std::int64_t>(raw);
+        const std::int64_t v =
+            entry != nullptr ? eds::as_signed(*entry, raw) : static_cast<std::int64_t>(raw);
         out += fmt::format("{} {} = {}", k == 1 ? ":" : ",", object_name(eds, e.index, e.sub), v);
       }
     }
@@ -278,7 +284,8 @@ int run_dump(Bus& bus, const std::string& interface, const std::string& eds_file
   std::ostream* out = &std::cout;
   if (!out_file.empty()) {
     file.open(out_file);
-    if (!file) throw ConfigError(fmt::format("cannot write '{}': {}", out_file, std::strerror(errno)));
+    if (!file)
+      throw ConfigError(fmt::format("cannot write '{}': {}", out_file, std::strerror(errno)));
     out = &file;
   }
   std::signal(SIGINT, on_signal);
@@ -314,15 +321,17 @@ int main(int argc, char** argv) {
   std::string bus_url;
   int timeout_ms = 100;
   cli.option("-b,--bus", bus_url, "bus URL (socketcan:can0, virtual:irb6)");
-  cli.option("--sdo-timeout-ms", timeout_ms, "SDO answer time limit [ms]").range(1, 10000)
+  cli.option("--sdo-timeout-ms", timeout_ms, "SDO answer time limit [ms]")
+      .range(1, 10000)
       .show_default();
 
   CommandLine& eds_cmd = cli.subcommand("eds", "EDS/DCF files");
   eds_cmd.require_subcommand();
   CommandLine& check = eds_cmd.subcommand(
-      "check", "reads FILE and prints what mrroc will use from it: identity, modes, default PDOs, "
-               "the mapping mrroc writes, the objects it configures; exit 2 when mrroc cannot "
-               "drive it (every problem named with file:line)");
+      "check",
+      "reads FILE and prints what mrroc will use from it: identity, modes, default PDOs, "
+      "the mapping mrroc writes, the objects it configures; exit 2 when mrroc cannot "
+      "drive it (every problem named with file:line)");
   std::string eds_file;
   int node = 1;
   std::string mode;
@@ -330,9 +339,10 @@ int main(int argc, char** argv) {
   check.option("--node", node, "node id for $NODEID values").range(1, 127).show_default();
   check.option("--mode", mode, "csp or ip (default: csp where supported)").one_of({"csp", "ip"});
 
-  CommandLine& scan_cmd = cli.subcommand(
-      "scan", "asks every node id for its device type, identity and name (SDO); exit 1 when "
-              "nobody answers");
+  CommandLine& scan_cmd =
+      cli.subcommand("scan",
+                     "asks every node id for its device type, identity and name (SDO); exit 1 when "
+                     "nobody answers");
   int first = 1;
   int last = 127;
   scan_cmd.option("--from", first, "first node id").range(1, 127).show_default();
@@ -363,7 +373,8 @@ int main(int argc, char** argv) {
   CommandLine& nmt_cmd = cli.subcommand("nmt", "sends an NMT command");
   std::string command;
   int nmt_node = 0;
-  nmt_cmd.option("command", command, "start, stop, pre-operational, reset-node, reset-communication")
+  nmt_cmd
+      .option("command", command, "start, stop, pre-operational, reset-node, reset-communication")
       .required()
       .one_of({"start", "stop", "pre-operational", "reset-node", "reset-communication"});
   nmt_cmd.option("node", nmt_node, "node id, 0 = all").range(0, 127).show_default();
@@ -374,12 +385,14 @@ int main(int argc, char** argv) {
   std::string interface;
   CommandLine& dump_cmd = cli.subcommand(
       "dump", "prints every frame (candump -L format) with its CiA 301/402 meaning until Ctrl-C");
-  dump_cmd.option("--seconds", seconds, "stop after this long [s] (0: until Ctrl-C)").show_default();
+  dump_cmd.option("--seconds", seconds, "stop after this long [s] (0: until Ctrl-C)")
+      .show_default();
   dump_cmd.option("--eds", dump_eds, "decode PDOs with this EDS's default mappings");
   dump_cmd.option("--interface", interface, "interface name in the log (default: the bus')");
   CommandLine& record_cmd = cli.subcommand(
-      "record", "writes every frame in candump's -L log format (can-utils' canplayer and log2asc, "
-                "python-can's CanutilsLogReader and Wireshark read it) until Ctrl-C");
+      "record",
+      "writes every frame in candump's -L log format (can-utils' canplayer and log2asc, "
+      "python-can's CanutilsLogReader and Wireshark read it) until Ctrl-C");
   record_cmd.option("-o,--output", out_file, "log file (default: standard output)");
   record_cmd.option("--seconds", seconds, "stop after this long [s] (0: until Ctrl-C)")
       .show_default();
@@ -406,9 +419,9 @@ int main(int argc, char** argv) {
           {"reset-node", co::NmtCommand::reset_node},
           {"reset-communication", co::NmtCommand::reset_communication}};
       (void)bus->send(co::nmt_frame(commands.at(command), static_cast<std::uint8_t>(nmt_node)));
-      std::cout << describe(co::nmt_frame(commands.at(command),
-                                          static_cast<std::uint8_t>(nmt_node)),
-                            nullptr)
+      std::cout << describe(
+                       co::nmt_frame(commands.at(command), static_cast<std::uint8_t>(nmt_node)),
+                       nullptr)
                 << "\n";
       return 0;
     }
@@ -434,7 +447,8 @@ int main(int argc, char** argv) {
     }
     if (cli.got("pdo")) {
       std::unique_ptr<eds::Dictionary> names;
-      if (!pdo_eds.empty()) names = std::make_unique<eds::Dictionary>(eds::Dictionary::load(pdo_eds));
+      if (!pdo_eds.empty())
+        names = std::make_unique<eds::Dictionary>(eds::Dictionary::load(pdo_eds));
       for (const bool receive : {true, false})
         for (int k = 0; k < 4; ++k) {
           const auto comm = static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + k);
@@ -452,12 +466,12 @@ int main(int argc, char** argv) {
                 PdoEntry::from_raw(c->sdo_read(n, map, static_cast<std::uint8_t>(e)));
             entries += (entries.empty() ? "" : " + ") + object_name(names.get(), m.index, m.sub);
           }
-          std::cout << fmt::format("{}PDO{} {}: {}\n", receive ? "R" : "T", k + 1,
-                                   (cob & kPdoInvalid) != 0U
-                                       ? std::string("off")
-                                       : fmt::format("{}, type {}", hex(cob & CAN_SFF_MASK, 3),
-                                                     c->sdo_read(n, comm, 2)),
-                                   count == 0 ? std::string("(nothing mapped)") : entries);
+          std::cout << fmt::format(
+              "{}PDO{} {}: {}\n", receive ? "R" : "T", k + 1,
+              (cob & kPdoInvalid) != 0U
+                  ? std::string("off")
+                  : fmt::format("{}, type {}", hex(cob & CAN_SFF_MASK, 3), c->sdo_read(n, comm, 2)),
+              count == 0 ? std::string("(nothing mapped)") : entries);
         }
       return 0;
     }

@@ -157,14 +157,14 @@ can_frame encode(std::uint8_t node, const Rpdo2& pdo) {
   return f;
 }
 can_frame encode(std::uint8_t node, const Tpdo1& pdo) {
-  can_frame f = frame(tpdo1_id(node), 6);
-  put16(f.data, pdo.statusword);
-  put32(f.data + 2, static_cast<std::uint32_t>(pdo.position_actual));
+  can_frame f = frame(tpdo1_id(node), 8);
+  put32(f.data, static_cast<std::uint32_t>(pdo.position_actual));
+  put32(f.data + 4, pdo.inputs);
   return f;
 }
 can_frame encode(std::uint8_t node, const Tpdo2& pdo) {
-  can_frame f = frame(tpdo2_id(node), 4);
-  put32(f.data, pdo.inputs);
+  can_frame f = frame(tpdo2_id(node), 2);
+  put16(f.data, pdo.statusword);
   return f;
 }
 std::optional<Rpdo1> decode_rpdo1(const can_frame& f) {
@@ -176,12 +176,12 @@ std::optional<Rpdo2> decode_rpdo2(const can_frame& f) {
   return Rpdo2{get32(f.data)};
 }
 std::optional<Tpdo1> decode_tpdo1(const can_frame& f) {
-  if (!plain(f, 6)) return std::nullopt;
-  return Tpdo1{get16(f.data), static_cast<std::int32_t>(get32(f.data + 2))};
+  if (!plain(f, 8)) return std::nullopt;
+  return Tpdo1{static_cast<std::int32_t>(get32(f.data)), get32(f.data + 4)};
 }
 std::optional<Tpdo2> decode_tpdo2(const can_frame& f) {
-  if (!plain(f, 4)) return std::nullopt;
-  return Tpdo2{get32(f.data)};
+  if (!plain(f, 2)) return std::nullopt;
+  return Tpdo2{get16(f.data)};
 }
 
 can_frame encode_emcy(std::uint8_t node, const Emergency& e) {
@@ -365,21 +365,24 @@ BusLoad cyclic_bus_load(std::size_t axes, double period_s, double bitrate_bps,
   const FrameBits sync = frame_bits(0);
   const FrameBits rpdo = frame_bits(6);
   const FrameBits outputs = frame_bits(4);
-  const FrameBits tpdo = frame_bits(6);
+  const FrameBits tpdo = frame_bits(8);
+  const FrameBits statusword = frame_bits(2);
   const FrameBits heartbeat = frame_bits(1);
   load.frames_per_cycle = 1 + 2 * n;
   const double heartbeats_per_cycle =
       heartbeat_period_s > 0.0 ? static_cast<double>(n) * period_s / heartbeat_period_s : 0.0;
-  // Each drive's outputs are refreshed every kOutputRefreshCycles cycles (an RPDO2).
+  // Each drive's outputs are refreshed every kOutputRefreshCycles cycles (an RPDO2), its
+  // statusword every kStatuswordEventTimerMs (a TPDO2).
   const double refreshes_per_cycle =
-      (output_refresh ? static_cast<double>(n) / static_cast<double>(kOutputRefreshCycles) : 0.0) +
-      static_cast<double>(n) * period_s / (kInputEventTimerMs * 1e-3);
-  load.bits_per_cycle_nominal = sync.nominal + n * (rpdo.nominal + tpdo.nominal) +
-                                heartbeats_per_cycle * heartbeat.nominal +
-                                refreshes_per_cycle * outputs.nominal;
-  load.bits_per_cycle_worst = sync.worst + n * (rpdo.worst + tpdo.worst) +
-                              heartbeats_per_cycle * heartbeat.worst +
-                              refreshes_per_cycle * outputs.worst;
+      output_refresh ? static_cast<double>(n) / static_cast<double>(kOutputRefreshCycles) : 0.0;
+  const double statuswords_per_cycle =
+      static_cast<double>(n) * period_s / (kStatuswordEventTimerMs * 1e-3);
+  load.bits_per_cycle_nominal =
+      sync.nominal + n * (rpdo.nominal + tpdo.nominal) + heartbeats_per_cycle * heartbeat.nominal +
+      refreshes_per_cycle * outputs.nominal + statuswords_per_cycle * statusword.nominal;
+  load.bits_per_cycle_worst =
+      sync.worst + n * (rpdo.worst + tpdo.worst) + heartbeats_per_cycle * heartbeat.worst +
+      refreshes_per_cycle * outputs.worst + statuswords_per_cycle * statusword.worst;
   const double capacity = bitrate_bps * period_s;
   load.load_nominal = load.bits_per_cycle_nominal / capacity;
   load.load_worst = load.bits_per_cycle_worst / capacity;

@@ -150,7 +150,11 @@ std::uint16_t Cia402Drive::statusword() const noexcept {
       (controlword_ & canopen::controlword::kEnableIpMode) != 0U)
     sw |= canopen::statusword::kIpModeActive;
   if (following_error_) sw |= canopen::statusword::kFollowingError;
-  if (std::abs(to_ - sample_.position) * config_.counts_per_unit < 10.0)
+  // Target reached: not in cyclic synchronous position, where CiA 402 reserves the bit (it would
+  // flicker with every target, and each change of the statusword is a TPDO); in the other modes
+  // once the interpolation has ended at the target.
+  if (mode_ != canopen::kModeCyclicSyncPosition && demand_velocity_ == 0.0 &&
+      std::abs(to_ - sample_.position) * config_.counts_per_unit < 10.0)
     sw |= canopen::statusword::kTargetReached;
   return sw;
 }

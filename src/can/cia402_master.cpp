@@ -128,21 +128,22 @@ void Cia402Master::handle(const Received& r) noexcept {
       if (enabled_) set_fault(i, "rebooted (boot-up message): its configuration is lost");
       return;
     }
-    if (r.frame.can_id == axes_[i].plan.inputs.cob_id) {
-      if (const auto pdo = canopen::decode_tpdo2(r.frame)) {
-        s.home_switch = (pdo->inputs & canopen::kHomeSwitchBit) != 0U;
-        s.input_lines = static_cast<std::uint8_t>((pdo->inputs & canopen::kUserLineMask) >>
-                                                  canopen::kUserLineShift);
-      }
-      return;
-    }
-    if (r.frame.can_id == axes_[i].plan.status.cob_id) {
+    if (r.frame.can_id == axes_[i].plan.feedback.cob_id) {
       const auto pdo = canopen::decode_tpdo1(r.frame);
       if (!pdo) return;
       s.position = static_cast<double>(pdo->position_actual) / axes_[i].counts_per_unit;
+      s.home_switch = (pdo->inputs & canopen::kHomeSwitchBit) != 0U;
+      s.input_lines = static_cast<std::uint8_t>((pdo->inputs & canopen::kUserLineMask) >>
+                                                canopen::kUserLineShift);
+      s.last_tpdo_cycle = cycle_;
+      return;
+    }
+    if (r.frame.can_id == axes_[i].plan.statusword.cob_id) {
+      const auto pdo = canopen::decode_tpdo2(r.frame);
+      if (!pdo) return;
       s.statusword = pdo->statusword;
       s.state = canopen::decode_state(pdo->statusword);
-      s.last_tpdo_cycle = cycle_;
+      s.last_statusword_cycle = cycle_;
       if (enabled_ && !faulted_) {
         char text[160];
         if (s.state == DriveState::fault || s.state == DriveState::fault_reaction_active) {
@@ -482,6 +483,8 @@ void Cia402Master::configure_drive(std::size_t i) {
     }
   }
   const std::uint16_t sw = static_cast<std::uint16_t>(sdo_read(n, od::kStatusword, 0));
+  status_[i].statusword = sw;
+  status_[i].state = canopen::decode_state(sw);
   if (canopen::decode_state(sw) == DriveState::fault) {
     sdo_write(n, od::kControlword, 0, canopen::controlword::kDisableVoltage, 2);
     sdo_write(n, od::kControlword, 0, canopen::controlword::kFaultReset, 2);
@@ -492,8 +495,8 @@ void Cia402Master::configure_drive(std::size_t i) {
   for (const PdoPlan& off : plan.switched_off) configure_pdo(i, off);
   configure_pdo(i, plan.target);
   if (plan.outputs && options_.digital_lines) configure_pdo(i, *plan.outputs);
-  configure_pdo(i, plan.status);
-  configure_pdo(i, plan.inputs);
+  configure_pdo(i, plan.feedback);
+  configure_pdo(i, plan.statusword);
   write_checked(i, od::kModesOfOperation, 0, static_cast<std::uint8_t>(plan.mode), 1);
   if (plan.has(od::kInterpolationPeriod, 1)) {
     sdo_write(n, od::kInterpolationPeriod, 1,

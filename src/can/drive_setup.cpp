@@ -208,12 +208,13 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
   };
   plan.target = pdo(true, 1, 0x200, transmission::kSyncEvery, {{0x6040, 0, 16}, target});
   if (outputs) plan.outputs = pdo(true, 2, 0x300, transmission::kSyncEvery, {{0x60FE, 1, 32}});
-  plan.status = pdo(false, 1, 0x180, transmission::kSyncEvery, {{0x6041, 0, 16}, {0x6064, 0, 32}});
-  plan.inputs = pdo(false, 2, 0x280, transmission::kEventProfile, {{0x60FD, 0, 32}});
-  plan.inputs.event_timer_ms = canopen::kInputEventTimerMs;
-  need(plan.inputs.communication_index(), 5, true, false,
-       "sets TPDO2's event timer (the inputs are sent when they change and at least every " +
-           std::to_string(canopen::kInputEventTimerMs) + " ms)");
+  plan.feedback =
+      pdo(false, 1, 0x180, transmission::kSyncEvery, {{0x6064, 0, 32}, {0x60FD, 0, 32}});
+  plan.statusword = pdo(false, 2, 0x280, transmission::kEventProfile, {{0x6041, 0, 16}});
+  plan.statusword.event_timer_ms = canopen::kStatuswordEventTimerMs;
+  need(plan.statusword.communication_index(), 5, true, false,
+       "sets TPDO2's event timer (the statusword is sent when it changes and at least every " +
+           std::to_string(canopen::kStatuswordEventTimerMs) + " ms)");
   for (int k = 1; k <= 512; ++k) {
     for (const bool receive : {true, false}) {
       const auto comm = static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + k - 1);

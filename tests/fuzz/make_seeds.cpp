@@ -988,15 +988,15 @@ void can_seeds() {
   std::string master = can_record(raw_frame(0x701, {0x00}), 0);
   master += can_record(raw_frame(0x702, {0x05}), 0);
   for (int k = 0; k < 10; ++k) {
-    master += can_record(co::encode(1, co::Tpdo1{0x0237, 1000 + k}), 0);
-    master += can_record(co::encode(2, co::Tpdo1{0x0237, -500 - k}), kCycle | k2ms);
+    master += can_record(co::encode(1, co::Tpdo1{1000 + k, co::kHomeSwitchBit}), 0);
+    master += can_record(co::encode(2, co::Tpdo1{-500 - k, 0}), kCycle | k2ms);
   }
   master += can_record(co::encode_emcy(2, {co::emcy::kFollowingError, 0x81, {}}), kCycle);
   master += can_record(co::encode_response(1, {0x6041, 0, false, 0, 0x0237, 2, false}), 0);
   master += can_record(co::encode_response(1, {0x6060, 0, false, 0, 0, 0, true}), 0);
   master += can_record(
       co::encode_response(2, {0x6060, 0, true, co::sdo_abort::kNoObject, 0, 0, false}), kCycle);
-  master += can_record(co::encode(1, co::Tpdo1{0x0218, 1010}), kCycle | k2ms);  // fault
+  master += can_record(co::encode(1, co::Tpdo2{0x0218}), kCycle | k2ms);  // fault
   write("can", "master_receives", master);
 
   // An error frame (bus-off) and a remote frame.

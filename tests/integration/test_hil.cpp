@@ -185,7 +185,7 @@ TEST_F(Hil, DemoRunsOverTheVirtualBusAgainstTheEmulator) {
   // The EDP computed and showed the bus load of its cyclic traffic.
   EXPECT_TRUE(std::regex_search(
       r.output, std::regex("can: virtual:irb6 for robot 'irb6': 5 drives, cycle 2 ms, 11 frames "
-                           "per cycle, bus load 54 % nominal, 66 % worst case at 1000 kbit/s")))
+                           "per cycle, bus load 56 % nominal, 68 % worst case at 1000 kbit/s")))
       << r.output;
   // Three kinds of drive, as their EDS files describe them; the master remapped two kinds and
   // left the one whose defaults are its mapping as it was.

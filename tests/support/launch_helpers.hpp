@@ -26,10 +26,12 @@ struct LaunchRun {
 
 /// Launches `config`; when `victim` is not empty, waits until `trigger` appears in the output,
 /// waits `delay` and calls `act` with the pid of the process named `victim` (from the launcher's
-/// "started <victim> (pid N)" line).
+/// "started <victim> (pid N)" line). A set still running after `time_limit` is stopped: exit
+/// code -2, and the output says so.
 inline LaunchRun launch_and_act(const std::string& config, const std::string& victim,
                                 const std::string& trigger, std::chrono::milliseconds delay,
-                                const std::function<void(pid_t)>& act) {
+                                const std::function<void(pid_t)>& act,
+                                std::chrono::seconds time_limit = std::chrono::seconds(180)) {
   int out[2];
   if (pipe(out) != 0) return {};
   const pid_t pid = fork();
@@ -70,11 +72,31 @@ inline LaunchRun launch_and_act(const std::string& config, const std::string& vi
     run.killed_at = Clock::now();
     act(victim_pid);
   }
+  // A set that does not end is stopped (the launcher ends its processes on SIGINT) and its output
+  // kept: a test that hangs says where, instead of being killed by ctest with nothing to show.
   int status = 0;
-  waitpid(pid, &status, 0);
+  const auto give_up = Clock::now() + time_limit;
+  bool stopped = false;
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (!stopped && Clock::now() >= give_up) {
+      stopped = true;
+      kill(pid, SIGINT);
+      std::this_thread::sleep_for(std::chrono::seconds(10));
+      if (waitpid(pid, &status, WNOHANG) != 0) break;
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
   reader.join();
   std::fclose(in);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  run.exit_code = stopped ? -2 : WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (stopped)
+    run.output +=
+        "\n[test] the process set did not end within " +
+        std::to_string(std::chrono::duration_cast<std::chrono::seconds>(time_limit).count()) +
+        " s; the launcher was stopped (SIGINT)\n";
   if (!victim.empty() && !triggered)
     run.output += "\n[test] trigger '" + trigger + "' never came\n";
   return run;

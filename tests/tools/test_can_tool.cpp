@@ -57,8 +57,9 @@ TEST(CanTool, EdsCheckPrintsWhatMrrocUsesFromEachFile) {
         "(Position actual value)",
         "mrroc will drive it in cyclic synchronous position and map:",
         "RPDO1 0x203, type 1: 0x6040 (Controlword) + 0x607A (Target position)",
-        "TPDO2 0x283, type 255: 0x60FD (Digital inputs)",
-        "no digital outputs (the file has no 0x60FE)", "ok: mrroc can drive it"})
+        "TPDO1 0x183, type 1: 0x6064 (Position actual value) + 0x60FD (Digital inputs)",
+        "TPDO2 0x283, type 255: 0x6041 (Statusword)", "no digital outputs (the file has no 0x60FE)",
+        "ok: mrroc can drive it"})
     EXPECT_TRUE(has(out, line)) << line << "\n" << out;
   for (const char* file : {"emu-csp.eds", "emu-pp-split.eds"})
     EXPECT_EQ(run({tool(), "eds", "check", drives() + file}).first, 0) << file;

@@ -59,17 +59,18 @@ TEST(Canopen, DeviceControlTransitionsFollowCia402) {
 }
 
 TEST(Canopen, PdoEmcyAndSdoCodecsRoundTrip) {
-  const co::Tpdo1 t{0x1237, -123456789};
+  const co::Tpdo1 t{-123456789, 0x00A50004};
   const can_frame tf = co::encode(5, t);
   EXPECT_EQ(tf.can_id, 0x185U);
-  EXPECT_EQ(tf.len, 6);
+  EXPECT_EQ(tf.len, 8);
   const auto t2 = co::decode_tpdo1(tf);
   ASSERT_TRUE(t2);
-  EXPECT_EQ(t2->statusword, t.statusword);
   EXPECT_EQ(t2->position_actual, t.position_actual);
-  const can_frame inputs = co::encode(5, co::Tpdo2{0x00A50004});
-  EXPECT_EQ(inputs.can_id, 0x285U);
-  EXPECT_EQ(co::decode_tpdo2(inputs)->inputs, 0x00A50004U);
+  EXPECT_EQ(t2->inputs, 0x00A50004U);
+  const can_frame status = co::encode(5, co::Tpdo2{0x1237});
+  EXPECT_EQ(status.can_id, 0x285U);
+  EXPECT_EQ(status.len, 2);
+  EXPECT_EQ(co::decode_tpdo2(status)->statusword, 0x1237);
   can_frame short_frame = tf;
   short_frame.len = 5;
   EXPECT_FALSE(co::decode_tpdo1(short_frame));
@@ -108,13 +109,16 @@ TEST(Canopen, BusLoadMatchesTheFrameArithmetic) {
   EXPECT_EQ(co::frame_bits(8).nominal, 111);
   EXPECT_EQ(co::frame_bits(8).worst, 135);
   EXPECT_EQ(co::frame_bits(0).nominal, 47);
-  // Five IRb-6 axes at 2 ms on 1 Mbit/s: SYNC + 5 RPDO1 (6 bytes) + 5 TPDO1 (6 bytes), and an
+  // Five IRb-6 axes at 2 ms on 1 Mbit/s: SYNC + 5 RPDO1 (6 bytes) + 5 TPDO1 (8 bytes), and an
   // RPDO2 (4 bytes) per axis every 50 cycles ...
   const co::BusLoad irb6 = co::cyclic_bus_load(5, 0.002, 1e6, 0.0);
   EXPECT_EQ(irb6.frames_per_cycle, 11);
   EXPECT_EQ(co::frame_bits(4).nominal, 79);
-  // ... and a TPDO2 (4 bytes) per axis every 10 ms (the inputs' event timer): 1 per cycle.
-  EXPECT_NEAR(irb6.load_nominal, (47 + 5 * (95 + 95) + (5.0 / 50.0 + 1.0) * 79) / 2000.0, 1e-12);
+  // ... and a TPDO2 (2 bytes) per axis every 20 ms (the statusword's event timer): 0.5 per
+  // cycle.
+  EXPECT_EQ(co::frame_bits(2).nominal, 63);
+  EXPECT_NEAR(irb6.load_nominal, (47 + 5 * (95 + 111) + 5.0 / 50.0 * 79 + 0.5 * 63) / 2000.0,
+              1e-12);
   EXPECT_LT(irb6.load_worst, co::kRecommendedMaxLoad);
   // Six axes at 1 kHz do not fit one 1 Mbit/s bus; at 2 ms they do (nominally).
   EXPECT_GT(co::cyclic_bus_load(6, 0.001, 1e6, 0.0).load_nominal, 1.0);
@@ -495,10 +499,8 @@ TEST(Cia402Master, StaleQuickStopTpdosAfterReleaseAreNoFaultButALaterOneIs) {
   run_cycles(
       master, 20, [](int) { return std::vector<double>{0.0}; }, true);
   ASSERT_FALSE(master.faulted()) << master.fault_text();
-  const co::Tpdo1 stale{
-      static_cast<std::uint16_t>(co::state_bits(co::DriveState::quick_stop_active) |
-                                 co::statusword::kVoltageEnabled),
-      0};
+  const co::Tpdo2 stale{static_cast<std::uint16_t>(
+      co::state_bits(co::DriveState::quick_stop_active) | co::statusword::kVoltageEnabled)};
   // Release, then a TPDO the drive sent before it saw the re-enable: no fault.
   master.send(std::vector<double>{master.status(0).position}, false);
   (void)late.send(co::encode(1, stale));
@@ -833,11 +835,11 @@ TEST(Cia402Master, MapsDrivesOfThreeFilesWhateverTheirDefaultsAndDrivesThem) {
   master.bring_up(2000ms);
   for (std::uint8_t n = 1; n <= 3; ++n) {
     EXPECT_EQ(master.sdo_read(n, 0x1A00, 0), 2U) << int{n};
-    EXPECT_EQ(master.sdo_read(n, 0x1A00, 1), 0x60410010U) << int{n};
-    EXPECT_EQ(master.sdo_read(n, 0x1A00, 2), 0x60640020U) << int{n};
-    EXPECT_EQ(master.sdo_read(n, 0x1A01, 1), 0x60FD0020U) << int{n};
-    EXPECT_EQ(master.sdo_read(n, 0x1801, 2), 255U) << int{n};  // inputs: on change, and
-    EXPECT_EQ(master.sdo_read(n, 0x1801, 5), 10U) << int{n};   // every 10 ms
+    EXPECT_EQ(master.sdo_read(n, 0x1A00, 1), 0x60640020U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A00, 2), 0x60FD0020U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A01, 1), 0x60410010U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1801, 2), 255U) << int{n};  // statusword: on change, and
+    EXPECT_EQ(master.sdo_read(n, 0x1801, 5), 20U) << int{n};   // every 20 ms
     EXPECT_EQ(master.sdo_read(n, 0x1600, 2), 0x607A0020U) << int{n};
     EXPECT_EQ(master.sdo_read(n, co::od::kModesDisplay, 0), 8U) << int{n};
   }
@@ -874,7 +876,7 @@ TEST(Cia402Master, MapsDrivesOfThreeFilesWhateverTheirDefaultsAndDrivesThem) {
                 (id >= 0x281 && id <= 0x283) || id == 0x301 || id == 0x303 ||
                 id == co::heartbeat_id(co::kDefaultMasterNode) || (id >= 0x701 && id <= 0x703))
         << std::hex << "a frame 0x" << id << " on the bus";
-  EXPECT_EQ(ids.count(0x283), 1U);  // the inputs that changed
+  EXPECT_EQ(ids.count(0x283), 1U);  // statuswords (every 20 ms)
   EXPECT_EQ(ids.count(0x302), 0U);  // no outputs to the drive without them
 }
 

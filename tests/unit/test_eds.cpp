@@ -37,7 +37,7 @@ TEST(Eds, ReadsTheEmulatedDrivesFiles) {
   // $NODEID formulas: the TPDO1 COB-ID of node 3.
   EXPECT_EQ(csp->value(0x1800, 1, 3), 0x183U);
   EXPECT_EQ(csp->value(0x1A00, 0, 3), 2U);
-  EXPECT_EQ(csp->value(0x1A00, 2, 3), 0x60640020U);
+  EXPECT_EQ(csp->value(0x1A00, 2, 3), 0x60FD0020U);
   EXPECT_EQ(csp->supported_modes(), eds::mode_bit(6) | eds::mode_bit(8));
   const eds::Entry* sw = csp->entry(0x6041, 0);
   ASSERT_NE(sw, nullptr);
@@ -148,9 +148,11 @@ TEST(DrivePlan, MapsWhatTheServoLoopNeedsOnEachFile) {
   EXPECT_EQ(csp.target.cob_id, 0x201U);
   EXPECT_EQ(csp.target_entry(), (PdoEntry{0x607A, 0, 32}));
   ASSERT_TRUE(csp.outputs);
-  EXPECT_EQ(csp.inputs.cob_id, 0x281U);
-  EXPECT_EQ(csp.inputs.transmission, transmission::kEventProfile);
-  EXPECT_EQ(csp.inputs.event_timer_ms, 10);
+  EXPECT_EQ(csp.feedback.cob_id, 0x181U);
+  EXPECT_EQ(csp.feedback.entries, (std::vector<PdoEntry>{{0x6064, 0, 32}, {0x60FD, 0, 32}}));
+  EXPECT_EQ(csp.statusword.cob_id, 0x281U);
+  EXPECT_EQ(csp.statusword.transmission, transmission::kEventProfile);
+  EXPECT_EQ(csp.statusword.event_timer_ms, 20);
   EXPECT_EQ(csp.switched_off.size(), 4U);  // RPDO3, RPDO4, TPDO3, TPDO4
 
   // Defaults to interpolated position, supports CSP: CSP chosen; no outputs on this drive.
@@ -163,7 +165,7 @@ TEST(DrivePlan, MapsWhatTheServoLoopNeedsOnEachFile) {
   EXPECT_EQ(plan_drive(load("emu-ip.eds"), wants_ip).target_entry(), (PdoEntry{0x60C1, 1, 32}));
 
   const DrivePlan split = plan_drive(load("emu-pp-split.eds"), request(3));
-  EXPECT_EQ(split.status.entries, (std::vector<PdoEntry>{{0x6041, 0, 16}, {0x6064, 0, 32}}));
+  EXPECT_EQ(split.statusword.entries, (std::vector<PdoEntry>{{0x6041, 0, 16}}));
 }
 
 TEST(DrivePlan, RefusesWhatTheFileDoesNotHaveNamingNodeObjectAndLine) {

@@ -55,48 +55,27 @@ class Master {
     FAIL() << "no SDO response from node " << int{node_};
   }
 
-  /// 0x60FD by an expedited SDO upload; nullopt without an answer.
-  std::optional<std::uint32_t> sdo_read_inputs() {
-    co::SdoRequest request;
-    request.index = co::od::kDigitalInputs;
-    if (bus_->send(co::encode_request(node_, request)) != mrroc::can::SendResult::sent)
-      return std::nullopt;
-    const auto until = std::chrono::steady_clock::now() + 2s;
-    mrroc::can::Received r;
-    while (std::chrono::steady_clock::now() < until) {
-      if (!bus_->receive(r, 100ms) || r.frame.can_id != co::sdo_response_id(node_)) continue;
-      const auto response = co::decode_response(r.frame);
-      if (response && !response->abort && response->index == co::od::kDigitalInputs)
-        return response->value;
-    }
-    return std::nullopt;
-  }
-
   void start() {
     ASSERT_EQ(bus_->send(co::nmt_frame(co::NmtCommand::start, 0)), mrroc::can::SendResult::sent);
   }
 
-  /// Sends `count` SYNCs; 0x60FD from the node's TPDO2 (sent at a SYNC when it changed) or, when
-  /// none came in the last SYNC's answer, by SDO; nullopt when the node answers neither.
+  /// Sends `count` SYNCs, each answered by the node's TPDO1; 0x60FD of the last one, nullopt
+  /// when a TPDO1 did not come.
   std::optional<std::uint32_t> sync(int count) {
     std::optional<std::uint32_t> inputs;
     for (int i = 0; i < count; ++i) {
       can_frame sync{};
       sync.can_id = co::kSyncId;
       if (bus_->send(sync) != mrroc::can::SendResult::sent) return std::nullopt;
-      // The TPDO1 every SYNC gets, and a TPDO2 before it when the inputs changed.
-      bool answered = false;
+      inputs.reset();
       const auto until = std::chrono::steady_clock::now() + 2s;
       mrroc::can::Received r;
-      while (!answered && std::chrono::steady_clock::now() < until) {
-        if (!bus_->receive(r, 100ms)) continue;
-        if (r.frame.can_id == co::tpdo2_id(node_))
-          if (const auto pdo = co::decode_tpdo2(r.frame)) inputs = pdo->inputs;
-        answered = r.frame.can_id == co::tpdo1_id(node_);
+      while (!inputs && std::chrono::steady_clock::now() < until) {
+        if (!bus_->receive(r, 100ms) || r.frame.can_id != co::tpdo1_id(node_)) continue;
+        if (const auto pdo = co::decode_tpdo1(r.frame)) inputs = pdo->inputs;
       }
-      if (!answered) return std::nullopt;
+      if (!inputs) return std::nullopt;
     }
-    if (!inputs) inputs = sdo_read_inputs();
     return inputs;
   }
 

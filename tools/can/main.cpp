@@ -124,7 +124,7 @@ int eds_check(const std::string& file, int node, const std::string& mode) {
   const DrivePlan plan = plan_drive(d, request);
   std::cout << fmt::format("mrroc will drive it in {} and map:\n", eds::mode_name(plan.mode));
   for (const PdoPlan* p :
-       {&plan.target, plan.outputs ? &*plan.outputs : nullptr, &plan.status, &plan.inputs}) {
+       {&plan.target, plan.outputs ? &*plan.outputs : nullptr, &plan.feedback, &plan.statusword}) {
     if (p == nullptr) continue;
     std::string entries;
     for (const PdoEntry& e : p->entries)

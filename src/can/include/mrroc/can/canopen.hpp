@@ -14,10 +14,11 @@
 ///   RPDO2 (master -> drive, 4 bytes, when the outputs change and every kOutputRefreshCycles
 ///         cycles; drives with outputs only): 0x60FE sub 1 digital outputs (u32; lines 0..7 are
 ///         bits 16..23).
-///   TPDO1 (drive -> master, 6 bytes, every SYNC): 0x6041 statusword (u16), 0x6064 position
-///         actual value (i32).
-///   TPDO2 (drive -> master, 4 bytes, event-driven: when it changes and at least every
-///         kInputEventTimerMs): 0x60FD digital inputs (u32).
+///   TPDO1 (drive -> master, 8 bytes, every SYNC): 0x6064 position actual value (i32), 0x60FD
+///         digital inputs (u32): sampled together, so that the home switch's edge comes with
+///         the position it was seen at.
+///   TPDO2 (drive -> master, 2 bytes, event-driven: when it changes and at least every
+///         kStatuswordEventTimerMs): 0x6041 statusword (u16).
 /// RPDOs are synchronous (transmission type 1): a drive applies the RPDOs received before a SYNC
 /// at that SYNC; TPDOs are sampled at the SYNC.
 ///
@@ -123,8 +124,8 @@ inline constexpr std::uint32_t kServoDeviceType = 0x00020192;
 /// The mapping entries the master writes (index << 16 | sub << 8 | bits; drive_setup.hpp).
 inline constexpr std::array<std::uint32_t, 2> kRpdo1Entries{0x60400010, 0x607A0020};
 inline constexpr std::array<std::uint32_t, 1> kRpdo2Entries{0x60FE0120};
-inline constexpr std::array<std::uint32_t, 2> kTpdo1Entries{0x60410010, 0x60640020};
-inline constexpr std::array<std::uint32_t, 1> kTpdo2Entries{0x60FD0020};
+inline constexpr std::array<std::uint32_t, 2> kTpdo1Entries{0x60640020, 0x60FD0020};
+inline constexpr std::array<std::uint32_t, 1> kTpdo2Entries{0x60410010};
 }  // namespace od
 
 /// Values of the supervision objects.
@@ -222,11 +223,11 @@ struct Rpdo2 {
   std::uint32_t outputs = 0;  ///< 0x60FE sub 1: lines 0..7 in bits 16..23
 };
 struct Tpdo1 {
-  std::uint16_t statusword = 0;
   std::int32_t position_actual = 0;  ///< [counts]
+  std::uint32_t inputs = 0;          ///< 0x60FD
 };
 struct Tpdo2 {
-  std::uint32_t inputs = 0;  ///< 0x60FD
+  std::uint16_t statusword = 0;
 };
 inline constexpr std::uint16_t kHomeSwitchBit = 1U << 2;
 /// A drive's digital lines (inputs and outputs): 8, in bits 16..23 of 0x60FD and 0x60FE.
@@ -236,9 +237,9 @@ inline constexpr std::uint32_t kUserLineMask = 0xFFU << kUserLineShift;
 /// The master refreshes each drive's outputs (RPDO2) at least this often [cycles], so that a
 /// lost frame is repaired (a drive holds its outputs between RPDO2s).
 inline constexpr std::uint64_t kOutputRefreshCycles = 50;
-/// A drive sends its inputs (TPDO2) at least this often [ms] (its event timer), as well as when
-/// they change, so that a lost frame is repaired.
-inline constexpr std::uint16_t kInputEventTimerMs = 10;
+/// A drive sends its statusword (TPDO2) at least this often [ms] (its event timer), as well as
+/// when it changes, so that a lost frame is repaired.
+inline constexpr std::uint16_t kStatuswordEventTimerMs = 20;
 can_frame encode(std::uint8_t node, const Rpdo1& pdo);
 can_frame encode(std::uint8_t node, const Rpdo2& pdo);
 can_frame encode(std::uint8_t node, const Tpdo1& pdo);
@@ -324,9 +325,10 @@ struct FrameBits {
 FrameBits frame_bits(int bytes);
 /// Bus load of one robot's cyclic traffic: one SYNC, an RPDO1 and a TPDO1 per axis each cycle,
 /// plus heartbeats and, with `output_refresh`, the outputs' refresh (an RPDO2 per axis every
-/// kOutputRefreshCycles cycles) and the inputs' refresh (a TPDO2 per axis every
-/// kInputEventTimerMs), all averaged over the cycles. A change of the outputs or the inputs adds
-/// one RPDO2 or TPDO2 per drive concerned, in that cycle only; it is not counted. Loads are
+/// kOutputRefreshCycles cycles) and the statusword's refresh (a TPDO2 per axis every
+/// kStatuswordEventTimerMs), all averaged over the cycles. A change of the outputs or of a
+/// statusword adds one RPDO2 or TPDO2 per drive concerned, in that cycle only; it is not
+/// counted. Loads are
 /// fractions of the bus' capacity (0.7 = 70 %).
 struct BusLoad {
   int frames_per_cycle = 0;

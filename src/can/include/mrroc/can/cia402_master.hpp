@@ -27,9 +27,9 @@
 /// drains the bus and checks each drive; `send` sends one RPDO1 per drive, an RPDO2 with its
 /// digital outputs to each drive whose outputs changed (`set_outputs`) or whose refresh is due
 /// (every canopen::kOutputRefreshCycles cycles, staggered over the drives), and then SYNC. A
-/// drive answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions sampled
-/// at the last SYNC (one cycle old); its digital inputs come in TPDO2, sampled at a SYNC too,
-/// sent when they change (bring-up reads them first by SDO).
+/// drive answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions and
+/// digital inputs sampled at the last SYNC (one cycle old); its statusword comes in TPDO2, when
+/// it changes and every canopen::kStatuswordEventTimerMs (bring-up reads it first by SDO).
 ///
 /// Digital outputs (canopen.hpp), for the drives that have 0x60FE and unless
 /// `MasterOptions::digital_lines` is false: bring-up maps RPDO2, writes each such drive's output
@@ -92,8 +92,9 @@ struct DriveStatus {
   std::uint16_t statusword = 0;
   canopen::DriveState state = canopen::DriveState::not_ready_to_switch_on;
   bool home_switch = false;
-  std::uint8_t input_lines = 0;       ///< the drive's 8 digital input lines (bit k = line k)
-  std::uint64_t last_tpdo_cycle = 0;  ///< cycle number of the last TPDO
+  std::uint8_t input_lines = 0;             ///< the drive's 8 digital input lines (bit k = line k)
+  std::uint64_t last_tpdo_cycle = 0;        ///< cycle number of the last TPDO1 (position, inputs)
+  std::uint64_t last_statusword_cycle = 0;  ///< cycle number of the last TPDO2 (statusword)
   std::uint16_t last_emcy = 0;
 };
 

@@ -9,12 +9,13 @@
 ///          0x60C1 sub 1 (interpolated position); synchronous (type 1), every cycle.
 ///   RPDO2  digital outputs 0x60FE sub 1, when the drive has them; synchronous, sent when the
 ///          outputs change and every canopen::kOutputRefreshCycles cycles.
-///   TPDO1  statusword 0x6041 + position actual value 0x6064; synchronous, every SYNC.
-///   TPDO2  digital inputs 0x60FD (all 32 bits: bit 2 home switch, bits 16..23 the drive's input
-///          lines); event-driven (type 255): sent when they change, and at least every
-///          canopen::kInputEventTimerMs (its event timer, sub 5), so that a frame lost on the
-///          way is repaired (a change alone, type 0, would leave a lost home switch edge lost:
-///          a synchronisation failed so with a fifth of the frames dropped).
+///   TPDO1  position actual value 0x6064 + digital inputs 0x60FD (all 32 bits: bit 2 home
+///          switch, bits 16..23 the drive's input lines); synchronous, every SYNC: the home
+///          switch's edge comes with the position it was sampled at (the EDP's synchronisation
+///          takes the axis' offset from that pair).
+///   TPDO2  statusword 0x6041; event-driven (type 255): sent when it changes, and at least every
+///          canopen::kStatuswordEventTimerMs (its event timer, sub 5), so that a frame lost on
+///          the way is repaired.
 /// A PDO already configured so (the drive's defaults, or a DCF) is only read, not written. Every
 /// other RPDO and TPDO of the drive is switched off (COB-ID bit 31), so that a drive's default
 /// TPDOs do not load the bus. COB-IDs are the predefined connection set's (0x200 + node,
@@ -112,8 +113,8 @@ struct DrivePlan {
   std::int8_t mode = eds::mode::kCyclicSyncPosition;
   PdoPlan target;                     ///< RPDO1
   std::optional<PdoPlan> outputs;     ///< RPDO2, when the drive has 0x60FE and outputs are used
-  PdoPlan status;                     ///< TPDO1
-  PdoPlan inputs;                     ///< TPDO2
+  PdoPlan feedback;                   ///< TPDO1: position and inputs
+  PdoPlan statusword;                 ///< TPDO2
   std::vector<PdoPlan> switched_off;  ///< every other PDO the drive has (entries empty)
   std::optional<DriveIdentity> identity;
   std::vector<SdoWrite> writes;

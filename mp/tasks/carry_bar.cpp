@@ -91,15 +91,27 @@ class BarCarryGenerator : public Generator {
     // centre is where the two grips stand now, and the rest of the path goes on from there.
     if (approaching_) return false;
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Isometry3d> held;
     for (std::size_t i = 0; i < robots.size(); ++i) {
       // Where each EDP holds its robot (the commanded joints): the next macro-step starts there,
       // and the drives' following error (measured joints) would be a jump from rest.
       const std::vector<double>& q =
           robots[i]->desired_joints.empty() ? robots[i]->joints : robots[i]->desired_joints;
       if (q.empty()) return false;
-      centre += (bases_[i] * kinematics_[i]->forward(q)).translation();
+      held.push_back(bases_[i] * kinematics_[i]->forward(q));
+      centre += held.back().translation();
     }
     centre /= static_cast<double>(robots.size());  // the grips sit at the centre -+ half the bar
+    // Each grip's pose differs a little from the bar's nominal one at that centre (the ramps to
+    // rest ran in joint space, and the grip distance deviates within the tolerance): the
+    // difference fades out over the resumed segment, with its time law, so that each robot
+    // starts from exactly where it stands (a jump there is refused as too abrupt).
+    offsets_.clear();
+    for (std::size_t i = 0; i < held.size(); ++i) {
+      const Eigen::Isometry3d nominal = grip(i, centre);
+      offsets_.push_back({held[i].translation() - nominal.translation(),
+                          Eigen::Quaterniond(held[i].linear() * nominal.linear().transpose())});
+    }
     path_ = path_.rest_from(centre, kMinResumeSegmentS);
     Eigen::Vector3d next;
     if (!path_.next(next)) return false;
@@ -113,12 +125,27 @@ class BarCarryGenerator : public Generator {
   [[nodiscard]] int macro_steps() const { return macro_total_; }
 
  private:
+  /// Robot i's grip on the bar whose centre is `centre`, nominally.
+  [[nodiscard]] Eigen::Isometry3d grip(std::size_t i, const Eigen::Vector3d& centre) const {
+    const double side = i == 0 ? 1.0 : -1.0;  // left grips the bar's -x end, approaching +x
+    Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
+    g.linear() = grip_orientation(side);
+    g.translation() = centre - side * half_ * Eigen::Vector3d::UnitX();
+    return g;
+  }
+
   void command(const ImageList& robots, const Eigen::Vector3d& centre, int steps, int value) {
+    // After a resumption, the offsets of the grips from their nominal poses fade out over the
+    // first segment (path_.first_segment_share() goes 0 -> 1 with its time law).
+    const double keep = offsets_.empty() ? 0.0 : 1.0 - path_.first_segment_share();
+    if (keep <= 0.0) offsets_.clear();
     for (std::size_t i = 0; i < robots.size(); ++i) {
-      const double side = i == 0 ? 1.0 : -1.0;  // left grips the bar's -x end, approaching +x
-      Eigen::Isometry3d grip = Eigen::Isometry3d::Identity();
-      grip.linear() = grip_orientation(side);
-      grip.translation() = centre - side * half_ * Eigen::Vector3d::UnitX();
+      Eigen::Isometry3d grip = this->grip(i, centre);
+      if (i < offsets_.size()) {
+        grip.translation() += keep * offsets_[i].translation;
+        grip.linear() =
+            Eigen::Quaterniond::Identity().slerp(keep, offsets_[i].rotation) * grip.linear();
+      }
       ecp::MpCommand& c = robots[i]->command;
       c.arm_type = edp::ArmRepresentation::frame;
       c.motion_type = edp::MotionType::absolute;
@@ -144,8 +171,14 @@ class BarCarryGenerator : public Generator {
     max_deviation_ = std::max(max_deviation_, std::abs(distance - start_distance_));
   }
 
+  /// A grip's pose at a resumption against its nominal one: world translation, world rotation.
+  struct Offset {
+    Eigen::Vector3d translation;
+    Eigen::Quaterniond rotation;
+  };
   std::vector<Eigen::Isometry3d> bases_;
   std::vector<std::unique_ptr<edp::ArmKinematics>> kinematics_;
+  std::vector<Offset> offsets_;  ///< since the last resumption, until its first segment ends
   double half_;
   Eigen::Vector3d start_;
   StraightPath path_;

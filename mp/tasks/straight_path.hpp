@@ -53,6 +53,14 @@ class StraightPath {
     return rest;
   }
 
+  /// How far along its first segment the point next() gave last is, by the time law (0..1); 1
+  /// from the second segment on.
+  [[nodiscard]] double first_segment_share() const {
+    if (!started_ || segment_ > 0) return started_ ? 1.0 : 0.0;
+    const double tau = static_cast<double>(macro_) / macros_;
+    return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+  }
+
   /// Whether the point next() gave last is the path's end.
   [[nodiscard]] bool at_end() const {
     return started_ && segment_ + 2 == points_.size() && macro_ == macros_;

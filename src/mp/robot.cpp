@@ -155,7 +155,11 @@ bool replannable(const EcpFailed& e) {
 }
 
 /// The group stops together: every robot's motion ends (its EDP finishes what it queued and comes
-/// to rest), then Move waits until every EDP reports its robot still, and reads where each stands.
+/// to rest), then Move waits until every EDP reports its robot still, and reads where each stands:
+/// the joints its EDP holds it at, from the EDP's own state broadcast at rest (an ECP's reply to
+/// the end of a motion may carry the joints of its last reading, from before the robot's ramp to
+/// rest, and a resume planned from those started with a jump: refused as too abrupt, again and
+/// again).
 void stop_group(const RobotList& robots) {
   parallel(robots, [](Robot& r) { r.end_motion(); });
   constexpr auto kPoll = std::chrono::milliseconds(10);
@@ -176,12 +180,22 @@ void stop_group(const RobotList& robots) {
                               kLimit.count()));
     std::this_thread::sleep_for(kPoll);
   }
-  parallel(robots, [](Robot& r) { r.end_motion(); });  // the joints where they stand
+  parallel(robots, [](Robot& r) { r.end_motion(); });
+  for (Robot* r : robots) {
+    const RobotImage s = r->state_image();
+    if (!s.desired_joints.empty()) r->image().desired_joints = s.desired_joints;
+    if (!s.joints.empty()) r->image().joints = s.joints;
+  }
 }
 }  // namespace
 
 void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& generator) {
+  // Stops and resumptions a motion may take in a row; the count starts again only after the
+  // resumed motion went on for kSettledSteps macro-steps (a resumption that is refused again a
+  // step or two later is the same trouble, not a new one: counted, it cannot loop for ever).
   constexpr int kMaxRefusals = 3;
+  constexpr int kSettledSteps = 25;
+  int accepted = 0;
   ImageList images;
   for (Robot* r : robots) images.push_back(&r->image());
   refresh(sensors);
@@ -196,11 +210,12 @@ void Move(const RobotList& robots, const ecp::SensorList& sensors, Generator& ge
         if (r->image().commanded) step.push_back(r);
       try {
         parallel(step, [](Robot& r) { r.next_pose(); });
-        refusals = 0;
+        if (!step.empty() && ++accepted >= kSettledSteps) refusals = 0;
       } catch (const EcpFailed& e) {
         // A robot had to stop for want of macro-steps and the planned continuation is too fast
         // or too abrupt from where it stands: the whole group stops and resumes from rest.
         if (!replannable(e) || ++refusals > kMaxRefusals) throw;
+        accepted = 0;
         const std::exception_ptr refusal = std::current_exception();
         try {
           stop_group(robots);

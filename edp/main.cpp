@@ -354,7 +354,11 @@ int run(const std::string& config_path, const std::string& robot_name) {
                         "{:.0f} us and waited {:.0f} us for its lock{}",
                         overruns_unreported, robot.edp.servo_period_s * 1e6, worst_unreported_us,
                         hardware->simulated()
-                            ? std::string("missed periods were skipped")
+                            ? (servo.caught_up_steps() > 0
+                                   ? fmt::format("missed periods were skipped, and the simulation "
+                                                 "makes them up between cycles ({} so far)",
+                                                 servo.caught_up_steps())
+                                   : std::string("missed periods were skipped"))
                             : fmt::format("missed periods were skipped, and a motion makes up "
                                           "their servo steps ({} so far)",
                                           servo.caught_up_steps()),

@@ -154,7 +154,9 @@ class ServoLoop {
   /// on hardware that keeps its own clock (Hardware::simulated() false) a motion runs up to 25 %
   /// faster than planned, within the joints' limits, until it is back on its time line, so that
   /// robots moving together stay in step when one servo thread is held back (docs/edp.md,
-  /// "Catch-up"). 0 on simulated hardware, whose time stands still with the loop.
+  /// "Catch-up"). On simulated hardware (its world steps once a cycle) the periods missed are run
+  /// as cycles of their own in the idle time before the next deadline, as many as fit (at most 50
+  /// owed), so that robots simulated by separate EDPs stay in step; those count here.
   [[nodiscard]] std::int64_t caught_up_steps() const;
   /// The client said no macro-step follows those queued (it pauses or stops on purpose): if the
   /// last of them promised a successor, the stopping ramp at its end is a planned stop.
@@ -304,6 +306,9 @@ class ServoLoop {
   AxisArray warp_velocity_{};         ///< the commanded velocity of the cycle before the last
   double previous_rate_ = 1.0;        ///< the rate (1 + warp) of the cycle before the last
   std::int64_t caught_up_total_ = 0;  ///< missed servo steps taken up for catch-up
+  /// Simulated hardware: periods missed and not made up yet (run()), at most kMaxOwedCycles.
+  std::int64_t owed_cycles_ = 0;
+  static constexpr std::int64_t kMaxOwedCycles = 50;
   char scheduling_[80] = {};
 };
 

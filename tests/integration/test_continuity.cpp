@@ -103,7 +103,7 @@ void expect_no_standstill_across_a_stop_of(const std::string& victim) {
   ASSERT_NE(c.run.killed_at, Clock::time_point{})
       << victim << " was never stopped: " << c.run.output;
   EXPECT_EQ(c.standstills, 0) << c.run.output;
-  EXPECT_LT(c.deviation_mm, 0.2);
+  EXPECT_LT(c.deviation_mm, 0.2) << c.run.output;
 }
 }  // namespace
 

@@ -166,16 +166,7 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
   need(0x60FD, 0, false, true, "reads the home switch (bit 2) and the input lines from it");
   need(0x1016, 1, true, false, "makes the drive supervise the master's heartbeat");
   need(0x1017, 0, true, false, "sets the drive's heartbeat");
-  for (const auto& [index, sub] : {std::pair<std::uint16_t, std::uint8_t>{0x1006, 0},
-                                   {0x1029, 1},
-                                   {0x6007, 0},
-                                   {0x605A, 0},
-                                   {0x6065, 0},
-                                   {0x6066, 0},
-                                   {0x6085, 0},
-                                   {0x60C2, 1},
-                                   {0x60C2, 2}})
-    optional_writable(index, sub);
+  for (const ObjectId& o : kOptionalObjects) optional_writable(o.index, o.sub);
   const bool outputs = request.outputs && d.entry(0x60FE, 1) != nullptr;
   if (outputs) {
     need(0x60FE, 1, true, true, "sends the output lines in RPDO2");

@@ -137,16 +137,9 @@ int eds_check(const std::string& file, int node, const std::string& mode) {
   for (const PdoPlan& p : plan.switched_off) off += (off.empty() ? "" : ", ") + p.name();
   if (!off.empty()) std::cout << "  switched off: " << off << "\n";
   std::string missing;
-  for (const auto& [index, sub] : {std::pair<std::uint16_t, std::uint8_t>{0x1006, 0},
-                                   {0x1029, 1},
-                                   {0x6007, 0},
-                                   {0x605A, 0},
-                                   {0x6065, 0},
-                                   {0x6066, 0},
-                                   {0x6085, 0},
-                                   {0x60C2, 1}})
-    if (d->entry(index, sub) == nullptr)
-      missing += (missing.empty() ? "" : ", ") + object_name(nullptr, index, sub);
+  for (const ObjectId& o : kOptionalObjects)
+    if (d->entry(o.index, o.sub) == nullptr)
+      missing += (missing.empty() ? "" : ", ") + object_name(nullptr, o.index, o.sub);
   if (!missing.empty()) std::cout << "  not in the file, so not configured: " << missing << "\n";
   std::cout << "ok: mrroc can drive it\n";
   return 0;

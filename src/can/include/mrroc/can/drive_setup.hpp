@@ -26,6 +26,7 @@
 /// they are mapped; the PDO objects (0x1400/0x1600 x 1..2, 0x1800/0x1A00 x 1..2) with room for
 /// two entries, and TPDO2's event timer (0x1801 sub 5). Used when present (and then checked):
 /// 0x1006, 0x1029 sub 1, 0x6007, 0x605A, 0x6065, 0x6066, 0x6085, 0x60C2, 0x60FE.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -130,6 +131,22 @@ struct DrivePlan {
 /// @throws ConfigErrors with every problem, each naming the EDS `file:line` (or the config's
 /// location for a value the file does not have), the node and the object.
 DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequest& request);
+
+/// An object of a drive: index and sub-index.
+struct ObjectId {
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+};
+/// The objects the master configures where a drive's file has them (and leaves alone where not).
+inline constexpr std::array<ObjectId, 9> kOptionalObjects{{{0x1006, 0},
+                                                           {0x1029, 1},
+                                                           {0x6007, 0},
+                                                           {0x605A, 0},
+                                                           {0x6065, 0},
+                                                           {0x6066, 0},
+                                                           {0x6085, 0},
+                                                           {0x60C2, 1},
+                                                           {0x60C2, 2}}};
 
 /// The built-in description of mrroc's emulated drive (configs/drives/emu-csp.eds), for drives
 /// whose config names no file.

@@ -88,9 +88,6 @@ inline constexpr std::uint16_t kCommunicationCyclePeriod = 0x1006;
 /// time 0 or node 0: not monitored.
 inline constexpr std::uint16_t kConsumerHeartbeatTime = 0x1016;
 inline constexpr std::uint16_t kHeartbeatTime = 0x1017;  ///< u16, producer heartbeat [ms]
-inline constexpr std::uint16_t kRpdo1Mapping = 0x1600;   ///< sub 0 = count, 1.. = entries
-inline constexpr std::uint16_t kRpdo2Mapping = 0x1601;
-inline constexpr std::uint16_t kTpdo1Mapping = 0x1A00;
 /// Error behaviour: sub 0 = 1, sub 1 = u8 NMT reaction to a communication error while
 /// operational: 0 enter pre-operational, 1 no change, 2 enter stopped.
 inline constexpr std::uint16_t kErrorBehaviour = 0x1029;
@@ -119,13 +116,7 @@ inline constexpr std::uint16_t kInterpolationData = 0x60C1;    ///< sub 1: i32 t
 inline constexpr std::uint16_t kVelocityActual = 0x606C;       ///< i32 [counts/s]
 inline constexpr std::uint16_t kTorqueActual = 0x6077;         ///< i16 [per mille of rated]
 inline constexpr std::uint16_t kErrorCode = 0x603F;            ///< u16, the last EMCY's code
-inline constexpr std::uint16_t kSupportedModes = 0x6502;       ///< u32, bit m-1 = mode m
 inline constexpr std::uint32_t kServoDeviceType = 0x00020192;
-/// The mapping entries the master writes (index << 16 | sub << 8 | bits; drive_setup.hpp).
-inline constexpr std::array<std::uint32_t, 2> kRpdo1Entries{0x60400010, 0x607A0020};
-inline constexpr std::array<std::uint32_t, 1> kRpdo2Entries{0x60FE0120};
-inline constexpr std::array<std::uint32_t, 2> kTpdo1Entries{0x60640020, 0x60FD0020};
-inline constexpr std::array<std::uint32_t, 1> kTpdo2Entries{0x60410010};
 }  // namespace od
 
 /// Values of the supervision objects.

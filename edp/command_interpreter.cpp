@@ -13,7 +13,31 @@ namespace mrroc::edp {
 
 namespace {
 constexpr double kSynchroTimeout = 60.0;  // longest synchronisation [s]
+/// What a SET may not change while the emergency stop is engaged: motion, the device, the binary
+/// outputs (they hold their safe state) and the servo settings.
+constexpr std::uint8_t kRefusedUnderStop = item::arm | item::device | item::outputs | item::servo;
+
+/// "SET OUTPUTS refused: emergency stop engaged (...)", naming what the instruction changes.
+std::string refused_under_stop(const Instruction& in) {
+  std::string what;
+  if (in.type == InstructionType::synchro) {
+    what = "SYNCHRO";
+  } else {
+    for (auto [bit, name] : {std::pair{item::arm, "ARM"}, std::pair{item::device, "DEVICE"},
+                             std::pair{item::outputs, "OUTPUTS"}, std::pair{item::servo, "SERVO"}})
+      if ((in.set & bit) != 0) what += (what.empty() ? "" : "+") + std::string(name);
+    what = to_string(in.type) + std::string(" ") + what;
+  }
+  return fmt::format(
+      "{} refused: emergency stop engaged ({}release it first, e.g. mrroc-ui "
+      "release)",
+      what,
+      (in.set & item::outputs) != 0
+          ? "the binary outputs hold their safe state until a SET after the "
+            "release; "
+          : "");
 }
+}  // namespace
 
 CommandInterpreter::CommandInterpreter(ServoLoop& servo, const RobotModel& model,
                                        ArmKinematics& kinematics, double servo_period_s)
@@ -80,11 +104,8 @@ Reply CommandInterpreter::execute(const Instruction& in) {
   } else if (servo_.emergency_stopped() &&
              (in.type == InstructionType::synchro ||
               ((in.type == InstructionType::set || in.type == InstructionType::set_get) &&
-               (in.set & (item::arm | item::device)) != 0))) {
-    reply = error(error_code::emergency_stop,
-                  fmt::format("{} refused: emergency stop engaged (release it first, e.g. "
-                              "mrroc-ui release)",
-                              to_string(in.type)));
+               (in.set & kRefusedUnderStop) != 0))) {
+    reply = error(error_code::emergency_stop, refused_under_stop(in));
   } else {
     try {
       reply = accept(in);
@@ -189,10 +210,13 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     throw;
   }
 
-  if (sets && (in.set & item::outputs) != 0) servo_.request_outputs(in.output_values);
+  // The servo loop refuses them too when a stop came after the check in execute().
+  if (sets && (in.set & item::outputs) != 0 && !servo_.request_outputs(in.output_values))
+    throw CommandError(error_code::emergency_stop, refused_under_stop(in));
+  if (sets && (in.set & item::servo) != 0 &&
+      !servo_.request_servo(in.servo_algorithm, in.servo_parameters_no))
+    throw CommandError(error_code::emergency_stop, refused_under_stop(in));
   if (sets_device) servo_.request_device(in.device);
-  if (sets && (in.set & item::servo) != 0)
-    servo_.request_servo(in.servo_algorithm, in.servo_parameters_no);
   due_arm_type_ = in.get_arm_type;
   due_tool_type_ = is_cartesian(in.tool_type) ? in.tool_type : ArmRepresentation::frame;
   due_get_ = gets ? in.get : 0;

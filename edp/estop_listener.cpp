@@ -69,44 +69,48 @@ void EstopListener::on_message(const EmergencyStop& m, const comm::Received& in)
   const std::string& from = in.header().sender;
   switch (m.action) {
     case EstopAction::engage: {
+      bool now_held = false;
       {
         std::lock_guard lock(mutex_);
-        last_command_utime_ = std::max(last_command_utime_, in.header().utime);
+        heard_ = true;
+        // A copy of an ENGAGE already released (a late datagram) does not stop again.
+        (void)record_.engage(EstopCommandRef{from, m.command_id});
+        now_held = record_.holding();
       }
-      engage(m.reason + " (from " + from + ")", false);
+      if (now_held) engage(m.reason + " (from " + from + ")", false);
       break;
     }
     case EstopAction::release: {
       if (!in.authentic()) return;
-      {
-        std::lock_guard lock(mutex_);
-        last_command_utime_ = std::max(last_command_utime_, in.header().utime);
-        heard_ = true;
-      }
-      release();
+      std::lock_guard lock(mutex_);
+      heard_ = true;
+      if (!record_.release(EstopCommandRef{from, m.command_id})) break;  // a copy, obeyed
+      release_locked();
       break;
     }
     case EstopAction::engaged: {
+      bool stop = false;
       {
         std::lock_guard lock(mutex_);
         announcer_ = from;
-        if (m.latched_utime < last_command_utime_) {
-          heard_ = true;  // the EDP's own later command stands
-          break;
-        }
+        heard_ = true;
+        // Every ENGAGE it names was released here already (by an operator's RELEASE the latch
+        // has not heard yet): the EDP's own later command stands.
+        (void)record_.latched_engaged(m.engages, from);
+        stop = record_.holding();
       }
-      engage(fmt::format("latched: {} (announced by {})", m.reason, from), true);
+      if (stop) engage(fmt::format("latched: {} (announced by {})", m.reason, from), true);
       break;
     }
     case EstopAction::released: {
       if (!in.authentic()) return;
-      {
-        std::lock_guard lock(mutex_);
-        announcer_ = from;
-        heard_ = true;
-        if (m.latched_utime < last_command_utime_) break;  // sent before the latch saw ours
-      }
-      release();
+      std::lock_guard lock(mutex_);
+      announcer_ = from;
+      heard_ = true;
+      // Releases only a stop whose every ENGAGE this announcement names as ended, or the hold the
+      // EDP started in when it holds no ENGAGE: never a stop the latch did not see.
+      const bool emptied = record_.latched_released(m.engages);
+      if (emptied || !record_.holding()) release_locked();
       break;
     }
   }
@@ -131,11 +135,11 @@ void EstopListener::engage(const std::string& why, bool only_if_released) {
   servo_.emergency_stop();
 }
 
-void EstopListener::release() {
-  std::lock_guard lock(mutex_);
+void EstopListener::release_locked() {
   // Only a stop that is engaged is released: a release resets the hold position to the measured
   // joints, which must not happen to a robot in motion (announcements come every 150 ms).
   if (shutdown_ || !servo_.emergency_stopped()) return;
+  starting_hold_ = false;
   servo_.release_emergency_stop();
 }
 

@@ -7,11 +7,13 @@
 /// `mrroc/estop` (docs/messages.md, docs/operating.md "Emergency stop"):
 ///  - ENGAGE (an operator's command, from anybody: stopping is always safe) stops at once;
 ///  - RELEASE (an operator's command) releases when it is authentic (with the set's key);
-///  - ENGAGED (the latch holder's announcement, from anybody) stops;
-///  - RELEASED (the latch holder's announcement) releases when it is authentic and not older
-///    than the last operator command this EDP obeyed (its `latched_utime` is at least that
-///    command's header.utime), so an announcement sent before the latch saw an ENGAGE cannot
-///    undo it.
+///  - ENGAGED (the latch holder's announcement, from anybody) stops, unless every ENGAGE it names
+///    was released here already;
+///  - RELEASED (the latch holder's announcement) releases when it is authentic and names as ended
+///    every ENGAGE this EDP holds (or the EDP holds none: the hold it started in), so a latch that
+///    missed an ENGAGE cannot undo it.
+/// Commands are named by sender and number and followed in the order they arrive
+/// (comm::EstopRecord): no sender's clock orders anything.
 /// After hold_for_shutdown() nothing releases the stop any more.
 
 #include <atomic>
@@ -26,6 +28,7 @@
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/edge.hpp"
+#include "mrroc/comm/estop_record.hpp"
 #include "mrroc/msg/emergency_stop.hpp"
 #include "servo_loop.hpp"
 
@@ -64,7 +67,8 @@ class EstopListener {
   void run();
   void on_message(const EmergencyStop& m, const comm::Received& in);
   void engage(const std::string& why, bool only_if_released);
-  void release();
+  /// Releases the servo loop's stop (with mutex_ held).
+  void release_locked();
 
   ServoLoop& servo_;
   const std::string robot_;
@@ -77,7 +81,7 @@ class EstopListener {
   std::condition_variable heard_cv_;
   bool heard_ = false;
   bool shutdown_ = false;
-  std::int64_t last_command_utime_ = 0;  ///< header.utime of the last operator command obeyed
+  comm::EstopRecord record_;  ///< the ENGAGEs this EDP obeyed and holds
   std::string reason_;
   /// True while the EDP holds only because it started stopped (no stop of anyone's yet).
   bool starting_hold_ = true;

@@ -138,6 +138,17 @@ int run(const std::string& config_path, const std::string& robot_name) {
     edp::ServoLoop servo(*hardware, model, robot.edp.servo_period_s);
     servo.set_limit_guard(kinematics.get());
     if (robot.edp.lock_step) servo.set_lock_step(true);
+    if (const std::uint32_t named = robot.edp.safe_outputs | robot.edp.kept_outputs;
+        named != 0 && (!hardware->binary_io() || (named & ~hardware->output_lines()) != 0))
+      throw ConfigError(
+          robot.edp.where,
+          fmt::format(
+              "[robot.edp] safe_outputs = {:#x}, kept_outputs = {:#x} name output lines plugin "
+              "'{}' does not have ({})",
+              robot.edp.safe_outputs, robot.edp.kept_outputs, hardware->name(),
+              hardware->binary_io() ? fmt::format("its lines are {:#x}", hardware->output_lines())
+                                    : std::string("it has no binary outputs")));
+    servo.set_stop_outputs(robot.edp.safe_outputs, robot.edp.kept_outputs);
     servo.set_lookahead(robot.edp.lookahead);
     servo.start();
     // Its own socket and thread; the robot is stopped from here until the stop's state is heard.

@@ -420,6 +420,7 @@ void ServoLoop::plan_cycle(std::int64_t missed) {
     t.synchronised = synced;
     t.desired = desired_;
     t.measured = latest_.joints;
+    t.outputs = outputs_;
   }
 }
 
@@ -641,6 +642,10 @@ void ServoLoop::emergency_stop() {
   {
     std::lock_guard lock(mutex_);
     emergency_stop_ = true;
+    // The outputs take their safe state in the next cycle (kept lines stay); a release does not
+    // restore them.
+    outputs_ = (outputs_ & kept_outputs_) | (safe_outputs_ & ~kept_outputs_);
+    outputs_pending_ = true;
     if (current_) reached_id_ = std::max(reached_id_, current_->id);
     current_.reset();
     end_velocity_.fill(0.0);
@@ -831,13 +836,23 @@ bool ServoLoop::wait_synchronised(double timeout_s) {
   return mode_ == Mode::hold && synchronised_ && !faulted_;
 }
 
-void ServoLoop::request_outputs(std::uint32_t values) {
+bool ServoLoop::request_outputs(std::uint32_t values) {
   {
     std::lock_guard lock(mutex_);
+    // Checked under the lock that emergency_stop() takes: a stop engaged after the EDP's own
+    // check cannot be overwritten by the SET that was on its way.
+    if (emergency_stop_) return false;
     outputs_ = values;
     outputs_pending_ = true;
   }
   changed_.notify();
+  return true;
+}
+
+void ServoLoop::set_stop_outputs(std::uint32_t safe, std::uint32_t kept) {
+  std::lock_guard lock(mutex_);
+  safe_outputs_ = safe;
+  kept_outputs_ = kept;
 }
 
 void ServoLoop::request_device(const std::vector<double>& command) {
@@ -850,10 +865,11 @@ void ServoLoop::request_device(const std::vector<double>& command) {
   changed_.notify();
 }
 
-void ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
+bool ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
                               const std::vector<std::int8_t>& parameter_set) {
   {
     std::lock_guard lock(mutex_);
+    if (emergency_stop_) return false;
     for (std::size_t i = 0; i < axes_ && i < algorithm.size(); ++i) {
       servo_algorithm_[i] = algorithm[i];
       servo_parameter_set_[i] = parameter_set[i];
@@ -861,6 +877,7 @@ void ServoLoop::request_servo(const std::vector<std::int8_t>& algorithm,
     servo_pending_ = true;
   }
   changed_.notify();
+  return true;
 }
 
 void ServoLoop::enable_trace(std::size_t capacity) {

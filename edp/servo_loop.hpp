@@ -60,6 +60,7 @@ struct TraceSample {
   bool synchronised = false;  ///< false: positions are raw axis positions, not joint coordinates
   AxisArray desired{};        ///< commanded joint position written in this cycle [rad]
   AxisArray measured{};       ///< measured joint position read in this cycle [rad]
+  std::uint32_t outputs = 0;  ///< binary outputs written in this cycle
 };
 
 class ServoLoop {
@@ -142,8 +143,9 @@ class ServoLoop {
 
   /// Emergency stop: drops the queued motion, decelerates all axes by one common factor (the
   /// axis with the least acceleration to spare at its maximum; never past a joint limit) to a
-  /// standstill and holds; no motion is accepted
-  /// until release_emergency_stop(). Callable from any thread.
+  /// standstill and holds, and writes the binary outputs' safe state (set_stop_outputs()) in the
+  /// next cycle; no motion, SET OUTPUTS or SET SERVO is accepted until release_emergency_stop(),
+  /// which restores no output. Callable from any thread.
   void emergency_stop();
   void release_emergency_stop();
   [[nodiscard]] bool emergency_stopped() const;
@@ -168,12 +170,18 @@ class ServoLoop {
   /// Waits up to `timeout_s` for that; returns false if the fault persists.
   bool reset_fault(double timeout_s);
 
-  /// Binary outputs to write from the next cycle on.
-  void request_outputs(std::uint32_t values);
+  /// Binary outputs to write from the next cycle on; false (nothing changed) while the emergency
+  /// stop is engaged.
+  [[nodiscard]] bool request_outputs(std::uint32_t values);
   /// Servo algorithm and parameter set per axis, switched in the next cycle (validated by the
-  /// caller against the plugin's counts).
-  void request_servo(const std::vector<std::int8_t>& algorithm,
-                     const std::vector<std::int8_t>& parameter_set);
+  /// caller against the plugin's counts); false (nothing changed) while the emergency stop is
+  /// engaged.
+  [[nodiscard]] bool request_servo(const std::vector<std::int8_t>& algorithm,
+                                   const std::vector<std::int8_t>& parameter_set);
+  /// What emergency_stop() does to the binary outputs: the lines of `kept` stay, every other
+  /// line takes its state in `safe` (config [robot.edp] safe_outputs, kept_outputs). Before the
+  /// loop starts.
+  void set_stop_outputs(std::uint32_t safe, std::uint32_t kept);
   /// Device command (one value per command field of Hardware::device(), checked by the
   /// caller), written to the plugin in the next cycle.
   void request_device(const std::vector<double>& command);
@@ -286,6 +294,8 @@ class ServoLoop {
 
   bool outputs_pending_ = false;
   std::uint32_t outputs_ = 0;
+  std::uint32_t safe_outputs_ = 0;  ///< set_stop_outputs()
+  std::uint32_t kept_outputs_ = 0;
   DeviceDescription device_;  ///< constant after construction
   bool device_pending_ = false;
   std::array<double, kMaxDeviceFields> device_command_{};  ///< under mutex_

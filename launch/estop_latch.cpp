@@ -24,7 +24,7 @@ EstopLatch::EstopLatch(comm::Bus& bus, std::vector<std::string> robots,
         } else if (m.action != EstopAction::engage) {
           return;  // announcements (ours, or another latch's)
         }
-        on_command(m.action, m.robot, m.reason, in.header().sender, in.header().utime);
+        on_command(m.action, m.robot, m.reason, EstopCommandRef{in.header().sender, m.command_id});
       });
   thread_ = std::thread([this] { run(); });
 }
@@ -42,31 +42,54 @@ EstopLatch::~EstopLatch() {
 bool EstopLatch::engaged(const std::string& robot) const {
   std::lock_guard lock(mutex_);
   auto it = robots_.find(robot);
-  return it != robots_.end() && it->second.engaged;
+  return it != robots_.end() && it->second.record.holding();
 }
 
 void EstopLatch::on_command(EstopAction action, const std::string& robot, const std::string& reason,
-                            const std::string& sender, std::int64_t utime) {
+                            const EstopCommandRef& command) {
   const bool engage = action == EstopAction::engage;
   std::string line;
   {
     std::lock_guard lock(mutex_);
     std::vector<std::string> flipped;
+    bool obeyed = false;  // a new command (not a copy) for a robot of this set
     for (auto& [name, l] : robots_) {
       if (!robot.empty() && robot != name) continue;
-      if (l.engaged != engage) flipped.push_back(name);
-      l.engaged = engage;
-      l.utime = std::max(l.utime, utime);
-      l.reason = engage ? reason + " (from " + sender + ")" : std::string{};
+      // In the order the commands arrive here: no sender's clock orders them (a forged time
+      // could otherwise make a later announcement release an ENGAGE this latch never heard).
+      if (engage) {
+        const bool was = l.record.holding();
+        // A late copy of an ENGAGE released is not held; a copy of one held is not new.
+        obeyed = l.record.engage(command) || obeyed;
+        if (was || !l.record.holding()) continue;
+        flipped.push_back(name);
+        l.by = command;
+        l.reason = reason + " (from " + command.sender + ")";
+      } else {
+        const bool was = l.record.holding();
+        auto ended = l.record.release(command);
+        if (!ended) continue;  // a copy of a RELEASE obeyed
+        obeyed = true;
+        l.by = command;
+        // A RELEASE that ended nothing here keeps naming what the last one ended, for an EDP
+        // that missed both.
+        if (!ended->empty()) l.ended = std::move(*ended);
+        l.reason.clear();
+        if (was) flipped.push_back(name);
+      }
     }
-    if (flipped.empty()) return;  // a repeated copy, or a robot of another set
+    if (obeyed) changed_ = true;  // announced at once: the sender waits to see it named
+    if (flipped.empty()) {
+      if (obeyed) cv_.notify_all();
+      return;  // a copy, a command that changed no state, or a robot of another set
+    }
     std::string names;
     for (const auto& n : flipped) names += (names.empty() ? "" : ", ") + n;
     line = fmt::format(
-        "mrroc-launch: emergency stop {} for {} ({}from {}): latched and announced "
+        "mrroc-launch: emergency stop {} for {} ({}from {}, command {}): latched and announced "
         "every {} ms",
         engage ? "ENGAGED" : "released", names, engage && !reason.empty() ? reason + ", " : "",
-        sender, kPeriod.count());
+        command.sender, command.id, kPeriod.count());
     changed_ = true;
   }
   cv_.notify_all();
@@ -81,10 +104,18 @@ void EstopLatch::announce() {
   }
   for (const auto& [name, l] : copy) {
     EmergencyStop m;
-    m.action = l.engaged ? EstopAction::engaged : EstopAction::released;
+    const bool engaged = l.record.holding();
+    m.action = engaged ? EstopAction::engaged : EstopAction::released;
     m.robot = name;
     m.reason = l.reason;
-    m.latched_utime = l.utime;
+    m.by = l.by;
+    if (engaged) {
+      m.engages.assign(l.record.held().begin(), l.record.held().end());
+    } else {
+      m.engages = l.ended;
+    }
+    if (m.engages.size() > kMaxEstopEngages)
+      m.engages.erase(m.engages.begin(), m.engages.end() - kMaxEstopEngages);
     comm::Envelope header;
     header.sender = sender_;
     header.utime = now_utime();

@@ -4,9 +4,11 @@
 /// that no other process set runs on the set's LCM URL.
 ///
 /// EstopLatch follows the operators' ENGAGE / RELEASE on `mrroc/estop` by the EDP's rules (ENGAGE
-/// from anybody, RELEASE only when authentic), keeps the state per robot of the set, and
-/// announces it every kPeriod (and at once on a change) as one emergency_stop_t ENGAGED or
-/// RELEASED per robot, signed when the set has a key. An EDP that starts hears it within a
+/// from anybody, RELEASE only when authentic, in the order they arrive, each command once:
+/// comm::EstopRecord), keeps the state per robot of the set, and announces it every kPeriod (and
+/// at once on a change) as one emergency_stop_t per robot, signed when the set has a key: ENGAGED
+/// naming the ENGAGEs it holds, or RELEASED naming the RELEASE that set it and the ENGAGEs that
+/// RELEASE ended. An EDP that starts hears it within a
 /// period and starts stopped or released accordingly (edp/estop_listener.hpp,
 /// docs/operating.md "Emergency stop").
 
@@ -23,6 +25,7 @@
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/edge.hpp"
+#include "mrroc/comm/estop_record.hpp"
 #include "mrroc/msg/emergency_stop.hpp"
 
 namespace mrroc::launch {
@@ -43,12 +46,13 @@ class EstopLatch {
 
  private:
   struct Latched {
-    bool engaged = false;
-    std::int64_t utime = 0;  ///< header.utime of the command that set it (0: start)
+    comm::EstopRecord record;            ///< engaged while it holds an ENGAGE
+    EstopCommandRef by;                  ///< the command that set the state (empty: start)
+    std::vector<EstopCommandRef> ended;  ///< released: the ENGAGEs the last RELEASE ended
     std::string reason;
   };
   void on_command(EstopAction action, const std::string& robot, const std::string& reason,
-                  const std::string& sender, std::int64_t utime);
+                  const EstopCommandRef& command);
   void announce();
   void run();
 

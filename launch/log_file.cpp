@@ -23,7 +23,12 @@ LogFile::LogFile(fs::path path, std::uintmax_t max_bytes, int keep)
       max_bytes_(max_bytes < 1 ? 1 : max_bytes),
       keep_(keep < 0 ? 0 : keep) {
   std::error_code ec;
-  if (path_.has_parent_path()) fs::create_directories(path_.parent_path(), ec);
+  // A folder made here is its owner's alone (0700): the logs may hold what the processes print,
+  // a generated console token among it. A folder that exists keeps its permissions.
+  if (path_.has_parent_path() && !fs::exists(path_.parent_path(), ec)) {
+    fs::create_directories(path_.parent_path(), ec);
+    if (!ec) fs::permissions(path_.parent_path(), fs::perms::owner_all, ec);
+  }
   if (ec)
     throw Error(fmt::format("cannot create the log folder '{}': {}", path_.parent_path().string(),
                             ec.message()));
@@ -39,10 +44,12 @@ fs::path LogFile::rotated(const fs::path& path, int n) {
 }
 
 void LogFile::open() {
-  fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0600);
   if (fd_ < 0)
     throw Error(
         fmt::format("cannot open the log file '{}': {}", path_.string(), std::strerror(errno)));
+  // A file made earlier with wider permissions is narrowed to its owner too.
+  (void)::fchmod(fd_, 0600);
   struct stat st {};
   size_ = ::fstat(fd_, &st) == 0 ? static_cast<std::uintmax_t>(st.st_size) : 0;
 }

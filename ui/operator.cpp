@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -63,12 +65,18 @@ MpStatus send_operator_command(MpClient& client, OperatorCommand command) {
   return out;
 }
 
-void publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robot,
-                            const std::string& reason) {
+EstopCommandRef publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robot,
+                                       const std::string& reason) {
+  // The process' number for each of its commands; it starts at the time of the first, so that a
+  // later process with the same pid (the sender's name) does not repeat a number.
+  static std::atomic<std::int64_t> next_id{0};
+  std::int64_t expected = 0;
+  (void)next_id.compare_exchange_strong(expected, std::max<std::int64_t>(1, now_utime()));
   EmergencyStop stop;
   stop.action = engage ? EstopAction::engage : EstopAction::release;
   stop.robot = robot;
   stop.reason = reason;
+  stop.command_id = next_id++;
   comm::Envelope header;
   header.sender = comm::unique_endpoint_name("ui");
   comm::FaultDice dice(comm::link_faults_from_environment());
@@ -79,6 +87,7 @@ void publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robo
     comm::broadcast(bus, channels::emergency_stop, header, stop, &dice);
     if (i < 4) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+  return EstopCommandRef{header.sender, stop.command_id};
 }
 
 EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
@@ -92,7 +101,7 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
     std::condition_variable cv;
     bool engage = false;
     bool armed = false;
-    std::int64_t sent_utime = 0;
+    EstopCommandRef command;
     Clock::time_point sent{};
     std::map<std::string, double> latency_ms;
     std::map<std::string, std::int64_t> step;
@@ -121,27 +130,41 @@ EstopConfirmation send_and_confirm_emergency_stop(comm::Bus& bus, bool engage,
   announcements.emplace(
       bus, channels::emergency_stop,
       [&w](const EmergencyStop& m, const comm::Received& in) {
+        if (m.action != EstopAction::engaged && m.action != EstopAction::released) return;
+        {
+          std::lock_guard lock(w.mutex);
+          if (w.command.id == 0 || !w.latched_by.empty()) return;
+          // Only an announcement that names this very command confirms that the latch holds it:
+          // ENGAGED among the ENGAGEs it holds, RELEASED as the RELEASE that set it.
+          const bool names_it = w.engage ? m.action == EstopAction::engaged &&
+                                               std::find(m.engages.begin(), m.engages.end(),
+                                                         w.command) != m.engages.end()
+                                         : m.action == EstopAction::released && m.by == w.command;
+          if (!names_it) return;
+        }
+        if (!in.authentic()) return;  // with a key, only the set's latch confirms
         std::lock_guard lock(w.mutex);
-        if (!w.armed || m.latched_utime < w.sent_utime) return;
-        if (m.action == (w.engage ? EstopAction::engaged : EstopAction::released))
-          w.latched_by = in.header().sender;
+        w.latched_by = in.header().sender;
       },
       quiet);
   {
     std::lock_guard lock(w.mutex);
     w.armed = true;
     w.sent = Clock::now();
-    w.sent_utime = now_utime();
   }
-  publish_emergency_stop(bus, engage, robot, reason);
+  const EstopCommandRef command = publish_emergency_stop(bus, engage, robot, reason);
+  {
+    std::lock_guard lock(w.mutex);
+    w.command = command;
+  }
   EstopConfirmation out;
   {
     std::unique_lock lock(w.mutex);
     const std::size_t wanted = states.size();
     w.cv.wait_until(lock, w.sent + deadline, [&] { return w.latency_ms.size() >= wanted; });
   }
-  // The latch announces every 150 ms and at once on a change: give it a moment when it has not.
-  const auto latch_until = w.sent + std::chrono::milliseconds(200);
+  // The latch announces at once on every command it obeys (and every 150 ms): give it a moment.
+  const auto latch_until = w.sent + kEstopLatchWait;
   while (Clock::now() < latch_until) {
     {
       std::lock_guard lock(w.mutex);
@@ -181,9 +204,12 @@ std::string describe_confirmation(bool engage, const EstopConfirmation& c,
       names += fmt::format("{}{} ({:.0f} ms)", names.empty() ? "" : ", ", r, c.latency_ms.at(r));
     text += (text.empty() ? "" : "; ") + std::string("confirmed by ") + names;
   }
-  text += c.latched_by.empty() ? "; no latch holder announced it (an EDP that starts now will "
-                                 "not know: is mrroc-launch running?)"
-                               : "; latched by " + c.latched_by;
+  text += c.latched_by.empty()
+              ? fmt::format(
+                    "; NOT LATCHED: no latch holder announced this {} (an EDP that "
+                    "starts or missed it will not know: is mrroc-launch running?)",
+                    engage ? "stop" : "release")
+              : "; latched by " + c.latched_by;
   return text;
 }
 

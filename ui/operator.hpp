@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "mrroc/comm/request_reply.hpp"
+#include "mrroc/msg/emergency_stop.hpp"
 #include "mrroc/msg/operator.hpp"
 #include "mrroc_lcm/operator_command_t.hpp"
 #include "mrroc_lcm/operator_reply_t.hpp"
@@ -60,11 +61,14 @@ namespace mrroc::ui {
 /// Publishes emergency_stop_t on mrroc/estop 5 times, 5 ms apart (UDP may drop one; an EDP acts
 /// on the first copy and ignores the others). `robot` empty: every robot. Honours
 /// MRROC_LINK_FAULTS (comm/faults.hpp), so that a test can drop every copy.
-void publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robot,
-                            const std::string& reason);
+/// Every copy carries the same command number; returns the command's name (sender, number).
+EstopCommandRef publish_emergency_stop(comm::Bus& bus, bool engage, const std::string& robot,
+                                       const std::string& reason);
 
 /// How long the operator's tools wait for every robot to confirm the stop (or its release).
 inline constexpr std::chrono::milliseconds kEstopConfirmDeadline{500};
+/// How long after sending they wait at least for the latch holder's announcement naming it.
+inline constexpr std::chrono::milliseconds kEstopLatchWait{300};
 
 /// The answer of the robots to an emergency stop or release.
 struct EstopConfirmation {
@@ -72,9 +76,11 @@ struct EstopConfirmation {
   std::vector<std::string> unconfirmed;      ///< robots that did not within the deadline
   std::map<std::string, double> latency_ms;  ///< per confirmed robot: from sending to the state
   std::map<std::string, std::int64_t> servo_step;  ///< the step of the confirming state
-  /// The latch holder that announced the new state ("launch#41"), empty when none did.
+  /// The latch holder whose authentic announcement named this command ("launch#41"), empty
+  /// when none did: then the stop is not confirmed either (an EDP that starts, or missed the
+  /// command, would not know).
   std::string latched_by;
-  [[nodiscard]] bool all() const { return unconfirmed.empty(); }
+  [[nodiscard]] bool all() const { return unconfirmed.empty() && !latched_by.empty(); }
 };
 
 /// Sends the stop (publish_emergency_stop) and waits at most `deadline` for the robot_state_t of

@@ -22,6 +22,7 @@ static_assert(same(EstopAction::engage, Stop::ENGAGE) &&
               same(EstopAction::release, Stop::RELEASE) &&
               same(EstopAction::engaged, Stop::ENGAGED) &&
               same(EstopAction::released, Stop::RELEASED));
+static_assert(kMaxEstopEngages == static_cast<std::size_t>(Stop::MAX_ENGAGES));
 using Srp = mrroc_lcm::srp_message_t;
 static_assert(same(Severity::debug, Srp::DEBUG) && same(Severity::info, Srp::INFO) &&
               same(Severity::warning, Srp::WARNING) && same(Severity::error, Srp::ERROR) &&
@@ -83,11 +84,21 @@ void check_size(const std::vector<T>& v, std::int32_t n, const char* message, co
 }  // namespace
 
 mrroc_lcm::emergency_stop_t encode(const EmergencyStop& in) {
+  if (in.engages.size() > kMaxEstopEngages)
+    throw Error(fmt::format("emergency_stop_t: {} ENGAGEs named, at most {}", in.engages.size(),
+                            kMaxEstopEngages));
   Stop m{};
   m.action = static_cast<std::int8_t>(in.action);
   m.robot = in.robot;
   m.reason = in.reason;
-  m.latched_utime = in.latched_utime;
+  m.command_id = in.command_id;
+  m.by_sender = in.by.sender;
+  m.by_id = in.by.id;
+  m.n_engages = static_cast<std::int16_t>(in.engages.size());
+  for (const EstopCommandRef& e : in.engages) {
+    m.engage_senders.push_back(e.sender);
+    m.engage_ids.push_back(e.id);
+  }
   return m;
 }
 
@@ -97,7 +108,15 @@ EmergencyStop decode(const mrroc_lcm::emergency_stop_t& m) {
       checked<EstopAction>(m.action, Stop::ENGAGE, Stop::RELEASED, "emergency_stop_t", "action");
   out.robot = m.robot;
   out.reason = m.reason;
-  out.latched_utime = m.latched_utime;
+  out.command_id = m.command_id;
+  out.by = EstopCommandRef{m.by_sender, m.by_id};
+  if (m.n_engages < 0 || m.n_engages > Stop::MAX_ENGAGES)
+    throw DecodeError(fmt::format("emergency_stop_t: field 'n_engages' is {}, not in 0..{}",
+                                  m.n_engages, Stop::MAX_ENGAGES));
+  check_size(m.engage_senders, m.n_engages, "emergency_stop_t", "engage_senders");
+  check_size(m.engage_ids, m.n_engages, "emergency_stop_t", "engage_ids");
+  for (std::size_t i = 0; i < m.engage_ids.size(); ++i)
+    out.engages.push_back(EstopCommandRef{m.engage_senders[i], m.engage_ids[i]});
   return out;
 }
 

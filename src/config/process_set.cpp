@@ -635,9 +635,9 @@ class Reader {
 
   /// [robot.edp].
   EdpConfig edp(const toml::table& t) const {
-    only_keys(
-        t, "robot.edp",
-        with_options({"plugin", "library", "servo_period_ms", "lookahead", "lock_step", "params"}));
+    only_keys(t, "robot.edp",
+              with_options({"plugin", "library", "servo_period_ms", "lookahead", "lock_step",
+                            "safe_outputs", "kept_outputs", "params"}));
     EdpConfig c;
     c.where = where(t);
     c.plugin = string(t, "plugin", "robot.edp");
@@ -659,9 +659,29 @@ class Reader {
       c.lookahead = static_cast<int>(v);
     }
     set_boolean(t, "lock_step", c.lock_step);
+    set_output_mask(t, "safe_outputs", c.safe_outputs,
+                    "the state of each binary output line during an emergency stop");
+    set_output_mask(t, "kept_outputs", c.kept_outputs,
+                    "the binary output lines an emergency stop leaves as they are");
     c.params = table_params(t, "params", "robot.edp.params");
     c.options = options(t, "edp");
     return c;
+  }
+
+  /// A mask of binary output lines (bit i = line i, 0..0xFFFFFFFF) at `key`, when given.
+  void set_output_mask(const toml::table& t, const char* key, std::uint32_t& out,
+                       const char* what) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return;
+    if (!n->is_integer())
+      fail(*n, fmt::format("'{}' must be an integer: {}, bit i = line i (e.g. 0x5 for lines 0 "
+                           "and 2)",
+                           key, what));
+    const std::int64_t v = **n->as_integer();
+    if (v < 0 || v > 0xFFFFFFFFLL)
+      fail(*n,
+           fmt::format("'{}' = {:#x} is outside 0..0xffffffff ({}, bit i = line i)", key, v, what));
+    out = static_cast<std::uint32_t>(v);
   }
 
   /// The parameters at `key` of `t` (a table), located at `t` when there are none.

@@ -7,11 +7,13 @@
 // the MP with mrroc::mp::Robot: START_TASK once (the ECP synchronises the robot), then timed
 // next_pose() calls, each one NEXT_POSE macro-step in JOINT coordinates:
 //  - B1, paced: isolated macro-steps of 1 servo step, alternating the column between two positions
-//    1 mrad apart, read after the motion stopped (value_in_step_no = motion_steps + 1 = 2): a
+//    1.5 urad apart (half as far as the column's acceleration limit allows a move of one step
+//    from rest to rest), read after the motion stopped (value_in_step_no = motion_steps + 1 = 2): a
 //    macro-step read in its last step (value_in_step_no = motion_steps) promises a successor
 //    within the same servo cycle, which a paced MP never sends, and the EDP then brings the robot
 //    to a standstill on its own;
-//  - B4, unpaced: a continuous motion of the column at 0.05 rad/s in macro-steps of 2 servo steps
+//  - B4, unpaced: a continuous motion of the column at 0.05 rad/s (reached from rest at
+//    0.5 rad/s^2) in macro-steps of 2 servo steps
 //    read in step 1 (value_in_step_no = 1), each sent as soon as the previous reply arrives, so
 //    that it is queued in the EDP before the running one ends.
 // Other macro-step parameters: bench_chain SAMPLES B1_STEPS B1_VALUE B4_STEPS B4_VALUE.
@@ -416,26 +418,38 @@ ChainFigures run_process_set(const fs::path& bin, const fs::path& dir, double se
     c.motion_type = mrroc::edp::MotionType::absolute;
     c.arm = {0.0, -1.5707963267948966, 0.0, 0.0, 0.0};
     int k = 0;
-    auto step = [&] {  // B1: back and forth by 1 mrad
+    // B1: back and forth, each move from rest to rest in paced_steps servo steps, as far as the
+    // column's acceleration limit allows with a margin: the EDP estimates a rest-to-rest move of
+    // n steps of T as accelerating at 4 d / (n T)^2, so d = 0.5 * 3 rad/s^2 * (n T)^2 / 4 (1.5 urad
+    // for one step of 2 ms).
+    const double paced_time = shape.paced_steps * servo_period_ms * 1e-3;
+    const double back_and_forth = 0.5 * 3.0 * paced_time * paced_time / 4.0;
+    auto step = [&] {
       c.motion_steps = shape.paced_steps;
       c.value_in_step_no = shape.paced_value;
-      c.arm[0] = (k++ % 2 == 0) ? 0.001 : 0.0;
+      c.arm[0] = (k++ % 2 == 0) ? back_and_forth : 0.0;
       robot.next_pose();
     };
-    const double column_step = 0.05 * servo_period_ms * 1e-3 * shape.unpaced_steps;
-    auto continuous_step = [&] {  // B4: the column at 0.05 rad/s
+    // B4: the column at 0.05 rad/s, reached from rest at 0.5 rad/s^2 (the first macro-step, with
+    // no successor queued yet, accelerates at 3 v / T: 1.5 rad/s^2 at most).
+    const double macro_step_time = shape.unpaced_steps * servo_period_ms * 1e-3;
+    const double velocity_increment = 0.5 * macro_step_time;
+    double velocity = 0.0;
+    auto continuous_step = [&] {
       c.motion_steps = shape.unpaced_steps;
       c.value_in_step_no = shape.unpaced_value;
-      c.arm[0] += column_step;
+      velocity = std::min(0.05, velocity + velocity_increment);
+      c.arm[0] += velocity * macro_step_time;
       try {
         robot.next_pose();
       } catch (const mrroc::mp::EcpFailed&) {
         // In real time a successor that came late made the EDP ramp the robot down past its
         // target, and the next macro-step was refused as too fast from there: go on from where
-        // the robot stands (as ecp::Move re-plans).
+        // the robot stands (as ecp::Move re-plans), from rest.
         ++out.refused_after_late;
         robot.end_motion();
         c.arm = robot.image().desired_joints;
+        velocity = 0.0;
       }
     };
     for (int i = 0; i < 100; ++i) step();  // warm-up

@@ -27,6 +27,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -217,37 +218,47 @@ int main(int argc, char** argv) {
     g_watched = servo.servo_thread_id();
     const std::int64_t first_watched_cycle = servo.latest().cycle;
 
-    // Command thread (this one): SYNCHRO, then back-to-back macro-steps of the column between 0
-    // and 0.3 rad at 0.1 rad/s until the time is up.
+    // Command thread (this one): SYNCHRO, then back-to-back macro-steps of the column along
+    // 0.15 (1 - cos(2 pi t / 6 s)) rad until the time is up: from rest, at most 0.16 rad/s and
+    // 0.17 rad/s^2 (the column's limits are 1.5 rad/s and 3 rad/s^2), so that the EDP accepts
+    // every macro-step as the stock generators' are accepted.
+    // An instruction refused ends the run: the threads are stopped before the error is reported.
+    std::string refused;
     auto exec = [&](const Instruction& in) {
       const Reply r = interpreter.execute(in);
-      if (r.type == ReplyType::error) throw Error("EDP refused an instruction: " + r.error_text);
-      return r;
+      if (r.type == ReplyType::error && refused.empty()) refused = r.error_text;
+      return r.type != ReplyType::error;
     };
     Instruction query;
     query.type = InstructionType::query;
     Instruction synchro;
     synchro.type = InstructionType::synchro;
-    exec(synchro);
-    exec(query);
     constexpr int kSteps = 10;
+    constexpr double kAmplitude = 0.15;                            // [rad]
+    constexpr double kOmega = 2.0 * 3.14159265358979323846 / 6.0;  // [rad/s]
     std::vector<double> q = model.synchro_joint_positions;
-    double direction = 1.0;
+    const double q0 = q[0];
     long macro_steps = 0;
     const auto end = t0 + std::chrono::duration<double>(seconds);
-    while (std::chrono::steady_clock::now() < end) {
-      q[0] += direction * 0.1 * kPeriod * kSteps;
-      if (q[0] >= 0.3 || q[0] <= 0.0) direction = -direction;
-      exec(set_joints(q, kSteps, kSteps - 1));
-      exec(query);
-      ++macro_steps;
+    if (exec(synchro) && exec(query)) {
+      bool going = true;
+      while (going && std::chrono::steady_clock::now() < end) {
+        const double t = static_cast<double>((macro_steps + 1) * kSteps) * kPeriod;
+        q[0] = q0 + kAmplitude * (1.0 - std::cos(kOmega * t));
+        going = exec(set_joints(q, kSteps, kSteps - 1)) && exec(query);
+        ++macro_steps;
+      }
+      // The last one ends at rest (it may need a few more steps than the others to get there).
+      if (going) going = exec(set_joints(q, 10 * kSteps, 10 * kSteps + 1)) && exec(query);
     }
-    exec(set_joints(q, kSteps, kSteps + 1));
-    exec(query);
     bare.running = false;
     control.running = false;
     bare_thread.join();
     control_thread.join();
+    if (!refused.empty()) {
+      servo.stop();
+      throw Error("EDP refused an instruction: " + refused);
+    }
     const TimingStats t = servo.timing();
     const std::int64_t watched_cycles = servo.latest().cycle - first_watched_cycle;
     const long allocations = g_allocations.load();

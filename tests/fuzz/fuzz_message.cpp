@@ -226,8 +226,11 @@ std::string canonical(const mrroc::vsp::RawSample& v, bool wire) {
 // comm::encode leaves to the publisher: not part of their canonical text. Nor is a process row's
 // local_metrics (the launcher's own, not sent).
 std::string canonical(const mrroc::EmergencyStop& v, bool wire) {
-  return fmt::format("action={} robot={} reason={} latched_utime={}", code(v.action),
-                     str(v.robot, wire), str(v.reason, wire), v.latched_utime);
+  std::string engages;
+  for (const auto& e : v.engages) engages += fmt::format(" {}:{}", str(e.sender, wire), e.id);
+  return fmt::format("action={} robot={} reason={} command_id={} by={}:{} engages={}",
+                     code(v.action), str(v.robot, wire), str(v.reason, wire), v.command_id,
+                     str(v.by.sender, wire), v.by.id, engages);
 }
 std::string canonical(const mrroc::RobotState& v, bool wire) {
   return fmt::format(

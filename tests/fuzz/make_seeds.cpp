@@ -341,7 +341,16 @@ void other_message_seeds() {
   stop.action = mrroc_lcm::emergency_stop_t::RELEASE;
   stop.robot = "irb6";
   stop.reason = "";
+  stop.command_id = 1790000000000000;
   write("emergency_stop", "01", bytes_of(stop));
+  stop.action = mrroc_lcm::emergency_stop_t::ENGAGED;
+  stop.command_id = 0;
+  stop.by_sender = "ui#17";
+  stop.by_id = 1790000000000001;
+  stop.n_engages = 2;
+  stop.engage_senders = {"ui#17", "ui#18"};
+  stop.engage_ids = {1790000000000001, 1790000000000002};
+  write("emergency_stop", "02", bytes_of(stop));
 
   mrroc_lcm::srp_message_t srp{};
   header(srp.header, "edp/irb6#99", 3, mrroc_lcm::header_t::BROADCAST);

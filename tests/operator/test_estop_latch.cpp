@@ -9,8 +9,10 @@
 #include <regex>
 
 #include "mrroc/comm/bus.hpp"
+#include "mrroc/comm/edge.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/msg/emergency_stop.hpp"
 #include "mrroc_build_options.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 #include "operator_helpers.hpp"
@@ -59,6 +61,7 @@ class States {
 
 double max_joint_change(const std::vector<mrroc_lcm::robot_state_t>& states) {
   double worst = 0;
+  if (states.empty()) return worst;
   for (const auto& s : states)
     for (std::size_t i = 0; i < s.q.size(); ++i)
       worst = std::max(worst, std::abs(s.q[i] - states.front().q[i]));
@@ -91,7 +94,9 @@ TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) 
     std::printf("%s", dropped.c_str());
     EXPECT_EQ(dropped_code, 4) << dropped;
     EXPECT_TRUE(has(dropped, "NOT CONFIRMED by irb6 within 500 ms")) << dropped;
-    EXPECT_FALSE(states.since(states.count() > 5 ? states.count() - 5 : 0).back().estop);
+    const auto recent = states.since(states.count() > 5 ? states.count() - 5 : 0);
+    ASSERT_FALSE(recent.empty()) << "no robot_state_t of irb6 heard";
+    EXPECT_FALSE(recent.back().estop);
   } else {
     std::printf("the unconfirmed stop is not run: built with MRROC_LINK_FAULT_INJECTION=OFF\n");
   }
@@ -119,9 +124,11 @@ TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) 
   EXPECT_TRUE(launch.wait_for("SYNCHRO refused: emergency stop engaged", 10s, from_line))
       << launch.output();
   std::this_thread::sleep_for(1s);
+  const auto all_states = states.since(0);
+  ASSERT_FALSE(all_states.empty()) << "no robot_state_t of irb6 heard";
   std::vector<mrroc_lcm::robot_state_t> held;
   for (const auto& s : states.since(from_state))
-    if (s.header.sender != states.since(0).front().header.sender) held.push_back(s);
+    if (s.header.sender != all_states.front().header.sender) held.push_back(s);
   ASSERT_GT(held.size(), 40u) << "states of the restarted EDP";
   double worst = max_joint_change(held);
   bool always_stopped = true, never_synchronised = true;
@@ -152,6 +159,87 @@ TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) 
   }
   std::printf("after the release the robot moved %.3f rad\n", moved);
   EXPECT_GE(moved, 0.1) << launch.output();
+  (void)run({ui(), "terminate", "--config", config.string()});
+  EXPECT_NE(launch.wait(60s), -1);
+  EXPECT_EQ(leftovers(), "");
+}
+
+// No time a sender writes may gate a release: a forged ENGAGE stamped with the largest time, an
+// operator's RELEASE, then an ENGAGE the latch never hears (the launcher stopped while its socket
+// overflows, as on a flooded group): the latch keeps announcing RELEASED, and the EDP stays
+// stopped until an operator releases it.
+TEST(EstopLatch, AForgedTimeAndAnEngageTheLatchMissedLeaveTheEdpStopped) {
+  const fs::path dir = temp_dir("estop-forged");
+  std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
+  text.replace(text.find("\"../../../robots/irb6\""), 22,
+               "\"" + (kSource / "robots/irb6").string() + "\"");
+  text.replace(text.find("task = \"start_and_wait\""), 23,
+               "task = \"start_and_wait\"\nstart = \"operator\"");
+  const fs::path config = dir / "estop.toml";
+  std::ofstream(config) << text;
+  States states;
+  Background launch({launcher(), config.string()});
+  ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
+  ASSERT_TRUE(has(launch.output(), "emergency stop released (heard after")) << launch.output();
+
+  // 1. A forged ENGAGE (no key, a made-up sender) with utime = INT64_MAX: it stops (any ENGAGE
+  //    may) and the latch holds it.
+  {
+    mrroc::comm::Bus forger(kUrl);
+    mrroc::EmergencyStop forged;
+    forged.action = mrroc::EstopAction::engage;
+    forged.reason = "forged";
+    forged.command_id = INT64_MAX;
+    mrroc::comm::broadcast(forger, mrroc::channels::emergency_stop,
+                           mrroc::comm::Envelope{INT64_MAX, "forger#1", INT64_MAX}, forged);
+  }
+  ASSERT_TRUE(launch.wait_for("emergency stop ENGAGED for irb6 (forged, from forger#1", 5s))
+      << launch.output();
+  // 2. The operator's RELEASE: confirmed and latched.
+  auto [release_code, release_out] = run({ui(), "release", "--config", config.string()});
+  std::printf("%s", release_out.c_str());
+  ASSERT_EQ(release_code, 0) << release_out;
+  ASSERT_TRUE(has(release_out, "latched by launch#")) << release_out;
+
+  // 3. An ENGAGE the latch never hears: the launcher is stopped and its sockets' buffers are
+  //    filled (5000 LCM messages on a channel nobody reads) before the stop is sent.
+  const pid_t launcher_pid = launch.pid();
+  ASSERT_EQ(::kill(launcher_pid, SIGSTOP), 0);
+  {
+    mrroc::comm::Bus flood(kUrl);
+    // Small datagrams: a socket's buffer (208 KiB) takes one more datagram while it is below its
+    // limit, so large ones leave room for the small ENGAGE after them.
+    const std::vector<std::uint8_t> junk(300, 0x55);
+    for (int i = 0; i < 5000; ++i)
+      flood.lcm().publish("flood", junk.data(), static_cast<unsigned>(junk.size()));
+  }
+  std::this_thread::sleep_for(300ms);  // the running processes read the flood away
+  auto [missed_code, missed_out] =
+      run({ui(), "estop", "--config", config.string(), "--reason", "missed by the latch"});
+  std::printf("%s", missed_out.c_str());
+  ASSERT_EQ(::kill(launcher_pid, SIGCONT), 0);
+  // The EDP obeyed it; no latch named it: mrroc-ui says the stop is not latched (exit 4).
+  EXPECT_EQ(missed_code, 4) << missed_out;
+  EXPECT_TRUE(has(missed_out, "confirmed by irb6 (")) << missed_out;
+  EXPECT_TRUE(has(missed_out, "NOT LATCHED")) << missed_out;
+  const std::size_t from_state = states.count();
+  std::this_thread::sleep_for(1500ms);  // ten announcements of RELEASED
+  ASSERT_FALSE(has(launch.output(), "ENGAGED for irb6 (missed by the latch"))
+      << "the latch heard the ENGAGE after all: the flood did not fill its socket\n"
+      << launch.output();
+  const auto held = states.since(from_state);
+  ASSERT_GT(held.size(), 40u);
+  std::size_t released = 0;
+  for (const auto& s : held) released += s.estop ? 0 : 1;
+  EXPECT_EQ(released, 0u) << "of " << held.size()
+                          << " states in 1.5 s after the stop the latch missed\n"
+                          << launch.output();
+
+  // 4. Only an operator's RELEASE ends it.
+  auto [again_code, again_out] = run({ui(), "release", "--config", config.string()});
+  std::printf("%s", again_out.c_str());
+  EXPECT_EQ(again_code, 0) << again_out;
+  EXPECT_TRUE(has(again_out, "confirmed by irb6 (")) << again_out;
   (void)run({ui(), "terminate", "--config", config.string()});
   EXPECT_NE(launch.wait(60s), -1);
   EXPECT_EQ(leftovers(), "");

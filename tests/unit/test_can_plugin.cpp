@@ -15,15 +15,18 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <regex>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "edp_parts.hpp"
 #include "emu_process.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/edp/hardware.hpp"
+#include "servo_loop.hpp"
 
 using namespace mrroc;
 using namespace std::chrono_literals;
@@ -150,6 +153,61 @@ TEST(CanPlugin, BinaryLinesAreTheDrivesDigitalLines) {
   const std::string out = emu.output();
   EXPECT_NE(out.find("robot 'irb6' axis 'column' outputs 0x01"), std::string::npos) << out;
   EXPECT_NE(out.find("robot 'irb6' axis 'lower_arm' outputs 0x80"), std::string::npos) << out;
+}
+
+// An emergency stop switches the drives' output lines to their safe state (here: off) in the
+// servo cycle after it, through the servo loop as the EDP runs it: RPDO2 goes out in that cycle,
+// before its SYNC. configs/scenes/irb6.toml wires the column drive's output line 0 to the lower
+// arm drive's input line 0 (EDP input bit 24), so the drives' own state is read back.
+TEST(CanPlugin, AnEmergencyStopSwitchesTheDrivesOutputsOffInTheNextCycle) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  auto hw = plugin(url);
+  const RobotModel model = test::stock_model("irb6");
+  edp::ServoLoop servo(*hw, model, 0.002);
+  servo.set_stop_outputs(0, 0);
+  servo.enable_trace(5000);
+  servo.start();
+  const auto input_24_is = [&](bool on) -> std::optional<std::int64_t> {
+    const auto until = std::chrono::steady_clock::now() + 3s;
+    while (std::chrono::steady_clock::now() < until) {
+      const edp::Reading r = servo.latest();
+      if (((r.inputs >> 24U) & 1U) == (on ? 1U : 0U)) return r.cycle;
+      std::this_thread::sleep_for(200us);
+    }
+    return std::nullopt;
+  };
+  ASSERT_TRUE(servo.request_outputs(0x0001));
+  const auto on_at = input_24_is(true);
+  ASSERT_TRUE(on_at.has_value()) << emu.output();
+  const std::int64_t before = servo.latest().cycle;
+  servo.emergency_stop();
+  // Every cycle planned after this one sees the stop.
+  const std::int64_t after = servo.latest().cycle;
+  const auto off_at = input_24_is(false);
+  ASSERT_TRUE(off_at.has_value()) << emu.output();
+  // Written (RPDO2 sent, before that cycle's SYNC) in the cycle after the stop; the drives'
+  // answer takes the emulator's time, so it is printed, not bounded.
+  std::int64_t written = -1;
+  for (const edp::TraceSample& t : servo.trace())
+    if (t.cycle > before && t.outputs == 0) {
+      written = t.cycle;
+      break;
+    }
+  EXPECT_GE(written, before + 1);
+  EXPECT_LE(written, after + 1) << "stop between cycles " << before << " and " << after;
+  std::printf(
+      "outputs written in cycle %+lld after the stop, line 0 read back on the other "
+      "drive in cycle %+lld\n",
+      static_cast<long long>(written - before), static_cast<long long>(*off_at - before));
+  EXPECT_FALSE(servo.request_outputs(0x0001));  // refused while the stop holds
+  servo.release_emergency_stop();
+  std::this_thread::sleep_for(50ms);
+  EXPECT_EQ((servo.latest().inputs >> 24U) & 1U, 0U) << "a release must restore nothing";
+  servo.stop();
+  const std::string out = emu.output();
+  EXPECT_NE(out.find("robot 'irb6' axis 'column' outputs 0x01"), std::string::npos) << out;
+  EXPECT_NE(out.find("robot 'irb6' axis 'column' outputs 0x00"), std::string::npos) << out;
 }
 
 TEST(CanPlugin, InjectedDriveFaultIsAPluginFaultNamingTheDrive) {

@@ -106,7 +106,7 @@ TEST(Edge, MalformedMessagesAreCountedAndReportedNotDelivered) {
   bus.lcm().publish("mrroc/estop", junk.data(), static_cast<unsigned>(junk.size()));
   // Then a good one: the subscriber is still alive and delivers it.
   comm::broadcast(bus, "mrroc/estop", comm::Envelope{1, "ui#2", 1},
-                  EmergencyStop{EstopAction::engage, "", "test", 0});
+                  EmergencyStop{EstopAction::engage, "", "test", 0, {}, {}});
   ASSERT_TRUE(inbox.wait_for(1));
   {
     std::lock_guard lock(inbox.mutex);
@@ -189,7 +189,7 @@ TEST(Edge, AuthenticityIsCheckedWhenTheHandlerAsks) {
                                         inbox.add(s, in);
                                       });
   receiver.start();
-  const EmergencyStop release{EstopAction::release, "", "", 0};
+  const EmergencyStop release{EstopAction::release, "", "", 0, {}, {}};
   comm::broadcast(stranger, "edge/estop", comm::Envelope{1, "stranger#1", 1}, release);
   ASSERT_TRUE(inbox.wait_for(1));
   comm::broadcast(member, "edge/estop", comm::Envelope{2, "ui#1", 1}, release);

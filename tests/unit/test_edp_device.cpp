@@ -156,7 +156,8 @@ TEST(EdpDevice, RefusedDuringEmergencyStopAndFromAnotherClient) {
   r = edp.exec(Edp::set_device({0.0, 10.0}));
   EXPECT_EQ(r.error_code, error_code::emergency_stop);
   EXPECT_EQ(r.error_text,
-            "SET_GET refused: emergency stop engaged (release it first, e.g. mrroc-ui release)");
+            "SET_GET DEVICE refused: emergency stop engaged (release it first, e.g. mrroc-ui "
+            "release)");
   // Reading the device is still possible; releasing makes the command acceptable again.
   EXPECT_EQ(edp.exec(Edp::get_device()).type, ReplyType::data);
   edp.servo_->release_emergency_stop();

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <thread>
 
 #include "command_interpreter.hpp"
@@ -163,6 +164,70 @@ TEST(EdpSafety, EmergencyStopDeceleratesWithinLimitsAndHolds) {
   ASSERT_EQ(r.type, ReplyType::acknowledge) << r.error_text;
   r = edp.query();
   EXPECT_EQ(r.type, ReplyType::data) << r.error_text;
+}
+
+// The binary outputs take their safe state in the first servo cycle after an ENGAGE (the lines
+// configured as kept stay), SET OUTPUTS and SET SERVO are refused while it holds, and a release
+// restores nothing. The mujoco plugin reads outputs 0..15 back on inputs 16..31, one cycle later.
+TEST(EdpSafety, EmergencyStopPutsTheOutputsInTheirSafeStateAndAReleaseRestoresNothing) {
+  Edp edp("mujoco");
+  edp.servo_->set_stop_outputs(/*safe=*/0x4, /*kept=*/0x2);
+  const auto outputs_read_back = [&](std::uint32_t want) -> std::optional<std::int64_t> {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    while (std::chrono::steady_clock::now() < until) {
+      const Reading r = edp.servo_->latest();
+      if ((r.inputs >> 16U) == want) return r.cycle;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    return std::nullopt;
+  };
+  Instruction set_outputs;
+  set_outputs.type = InstructionType::set;
+  set_outputs.set = item::outputs;
+  set_outputs.output_values = 0x3;
+  ASSERT_EQ(edp.exec(set_outputs).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.query().type, ReplyType::data);
+  ASSERT_TRUE(outputs_read_back(0x3).has_value());
+
+  const std::int64_t before = edp.servo_->latest().cycle;
+  edp.servo_->emergency_stop();
+  // Every cycle planned after this one sees the stop.
+  const std::int64_t after = edp.servo_->latest().cycle;
+  // Line 0 off (safe 0), line 1 kept on, line 2 on (safe 1): written in the cycle after the
+  // stop at the latest (the trace's outputs are those each cycle wrote), read back after it.
+  ASSERT_TRUE(outputs_read_back(0x6).has_value()) << "the outputs never took their safe state";
+  std::int64_t written = -1;
+  for (const TraceSample& t : edp.servo_->trace())
+    if (t.cycle > before && t.outputs == 0x6) {
+      written = t.cycle;
+      break;
+    }
+  EXPECT_GE(written, before + 1);
+  EXPECT_LE(written, after + 1) << "stop between cycles " << before << " and " << after;
+
+  set_outputs.output_values = 0x1;
+  Reply r = edp.exec(set_outputs);
+  EXPECT_EQ(r.error_code, error_code::emergency_stop);
+  EXPECT_NE(r.error_text.find("SET OUTPUTS refused: emergency stop engaged"), std::string::npos)
+      << r.error_text;
+  Instruction set_servo;
+  set_servo.type = InstructionType::set;
+  set_servo.set = item::servo;
+  set_servo.servo_algorithm.assign(edp.model_.axes(), 1);
+  set_servo.servo_parameters_no.assign(edp.model_.axes(), 0);
+  r = edp.exec(set_servo);
+  EXPECT_EQ(r.error_code, error_code::emergency_stop);
+  EXPECT_NE(r.error_text.find("SET SERVO refused: emergency stop engaged"), std::string::npos)
+      << r.error_text;
+
+  edp.servo_->release_emergency_stop();
+  const std::int64_t released = edp.servo_->latest().cycle;
+  while (edp.servo_->latest().cycle < released + 20)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(edp.servo_->latest().inputs >> 16U, 0x6U) << "a release must restore nothing";
+  ASSERT_EQ(edp.exec(set_outputs).type, ReplyType::acknowledge);
+  ASSERT_EQ(edp.query().type, ReplyType::data);
+  EXPECT_TRUE(outputs_read_back(0x1).has_value());
 }
 
 TEST(EdpSafety, LostEcpBringsTheRobotToAStandstill) {

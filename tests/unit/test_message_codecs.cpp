@@ -37,18 +37,29 @@ void expect_rejected(const Msg& m, const std::vector<std::string>& words) {
 TEST(MessageCodecs, EmergencyStopRoundTripAndRejection) {
   for (EstopAction a :
        {EstopAction::engage, EstopAction::release, EstopAction::engaged, EstopAction::released}) {
-    EmergencyStop in{a, "irb6", "door opened", 1234567};
+    EmergencyStop in{a, "irb6", "door opened", 1234567, {"ui#3", 77}, {{"ui#3", 76}, {"ui#9", 5}}};
     const EmergencyStop out = round_trip(in);
     EXPECT_EQ(out.action, a);
     EXPECT_EQ(out.robot, "irb6");
     EXPECT_EQ(out.reason, "door opened");
-    EXPECT_EQ(out.latched_utime, 1234567);
+    EXPECT_EQ(out.command_id, 1234567);
+    EXPECT_EQ(out.by, (EstopCommandRef{"ui#3", 77}));
+    ASSERT_EQ(out.engages.size(), 2u);
+    EXPECT_EQ(out.engages[1], (EstopCommandRef{"ui#9", 5}));
   }
   auto m = comm::encode(EmergencyStop{});
   m.action = 0;
   expect_rejected(m, {"emergency_stop_t", "action", "0", "1..4"});
   m.action = 5;
   expect_rejected(m, {"action", "5"});
+  m.action = 3;
+  m.n_engages = 17;
+  expect_rejected(m, {"emergency_stop_t", "n_engages", "17", "0..16"});
+  m.n_engages = 1;
+  expect_rejected(m, {"engage_senders", "0 elements", "1"});
+  EmergencyStop too_many;
+  too_many.engages.resize(kMaxEstopEngages + 1);
+  EXPECT_THROW((void)comm::encode(too_many), Error);
 }
 
 TEST(MessageCodecs, RobotStateRoundTripAndRejection) {

@@ -786,6 +786,25 @@ TEST(Supervisor, AnUnusableLogFileStartsNothing) {
   EXPECT_FALSE(s.any_running());
 }
 
+// Logs may hold what processes print (a generated console token among it): a log folder made
+// by the launcher is 0700 and every log file 0600, one made earlier with wider rights included.
+TEST(LogFile, IsItsOwnersAloneAndSoIsAFolderItMakes) {
+  namespace fs = std::filesystem;
+  const fs::path dir = temp_dir("logperm");
+  const fs::path path = dir / "logs" / "ui.log";
+  {
+    LogFile log(path, 1000, 2);
+    log.write_line("hello");
+  }
+  EXPECT_EQ(fs::status(dir / "logs").permissions() & fs::perms::all, fs::perms::owner_all);
+  EXPECT_EQ(fs::status(path).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write);
+  fs::permissions(path, fs::perms::group_read | fs::perms::others_read, fs::perm_options::add);
+  { LogFile again(path, 1000, 2); }
+  EXPECT_EQ(fs::status(path).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write);
+}
+
 TEST(LogFile, RotatesWhenLargerThanTheLimitKeepingNFiles) {
   const auto dir = temp_dir("rotate");
   const auto path = dir / "srp.log";

@@ -94,6 +94,14 @@ function showEstopConfirmation(data, engage) {
       missing.join(", ") + " within " + data.deadline_ms + " ms: " +
       (engage ? "check the robot and use the hard-wired emergency stop" : "the robot may still be stopped");
     banner.hidden = false;
+  } else if (!data.latched_by) {
+    // Every robot obeyed, but no latch holder named this command: a robot that restarts, or
+    // missed it, would not know.
+    banner.textContent = (engage ? "EMERGENCY STOP NOT LATCHED" : "RELEASE NOT LATCHED") +
+      ": no latch holder (mrroc-launch) announced it; " +
+      (engage ? "a robot that restarts may move: keep the hard-wired emergency stop at hand"
+              : "a robot that restarts stays stopped");
+    banner.hidden = false;
   } else {
     banner.hidden = true;
     banner.textContent = "";

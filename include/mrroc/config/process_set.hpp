@@ -129,6 +129,11 @@ struct EdpConfig {
   /// Simulated hardware only: servo cycles run back to back while there is motion to execute
   /// (simulated time advances as fast as the machine allows) instead of one per period.
   bool lock_step = false;
+  /// What an emergency stop does to the binary outputs (bit i = line i): the lines of
+  /// `kept_outputs` stay as they are, every other line takes its state in `safe_outputs`
+  /// (default: every line off). A release restores nothing.
+  std::uint32_t safe_outputs = 0;
+  std::uint32_t kept_outputs = 0;
   Params params;  ///< the plugin's own parameters ([robot.edp.params])
   ProcessOptions options;
   SourceLocation where;

@@ -3,12 +3,15 @@
 // that records what it is asked to do), teach-in (the file it writes, in a temporary folder)
 // and the HTTP API (an in-process server on a loopback port: JSON shapes, error codes for
 // malformed bodies, the token and cross-site checks), the generated token and its file, and the
-// server's limits against hostile clients (slow senders, too many connections, huge bodies).
+// server's limits against hostile clients (slow senders, too many connections, huge bodies, a
+// flood of idle connections beside the emergency stop).
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -1288,15 +1291,25 @@ TEST_F(ApiTest, ABodyAbove64KiBIsRefused) {
 
 namespace {
 
-/// A TCP connection to 127.0.0.1:port (closed on destruction).
+/// A TCP connection to 127.0.0.1:port (closed on destruction), from `source` when given (another
+/// loopback address, 127.x.y.z: the whole of 127.0.0.0/8 is this computer's on Linux).
 class RawConnection {
  public:
-  explicit RawConnection(int port) : fd_(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+  explicit RawConnection(int port, const std::string& source = {})
+      : fd_(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0)) {
+    if (fd_ < 0) return;
+    if (!source.empty()) {
+      sockaddr_in from{};
+      from.sin_family = AF_INET;
+      if (::inet_pton(AF_INET, source.c_str(), &from.sin_addr) != 1 ||
+          ::bind(fd_, reinterpret_cast<sockaddr*>(&from), sizeof from) != 0)
+        return;
+    }
     sockaddr_in addr{};
     addr.sin_family = AF_INET;
     addr.sin_port = htons(static_cast<std::uint16_t>(port));
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    connected_ = fd_ >= 0 && ::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+    connected_ = ::connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
   }
   ~RawConnection() {
     if (fd_ >= 0) ::close(fd_);
@@ -1353,6 +1366,23 @@ bool wait_until(F&& condition, std::chrono::milliseconds timeout) {
   return true;
 }
 
+/// Raises this process' limit of open files to at least `want` (as far as the hard limit
+/// allows); the limit afterwards.
+rlim_t raise_open_files(rlim_t want) {
+  rlimit r{};
+  if (::getrlimit(RLIMIT_NOFILE, &r) != 0) return 0;
+  if (r.rlim_cur < want) {
+    r.rlim_cur = r.rlim_max == RLIM_INFINITY ? want : std::min(want, r.rlim_max);
+    (void)::setrlimit(RLIMIT_NOFILE, &r);
+    (void)::getrlimit(RLIMIT_NOFILE, &r);
+  }
+  return r.rlim_cur;
+}
+
+double ms_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+}
+
 /// The resident memory of this process [KiB] (VmRSS of /proc/self/status).
 long rss_kib() {
   std::ifstream in("/proc/self/status");
@@ -1362,14 +1392,15 @@ long rss_kib() {
   return -1;
 }
 
-/// Slow clients: every connection sent the start of a request and then one byte of a header
-/// every `period`, never finishing it (a "slowloris").
+/// Slow clients: every connection sent the start of a request (`start`) and then one byte of a
+/// header every `period`, never finishing it (a "slowloris").
 class SlowClients {
  public:
-  SlowClients(int port, int count, std::chrono::milliseconds period) {
+  SlowClients(int port, int count, std::chrono::milliseconds period,
+              const std::string& start = "GET /api/state HTTP/1.1\r\n") {
     for (int i = 0; i < count; ++i) {
       connections_.push_back(std::make_unique<RawConnection>(port));
-      (void)connections_.back()->send("GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ");
+      (void)connections_.back()->send(start + "Host: 127.0.0.1\r\nX-Slow: ");
     }
     feeder_ = std::thread([this, period] {
       std::unique_lock lock(mutex_);
@@ -1402,7 +1433,10 @@ class SlowClients {
 }  // namespace
 
 TEST_F(ApiTest, SlowClientsCannotDelayTheEmergencyStop) {
-  start();
+  // Every connection on a thread of its own: all from 127.0.0.1, so no share per address.
+  ServerLimits limits;
+  limits.max_connections_per_peer = limits.max_connections;
+  start(kToken, limits);
   // 32 slow clients, each on a connection the server is serving (cpp-httplib's pool of 16
   // threads, which the console used before, was full with 16 of them).
   SlowClients slow(port_, 32, 1000ms);
@@ -1459,18 +1493,25 @@ TEST_F(ApiTest, ASlowRequestIsClosedAtItsDeadlineAndStopEndsSlowConnections) {
 TEST_F(ApiTest, ConnectionsAboveTheLimitAreAnswered503AndClosed) {
   ServerLimits limits;
   limits.max_connections = 4;
+  limits.first_byte_timeout = 10s;  // the idle connections stay for the test
   start(kToken, limits);
   std::vector<std::unique_ptr<RawConnection>> idle;
   for (int i = 0; i < 4; ++i) idle.push_back(std::make_unique<RawConnection>(port_));
   ASSERT_TRUE(wait_until([&] { return server_->counts().open == 4; }, 5s));
+  // A fifth is answered as soon as its first bytes show that it is not an emergency stop.
   RawConnection fifth(port_);
   ASSERT_TRUE(fifth.connected());
+  ASSERT_TRUE(fifth.send("GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
   bool closed = false;
   const std::string answer = fifth.receive(2s, &closed);
   EXPECT_TRUE(closed);
   EXPECT_TRUE(has(answer, "HTTP/1.1 503 Service Unavailable")) << answer;
-  EXPECT_TRUE(has(answer, "the console serves at most 4 connections at once")) << answer;
+  EXPECT_TRUE(has(answer,
+                  "the console serves at most 4 connections at once; this one was closed "
+                  "(beyond that it serves only POST /api/estop)"))
+      << answer;
   EXPECT_EQ(server_->counts().refused, 1u);
+  EXPECT_EQ(server_->counts().waiting, 0u);
   // A freed place serves again.
   idle.pop_back();
   ASSERT_TRUE(wait_until([&] { return server_->counts().open == 3; }, 5s));
@@ -1573,4 +1614,227 @@ TEST_F(ApiTest, ARequestLineWithoutEndIsCutAtTheByteLimit) {
   EXPECT_LT(sent.load(), 25'000'000u);
   EXPECT_TRUE(wait_until([&] { return server_->counts().too_large == 1; }, 2s));
   EXPECT_LT(rss_kib() - rss_before, 4 * 1024) << "KiB";
+}
+
+TEST(ReservedRequest, OnlyAWholeEmergencyStop) {
+  const std::string head = "POST /api/estop HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 4\r\n";
+  EXPECT_EQ(classify_reserved_request(head + "\r\n{}{}", 1024), ReservedRequest::stop);
+  EXPECT_EQ(classify_reserved_request(head + "\r\n{}", 1024), ReservedRequest::incomplete)
+      << "the body has not all come";
+  EXPECT_EQ(classify_reserved_request(head, 1024), ReservedRequest::incomplete);
+  EXPECT_EQ(classify_reserved_request("POST /api/es", 1024), ReservedRequest::incomplete);
+  EXPECT_EQ(classify_reserved_request("", 1024), ReservedRequest::incomplete);
+  EXPECT_EQ(classify_reserved_request("POST /api/estop?token=x HTTP/1.1\r\n\r\n", 1024),
+            ReservedRequest::stop);
+  EXPECT_EQ(
+      classify_reserved_request("post /api/estop HTTP/1.1\r\ncontent-length: 0\r\n\r\n", 1024),
+      ReservedRequest::other)
+      << "methods are upper case";
+  EXPECT_EQ(
+      classify_reserved_request("POST /api/estop HTTP/1.1\r\ncontent-length:  0 \r\n\r\n", 1024),
+      ReservedRequest::stop)
+      << "header names in any case";
+  // Anything else, as soon as its first bytes tell.
+  for (const std::string other :
+       {"G", "POST /api/release HTTP/1.1\r\n\r\n", "POST /api/estopx",
+        "POST /api/estop/ HTTP/1.1\r\n\r\n", "PUT /api/estop", " POST /api/estop HTTP/1.1\r\n\r\n"})
+    EXPECT_EQ(classify_reserved_request(other, 1024), ReservedRequest::other) << other;
+  // Bodies of any length or none declared right, heads above the limit.
+  const std::string start = "POST /api/estop HTTP/1.1\r\n";
+  for (const std::string headers :
+       {"Transfer-Encoding: chunked\r\n", "Content-Length: 4097\r\n", "Content-Length: 12x\r\n",
+        "Content-Length: 4\r\nContent-Length: 4\r\n", "Content-Length: \r\n",
+        "Content-Length: -1\r\n"})
+    EXPECT_EQ(classify_reserved_request(start + headers + "\r\n{}{}", 1024), ReservedRequest::other)
+        << headers;
+  EXPECT_EQ(classify_reserved_request(start + "Content-Length: 4096\r\n\r\n", 1024),
+            ReservedRequest::incomplete);
+  const std::string long_header = start + "X-Long: " + std::string(980, 'a');  // 1014 bytes
+  EXPECT_EQ(classify_reserved_request(long_header, 1024), ReservedRequest::incomplete);
+  EXPECT_EQ(classify_reserved_request(long_header + std::string(11, 'a'), 1024),
+            ReservedRequest::other);
+  EXPECT_EQ(classify_reserved_request(long_header + "\r\n\r\n", 1024), ReservedRequest::stop);
+  EXPECT_EQ(classify_reserved_request(long_header + "aaaaaaa\r\n\r\n", 1024),
+            ReservedRequest::other);
+}
+
+namespace {
+
+/// Opens `count` connections that never send a byte, the i-th from `source(i)`.
+template <class Source>
+std::vector<std::unique_ptr<RawConnection>> idle_connections(int port, int count, Source source) {
+  std::vector<std::unique_ptr<RawConnection>> idle;
+  for (int i = 0; i < count; ++i) idle.push_back(std::make_unique<RawConnection>(port, source(i)));
+  return idle;
+}
+
+}  // namespace
+
+TEST_F(ApiTest, TheStopIsServedBesideTwoHundredIdleConnectionsFromOneAddress) {
+  // Before, 128 idle connections (no token needed: nothing is read) made every further
+  // connection, the stop's too, get 503.
+  ASSERT_GE(raise_open_files(2048), 1024u);
+  ServerLimits limits;
+  limits.first_byte_timeout = 10s;  // the flood stays for the test (its default is 2 s)
+  start(kToken, limits);
+  const auto idle = idle_connections(port_, 200, [](int) { return std::string(); });
+  for (const auto& c : idle) ASSERT_TRUE(c->connected());
+  // 127.0.0.1's share is served, 64 wait on the reserved path, the older of the others were
+  // answered 503 as newer ones came.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const ServerCounts c = server_->counts();
+        return c.open == 32 && c.waiting == 64 && c.peer_refused == 104;
+      },
+      10s))
+      << server_->counts().open << " open, " << server_->counts().waiting << " waiting, "
+      << server_->counts().peer_refused << " refused";
+  bool closed = false;
+  EXPECT_TRUE(has(idle[40]->receive(1s, &closed), "HTTP/1.1 503"));
+  EXPECT_TRUE(closed);
+
+  // Anything but the stop is refused, the release too.
+  const auto [state_status, state_answer] = get("/api/state");
+  EXPECT_EQ(state_status, 503);
+  EXPECT_TRUE(has(state_answer.value("error", std::string()),
+                  "at most 32 connections of one address (127.0.0.1)"))
+      << state_answer.dump();
+  EXPECT_EQ(post("/api/release", "").first, 503);
+  // The stop without the token is refused as ever: same checks, same handler.
+  httplib::Client bare("127.0.0.1", port_);
+  const auto no_token = bare.Post("/api/estop", {{"X-Mrroc-Request", "1"}},
+                                  R"({"reason": "no token"})", "application/json");
+  ASSERT_TRUE(no_token);
+  EXPECT_EQ(no_token->status, 401);
+  EXPECT_TRUE(actions_.stops.empty());
+
+  const auto sent = std::chrono::steady_clock::now();
+  const auto [status, answer] = post("/api/estop", R"({"reason": "flood"})");
+  const double answered_ms = ms_since(sent);
+  std::printf("emergency stop answered in %.1f ms beside 200 idle connections of 127.0.0.1\n",
+              answered_ms);
+  EXPECT_EQ(status, 200) << answer.dump();
+  EXPECT_LT(answered_ms, 1000.0);
+  ASSERT_EQ(actions_.stops.size(), 1u) << "the stop was sent";
+  EXPECT_EQ(actions_.stops[0], std::make_tuple(true, std::string(), std::string("flood")));
+  EXPECT_EQ(server_->counts().reserved_stops, 2u);
+  EXPECT_EQ(server_->counts().open, 32u) << "the idle connections were left as they were";
+}
+
+TEST_F(ApiTest, TheStopIsServedBesideTwoHundredIdleConnectionsFromManyAddresses) {
+  ASSERT_GE(raise_open_files(2048), 1024u);
+  ServerLimits limits;
+  limits.first_byte_timeout = 10s;
+  start(kToken, limits);
+  // One from each of 127.0.0.2 ... 127.0.0.201.
+  const auto idle =
+      idle_connections(port_, 200, [](int i) { return fmt::format("127.0.0.{}", i + 2); });
+  for (const auto& c : idle) ASSERT_TRUE(c->connected());
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const ServerCounts c = server_->counts();
+        return c.open == 128 && c.waiting == 64 && c.refused == 8;
+      },
+      10s))
+      << server_->counts().open << " open, " << server_->counts().waiting << " waiting, "
+      << server_->counts().refused << " refused";
+  EXPECT_EQ(server_->counts().peer_refused, 0u);
+  const auto [state_status, state_answer] = get("/api/state");
+  EXPECT_EQ(state_status, 503);
+  EXPECT_TRUE(has(state_answer.value("error", std::string()), "at most 128 connections at once"))
+      << state_answer.dump();
+
+  const auto sent = std::chrono::steady_clock::now();
+  const auto [status, answer] = post("/api/estop", R"({"reason": "flood"})");
+  const double answered_ms = ms_since(sent);
+  std::printf("emergency stop answered in %.1f ms beside 200 idle connections of 200 addresses\n",
+              answered_ms);
+  EXPECT_EQ(status, 200) << answer.dump();
+  EXPECT_LT(answered_ms, 1000.0);
+  ASSERT_EQ(actions_.stops.size(), 1u) << "the stop was sent";
+  EXPECT_EQ(actions_.stops[0], std::make_tuple(true, std::string(), std::string("flood")));
+  EXPECT_EQ(server_->counts().reserved_stops, 1u);
+}
+
+TEST_F(ApiTest, StopsSentSlowlyDoNotHoldTheReservedPath) {
+  // 200 connections of 127.0.0.1 that each started an emergency stop and send a byte of a header
+  // every 100 ms: its share is served (each request ends at its 3 s deadline), the others wait
+  // on the reserved path, which reads them all without waiting on any.
+  ASSERT_GE(raise_open_files(2048), 1024u);
+  ServerLimits limits;
+  limits.first_byte_timeout = 10s;  // the whole request on the reserved path (default 2 s)
+  start(kToken, limits);
+  SlowClients slow(port_, 200, 100ms, "POST /api/estop HTTP/1.1\r\n");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const ServerCounts c = server_->counts();
+        return c.open == 32 && c.waiting == 64 && c.peer_refused == 104;
+      },
+      10s))
+      << server_->counts().open << " open, " << server_->counts().waiting << " waiting, "
+      << server_->counts().peer_refused << " refused";
+  const auto sent = std::chrono::steady_clock::now();
+  const auto [status, answer] = post("/api/estop", R"({"reason": "slow flood"})");
+  const double answered_ms = ms_since(sent);
+  std::printf("emergency stop answered in %.1f ms beside 200 slow stops of 127.0.0.1\n",
+              answered_ms);
+  EXPECT_EQ(status, 200) << answer.dump();
+  EXPECT_LT(answered_ms, 1000.0);
+  ASSERT_EQ(actions_.stops.size(), 1u) << "only the whole stop was sent";
+  EXPECT_EQ(actions_.stops[0], std::make_tuple(true, std::string(), std::string("slow flood")));
+  EXPECT_EQ(server_->counts().reserved_stops, 1u);
+}
+
+TEST_F(ApiTest, OneAddressGetsItsShareAndASilentConnectionIsClosedAtTheFirstByteTimeout) {
+  ServerLimits limits;
+  limits.max_connections_per_peer = 2;
+  limits.first_byte_timeout = 1500ms;
+  start(kToken, limits);
+  const auto opened = std::chrono::steady_clock::now();
+  RawConnection a(port_);
+  RawConnection b(port_);
+  ASSERT_TRUE(wait_until([&] { return server_->counts().open == 2; }, 1s));
+  // A third of 127.0.0.1 is refused as soon as it sends.
+  RawConnection c(port_);
+  ASSERT_TRUE(c.send("GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+  bool closed = false;
+  const std::string answer = c.receive(500ms, &closed);
+  EXPECT_TRUE(closed);
+  EXPECT_TRUE(has(answer, "HTTP/1.1 503 Service Unavailable")) << answer;
+  EXPECT_TRUE(has(answer,
+                  "the console serves at most 2 connections of one address (127.0.0.1) "
+                  "at once"))
+      << answer;
+  EXPECT_EQ(server_->counts().peer_refused, 1u);
+  EXPECT_EQ(server_->counts().refused, 0u);
+  // Another address is served beside them.
+  RawConnection d(port_, "127.0.0.2");
+  ASSERT_TRUE(d.connected());
+  ASSERT_TRUE(wait_until([&] { return server_->counts().open == 3; }, 1s));
+  // One more of 127.0.0.1 that sends nothing waits on the reserved path.
+  RawConnection e(port_);
+  ASSERT_TRUE(wait_until([&] { return server_->counts().waiting == 1; }, 1s));
+
+  // Every connection that sent nothing is closed about first_byte_timeout after it came: the
+  // served ones without an answer, the one on the reserved path with 503.
+  for (RawConnection* silent : {&a, &b, &d, &e}) {
+    closed = false;
+    const std::string got = silent->receive(3s, &closed);
+    EXPECT_TRUE(closed);
+    EXPECT_EQ(got.empty(), silent != &e) << got;
+  }
+  const double closed_ms = ms_since(opened);
+  std::printf(
+      "4 silent connections closed %.0f ms after the first came (first_byte_timeout "
+      "1500 ms)\n",
+      closed_ms);
+  EXPECT_GE(closed_ms, 1450.0);
+  EXPECT_LT(closed_ms, 3000.0);
+  EXPECT_TRUE(wait_until([&] { return server_->counts().silent == 4; }, 500ms))
+      << server_->counts().silent;
+  EXPECT_EQ(server_->counts().peer_refused, 2u);
+  EXPECT_EQ(server_->counts().open, 0u);
+  EXPECT_EQ(server_->counts().waiting, 0u);
+  // A place freed serves again.
+  EXPECT_EQ(get("/api/state").first, 200);
 }

@@ -37,9 +37,9 @@ constexpr std::chrono::milliseconds kStatePeriod{20};
 constexpr std::chrono::milliseconds kShutdownRampLimit{2000};
 /// Overruns are reported at once, then at most this often.
 constexpr std::chrono::seconds kOverrunReportPeriod{1};
-/// How long the EDP listens for another EDP of its robot (its robot_state_t, every 20 ms) on the
-/// set's LCM URL before it starts its servo loop.
-constexpr std::chrono::milliseconds kOtherEdpListen{250};
+/// How long the EDP listens for another EDP of its robot (its robot_state_t, every 20 ms: seven
+/// of them) on the set's LCM URL before it starts its servo loop.
+constexpr std::chrono::milliseconds kOtherEdpListen{150};
 
 /// Throws when another EDP of `robot` broadcasts its robot_state_t on the bus' URL.
 void refuse_if_another_edp(mrroc::comm::Bus& bus, const std::string& robot,

@@ -75,8 +75,10 @@ struct RunningSet {
   [[nodiscard]] std::string describe() const;
 };
 
-/// How long mrroc-launch listens for a running set before it starts anything.
-inline constexpr std::chrono::milliseconds kRunningSetListen{600};
+/// How long mrroc-launch listens for a running set before it starts anything: a running set's
+/// latch announces every robot's stop every EstopLatch::kPeriod (heard twice in this time), its
+/// EDPs broadcast their states every 20 ms.
+inline constexpr std::chrono::milliseconds kRunningSetListen{300};
 /// After traffic of a running set was heard: how much longer it waits for that set's launcher
 /// table (broadcast every second) to name its config file.
 inline constexpr std::chrono::milliseconds kRunningSetNameWait{1100};

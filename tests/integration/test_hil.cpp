@@ -278,12 +278,16 @@ TEST_F(Hil, TaskWaitsForTheLightBarrierOnADriveInputThenSetsADriveOutput) {
   EXPECT_TRUE(has(r.output, "input 0: presence of 'part'")) << r.output;
   EXPECT_TRUE(std::regex_search(r.output, std::regex("input 16 on after [0-9.]+ s"))) << r.output;
   EXPECT_TRUE(has(r.output, "outputs set to 0x1")) << r.output;
-  // The output reached the drive: the emulator saw its line 0 go on, after the arm arrived.
+  // The ECP set the output after the arm arrived (both lines come from the ECP through the SRP,
+  // in the order it sent them), and it reached the drive: the emulator saw its line 0 go on.
+  // (Lines of different processes reach the launcher through different pipes: their order in
+  // its output is not the order of the events.)
   const auto reached = r.output.find("pose 1/1 reached: joints [-1.0191");
+  const auto set = r.output.find("outputs set to 0x1");
   const auto output = r.output.find("robot 'irb6' axis 'column' outputs 0x01 at t = ");
   ASSERT_NE(reached, std::string::npos) << r.output;
   ASSERT_NE(output, std::string::npos) << r.output;
-  EXPECT_LT(reached, output) << r.output;
+  EXPECT_LT(reached, set) << r.output;
   // The EDP switched the outputs off when it ended.
   EXPECT_NE(r.output.find("robot 'irb6' axis 'column' outputs 0x00 at t = ", output),
             std::string::npos)

@@ -14,16 +14,32 @@
 
 namespace mrroc::vsp {
 
+namespace {
+
+using SteadyClock = std::chrono::steady_clock;
+
+double seconds_between(SteadyClock::time_point from, SteadyClock::time_point to) {
+  return std::chrono::duration<double>(to - from).count();
+}
+
+/// The re-anchoring of a source is reported at most once in this time [s] (a source that keeps
+/// stepping back, or a replayer during an outage, cannot flood the SRP; every one is counted).
+constexpr double kReanchorReportGapS = 1.0;
+
+}  // namespace
+
 Shell::Shell(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
-             std::unique_ptr<SensorPlugin> plugin)
+             std::unique_ptr<SensorPlugin> plugin, WallClock clock)
     : bus_(bus),
       reporter_(reporter),
       config_(config),
       plugin_(std::move(plugin)),
       server_(bus, "vsp/" + config.name, channels::vsp_command(config.name),
               channels::vsp_reply(config.name)),
+      clock_(clock ? std::move(clock) : WallClock(now_utime)),
       received_(config.sources.size(), false),
-      last_sample_utime_(config.sources.size(), 0) {
+      last_sample_utime_(config.sources.size(), 0),
+      last_received_(config.sources.size()) {
   configure_sensor(*plugin_, config);
   for (std::size_t i = 0; i < config.sources.size(); ++i) {
     const std::string channel = channels::raw_sensor(config.sources[i]);
@@ -93,6 +109,16 @@ std::uint64_t Shell::out_of_order() const {
   return out_of_order_;
 }
 
+std::uint64_t Shell::from_the_future() const {
+  std::lock_guard lock(mutex_);
+  return from_the_future_;
+}
+
+std::uint64_t Shell::reanchored() const {
+  std::lock_guard lock(mutex_);
+  return reanchored_;
+}
+
 std::uint64_t Shell::unauthenticated() const {
   std::uint64_t n = 0;
   for (const auto& s : subscribers_) n += s.unauthenticated();
@@ -108,19 +134,54 @@ void Shell::on_sample(const RawSample& sample, const comm::Received& in) {
   if (!in.authentic()) return;
   std::unique_lock lock(mutex_);
   const std::size_t source = it->second;
-  if (received_[source] && sample.sample_utime <= last_sample_utime_[source]) {
-    // Order by the sample's own time: an older (reordered, replayed) sample never replaces a
-    // newer one, nor makes its source look fresh.
-    ++out_of_order_;
-    if (out_of_order_reported_) return;
-    out_of_order_reported_ = true;
+  const std::int64_t now = clock_();
+  const SteadyClock::time_point arrived = SteadyClock::now();
+  // A sample time ahead of this VSP's clock is refused beyond a tolerance: ordered by sample
+  // time, such a sample would hold back every genuine one until the clock caught up with it, and
+  // its negative age would keep the frozen value valid meanwhile. The tolerance is
+  // stale_after_ms: the staleness check already needs the hosts' clocks to agree to well within
+  // it (a source that far behind is stale), so the same bound holds ahead; a sample taken within
+  // it holds genuine ones back for at most stale_after_ms, and the source's age by arrival (see
+  // make_reading) makes the reading invalid rather than frozen beyond that. A fixed bound (say
+  // 0.5 s) would let a 100 ms VSP serve one value for 500 ms.
+  const auto tolerance_us = static_cast<std::int64_t>(std::llround(config_.stale_after_s * 1e6));
+  if (sample.sample_utime - now > tolerance_us) {
+    ++from_the_future_;
+    if (from_the_future_reported_) return;
+    from_the_future_reported_ = true;
     const std::string text = fmt::format(
-        "raw sample on {} from '{}' taken at {} us, not after the last one ({} us): dropped "
-        "(reordered or replayed); further ones are only counted",
-        channel, in.header().sender, sample.sample_utime, last_sample_utime_[source]);
+        "raw sample on {} from '{}' taken at {} us, {:.0f} ms ahead of this VSP's clock ({} us; "
+        "tolerance {:.0f} ms): dropped (the sender's clock is ahead, or the time is forged); "
+        "further ones are only counted",
+        channel, in.header().sender, sample.sample_utime,
+        static_cast<double>(sample.sample_utime - now) * 1e-3, now, config_.stale_after_s * 1000.0);
     lock.unlock();
     reporter_.warning(text);
     return;
+  }
+  bool reanchor = false;
+  double silent_s = 0.0;
+  if (received_[source] && sample.sample_utime <= last_sample_utime_[source]) {
+    silent_s = seconds_between(last_received_[source], arrived);
+    if (silent_s <= config_.stale_after_s) {
+      // Order by the sample's own time: an older (reordered, replayed) sample never replaces a
+      // newer one, nor makes its source look fresh.
+      ++out_of_order_;
+      if (out_of_order_reported_) return;
+      out_of_order_reported_ = true;
+      const std::string text = fmt::format(
+          "raw sample on {} from '{}' taken at {} us, not after the last one ({} us): dropped "
+          "(reordered or replayed); further ones are only counted",
+          channel, in.header().sender, sample.sample_utime, last_sample_utime_[source]);
+      lock.unlock();
+      reporter_.warning(text);
+      return;
+    }
+    // Nothing acceptable came for stale_after_ms of this host's time, so the source is stale
+    // anyway: its clock stepped back (an NTP step), and waiting for its samples to pass the old
+    // last time would keep it stale for as long as the step. Its order starts again here. (A
+    // replayed old sample is stale by its own time, and the next genuine one is newer.)
+    reanchor = true;
   }
   try {
     plugin_->on_sample(source, sample);
@@ -133,8 +194,24 @@ void Shell::on_sample(const RawSample& sample, const comm::Received& in) {
     on_malformed(channel, why);
     return;
   }
+  const std::int64_t last = last_sample_utime_[source];
   received_[source] = true;
   last_sample_utime_[source] = sample.sample_utime;
+  last_received_[source] = arrived;
+  if (!reanchor) return;
+  ++reanchored_;
+  if (reanchor_reported_ && seconds_between(*reanchor_reported_, arrived) < kReanchorReportGapS)
+    return;
+  reanchor_reported_ = arrived;
+  const std::string text = fmt::format(
+      "VSP '{}': the clock of source '{}' stepped back: re-anchored to the raw sample on {} "
+      "from '{}' taken at {} us, {:.0f} ms before the last one ({} us), after nothing newer for "
+      "{:.0f} ms (limit {:.0f} ms)",
+      config_.name, config_.sources[source], channel, in.header().sender, sample.sample_utime,
+      static_cast<double>(last - sample.sample_utime) * 1e-3, last, silent_s * 1000.0,
+      config_.stale_after_s * 1000.0);
+  lock.unlock();
+  reporter_.warning(text);
 }
 
 void Shell::make_reading(const Params& context) {
@@ -142,15 +219,25 @@ void Shell::make_reading(const Params& context) {
   Reading r;
   // A source's age is that of its newest sample, by the sample's own time (the emulator stamps
   // the modelled latency in; the hosts' clocks must agree): a sample that spent long on the way
-  // is as stale as one never sent.
-  const std::int64_t now = now_utime();
+  // is as stale as one never sent. It is at least the time since that sample came (this host's
+  // steady clock), so a sample time ahead of the VSP's clock never keeps a value fresh, and a
+  // sample time far ahead (more than stale_after_ms: on_sample refuses those, so this VSP's
+  // clock stepped back since) makes the source stale: its age cannot be known.
+  const std::int64_t now = clock_();
+  const SteadyClock::time_point steady_now = SteadyClock::now();
   std::string stale;
   for (std::size_t i = 0; i < config_.sources.size() && stale.empty(); ++i) {
     if (!received_[i]) {
       stale = fmt::format("no sample from source '{}' yet", config_.sources[i]);
     } else {
-      const double age = static_cast<double>(now - last_sample_utime_[i]) * 1e-6;
-      if (age > config_.stale_after_s)
+      const double by_time = static_cast<double>(now - last_sample_utime_[i]) * 1e-6;
+      const double age = std::max(by_time, seconds_between(last_received_[i], steady_now));
+      if (-by_time > config_.stale_after_s)
+        stale = fmt::format(
+            "source '{}' stale: its newest sample is stamped {:.0f} ms ahead of this VSP's clock "
+            "(tolerance {:.0f} ms; did a clock step back?)",
+            config_.sources[i], -by_time * 1000.0, config_.stale_after_s * 1000.0);
+      else if (age > config_.stale_after_s)
         stale = fmt::format("source '{}' stale for {:.0f} ms (limit {:.0f} ms)", config_.sources[i],
                             age * 1000.0, config_.stale_after_s * 1000.0);
     }
@@ -248,7 +335,7 @@ Reply Shell::handle(const Request& request) {
       reply.kind = ReplyKind::reading;
       reply.reading = *reading_;
       reply.reading.age_us = reading_->reading_utime > 0
-                                 ? std::max<std::int64_t>(0, now_utime() - reading_->reading_utime)
+                                 ? std::max<std::int64_t>(0, clock_() - reading_->reading_utime)
                                  : 0;
       return reply;
     }

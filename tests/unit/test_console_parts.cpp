@@ -79,6 +79,16 @@ void on_state(ConsoleState& state, const RobotState& s,
   state.on_robot_state(0, s, 1'700'000'000'000'000 + s.servo_step * 2000, received);
 }
 
+/// Hands the MP's answer to STATUS, its task in state `task` ("IDLE", ...), to the state as the
+/// bus feed's poller does.
+void mp_is(ConsoleState& state, const std::string& task,
+           SteadyClock::time_point received = SteadyClock::now()) {
+  MpStatus mp;
+  mp.accepted = true;
+  mp.state = task;
+  state.on_mp_status(mp, received);
+}
+
 SrpMessage message(std::int64_t utime, const std::string& text,
                    Severity severity = Severity::info) {
   SrpMessage m;
@@ -283,6 +293,16 @@ TEST(ConsoleState, MpStatusAndSilence) {
   EXPECT_EQ(state.snapshot().mp_error, "no MP answers on 'mrroc/mp/cmd'");
   state.on_mp_status(s);
   EXPECT_EQ(state.snapshot().mp_error, "");
+  // An answer older than kMpFreshS (the poller stopped or hangs): the state is unknown again.
+  state.on_mp_status(s, SteadyClock::now() - 2500ms);
+  EXPECT_FALSE(state.mp().has_value()) << "a stale MP state was kept";
+  ASSERT_TRUE(state.mp_reading().has_value());
+  EXPECT_FALSE(state.mp_reading()->fresh());
+  EXPECT_EQ(state.mp_reading()->status.state, "RUNNING");
+  const auto snap = state.snapshot();
+  EXPECT_FALSE(snap.mp.has_value());
+  EXPECT_TRUE(has(snap.mp_error, "no answer from the MP for 2.5 s (the last said RUNNING)"))
+      << snap.mp_error;
 }
 
 TEST(ConsoleState, NumbersFiltersAndMergesTheSrpLog) {
@@ -392,6 +412,7 @@ TEST(ConsoleState, WritersAndReadersOnOtherThreads) {
 
 TEST(Jog, MovesOneAxisFromRestToRestWithinAQuarterOfItsLimits) {
   Parts p;
+  mp_is(p.state, "IDLE");
   on_state(p.state, robot_state(100));
   p.link->joints_after = {0.1, 0.1, 0.0, 0.1, 0.1};
   // The EDP's broadcast shows the robot at rest after the motion (else the jog waits 100 ms).
@@ -426,6 +447,7 @@ TEST(Jog, MovesOneAxisFromRestToRestWithinAQuarterOfItsLimits) {
 
 TEST(Jog, RefusesBadInputNamingValueUnitAndLimit) {
   Parts p;
+  mp_is(p.state, "IDLE");
   on_state(p.state, robot_state(100));
   const std::vector<std::tuple<JogRequest, int, std::string>> cases = {
       {{"irb6", 99, 0.01, 1}, 400, "axis 99 is out of range: robot irb6 has axes 0..4"},
@@ -448,6 +470,7 @@ TEST(Jog, RefusesBadInputNamingValueUnitAndLimit) {
 
 TEST(Jog, RefusesWhatTheStateForbids) {
   Parts p;
+  mp_is(p.state, "IDLE");
   const JogRequest request{"irb6", 0, 0.05, 1};
   auto refusal = [&] { return api_error([&] { (void)p.jogger->jog(request); }); };
   EXPECT_EQ(refusal(), std::make_pair(409, std::string("jogging refused: no robot_state_t from "
@@ -482,15 +505,63 @@ TEST(Jog, RefusesWhatTheStateForbids) {
     EXPECT_EQ(refusal(), std::make_pair(409, "jogging refused: the MP task is " +
                                                  std::string(running) + "; stop it first"));
   }
+  mp_is(p.state, "TERMINATING");
+  EXPECT_EQ(refusal(), std::make_pair(409, std::string("jogging refused: the MP task is "
+                                                       "TERMINATING; jogging needs it IDLE, "
+                                                       "FINISHED or FAILED")));
   EXPECT_TRUE(p.link->calls.empty());
-  MpStatus idle;
-  idle.state = "IDLE";
-  p.state.on_mp_status(idle);
-  EXPECT_EQ(p.jogger->check(request), std::vector<double>(5, 0.1));
+  for (const char* resting : {"IDLE", "FINISHED", "FAILED"}) {
+    mp_is(p.state, resting);
+    EXPECT_EQ(p.jogger->check(request), std::vector<double>(5, 0.1)) << resting;
+  }
+}
+
+// A robot at rest may be resting in the middle of a task: without a fresh answer from the MP
+// saying its task is IDLE, FINISHED or FAILED, neither a jog nor a synchronisation takes it over.
+TEST(Jog, RefusedWhileTheMpsStateIsUnknownOrStale) {
+  Parts p;
+  on_state(p.state, robot_state(1));
+  p.link->joints_after.assign(5, 0.1);
+  const JogRequest request{"irb6", 0, 0.05, 1};
+  auto refusal = [&] { return api_error([&] { (void)p.jogger->jog(request); }); };
+  auto sync_refusal = [&] { return api_error([&] { (void)p.jogger->synchronise("irb6"); }); };
+  // No answer yet.
+  EXPECT_EQ(refusal(),
+            std::make_pair(409, std::string("jogging refused: the MP's state is unknown (no answer "
+                                            "from the MP yet): a task may be running; jogging "
+                                            "needs the MP answering and its task IDLE, FINISHED "
+                                            "or FAILED")));
+  EXPECT_EQ(sync_refusal().first, 409);
+  EXPECT_TRUE(has(sync_refusal().second,
+                  "synchronisation refused: the MP's state is unknown (no answer from the MP"))
+      << sync_refusal().second;
+  // It fell silent: the poller's text says where it was asked.
+  mp_is(p.state, "IDLE");
+  p.state.on_mp_silent("no MP answers on 'mrroc/mp/cmd'");
+  EXPECT_EQ(refusal(),
+            std::make_pair(409, std::string("jogging refused: the MP's state is unknown (no answer "
+                                            "from the MP: no MP answers on 'mrroc/mp/cmd'): a "
+                                            "task may be running; jogging needs the MP answering "
+                                            "and its task IDLE, FINISHED or FAILED")));
+  // Its last answer is stale (the asking stopped): IDLE then says nothing of now.
+  mp_is(p.state, "IDLE", SteadyClock::now() - 3s);
+  const auto [status, text] = refusal();
+  EXPECT_EQ(status, 409);
+  EXPECT_TRUE(has(text,
+                  "jogging refused: the MP's state is unknown (no answer from the MP for "
+                  "3.0 s, limit 2 s; the last said IDLE): a task may be running"))
+      << text;
+  EXPECT_TRUE(p.link->calls.empty()) << "nothing was sent to the EDP";
+  EXPECT_EQ(p.link->synchronisations, 0);
+  // A fresh IDLE: the jog goes out.
+  mp_is(p.state, "IDLE");
+  (void)p.jogger->jog(request);
+  EXPECT_EQ(p.link->calls.size(), 1u);
 }
 
 TEST(Jog, TheEdpsRefusalAndSilence) {
   Parts p;
+  mp_is(p.state, "IDLE");
   on_state(p.state, robot_state(1));
   p.link->refuse = "EDP irb6 refused SET: joint 0 target 3.2 rad exceeds upper limit 2.9 rad";
   const auto [status, text] = api_error([&] { (void)p.jogger->jog({"irb6", 0, 0.1, 1}); });
@@ -509,6 +580,7 @@ TEST(Jog, TheEdpsRefusalAndSilence) {
 
 TEST(Jog, OneJogOfARobotAtATime) {
   Parts p;
+  mp_is(p.state, "IDLE");
   on_state(p.state, robot_state(1));
   p.link->hold = true;
   p.link->joints_after.assign(5, 0.1);
@@ -534,6 +606,7 @@ TEST(Jog, OneJogOfARobotAtATime) {
 
 TEST(Synchronise, OnlyARobotNotYetSynchronisedAtRestWithTheMpIdle) {
   Parts p;
+  mp_is(p.state, "IDLE");
   // Already synchronised: nothing is sent, the answer says so.
   on_state(p.state, robot_state(1));
   JogResult r = p.jogger->synchronise("irb6");
@@ -591,6 +664,7 @@ TEST(Synchronise, OnlyARobotNotYetSynchronisedAtRestWithTheMpIdle) {
 
 TEST(Jog, TheToolFrameAlongAndAboutItsOwnAxes) {
   Parts p;
+  mp_is(p.state, "IDLE");
   ASSERT_TRUE(p.jogger->cartesian("irb6"));
   const std::vector<double> q{0.3, -1.4, 0.1, 0.2, 0.4};
   on_state(p.state, robot_state(1, q));
@@ -635,6 +709,7 @@ TEST(Jog, TheToolFrameOfARobotWithoutCartesianKinematicsIsRefused) {
   auto shared = link->shared;
   links["conveyor"] = std::move(link);
   Jogger jogger(state, JogOptions{}, std::move(links), reports.fn());
+  mp_is(state, "IDLE");
   EXPECT_FALSE(jogger.cartesian("conveyor"));
   RobotState s = robot_state(1, std::vector<double>(conveyor.axes(), 0.1));
   s.robot = "conveyor";
@@ -649,6 +724,7 @@ TEST(Jog, TheToolFrameOfARobotWithoutCartesianKinematicsIsRefused) {
 
 TEST(Synchronise, JoggingARobotNotSynchronisedPointsToTheButton) {
   Parts p;
+  mp_is(p.state, "IDLE");
   auto s = robot_state(1);
   s.synchronised = false;
   on_state(p.state, s);
@@ -1075,6 +1151,7 @@ TEST_F(ApiTest, CommandsJogAndTeach) {
   EXPECT_EQ(answer["error"], "no MP answers on 'mrroc/mp/cmd'");
 
   on_state(parts_.state, robot_state(1));
+  mp_is(parts_.state, "IDLE");  // the MP's answer, as the poller gets it
   parts_.link->joints_after = {0.15, 0.1, 0.1, 0.1, 0.1};
   std::tie(status, answer) =
       post("/api/jog", R"({"robot": "irb6", "axis": 0, "direction": 1, "step_rad": 0.05})");

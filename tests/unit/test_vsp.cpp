@@ -63,8 +63,9 @@ void publish(comm::Bus& bus, const std::string& device, std::vector<double> valu
 
 /// A running VSP shell on its own thread.
 struct RunningVsp {
-  RunningVsp(comm::Bus& bus, Reporter& reporter, const VspConfig& config)
-      : shell(bus, reporter, config, vsp::make_sensor(config.plugin)),
+  RunningVsp(comm::Bus& bus, Reporter& reporter, const VspConfig& config,
+             vsp::Shell::WallClock clock = {})
+      : shell(bus, reporter, config, vsp::make_sensor(config.plugin), std::move(clock)),
         thread([this] { shell.serve([this] { return !stop; }); }) {}
   ~RunningVsp() {
     stop = true;
@@ -477,4 +478,139 @@ TEST(Vsp, ForcesThatOverflowAreRefusedAndTheReadingStaysUsable) {
   ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
   EXPECT_NEAR(sensor.value("fx"), 2.0, 1e-9);
   EXPECT_EQ(vsp.shell.malformed(), 1U);
+}
+
+namespace {
+/// The SRP's messages, kept for the assertions.
+struct SrpTexts {
+  explicit SrpTexts(comm::Bus& bus)
+      : listener(
+            bus,
+            [this](const SrpMessage& msg) {
+              std::lock_guard lock(mutex);
+              texts.push_back(msg.text);
+            },
+            [](const ProcessStatus&) {}) {}
+  /// The first message containing `part`, or "".
+  std::string find(const std::string& part) {
+    std::lock_guard lock(mutex);
+    for (const auto& t : texts)
+      if (t.find(part) != std::string::npos) return t;
+    return "";
+  }
+  std::mutex mutex;
+  std::vector<std::string> texts;
+  SystemListener listener;
+};
+}  // namespace
+
+// A sample stamped in the future is refused: it would hold back every later genuine sample
+// (ordered by sample time) while its negative age kept the frozen value valid. One ahead by less
+// than stale_after_ms is taken, but ages by its arrival too: it never stays fresh for longer.
+TEST(Vsp, SamplesFromTheFutureNeitherFreezeNorHoldBackTheReading) {
+  comm::Bus bus(test_url());
+  SrpTexts srp(bus);
+  Reporter reporter(bus, "vsp/range");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\nstale_after_ms = "
+      "200\n");
+  RunningVsp vsp(bus, reporter, c.vsp("range"));
+  bus.start();
+  ecp::VirtualSensor sensor(bus, "range", "test");
+  // 150 ms ahead (within the tolerance): taken, and stale 200 ms after it came.
+  publish_taken_at(bus, "sonar", 0.8, now_utime() + 150'000);
+  std::this_thread::sleep_for(20ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("distance"), 0.8, 1e-12);
+  std::this_thread::sleep_for(250ms);
+  refresh(sensor);
+  EXPECT_FALSE(sensor.image().valid) << "a sample stamped ahead stayed fresh after it had aged";
+  EXPECT_NE(sensor.image().invalid_reason.find("source 'sonar' stale for"), std::string::npos)
+      << sensor.image().invalid_reason;
+  // 60 s ahead: refused, and the genuine samples after it keep the reading fresh and valid.
+  const std::int64_t future = now_utime() + 60'000'000;
+  publish_taken_at(bus, "sonar", 0.9, future);
+  std::this_thread::sleep_for(20ms);
+  EXPECT_EQ(vsp.shell.from_the_future(), 1U);
+  Publisher sonar(bus, "sonar", {0.5});
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("distance"), 0.5, 1e-12) << "the future sample froze the reading";
+  std::this_thread::sleep_for(300ms);  // beyond stale_after_ms: still fresh, from the genuine ones
+  sonar.set({0.6});
+  std::this_thread::sleep_for(20ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("distance"), 0.6, 1e-12);
+  EXPECT_LT(sensor.image().age_us, 200'000);
+  EXPECT_EQ(vsp.shell.from_the_future(), 1U);
+  EXPECT_EQ(vsp.shell.out_of_order(), 0U);
+  std::this_thread::sleep_for(50ms);
+  const std::string text = srp.find("ahead of this VSP's clock");
+  EXPECT_NE(text.find("raw sample on " + channels::raw_sensor("sonar") + " from '"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("taken at " + std::to_string(future) + " us"), std::string::npos) << text;
+  EXPECT_NE(text.find("tolerance 200 ms): dropped"), std::string::npos) << text;
+}
+
+// The clocks of the VSP's host and of its source step back 10 s together (an NTP correction):
+// the source's samples are older than its last one. The reading is invalid (its newest sample
+// is stamped ahead of the clock), never the frozen last value; once the source has been stale
+// for stale_after_ms of this host's time it is re-anchored and the readings are valid again.
+TEST(Vsp, ASourceWhoseClockSteppedBackIsReanchoredOnceStale) {
+  comm::Bus bus(test_url());
+  SrpTexts srp(bus);
+  Reporter reporter(bus, "vsp/range");
+  const ProcessSetConfig c = config_with(
+      "[[vsp]]\nname = \"range\"\nplugin = \"range\"\nsources = [\"sonar\"]\nstale_after_ms = "
+      "300\n");
+  std::atomic<std::int64_t> offset{0};  // of both clocks [us]
+  RunningVsp vsp(bus, reporter, c.vsp("range"), [&] { return now_utime() + offset.load(); });
+  bus.start();
+  std::atomic<double> value{0.5};
+  std::atomic<bool> stop{false};
+  std::thread sonar([&] {
+    while (!stop) {
+      publish_taken_at(bus, "sonar", value.load(), now_utime() + offset.load());
+      std::this_thread::sleep_for(2ms);
+    }
+  });
+  ecp::VirtualSensor sensor(bus, "range", "test");
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("distance"), 0.5, 1e-12);
+  value = 0.7;
+  offset = -10'000'000;
+  std::this_thread::sleep_for(30ms);
+  refresh(sensor);
+  EXPECT_FALSE(sensor.image().valid) << "the last value before the step stayed valid";
+  EXPECT_NE(sensor.image().invalid_reason.find("source 'sonar' stale: its newest sample is "
+                                               "stamped"),
+            std::string::npos)
+      << sensor.image().invalid_reason;
+  EXPECT_NE(sensor.image().invalid_reason.find("ms ahead of this VSP's clock (tolerance 300 ms"),
+            std::string::npos)
+      << sensor.image().invalid_reason;
+  std::this_thread::sleep_for(500ms);
+  refresh(sensor);
+  ASSERT_TRUE(sensor.image().valid) << sensor.image().invalid_reason;
+  EXPECT_NEAR(sensor.value("distance"), 0.7, 1e-12);
+  EXPECT_LT(sensor.image().age_us, 300'000);
+  stop = true;
+  sonar.join();
+  EXPECT_EQ(vsp.shell.reanchored(), 1U);
+  EXPECT_GE(vsp.shell.out_of_order(), 1U);
+  EXPECT_EQ(vsp.shell.from_the_future(), 0U);
+  std::this_thread::sleep_for(50ms);
+  const std::string text = srp.find("re-anchored");
+  EXPECT_NE(text.find("VSP 'range': the clock of source 'sonar' stepped back: re-anchored to the "
+                      "raw sample on " +
+                      channels::raw_sensor("sonar")),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("(limit 300 ms)"), std::string::npos) << text;
 }

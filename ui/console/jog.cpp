@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "mrroc/ecp/robot_image.hpp"
+#include "mrroc/msg/operator.hpp"
 
 namespace mrroc::ui {
 
@@ -65,10 +66,34 @@ std::vector<double> Jogger::check(const JogRequest& request) const {
 
 RobotReading Jogger::check_ready(std::size_t index, const std::string& what) const {
   const std::string& robot = state_.robots()[index].name;
-  if (const auto mp = state_.mp();
-      mp && (mp->state == "RUNNING" || mp->state == "PAUSED" || mp->state == "STOPPING"))
-    throw ApiError(409,
-                   fmt::format("{} refused: the MP task is {}; stop it first", what, mp->state));
+  // Only when the MP is known to rest (an allow-list): a robot at rest in the middle of a task
+  // (between two motions, or paused) must not be taken over, and an MP that does not answer may
+  // be running one.
+  const std::optional<MpReading> answer = state_.mp_reading();
+  if (!answer) {
+    const std::string error = state_.mp_error();
+    throw ApiError(409, fmt::format("{} refused: the MP's state is unknown (no answer from the "
+                                    "MP{}): a task may be running; {} needs the MP answering "
+                                    "and its task IDLE, FINISHED or FAILED",
+                                    what, error.empty() ? " yet" : ": " + error, what));
+  }
+  if (!answer->fresh())
+    throw ApiError(409, fmt::format("{} refused: the MP's state is unknown (no answer from the "
+                                    "MP for {:.1f} s, limit {} s; the last said {}): a task may "
+                                    "be running; {} needs the MP answering and its task IDLE, "
+                                    "FINISHED or FAILED",
+                                    what, answer->age_s(), kMpFreshS, answer->status.state, what));
+  const std::string& task = answer->status.state;
+  if (task == mp::to_string(mp::TaskState::running) ||
+      task == mp::to_string(mp::TaskState::paused) ||
+      task == mp::to_string(mp::TaskState::stopping))
+    throw ApiError(409, fmt::format("{} refused: the MP task is {}; stop it first", what, task));
+  if (task != mp::to_string(mp::TaskState::idle) &&
+      task != mp::to_string(mp::TaskState::finished) &&
+      task != mp::to_string(mp::TaskState::failed))
+    throw ApiError(409, fmt::format("{} refused: the MP task is {}; {} needs it IDLE, FINISHED "
+                                    "or FAILED",
+                                    what, task, what));
   const std::optional<RobotReading> reading = state_.reading(index);
   if (!reading || !reading->fresh())
     throw ApiError(409, fmt::format("{} refused: no robot_state_t from EDP {} in the last {} s",

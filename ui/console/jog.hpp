@@ -1,8 +1,9 @@
 #pragma once
 // Jogging: one axis of one robot by a step [rad], from rest to rest, in one macro-step sent by
 // the console's own EDP link (docs/operating.md, "Jogging"). The checks use the console's state
-// (MP idle, robot fresh, released, without fault, synchronised, at rest); the motion goes
-// through a JogLink, which the console makes from its EDP client (edp_jog_link.hpp).
+// (the MP answering and its task IDLE, FINISHED or FAILED; robot fresh, released, without
+// fault, synchronised, at rest); the motion goes through a JogLink, which the console makes
+// from its EDP client (edp_jog_link.hpp).
 
 #include <cstdint>
 #include <map>
@@ -89,13 +90,15 @@ class Jogger {
   /// Checks the request against the robot and the state, moves and answers once the robot's
   /// state shows it at rest again (at most 100 ms after the EDP's answer).
   /// @throws ApiError 404 (unknown robot), 400 (axis or step out of range), 409 (refused: the
-  /// MP runs, no fresh state, stop engaged, fault, not synchronised, moving, another jog of the
+  /// MP's state unknown (no answer, or none in the last kMpFreshS) or not IDLE, FINISHED or
+  /// FAILED, no fresh state, stop engaged, fault, not synchronised, moving, another jog of the
   /// robot in progress, or the EDP refused), 504 (no EDP answers).
   JogResult jog(const JogRequest& request);
 
   /// Synchronises `robot` through its link (the console's Synchronise button) with the checks of
-  /// jog() that apply: MP idle, fresh state, stop released, no fault, at rest. A robot already
-  /// synchronised is left alone (the text says so, `motion_steps` is 0).
+  /// jog() that apply: the MP answering and its task IDLE, FINISHED or FAILED, fresh state, stop
+  /// released, no fault, at rest. A robot already synchronised is left alone (the text says so,
+  /// `motion_steps` is 0).
   /// @throws ApiError 404 (unknown robot), 409 (refused, or the EDP refused), 504 (no EDP).
   JogResult synchronise(const std::string& robot);
   /// The checks of jog() alone: the joint positions to start from, or the refusal.

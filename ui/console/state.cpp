@@ -84,9 +84,9 @@ void ConsoleState::on_process_status(const ProcessStatus& status,
   processes_[status.process] = {status, received};
 }
 
-void ConsoleState::on_mp_status(const MpStatus& status) {
+void ConsoleState::on_mp_status(const MpStatus& status, SteadyClock::time_point received) {
   std::lock_guard lock(mutex_);
-  mp_ = status;
+  mp_ = MpReading{status, received};
   mp_error_.clear();
 }
 
@@ -124,8 +124,12 @@ bool ConsoleState::history_loaded() const {
 StateSnapshot ConsoleState::snapshot() const {
   std::lock_guard lock(mutex_);
   StateSnapshot out;
-  out.mp = mp_;
   out.mp_error = mp_error_;
+  if (mp_ && mp_->fresh())
+    out.mp = mp_->status;
+  else if (mp_)
+    out.mp_error = fmt::format("no answer from the MP for {:.1f} s (the last said {})",
+                               mp_->age_s(), mp_->status.state);
   if (launch_ && seconds_since(launch_received_) < kLaunchFreshS) out.launch = launch_;
   for (const auto& [name, seen] : processes_)
     out.processes[name] = SeenProcess{seen.first, seconds_since(seen.second)};
@@ -177,7 +181,18 @@ LogView ConsoleState::messages(std::int64_t after, int min_severity, std::size_t
 
 std::optional<MpStatus> ConsoleState::mp() const {
   std::lock_guard lock(mutex_);
+  if (!mp_ || !mp_->fresh()) return std::nullopt;
+  return mp_->status;
+}
+
+std::optional<MpReading> ConsoleState::mp_reading() const {
+  std::lock_guard lock(mutex_);
   return mp_;
+}
+
+std::string ConsoleState::mp_error() const {
+  std::lock_guard lock(mutex_);
+  return mp_error_;
 }
 
 bool ConsoleState::at_rest_since(std::size_t index, SteadyClock::time_point since) const {

@@ -32,6 +32,11 @@ inline constexpr std::int64_t kRestartSteps = 1000;
 inline constexpr std::size_t kMaxLog = 5000;  ///< SRP messages kept
 inline constexpr double kStateFreshS = 1.0;   ///< a robot state older than this is stale [s]
 inline constexpr double kLaunchFreshS = 3.0;  ///< the launcher broadcasts every second [s]
+/// The MP's state is unknown when its last answer is older than this [s]. The console asks the
+/// MP for it every 0.4 s and a call gives up after 3 x 150 ms (bus_feed.cpp), forgetting it
+/// (on_mp_silent): an older answer means the asking stopped or hangs, and a task may have started
+/// since.
+inline constexpr double kMpFreshS = 2.0;
 
 /// [s] from `t` to now.
 double seconds_since(SteadyClock::time_point t);
@@ -60,6 +65,14 @@ struct RobotReading {
   std::int64_t utime = 0;  ///< time of sending [us since the Unix epoch] (its envelope's)
   SteadyClock::time_point received{};
   [[nodiscard]] bool fresh() const { return seconds_since(received) <= kStateFreshS; }
+};
+
+/// The MP's last answer and when it came.
+struct MpReading {
+  MpStatus status;
+  SteadyClock::time_point received{};
+  [[nodiscard]] double age_s() const { return seconds_since(received); }
+  [[nodiscard]] bool fresh() const { return age_s() <= kMpFreshS; }
 };
 
 /// The cell emulator's latest scene objects and their poses (scene_objects_t), when they were
@@ -94,8 +107,8 @@ struct SeenProcess {
 
 /// Everything /api/state shows, copied at one moment.
 struct StateSnapshot {
-  std::optional<MpStatus> mp;
-  std::string mp_error;  ///< why the last STATUS got no answer
+  std::optional<MpStatus> mp;  ///< the MP's last answer while fresh (kMpFreshS)
+  std::string mp_error;        ///< why the last STATUS got no answer, or how old the last one is
   /// The launcher's table, when one came in the last kLaunchFreshS.
   std::optional<launch::LaunchStatus> launch;
   std::map<std::string, SeenProcess> processes;
@@ -138,7 +151,7 @@ class ConsoleState {
   void on_process_status(const ProcessStatus& status,
                          SteadyClock::time_point received = SteadyClock::now());
   /// The MP's answer to a command or STATUS.
-  void on_mp_status(const MpStatus& status);
+  void on_mp_status(const MpStatus& status, SteadyClock::time_point received = SteadyClock::now());
   /// No MP answered STATUS: forget its state, keep `error` to show.
   void on_mp_silent(const std::string& error);
   /// The SRP's history (oldest first) and its newest number: put before the live messages,
@@ -155,7 +168,14 @@ class ConsoleState {
   [[nodiscard]] std::vector<Sample> samples_after(std::size_t index, std::int64_t after) const;
   /// The messages numbered above `after` with severity >= `min_severity`, the newest `max`.
   [[nodiscard]] LogView messages(std::int64_t after, int min_severity, std::size_t max) const;
+  /// The MP's last answer while it is fresh (kMpFreshS): nothing before the first, after
+  /// on_mp_silent, or when the last is older (the MP's state is unknown).
   [[nodiscard]] std::optional<MpStatus> mp() const;
+  /// The MP's last answer and when it came, stale or not; nothing before the first or after
+  /// on_mp_silent.
+  [[nodiscard]] std::optional<MpReading> mp_reading() const;
+  /// Why the last STATUS got no answer ("" after an answer).
+  [[nodiscard]] std::string mp_error() const;
   /// The latest scene objects, nothing before the first (a set without an emulator's scene).
   [[nodiscard]] std::optional<ObjectsReading> scene_objects() const;
   /// True once a robot state received after `since` shows robots()[index] at rest.
@@ -183,7 +203,7 @@ class ConsoleState {
   int log_epoch_ = 1;
   bool history_loaded_ = false;
   std::int64_t srp_last_ = 0;
-  std::optional<MpStatus> mp_;
+  std::optional<MpReading> mp_;
   std::string mp_error_;
 };
 

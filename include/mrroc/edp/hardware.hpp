@@ -142,7 +142,9 @@ class Hardware {
 
   /// Emergency stop engaged (true) or released (false). The EDP's servo loop brings the axes to
   /// a standstill itself; a plugin whose drives have their own quick stop uses it here. Called
-  /// from the EDP's command thread, concurrently with read/write: keep it to an atomic flag.
+  /// from the EDP's emergency-stop listener thread (ENGAGE, release) and from its main thread
+  /// (the stop it starts in, and the one it holds while it ends), never from the servo thread,
+  /// so concurrently with read/write: keep it to an atomic flag.
   virtual void emergency_stop(bool engaged) { (void)engaged; }
 
   /// True for simulated hardware whose time advances only in write(): the servo loop may then

@@ -68,7 +68,7 @@ EstopCommandRef publish_emergency_stop(comm::Bus& bus, bool engage, const std::s
 /// How long the operator's tools wait for every robot to confirm the stop (or its release).
 inline constexpr std::chrono::milliseconds kEstopConfirmDeadline{500};
 /// How long after sending they wait at least for the latch holder's announcement naming it.
-inline constexpr std::chrono::milliseconds kEstopLatchWait{300};
+inline constexpr std::chrono::milliseconds kEstopLatchWait{500};
 
 /// The answer of the robots to an emergency stop or release.
 struct EstopConfirmation {

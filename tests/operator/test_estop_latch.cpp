@@ -68,20 +68,26 @@ double max_joint_change(const std::vector<mrroc_lcm::robot_state_t>& states) {
   return worst;
 }
 
-}  // namespace
-
-TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) {
-  const fs::path dir = temp_dir("estop");
+/// tests/operator/configs/long-irb6.toml in a folder of its own, its task started by the
+/// operator, with `edp_options` (lines) added to [robot.edp].
+fs::path idle_irb6_config(const std::string& name, const std::string& edp_options) {
   std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
   text.replace(text.find("\"../../../robots/irb6\""), 22,
                "\"" + (kSource / "robots/irb6").string() + "\"");
   text.replace(text.find("task = \"start_and_wait\""), 23,
                "task = \"start_and_wait\"\nstart = \"operator\"");
-  text.replace(text.find("servo_period_ms = 2.0"), 21,
-               "servo_period_ms = 2.0\nrestart = \"on-failure\"\nmax_restarts = 2\n"
-               "restart_backoff_s = 0.5");
-  const fs::path config = dir / "estop.toml";
+  if (!edp_options.empty())
+    text.replace(text.find("servo_period_ms = 2.0"), 21, "servo_period_ms = 2.0\n" + edp_options);
+  const fs::path config = temp_dir(name) / "estop.toml";
   std::ofstream(config) << text;
+  return config;
+}
+
+}  // namespace
+
+TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) {
+  const fs::path config = idle_irb6_config(
+      "estop", "restart = \"on-failure\"\nmax_restarts = 2\nrestart_backoff_s = 0.5");
   States states;
   Background launch({launcher(), config.string()});
   ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
@@ -169,14 +175,7 @@ TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) 
 // overflows, as on a flooded group): the latch keeps announcing RELEASED, and the EDP stays
 // stopped until an operator releases it.
 TEST(EstopLatch, AForgedTimeAndAnEngageTheLatchMissedLeaveTheEdpStopped) {
-  const fs::path dir = temp_dir("estop-forged");
-  std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
-  text.replace(text.find("\"../../../robots/irb6\""), 22,
-               "\"" + (kSource / "robots/irb6").string() + "\"");
-  text.replace(text.find("task = \"start_and_wait\""), 23,
-               "task = \"start_and_wait\"\nstart = \"operator\"");
-  const fs::path config = dir / "estop.toml";
-  std::ofstream(config) << text;
+  const fs::path config = idle_irb6_config("estop-forged", "");
   States states;
   Background launch({launcher(), config.string()});
   ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();

@@ -110,9 +110,11 @@ EmergencyStop decode(const mrroc_lcm::emergency_stop_t& m) {
   out.reason = m.reason;
   out.command_id = m.command_id;
   out.by = EstopCommandRef{m.by_sender, m.by_id};
-  if (m.n_engages < 0 || m.n_engages > Stop::MAX_ENGAGES)
+  // kMaxEstopEngages, not Stop::MAX_ENGAGES: the generated constant has no definition to bind
+  // a reference to (fmt takes its arguments by reference; unoptimised builds fail to link).
+  if (m.n_engages < 0 || static_cast<std::size_t>(m.n_engages) > kMaxEstopEngages)
     throw DecodeError(fmt::format("emergency_stop_t: field 'n_engages' is {}, not in 0..{}",
-                                  m.n_engages, Stop::MAX_ENGAGES));
+                                  m.n_engages, kMaxEstopEngages));
   check_size(m.engage_senders, m.n_engages, "emergency_stop_t", "engage_senders");
   check_size(m.engage_ids, m.n_engages, "emergency_stop_t", "engage_ids");
   for (std::size_t i = 0; i < m.engage_ids.size(); ++i)

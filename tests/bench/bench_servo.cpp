@@ -250,10 +250,10 @@ int main(int argc, char** argv) {
         going = exec(set_joints(q, kSteps, kSteps - 1)) && exec(query);
         ++macro_steps;
         ++profile_steps;
-        if (!going && refused.find("stopping ramp") != std::string::npos) {
+        if (!going && refused.find("would accelerate") != std::string::npos) {
           // A successor came late (the host held this thread): the EDP ramped the robot down
-          // and refused the next macro-step as too abrupt from rest. Go on from where the robot
-          // stands, from rest, as ecp::Move re-plans; counted.
+          // and refused a later macro-step as too abrupt from where the ramp left it. Go on from
+          // where the robot stands, from rest, as ecp::Move re-plans; counted.
           ++restarts;
           refused.clear();
           const auto rest_by = std::chrono::steady_clock::now() + std::chrono::seconds(2);

@@ -6,11 +6,10 @@
 /// EstopLatch follows the operators' ENGAGE / RELEASE on `mrroc/estop` by the EDP's rules (ENGAGE
 /// from anybody, RELEASE only when authentic, in the order they arrive, each command once:
 /// comm::EstopRecord), keeps the state per robot of the set, and announces it every kPeriod (and
-/// at once on a change) as one emergency_stop_t per robot, signed when the set has a key: ENGAGED
-/// naming the ENGAGEs it holds, or RELEASED naming the RELEASE that set it and the ENGAGEs that
-/// RELEASE ended. An EDP that starts hears it within a
-/// period and starts stopped or released accordingly (edp/estop_listener.hpp,
-/// docs/operating.md "Emergency stop").
+/// at once on every command it obeys) as one emergency_stop_t per robot, signed when the set has
+/// a key: ENGAGED naming the ENGAGEs it holds, or RELEASED naming the RELEASE that set it and the
+/// ENGAGEs that RELEASE ended. An EDP that starts hears it within a period and starts stopped or
+/// released accordingly (edp/estop_listener.hpp, docs/operating.md "Emergency stop").
 
 #include <chrono>
 #include <condition_variable>

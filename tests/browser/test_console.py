@@ -51,6 +51,11 @@ TOKEN = ""
 URL_WITH_TOKEN = re.compile(r"web console of set 'console-demo' at "
                             r"http://127\.0\.0\.1:8080/\?token=([0-9a-f]{48})$", re.M)
 STANDSTILL_DQ = 0.01   # rad/s: every |dq| below this is a standstill
+# The poses and velocity scale of configs/console-demo.toml's task, for the emergency stop's choice
+# of a motion with ESTOP_TIME_LEFT_S left (read in main()).
+DEMO_POSES = []
+DEMO_VELOCITY_SCALE = 1.0
+ESTOP_TIME_LEFT_S = 1.0
 PAUSE_STILL_DQ = 0.01  # rad/s while paused
 VIEW_Q_TOL = 1e-6      # rad: a drawn joint value vs. the robot state of the same servo step
 VIEW_POSE_TOL = 1e-6   # m, and rotation matrix elements: a drawn link vs. the URDF's kinematics
@@ -479,6 +484,10 @@ def main():
     shutil.rmtree(args.artifacts, ignore_errors=True)
     os.makedirs(args.artifacts)
     config = make_config(args.source_dir, args.artifacts)
+    global DEMO_POSES, DEMO_VELOCITY_SCALE
+    with open(config, "rb") as f:
+        ecp_args = tomllib.load(f)["robot"][0]["ecp"]["args"]
+    DEMO_POSES, DEMO_VELOCITY_SCALE = ecp_args["poses"], ecp_args["velocity_scale"]
     servo_period_s = 0.002
     bound, ramp, robot = estop_bound_steps(args.source_dir, servo_period_s)
     shots = []
@@ -604,17 +613,39 @@ def main():
         wait_for("RUNNING after Resume", lambda: mp_state(driver) == "RUNNING", 5)
 
         # --- Emergency stop during a motion ---------------------------------------------------------
-        # Early in a motion (fast and still speeding up), so that it still moves when the stop
-        # arrives after the page's click on a busy machine (a few hundred ms).
+        # Early in a motion (fast and still speeding up) with at least ESTOP_TIME_LEFT_S of it
+        # left, so that it still moves when the stop arrives after the page's click on a busy
+        # machine (0.3-0.4 s idle, more under load). Resume continued the motion Pause cut short:
+        # its rest may be too short, the next pose's motion is not.
         speeds = []
+
+        def time_left(state):
+            """Seconds the motion under way still takes at least, to the configured pose it
+            heads for (a joint move runs along the straight line in joint space: the pose whose
+            direction from q is dq's, cosine > 0.99), each joint at the task's velocity scale;
+            0 if it heads for none."""
+            q, dq = state["q"], state["dq"]
+            speed = math.hypot(*dq)
+            best, best_cos = None, 0.99
+            for pose in DEMO_POSES:
+                d = [p - x for p, x in zip(pose, q)]
+                norm = math.hypot(*d)
+                if speed > 0 and norm > 0:
+                    cos = sum(a * b for a, b in zip(d, dq)) / (norm * speed)
+                    if cos > best_cos:
+                        best, best_cos = pose, cos
+            return 0.0 if best is None else max(
+                abs(p - x) / (DEMO_VELOCITY_SCALE * v_max)
+                for p, x, v_max in zip(best, q, robot["max_joint_velocity"]))
 
         def speeding_up():
             state = api("/api/state")["robots"][0]["state"]
             speeds.append(max(abs(v) for v in state["dq"]))
             return state if speeds[-1] > 0.3 and len(speeds) >= 3 and \
-                speeds[-3] < speeds[-2] < speeds[-1] else None
-        moving = wait_for("the robot moves fast (max |dq| > 0.3 rad/s) and speeds up",
-                          speeding_up, 15, 0.02)
+                speeds[-3] < speeds[-2] < speeds[-1] and time_left(state) >= ESTOP_TIME_LEFT_S \
+                else None
+        moving = wait_for("the robot moves fast (max |dq| > 0.3 rad/s), speeds up and has "
+                          f"{ESTOP_TIME_LEFT_S} s of its motion left", speeding_up, 20, 0.02)
         click(driver, "estop")
         text = wait_for("the estop's answer shown",
                         lambda: (lambda t: t if "servo step" in t else None)(
@@ -642,7 +673,8 @@ def main():
             steps = standstill["step"] - press_step
             print(f"emergency stop: pressed at servo step {press_step} with max |dq| "
                   f"{speed_at_press:.3f} rad/s (at {moving and max(abs(v) for v in moving['dq']):.3f} "
-                  f"rad/s just before); every |dq| < {STANDSTILL_DQ} rad/s from step "
+                  f"rad/s at step {moving and moving['servo_step']}, seen by the test with at least "
+                  f"{moving and time_left(moving):.2f} s of the motion left); every |dq| < {STANDSTILL_DQ} rad/s from step "
                   f"{standstill['step']}: {steps} servo steps ({steps * servo_period_s * 1e3:.0f} ms)",
                   flush=True)
             print(f"bound: slowest ramp max_i(v_max/a_max)/T = {ramp} steps "

@@ -5,7 +5,12 @@ namespace mrroc {
 namespace {
 std::string joined(const std::vector<ConfigError>& errors) {
   std::string text;
-  for (const auto& e : errors) text += (text.empty() ? "" : "\n") + std::string(e.what());
+  for (const auto& e : errors) {
+    // Appended piece by piece: GCC 12's -O3 warns (-Wstringop-overflow) about the temporaries
+    // of `a + std::string(b)` here, a false positive that fails a Release build with -Werror.
+    if (!text.empty()) text += '\n';
+    text += e.what();
+  }
   return text;
 }
 }  // namespace

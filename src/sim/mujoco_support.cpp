@@ -42,11 +42,21 @@ std::string format_number(double value) {
   return buffer.data();
 }
 
-std::string quoted(const std::filesystem::path& path) { return "'" + path.string() + "'"; }
+// Strings appended piece by piece here and below: GCC 12's -O3 warns (-Wstringop-overflow)
+// about `"literal" + std::string`, a false positive that fails a Release build with -Werror.
+std::string quoted(const std::filesystem::path& path) {
+  std::string text(1, '\'');
+  text += path.string();
+  text += '\'';
+  return text;
+}
 
 std::string joint_name(const mjModel* m, int joint) {
   const char* name = mj_id2name(m, mjOBJ_JOINT, joint);
-  return name != nullptr ? std::string(name) : "#" + std::to_string(joint);
+  if (name != nullptr) return name;
+  std::string text(1, '#');
+  text += std::to_string(joint);
+  return text;
 }
 
 const char* warning_text(int warning) noexcept {

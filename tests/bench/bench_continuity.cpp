@@ -112,7 +112,24 @@ struct Summary {
   double worst_mm = 0.0;
 };
 
+/// Grip or cutter error above which a run's whole output is kept for a look at its cause.
+constexpr double kKeepOutputMm = 0.2;
+
 void add(Summary& s, const Run& r) {
+  if (r.error_mm > kKeepOutputMm || r.exit_code != 0 || r.standstills > 0) {
+    // The run missed the target: its output (every process' reports, the overruns) is the only
+    // record of why.
+    char name[] = "/tmp/bench_continuity-run-XXXXXX";
+    const int fd = mkstemp(name);
+    if (fd >= 0) {
+      const ssize_t written = write(fd, r.output.data(), r.output.size());
+      close(fd);
+      std::printf("run with exit %d, %d standstills, error %.3f mm: its output is in %s%s\n",
+                  r.exit_code, r.standstills, r.error_mm, name,
+                  written == static_cast<ssize_t>(r.output.size()) ? "" : " (cut short)");
+      std::fflush(stdout);
+    }
+  }
   ++s.runs;
   if (r.exit_code != 0) ++s.failed;
   s.standstills += r.standstills;

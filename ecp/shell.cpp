@@ -93,7 +93,9 @@ bool EcpShell::start_activity(const std::string& what, std::function<EcpReply()>
         reply = error_reply(ErrorClass::system, error_code::timeout, e.what());
         reporter_.report(Severity::error, error_code::timeout, what + ": " + e.what());
       } catch (const RemoteError& e) {
-        reply = error_reply(ErrorClass::fatal, e.code(), e.what());
+        // The EDP's (or VSP's) own class: a refusal before anything moved is non-fatal, a drive
+        // fault or an emergency stop fatal, a failed link or message system.
+        reply = error_reply(e.error_class(), e.code(), e.what());
         reporter_.report(Severity::error, e.code(), what + ": " + e.what());
       } catch (const ConfigError& e) {
         reply = error_reply(ErrorClass::non_fatal, error_code::task_error, e.what());

@@ -54,6 +54,7 @@ Reply CommandInterpreter::error(int code, const std::string& text) {
   Reply r;
   r.type = ReplyType::error;
   r.error_code = code;
+  r.error_class = error_class_of(code);
   r.error_text = text;
   return r;
 }

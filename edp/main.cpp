@@ -52,9 +52,13 @@ void refuse_if_another_edp(mrroc::comm::Bus& bus, const std::string& robot,
   const std::string channel = mrroc::channels::robot_state(robot);
   {
     // A state that does not decode is another EDP's too, but says nothing about whose: dropped.
+    // With a key only a state signed with it counts: anybody could send one to keep the EDP
+    // from starting.
+    const bool keyed = bus.auth() != nullptr;
     mrroc::comm::Subscriber<mrroc::RobotState> sub(
         bus, channel,
-        [&seen](const mrroc::RobotState& m, const mrroc::comm::Received& in) {
+        [&seen, keyed](const mrroc::RobotState& m, const mrroc::comm::Received& in) {
+          if (keyed && !in.authentic_unreported()) return;
           std::lock_guard lock(seen.mutex);
           seen.sender = in.header().sender;
           seen.servo_step = m.servo_step;
@@ -94,6 +98,14 @@ Prepared prepare(const mrroc::RobotConfig& robot, bool open_devices) {
   return p;
 }
 
+/// The plugin's declaration, as the ready status and --check-config give it to the launcher
+/// (launch/main.cpp reads it): "plugin 'can' drives real devices" or "plugin 'mujoco' drives
+/// no real devices".
+std::string devices_declaration(const mrroc::edp::Hardware& hardware) {
+  return fmt::format("plugin '{}' drives {}", hardware.name(),
+                     hardware.drives_real_devices() ? "real devices" : "no real devices");
+}
+
 /// --check-config: the process set's errors and this EDP's (prepare), one per line on stderr;
 /// nothing is started, no device opened, nothing sent.
 int check(const std::string& config_path, const std::string& robot_name) {
@@ -101,13 +113,18 @@ int check(const std::string& config_path, const std::string& robot_name) {
   const ProcessSetCheck set = check_process_set(config_path);
   ConfigErrorList errors;
   errors.add(set.errors);
+  std::string devices;
   if (!set.broken_process("edp/" + robot_name)) {
-    errors.run(SourceLocation::whole_file(set.config.file.string()),
-               [&] { (void)prepare(set.config.robot(robot_name), false); });
+    errors.run(SourceLocation::whole_file(set.config.file.string()), [&] {
+      const Prepared p = prepare(set.config.robot(robot_name), false);
+      devices = devices_declaration(*p.hardware);
+    });
   }
   for (const auto& error : errors.errors()) std::fprintf(stderr, "%s\n", error.what());
   if (!errors.empty()) return kExitConfigErrors;
-  std::printf("mrroc-edp: edp/%s: config is valid\n", robot_name.c_str());
+  // The launcher's --check reads the declaration (restarts of an EDP on real devices wait for
+  // an operator).
+  std::printf("mrroc-edp: edp/%s: config is valid; %s\n", robot_name.c_str(), devices.c_str());
   return 0;
 }
 
@@ -194,7 +211,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
         hardware->name(), model.axes(), kinematics->name(), robot.edp.servo_period_s * 1e3,
         servo.timing().scheduling, robot.edp.lookahead, robot.edp.lookahead == 1 ? "" : "s",
         scheduling, estop.scheduling(), memory, estop_text));
-    reporter.set_state(ProcessState::ready);
+    reporter.set_state(ProcessState::ready, devices_declaration(*hardware));
 
     bool hardware_fault_reported = false;
     bool estop_reported = servo.emergency_stopped();  // the ready line said so
@@ -240,6 +257,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
           edp::Reply r;
           r.type = edp::ReplyType::error;
           r.error_code = edp::error_code::malformed;
+          r.error_class = edp::error_class_of(r.error_code);
           r.error_text = "malformed instruction dropped: " + in->decode_error;
           reporter.report(Severity::warning, r.error_code, r.error_text);
           in->responder.reply(r);

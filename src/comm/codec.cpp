@@ -51,6 +51,9 @@ static_assert(same(ecp::ErrorClass::non_fatal, EcpRep::NON_FATAL) &&
               same(ecp::ErrorClass::fatal, EcpRep::FATAL) &&
               same(ecp::ErrorClass::system, EcpRep::SYSTEM));
 
+static_assert(same(ErrorClass::non_fatal, Rep::NON_FATAL) && same(ErrorClass::fatal, Rep::FATAL) &&
+              same(ErrorClass::system, Rep::SYSTEM));
+
 using L = mrroc_lcm::edp_instruction_t;
 
 template <class E>
@@ -156,6 +159,7 @@ mrroc_lcm::edp_reply_t encode(const edp::Reply& in) {
   mrroc_lcm::edp_reply_t m{};
   m.reply = static_cast<std::int8_t>(in.type);
   m.error_code = in.error_code;
+  m.error_class = static_cast<std::int8_t>(in.error_class);
   m.error_text = in.error_text;
   m.is_synchronised = in.synchronised ? 1 : 0;
   m.step_no = in.step_no;
@@ -199,6 +203,7 @@ edp::Reply decode(const mrroc_lcm::edp_reply_t& m) {
   edp::Reply out;
   out.type = checked_enum<edp::ReplyType>(m.reply, R::ACKNOWLEDGE, R::ERROR, "reply");
   out.error_code = m.error_code;
+  out.error_class = checked_enum<ErrorClass>(m.error_class, 0, R::SYSTEM, "error_class");
   out.error_text = m.error_text;
   out.synchronised = m.is_synchronised != 0;
   out.step_no = m.step_no;

@@ -10,6 +10,16 @@ std::string SourceLocation::str() const {
   return fmt::format("{}:{}", file, line);
 }
 
+const char* to_string(ErrorClass c) {
+  switch (c) {
+    case ErrorClass::none: return "none";
+    case ErrorClass::non_fatal: return "non-fatal";
+    case ErrorClass::fatal: return "fatal";
+    case ErrorClass::system: return "system";
+  }
+  return "unknown";
+}
+
 std::string located_message(const SourceLocation& where, const std::string& message) {
   return fmt::format("{}: error: {}", where.str(), message);
 }

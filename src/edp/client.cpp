@@ -64,8 +64,10 @@ Reply Client::call(const Instruction& instruction) {
   if (!(reply.type == ReplyType::error && reply.error_code == error_code::not_owner))
     impl_->take_over_next = false;
   if (reply.type == ReplyType::error)
-    throw Refused(reply.error_code, fmt::format("EDP {} refused {}: {}", impl_->robot,
-                                                to_string(instruction.type), reply.error_text));
+    throw Refused(reply.error_code,
+                  fmt::format("EDP {} refused {}: {}", impl_->robot, to_string(instruction.type),
+                              reply.error_text),
+                  reply.error_class == ErrorClass::none ? ErrorClass::fatal : reply.error_class);
   return reply;
 }
 

@@ -21,8 +21,8 @@
 namespace mrroc::mp {
 
 EcpFailed::EcpFailed(const std::string& robot, const ecp::EcpReply& reply)
-    : RemoteError(reply.error_code, fmt::format("ecp/{}: {}", robot, reply.error_text)),
-      class_(reply.error_class) {}
+    : RemoteError(reply.error_code, fmt::format("ecp/{}: {}", robot, reply.error_text),
+                  reply.error_class) {}
 
 /// The two request/reply clients of the MP's link to one ECP.
 struct Robot::Links {

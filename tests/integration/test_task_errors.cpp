@@ -76,6 +76,17 @@ TEST_F(TaskErrors, NonFatalErrorsLetTheMpGoOn) {
       << r.output;
 }
 
+TEST_F(TaskErrors, TheEdpsClassOfARefusalReachesTheMp) {
+  // The EDP refuses a macro-step (its reading after the last servo step: bad_argument, code 7)
+  // as non-fatal: nothing moved. The ECP passes the EDP's code and class on, and the MP retries.
+  const RunResult r = launch(config(
+      "retry", "arguments = \"class = 'edp_refusal'\\ntimes = 1\\n\"\nattempts = 2", "follow_mp"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("non-fatal error (code 7), retrying"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("value_in_step_no 15 is outside 1..11"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("succeeded at attempt 2"), std::string::npos) << r.output;
+}
+
 TEST_F(TaskErrors, EverythingAGetReturnsReachesTheTask) {
   // The task (tests/integration/test_tasks.cpp, "edp_settings") checks the image itself and
   // fails naming any mismatch.

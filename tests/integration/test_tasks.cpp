@@ -18,7 +18,8 @@ namespace {
 using namespace mrroc;
 
 /// A generator that moves the column and throws from next_step in its 20th macro-step, while
-/// the robot is moving.
+/// the robot is moving; with class "edp_refusal" it sends a macro-step the EDP refuses instead
+/// (its reading after the last servo step + 5: bad_argument, a non-fatal refusal).
 class ThrowingGenerator : public ecp::Generator {
  public:
   ThrowingGenerator(std::string error_class, int run) : class_(std::move(error_class)), run_(run) {}
@@ -27,7 +28,7 @@ class ThrowingGenerator : public ecp::Generator {
     return next_step(robot, sensors);
   }
   bool next_step(ecp::RobotImage& robot, const ecp::SensorList&) override {
-    if (++step_ == 20) {
+    if (++step_ == 20 && class_ != "edp_refusal") {
       const std::string text = fmt::format("deliberate {} error, run {}", class_, run_);
       if (class_ == "non_fatal") throw ecp::NonFatalError(text, 201);
       if (class_ == "fatal") throw ecp::FatalError(text, 202);
@@ -44,6 +45,7 @@ class ThrowingGenerator : public ecp::Generator {
     // Up to 0.1 rad/s at 1 rad/s^2 (the EDP refuses a jump to 0.1 rad/s from rest), then on.
     const double t = 0.02 * step_;
     c.arm[0] += t < 0.1 ? 0.5 * t * t : 0.005 + 0.1 * (t - 0.1);
+    if (step_ == 20) c.value_in_step_no = c.motion_steps + 5;
     return true;
   }
 

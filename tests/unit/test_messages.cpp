@@ -90,11 +90,33 @@ TEST(Messages, EdpErrorReplyRoundTrip) {
   edp::Reply in;
   in.type = edp::ReplyType::error;
   in.error_code = edp::error_code::out_of_limits;
+  in.error_class = edp::error_class_of(in.error_code);
   in.error_text = "joint 2 (upper_arm) target 0.81 rad exceeds upper limit 0.70 rad";
   const edp::Reply out = comm::decode(through_bytes(comm::encode(in)));
   EXPECT_EQ(out.type, edp::ReplyType::error);
   EXPECT_EQ(out.error_code, edp::error_code::out_of_limits);
+  EXPECT_EQ(out.error_class, ErrorClass::non_fatal);
   EXPECT_EQ(out.error_text, in.error_text);
+
+  // A class the wire does not know does not decode.
+  mrroc_lcm::edp_reply_t wire = comm::encode(in);
+  wire.error_class = 4;
+  EXPECT_THROW(comm::decode(wire), comm::DecodeError);
+}
+
+TEST(Messages, EveryEdpErrorCodeHasItsClass) {
+  // A refusal before anything moved is non-fatal (the caller may retry or try another), what
+  // leaves the robot unable to go on is fatal, a failed message is the system's.
+  using namespace edp::error_code;
+  for (int code : {query_expected, query_unexpected, not_synchronised, already_synchronised,
+                   out_of_limits, bad_argument, not_supported, too_fast, too_abrupt})
+    EXPECT_EQ(edp::error_class_of(code), ErrorClass::non_fatal) << "code " << code;
+  for (int code : {hardware_fault, emergency_stop, servo_overrun, not_owner})
+    EXPECT_EQ(edp::error_class_of(code), ErrorClass::fatal) << "code " << code;
+  for (int code : {malformed, unauthenticated})
+    EXPECT_EQ(edp::error_class_of(code), ErrorClass::system) << "code " << code;
+  EXPECT_EQ(edp::error_class_of(none), ErrorClass::none);
+  EXPECT_STREQ(to_string(ErrorClass::non_fatal), "non-fatal");
 }
 
 TEST(Messages, MpCommandAndEcpReplyRoundTrip) {

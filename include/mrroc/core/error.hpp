@@ -3,6 +3,7 @@
 /// Error types shared by every process. Messages always name the value, the unit and the limit
 /// (for limits) or `file:line` (for configuration).
 
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -73,14 +74,32 @@ class TimeoutError : public Error {
   using Error::Error;
 };
 
-/// A peer answered, but with an error (the peer's code and text are kept).
+/// The class of an error, the same in every layer (EDP replies, ECP replies, the task API's
+/// exceptions), after MRROC++'s three:
+/// - non_fatal: this command or attempt failed and nothing else did; the caller may go on (retry
+///   later, another command, another strategy). A refusal before anything moved: a limit, a
+///   motion before synchronisation, a bad argument, a too fast or too abrupt macro-step.
+/// - fatal: the task cannot go on with this effector as it is: a drive fault, an emergency stop,
+///   another client driving the EDP. The robot stands; an operator (or a restart) must act.
+/// - system: the system does not work as it should: a lost link, a process that does not answer,
+///   a message that does not decode or is not authentic.
+enum class ErrorClass : std::int8_t { none = 0, non_fatal = 1, fatal = 2, system = 3 };
+
+/// "non-fatal", "fatal", "system" (and "none").
+const char* to_string(ErrorClass c);
+
+/// A peer answered, but with an error (the peer's code, text and class are kept).
 class RemoteError : public Error {
  public:
-  RemoteError(int code, const std::string& text) : Error(text), code_(code) {}
+  RemoteError(int code, const std::string& text, ErrorClass error_class = ErrorClass::fatal)
+      : Error(text), code_(code), class_(error_class) {}
   [[nodiscard]] int code() const { return code_; }
+  /// The peer's class of the error (fatal where the peer names none).
+  [[nodiscard]] ErrorClass error_class() const { return class_; }
 
  private:
   int code_;
+  ErrorClass class_;
 };
 
 /// A command was refused before anything moved (limits, state machine, bad argument).

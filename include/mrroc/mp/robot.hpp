@@ -46,14 +46,13 @@ struct RobotImage {
   bool commanded = false;
 };
 
-/// Thrown when an ECP answers ERROR (its class, code and text are kept).
+/// Thrown when an ECP answers ERROR (its class, code and text are kept: error_class(), code()).
+/// An error the EDP reported comes with the EDP's code (edp::error_code) and class
+/// (edp::error_class_of): a non-fatal one refused a command before anything moved, and the MP
+/// may retry or try another.
 class EcpFailed : public RemoteError {
  public:
   EcpFailed(const std::string& robot, const ecp::EcpReply& reply);
-  [[nodiscard]] ecp::ErrorClass error_class() const { return class_; }
-
- private:
-  ecp::ErrorClass class_;
 };
 
 /// The MP's link to one robot's ECP. Long commands (START_TASK, NEXT_STATE, NEXT_POSE,

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "mrroc/core/error.hpp"
+
 namespace mrroc::edp {
 
 enum class InstructionType : std::int8_t { set = 1, get = 2, set_get = 3, synchro = 4, query = 5 };
@@ -107,9 +109,38 @@ inline constexpr int too_abrupt = 14;  ///< a macro-step would exceed a joint's 
 inline constexpr int not_owner = 15;   ///< another client drives this EDP
 }  // namespace error_code
 
+/// The class of each EDP error code (mrroc::ErrorClass): the one table the EDP answers with.
+/// non_fatal: the instruction was refused and nothing moved (a limit, not synchronised, a bad
+/// argument, too fast or abrupt, a QUERY out of order); fatal: the robot cannot go on as it is
+/// (a drive fault, an emergency stop, another owner); system: the link or message failed
+/// (malformed, not authentic).
+constexpr ErrorClass error_class_of(int code) {
+  switch (code) {
+    case error_code::none: return ErrorClass::none;
+    case error_code::query_expected:
+    case error_code::query_unexpected:
+    case error_code::not_synchronised:
+    case error_code::already_synchronised:
+    case error_code::out_of_limits:
+    case error_code::bad_argument:
+    case error_code::not_supported:
+    case error_code::too_fast:
+    case error_code::too_abrupt: return ErrorClass::non_fatal;
+    case error_code::hardware_fault:
+    case error_code::emergency_stop:
+    case error_code::servo_overrun:
+    case error_code::not_owner: return ErrorClass::fatal;
+    case error_code::malformed:
+    case error_code::unauthenticated: return ErrorClass::system;
+    default: return ErrorClass::fatal;
+  }
+}
+
 struct Reply {
   ReplyType type = ReplyType::acknowledge;
   int error_code = 0;
+  /// ERROR: the class of error_code (error_class_of), none otherwise.
+  ErrorClass error_class = ErrorClass::none;
   std::string error_text;
   bool synchronised = false;
   int step_no = 0;               ///< step of the macro-step in which the reading was taken

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "mrroc/core/error.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
 
 namespace mrroc::ecp {
@@ -34,8 +35,8 @@ struct MpCommand {
 };
 
 enum class EcpReplyType : std::int8_t { acknowledge = 1, task_terminated = 2, error = 3 };
-/// Error classes, as the task API's exceptions (non-fatal, fatal, system).
-enum class ErrorClass : std::int8_t { none = 0, non_fatal = 1, fatal = 2, system = 3 };
+/// Error classes, as the task API's exceptions (non-fatal, fatal, system): mrroc::ErrorClass.
+using mrroc::ErrorClass;
 
 /// Error codes of ECP replies. Errors the EDP reported are passed on with the EDP's code
 /// (edp::error_code, 1..99); the ECP's own codes start at 101.

@@ -231,10 +231,11 @@ void ServoLoop::drop_queue() {
 }
 
 void ServoLoop::store_reading(std::uint64_t id, int step_no) {
-  delivered_ = latest_;
-  delivered_.macro_step = id;
-  delivered_.step_no = step_no;
-  delivered_.macro_steps_ahead = queued();
+  Reading& r = delivered_[id % kDeliveredKept];
+  r = latest_;
+  r.macro_step = id;
+  r.step_no = step_no;
+  r.macro_steps_ahead = queued();
   reached_id_ = std::max(reached_id_, id);
   notify_pending_ = true;
 }
@@ -769,11 +770,12 @@ std::optional<Reading> ServoLoop::wait_reply(std::uint64_t id, std::uint64_t due
   wait_until_ready(mutex_, changed_, seconds(timeout_s), [&] {
     if (refused() || faulted_ || emergency_stop_ || !running_) return true;
     if (reached_id_ < due_at) return false;
-    if (due_at != 0 && delivered_.macro_step == due_at) {
-      out = delivered_;
+    if (const Reading& kept = delivered_[due_at % kDeliveredKept];
+        due_at != 0 && kept.macro_step == due_at) {
+      out = kept;
     } else {
-      // The macro-step it waits for passed its reading step before (or was dropped): the
-      // freshest reading answers.
+      // The macro-step it waits for took no reading (it was dropped, or refused) or took it more
+      // than kDeliveredKept macro-steps ago: the freshest reading answers.
       out = latest_;
       out->macro_step = due_at;
       out->step_no = current_ ? current_->step : 0;

@@ -266,7 +266,11 @@ class ServoLoop {
   std::uint64_t after_stop_id_ = 0;  ///< macro-step whose reading is due after it stopped
   int after_stop_step_ = 0;
   Reading latest_;
-  Reading delivered_;               ///< the last reading requested by a macro-step
+  /// The readings the last kDeliveredKept macro-steps requested, at delivered_[id % size]: a
+  /// QUERY that comes late (its client was held up) still gets the reading of the macro-step it
+  /// asked about, the same servo step as every other robot of its group, not a later one.
+  static constexpr std::size_t kDeliveredKept = 64;
+  std::array<Reading, kDeliveredKept> delivered_{};
   AxisArray desired_{};             ///< joint coordinates (raw before synchronisation)
   AxisArray commanded_velocity_{};  ///< of desired_ over the last cycle [rad/s]
   AxisArray end_velocity_{};        ///< the velocity the last macro-step ended with (0: at rest)

@@ -242,6 +242,42 @@ TEST_F(Lookahead, RepliesRunAheadByTheDepthAndTheLastOneComesAfterTheStop) {
   EXPECT_EQ(servo_->lost_successors(), 0);
 }
 
+TEST_F(Lookahead, AQueryThatComesLateGetsTheReadingOfItsOwnMacroStep) {
+  // The client is held up 50 ms (2.5 macro-steps) mid-cruise: when its next exchanges come, the
+  // macro-steps their replies are due at have passed their reading steps, and later ones have
+  // read since. Each reply must still be the reading of its own macro-step at its own step (7),
+  // as the replies of the other robots of a group are: a later reading would put this robot
+  // further along its path than they are (two carriers read 0.3-2 mm apart).
+  start(4);
+  constexpr int kSteps = 10;
+  constexpr int kRamp = 60;
+  constexpr int kSegments = 30;
+  constexpr int kStallAt = 15;
+  std::vector<double> q = model_.synchro_joint_positions;
+  const auto plan = test::cruise(q[0], 0.1, kRamp, kSteps, kSegments, kPeriod);
+  int checked = 0;
+  for (std::size_t k = 0; k + 1 < plan.size(); ++k) {
+    if (static_cast<int>(k) == kStallAt) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    q[0] = plan[k].first;
+    const Reply r = interpreter_->execute(set_joints(q, plan[k].second, plan[k].second - 3, true));
+    ASSERT_EQ(r.type, ReplyType::data) << "macro-step " << k << ": " << r.error_text;
+    // Replies run 3 macro-steps ahead (depth 4): reply k reads macro-step k - 3. Cruise ones
+    // (1.. before the last two, which may blend into the end) at constant velocity: step 7 of
+    // macro-step m stands 7 tenths of the way from plan[m - 1] to plan[m].
+    const int m = static_cast<int>(k) - 3;
+    if (m < 2 || m > kSegments - 2) continue;
+    EXPECT_EQ(r.step_no, kSteps - 3) << "reply " << k;
+    const auto at = static_cast<std::size_t>(m);
+    const double expected = plan[at - 1].first + 0.7 * (plan[at].first - plan[at - 1].first);
+    EXPECT_NEAR(r.desired_joints[0], expected, 1e-9)
+        << "reply " << k << " (macro-step " << m << (k >= kStallAt ? ", after the stall" : "")
+        << ") is the reading of another servo step";
+    ++checked;
+  }
+  EXPECT_GE(checked, kSegments - 4);
+  EXPECT_EQ(servo_->lost_successors(), 0);
+}
+
 TEST_F(Lookahead, OneExchangeAnswersAsSetThenQuery) {
   start(1);
   std::vector<double> q = model_.synchro_joint_positions;

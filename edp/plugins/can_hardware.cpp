@@ -26,12 +26,21 @@
 ///   - `eds` (string, or a list of one per axis): the drives' EDS or DCF files (relative to the
 ///     config file); default: mrroc's emulated drive (configs/drives/emu-csp.eds). Every object
 ///     the master touches is checked against it (drive_setup.hpp), here and at `--check`.
-///   - `mode` ("csp" or "ip", or a list of one per axis; default: csp where the drive supports
-///     it, else ip): cyclic synchronous position or interpolated position.
+///   - `mode` ("csp", "ip" or "csv", or a list of one per axis; default: csp where the drive
+///     supports it, else ip): cyclic synchronous position, interpolated position, or cyclic
+///     synchronous velocity (the master turns the positions into velocities, Cia402Master).
 ///   - `identity` ([vendor, product] or [vendor, product, revision], or a list of one such row per
 ///     axis): what 0x1018 of each drive must say; bring-up refuses a drive that says otherwise.
 ///   - `sdo` (list of rows [node, index, sub, value]; node 0: every drive): SDO writes at
 ///     bring-up, after the master's own, each checked against the drive's file and read back.
+///   - `sdo_text` (list of strings "node index sub text"; node 0: every drive): SDO writes of
+///     string objects at bring-up (segmented when longer than 4 bytes), after `sdo`'s, each
+///     checked against the drive's file and read back.
+///   - `rpdo`, `tpdo` (lists of rows [node (0: every drive), PDO number, COB-ID (0: the
+///     predefined one), transmission type, event timer ms, entries...]; an entry is
+///     index << 16 | sub << 8 | bits, bits 0 for the object's width, or an index alone): the
+///     drives' PDOs as the config chooses them, instead of mrroc's own (drive_setup.hpp); each
+///     checked against the drive's file at its row.
 /// The cyclic traffic's bus load is computed at configure time and printed; a worst case above
 /// 100 % is refused, above 70 % warned about (docs/hil.md).
 ///
@@ -52,9 +61,11 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <atomic>
+#include <climits>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -122,6 +133,7 @@ class CanHardware final : public Hardware {
       a.name = model.joint_names[i];
       a.node = static_cast<std::uint8_t>(nodes[i]);
       a.counts_per_unit = counts;
+      a.unit = model.unit(i);
       // Deceleration in drive coordinates: |M| times the joints' largest accelerations.
       double decel = 0.0;
       for (std::size_t c = 0; c < axes_; ++c)
@@ -295,6 +307,8 @@ class CanHardware final : public Hardware {
     }
     const std::vector<std::vector<double>> sdo =
         params.has("sdo") ? params.get_double_rows("sdo") : std::vector<std::vector<double>>{};
+    const std::vector<std::string> texts =
+        params.has("sdo_text") ? params.get_strings("sdo_text") : std::vector<std::string>{};
     const auto integer = [](double v, double lo, double hi) {
       return v == std::floor(v) && v >= lo && v <= hi;
     };
@@ -304,6 +318,58 @@ class CanHardware final : public Hardware {
         throw ConfigError(params.location_of("sdo"),
                           "each row of 'sdo' is [node (0: every drive), index, sub, value], "
                           "integers: node 0..127, index 0..0xFFFF, sub 0..255, value of 32 bits");
+    // The config's PDOs: [node (0: every drive), number, COB-ID (0: predefined), transmission
+    // type, event timer ms, entries...], an entry index << 16 | sub << 8 | bits (bits 0: the
+    // object's width from the file), or an index alone (sub 0).
+    struct PdoRow {
+      std::int64_t node = 0;
+      can::PdoRequest pdo;
+    };
+    std::vector<PdoRow> pdo_rows;
+    for (const char* key : {"rpdo", "tpdo"}) {
+      if (!params.has(key)) continue;
+      const std::vector<std::vector<double>> rows = params.get_double_rows(key);
+      for (std::size_t r = 0; r < rows.size(); ++r) {
+        const std::vector<double>& row = rows[r];
+        const SourceLocation at = params.location_of_row(key, r);
+        bool ok = row.size() >= 6 && row.size() <= 5 + 64 && integer(row[0], 0, 127) &&
+                  integer(row[1], 1, 512) && integer(row[2], 0, 0x7FF) && integer(row[3], 0, 255) &&
+                  integer(row[4], 0, 65535);
+        for (std::size_t k = 5; ok && k < row.size(); ++k) ok = integer(row[k], 1, 4294967295.0);
+        if (!ok) {
+          errors.add(ConfigError(
+              at, fmt::format("each row of '{}' is [node (0: every drive), {} number 1..512, "
+                              "COB-ID (0: the predefined one, else 0x001..0x7FF), transmission "
+                              "type 0..255, event timer 0..65535 ms, then 1..64 entries: "
+                              "index << 16 | sub << 8 | bits (bits 0: the object's width), or "
+                              "an index alone], integers",
+                              key, key[0] == 'r' ? "RPDO" : "TPDO")));
+          continue;
+        }
+        if (row[0] != 0 && std::find(nodes.begin(), nodes.end(),
+                                     static_cast<std::int64_t>(row[0])) == nodes.end()) {
+          errors.add(ConfigError(at, fmt::format("'{}' names node {}, which is none of robot "
+                                                 "'{}''s nodes",
+                                                 key, row[0], model.name)));
+          continue;
+        }
+        PdoRow p;
+        p.node = static_cast<std::int64_t>(row[0]);
+        p.pdo.receive = key[0] == 'r';
+        p.pdo.number = static_cast<int>(row[1]);
+        p.pdo.cob_id = static_cast<std::uint32_t>(row[2]);
+        p.pdo.transmission = static_cast<std::uint8_t>(row[3]);
+        p.pdo.event_timer_ms = static_cast<std::uint16_t>(row[4]);
+        p.pdo.where = at;
+        for (std::size_t k = 5; k < row.size(); ++k) {
+          const auto raw = static_cast<std::uint32_t>(row[k]);
+          p.pdo.entries.push_back(raw <= 0xFFFFU
+                                      ? can::PdoEntry{static_cast<std::uint16_t>(raw), 0, 0}
+                                      : can::PdoEntry::from_raw(raw));
+        }
+        pdo_rows.push_back(std::move(p));
+      }
+    }
     const std::filesystem::path base =
         std::filesystem::path(params.location_of("eds").file).parent_path();
     std::map<std::string, std::shared_ptr<const can::eds::Dictionary>> loaded;
@@ -319,10 +385,13 @@ class CanHardware final : public Hardware {
           request.mode = can::eds::mode::kCyclicSyncPosition;
         else if (modes[i] == "ip")
           request.mode = can::eds::mode::kInterpolatedPosition;
+        else if (modes[i] == "csv")
+          request.mode = can::eds::mode::kCyclicSyncVelocity;
         else
           throw ConfigError(params.location_of("mode"),
                             fmt::format("'mode' = \"{}\": mrroc drives in \"csp\" (cyclic "
-                                        "synchronous position) or \"ip\" (interpolated position)",
+                                        "synchronous position), \"ip\" (interpolated position) "
+                                        "or \"csv\" (cyclic synchronous velocity)",
                                         modes[i]));
       }
       if (const auto& id = identities[i]; !id.empty()) {
@@ -343,7 +412,39 @@ class CanHardware final : public Hardware {
           request.writes.push_back({static_cast<std::uint16_t>(row[1]),
                                     static_cast<std::uint8_t>(row[2]),
                                     static_cast<std::uint64_t>(static_cast<std::int64_t>(row[3])),
-                                    0, params.location_of("sdo")});
+                                    0, params.location_of("sdo"), std::nullopt});
+      for (const std::string& line : texts) {
+        // "node index sub text": numbers in C's notation (0x.. hex), the text the rest.
+        const char* p = line.c_str();
+        char* end = nullptr;
+        const long node = std::strtol(p, &end, 0);
+        const bool n_ok = end != p && *end == ' ';
+        p = end;
+        const long index = n_ok ? std::strtol(p, &end, 0) : -1;
+        const bool i_ok = n_ok && end != p && *end == ' ';
+        p = end;
+        const long sub = i_ok ? std::strtol(p, &end, 0) : -1;
+        const bool ok = i_ok && end != p && (*end == ' ' || *end == '\0') && node >= 0 &&
+                        node <= 127 && index >= 0 && index <= 0xFFFF && sub >= 0 && sub <= 0xFF;
+        if (!ok) {
+          if (i == 0)
+            errors.add(ConfigError(params.location_of("sdo_text"),
+                                   fmt::format("'sdo_text' entry \"{}\" is not \"node index sub "
+                                               "text\" (node 0..127, 0: every drive; index "
+                                               "0..0xFFFF; sub 0..255)",
+                                               line)));
+          continue;
+        }
+        if (node != 0 && node != nodes[i]) continue;
+        can::SdoWrite w;
+        w.index = static_cast<std::uint16_t>(index);
+        w.sub = static_cast<std::uint8_t>(sub);
+        w.text = std::string(*end == ' ' ? end + 1 : end);
+        w.where = params.location_of("sdo_text");
+        request.writes.push_back(w);
+      }
+      for (const PdoRow& row : pdo_rows)
+        if (row.node == 0 || row.node == nodes[i]) request.pdos.push_back(row.pdo);
       std::shared_ptr<const can::eds::Dictionary> file;
       if (files[i].empty()) {
         file = can::default_drive_eds();
@@ -361,6 +462,8 @@ class CanHardware final : public Hardware {
       }
       errors.run(request.where, [&] { plans.push_back(can::plan_drive(file, request)); });
     }
+    if (plans.size() == axes)
+      errors.run(params.location(), [&] { can::check_pdo_identifiers(plans); });
     errors.throw_if_any();
     return plans;
   }
@@ -448,10 +551,28 @@ class CanHardware final : public Hardware {
                         "robot.transmission.coupling is singular");
     s.inverse = lu.inverse();
 
+    // Every target of the joints' ranges in counts, wherever a drive's power-on put its zero
+    // (encoders count from there): |a_i| up to sum_c |M_ic| (upper_c - lower_c). The drives take
+    // INTEGER32 counts (0x607A, 0x60C1 sub 1).
+    for (std::size_t i = 0; i < axes; ++i) {
+      double reach = 0.0;
+      for (std::size_t c = 0; c < axes && c < model.upper_limits.size(); ++c)
+        reach += std::abs(s.coupling(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c))) *
+                 (model.upper_limits[c] - model.lower_limits[c]);
+      if (!can::to_drive_units(reach, s.counts, INT32_MIN, INT32_MAX))
+        throw ConfigError(
+            params.location_of("counts_per_unit"),
+            fmt::format("'counts_per_unit' = {:g} counts/{}: axis {} ({}) spans {:g} {} of its "
+                        "range, {:g} counts, beyond the drives' position range of 2147483647 "
+                        "counts (INTEGER32) either side of their zero",
+                        s.counts, model.unit(i), i, model.joint_names[i], reach, model.unit(i),
+                        reach * s.counts));
+    }
+
     // Bus load of the cyclic traffic.
     const double heartbeat_s = static_cast<double>(s.heartbeat) / 1000.0;
-    const can::canopen::BusLoad load = can::canopen::cyclic_bus_load(
-        axes, setup.servo_period_s, bitrate, heartbeat_s, s.digital_lines);
+    const can::canopen::BusLoad load =
+        can::pdo_bus_load(s.plans, setup.servo_period_s, bitrate, heartbeat_s);
     s.load_text = fmt::format(
         "can: {} for robot '{}': {} drives, cycle {:.3g} ms, {} frames per cycle, bus load "
         "{:.0f} % nominal, {:.0f} % worst case at {:.0f} kbit/s",

@@ -266,7 +266,10 @@ std::string_view describe_sdo_abort(std::uint32_t code) {
     case sdo_abort::kPdoTooLong:
       return "the number and length of the objects to be mapped would "
              "exceed the PDO length";
+    case sdo_abort::kOutOfMemory: return "out of memory";
     case sdo_abort::kLengthMismatch: return "data type does not match, length does not match";
+    case sdo_abort::kLengthTooHigh: return "data type does not match, length too high";
+    case sdo_abort::kLengthTooLow: return "data type does not match, length too low";
     case sdo_abort::kNoSubindex: return "sub-index does not exist";
     case sdo_abort::kValueRange: return "value range of parameter exceeded";
     case sdo_abort::kValueTooHigh: return "value of parameter written too high";

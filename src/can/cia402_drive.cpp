@@ -40,6 +40,11 @@ std::uint64_t Cia402Drive::stored(std::uint16_t index, std::uint8_t sub) const {
 }
 
 void Cia402Drive::reset_store(bool communication_only) {
+  for (auto it = texts_.begin(); it != texts_.end();) {
+    const auto index = static_cast<std::uint16_t>(it->first >> 8U);
+    it = !communication_only || (index >= 0x1000 && index < 0x2000) ? texts_.erase(it)
+                                                                    : std::next(it);
+  }
   for (const auto& [index, object] : eds_->objects()) {
     if (communication_only && (index < 0x1000 || index >= 0x2000)) continue;
     for (const auto& [sub, entry] : object.entries)
@@ -144,7 +149,8 @@ std::uint16_t Cia402Drive::statusword() const noexcept {
       state_ != DriveState::fault && state_ != DriveState::not_ready_to_switch_on)
     sw |= canopen::statusword::kQuickStop;
   sw |= canopen::statusword::kRemote;
-  if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeCyclicSyncPosition)
+  if (state_ == DriveState::operation_enabled &&
+      (mode_ == canopen::kModeCyclicSyncPosition || mode_ == canopen::kModeCyclicSyncVelocity))
     sw |= canopen::statusword::kFollowingTarget;
   if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeInterpolatedPosition &&
       (controlword_ & canopen::controlword::kEnableIpMode) != 0U)
@@ -153,8 +159,8 @@ std::uint16_t Cia402Drive::statusword() const noexcept {
   // Target reached: not in cyclic synchronous position, where CiA 402 reserves the bit (it would
   // flicker with every target, and each change of the statusword is a TPDO); in the other modes
   // once the interpolation has ended at the target.
-  if (mode_ != canopen::kModeCyclicSyncPosition && demand_velocity_ == 0.0 &&
-      std::abs(to_ - sample_.position) * config_.counts_per_unit < 10.0)
+  if (mode_ != canopen::kModeCyclicSyncPosition && mode_ != canopen::kModeCyclicSyncVelocity &&
+      demand_velocity_ == 0.0 && std::abs(to_ - sample_.position) * config_.counts_per_unit < 10.0)
     sw |= canopen::statusword::kTargetReached;
   return sw;
 }
@@ -209,6 +215,7 @@ void Cia402Drive::enter(DriveState state, double now_s) {
     segment_start_s_ = now_s;
     last_sync_s_ = now_s;
     target_valid_ = false;
+    target_velocity_ = 0;
   }
   following_error_since_s_ = -1.0;
   if (state != DriveState::fault) following_error_ = false;
@@ -256,6 +263,14 @@ void Cia402Drive::on_sync(double now_s) {
   const bool interpolating = mode_ == canopen::kModeCyclicSyncPosition ||
                              (mode_ == canopen::kModeInterpolatedPosition &&
                               (controlword_ & canopen::controlword::kEnableIpMode) != 0U);
+  if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeCyclicSyncVelocity) {
+    // The velocity holds over the period, from where the last one took the axis (the demand
+    // sampled between two steps may not have reached it yet).
+    from_ = to_;
+    demand_velocity_ = static_cast<double>(target_velocity_) / config_.counts_per_unit;
+    to_ = from_ + demand_velocity_ * config_.interpolation_period_s;
+    segment_start_s_ = now_s;
+  }
   if (state_ == DriveState::operation_enabled && interpolating && target_valid_) {
     // Velocity from target to target (the master's stream is uniform even when the SYNCs
     // arrive with jitter).
@@ -395,6 +410,7 @@ std::uint64_t Cia402Drive::read_object(std::uint16_t index, std::uint8_t sub) co
       return u16(static_cast<std::int16_t>(per_mille));
     }
     case od::kTargetPosition: return static_cast<std::uint32_t>(target_);
+    case od::kTargetVelocity: return static_cast<std::uint32_t>(target_velocity_);
     case od::kInterpolationData:
       return sub == 1 ? static_cast<std::uint32_t>(target_) : stored(index, sub);
     case od::kQuickStopDeceleration:
@@ -471,6 +487,7 @@ std::uint32_t Cia402Drive::write_object(std::uint16_t index, std::uint8_t sub, s
       target_ = static_cast<std::int32_t>(v);
       target_valid_ = true;
       return 0U;
+    case od::kTargetVelocity: target_velocity_ = static_cast<std::int32_t>(v); return 0U;
     case od::kQuickStopDeceleration:
       if (v == 0) return abort::kValueRange;
       config_.quick_stop_deceleration = static_cast<double>(v) / config_.counts_per_unit;
@@ -527,6 +544,121 @@ void Cia402Drive::upload_segment(const can_frame& frame) {
   send(f);
 }
 
+std::string Cia402Drive::text_of(std::uint16_t index, std::uint8_t sub) const {
+  if (const auto it = texts_.find(key(index, sub)); it != texts_.end()) return it->second;
+  const eds::Entry* e = eds_->entry(index, sub);
+  return e != nullptr && e->value ? e->value->text : std::string();
+}
+
+namespace {
+/// An SDO response frame of `node` with byte 0 `command` and the request's index and sub.
+can_frame sdo_answer(std::uint8_t node, std::uint8_t command, std::uint16_t index,
+                     std::uint8_t sub) {
+  can_frame f{};
+  f.can_id = canopen::sdo_response_id(node);
+  f.len = 8;
+  f.data[0] = command;
+  f.data[1] = static_cast<std::uint8_t>(index);
+  f.data[2] = static_cast<std::uint8_t>(index >> 8U);
+  f.data[3] = sub;
+  return f;
+}
+void put_code(can_frame& f, std::uint32_t code) {
+  for (unsigned b = 0; b < 4; ++b) f.data[4 + b] = static_cast<std::uint8_t>(code >> (8U * b));
+}
+}  // namespace
+
+std::uint32_t Cia402Drive::store_download(std::uint16_t index, std::uint8_t sub,
+                                          const std::string& data, double now_s) {
+  namespace abort = canopen::sdo_abort;
+  const eds::Entry* e = eds_->entry(index, sub);
+  if (e == nullptr) return eds_->object(index) != nullptr ? abort::kNoSubindex : abort::kNoObject;
+  if (!eds::writable(e->access)) return abort::kReadOnly;
+  if (eds::is_string(e->data_type)) {
+    texts_[key(index, sub)] = data;
+    return 0U;
+  }
+  const int bits = eds::bit_size(e->data_type);
+  if (bits <= 0 || bits > 32) return abort::kUnsupportedAccess;
+  const auto bytes = static_cast<std::size_t>(bits <= 8 ? 1 : bits / 8);
+  if (data.size() != bytes)
+    return data.size() > bytes ? abort::kLengthTooHigh : abort::kLengthTooLow;
+  std::uint64_t raw = 0;
+  for (std::size_t b = 0; b < bytes; ++b)
+    raw |= static_cast<std::uint64_t>(static_cast<std::uint8_t>(data[b])) << (8U * b);
+  if (eds::out_of_range(*e, raw)) {
+    const std::int64_t value = eds::as_signed(*e, raw);
+    return e->high_limit && value > *e->high_limit ? abort::kValueTooHigh
+           : e->low_limit && value < *e->low_limit ? abort::kValueTooLow
+                                                   : abort::kValueRange;
+  }
+  return write_object(index, sub, raw, now_s);
+}
+
+void Cia402Drive::initiate_download(const can_frame& frame, double now_s) {
+  namespace abort = canopen::sdo_abort;
+  (void)now_s;
+  const auto index = static_cast<std::uint16_t>(frame.data[1] | (frame.data[2] << 8U));
+  const std::uint8_t sub = frame.data[3];
+  const auto refuse = [&](std::uint32_t code) {
+    can_frame f = sdo_answer(config_.node, 0x80, index, sub);
+    put_code(f, code);
+    send(f);
+  };
+  const eds::Entry* e = eds_->entry(index, sub);
+  if (e == nullptr)
+    return refuse(eds_->object(index) != nullptr ? abort::kNoSubindex : abort::kNoObject);
+  if (!eds::writable(e->access)) return refuse(abort::kReadOnly);
+  std::size_t size = 0;
+  if ((frame.data[0] & 0x01U) != 0U) {  // size indicated
+    size = static_cast<std::size_t>(frame.data[4]) |
+           (static_cast<std::size_t>(frame.data[5]) << 8U) |
+           (static_cast<std::size_t>(frame.data[6]) << 16U) |
+           (static_cast<std::size_t>(frame.data[7]) << 24U);
+    if (size > kMaxSegmentedBytes) return refuse(abort::kOutOfMemory);
+  }
+  download_index_ = index;
+  download_sub_ = sub;
+  download_.clear();
+  download_size_ = size;
+  download_toggle_ = false;
+  downloading_ = true;
+  send(sdo_answer(config_.node, 0x60, index, sub));
+}
+
+void Cia402Drive::download_segment(const can_frame& frame, double now_s) {
+  namespace abort = canopen::sdo_abort;
+  const bool toggle = (frame.data[0] & 0x10U) != 0U;
+  const auto refuse = [&](std::uint32_t code) {
+    downloading_ = false;
+    can_frame f = sdo_answer(config_.node, 0x80, download_index_, download_sub_);
+    put_code(f, code);
+    send(f);
+  };
+  if (!downloading_) return refuse(abort::kCommandSpecifier);
+  if (toggle != download_toggle_) return refuse(abort::kToggleBit);
+  const std::size_t n = 7U - ((frame.data[0] >> 1U) & 0x7U);
+  download_.append(reinterpret_cast<const char*>(frame.data + 1), n);
+  if (download_.size() > kMaxSegmentedBytes) return refuse(abort::kOutOfMemory);
+  if (download_size_ != 0 && download_.size() > download_size_)
+    return refuse(abort::kLengthTooHigh);
+  const bool last = (frame.data[0] & 0x01U) != 0U;
+  if (last) {
+    if (download_size_ != 0 && download_.size() < download_size_)
+      return refuse(abort::kLengthTooLow);
+    if (const std::uint32_t code = store_download(download_index_, download_sub_, download_, now_s);
+        code != 0U)
+      return refuse(code);
+    downloading_ = false;
+  }
+  download_toggle_ = !download_toggle_;
+  can_frame f{};
+  f.can_id = canopen::sdo_response_id(config_.node);
+  f.len = 8;
+  f.data[0] = static_cast<std::uint8_t>(0x20U | (toggle ? 0x10U : 0U));
+  send(f);
+}
+
 void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
   namespace abort = canopen::sdo_abort;
   canopen::SdoResponse r;
@@ -542,9 +674,27 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
   if (frame.len == 8 && (frame.data[0] & 0xEFU) == 0x60U) return upload_segment(frame);
   if (frame.len == 8 && frame.data[0] == 0x80U) {  // the client aborts
     uploading_ = false;
+    downloading_ = false;
     return;
   }
+  if (frame.len == 8 && (frame.data[0] & 0xE0U) == 0x00U) return download_segment(frame, now_s);
   uploading_ = false;
+  downloading_ = false;
+  if (frame.len == 8 && (frame.data[0] & 0xE2U) == 0x20U) return initiate_download(frame, now_s);
+  if (frame.len == 8 && (frame.data[0] & 0xE3U) == 0x23U) {
+    // Expedited of 1..4 bytes into a string object.
+    const auto index = static_cast<std::uint16_t>(frame.data[1] | (frame.data[2] << 8U));
+    const eds::Entry* e = eds_->entry(index, frame.data[3]);
+    if (e != nullptr && eds::is_string(e->data_type)) {
+      const std::size_t n = 4U - ((frame.data[0] >> 2U) & 0x3U);
+      const std::uint32_t code =
+          store_download(index, frame.data[3],
+                         std::string(reinterpret_cast<const char*>(frame.data + 4), n), now_s);
+      if (code != 0U) return fail(code);
+      r.write_confirmed = true;
+      return send(canopen::encode_response(config_.node, r));
+    }
+  }
   const auto request = canopen::decode_request(frame);
   if (!request) return fail(abort::kCommandSpecifier);
   const canopen::SdoRequest& q = *request;
@@ -556,7 +706,7 @@ void Cia402Drive::on_sdo(const can_frame& frame, double now_s) {
   if (!q.write) {
     if (e->access == eds::Access::wo) return fail(abort::kWriteOnly);
     if (eds::is_string(e->data_type)) {
-      upload_ = e->value ? e->value->text : std::string();
+      upload_ = text_of(q.index, q.subindex);
       if (upload_.size() <= 4) {
         can_frame f{};
         f.can_id = canopen::sdo_response_id(config_.node);

@@ -5,7 +5,9 @@
 #include <linux/can/error.h>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <thread>
@@ -35,6 +37,9 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
       options_(options),
       status_(axes_.size()),
       targets_(axes_.size(), 0),
+      velocities_(axes_.size(), 0),
+      last_target_(axes_.size(), 0.0),
+      target_before_(axes_.size(), 0.0),
       held_(axes_.size(), 0),
       outputs_(axes_.size(), 0),
       sent_outputs_(axes_.size(), -1) {
@@ -84,6 +89,20 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
                           std::to_string(a.node));
     if (a.plan.mode == canopen::kModeInterpolatedPosition)
       enable_command_[i] |= canopen::controlword::kEnableIpMode;
+    // Configured quantities in drive units, refused here rather than at bring-up.
+    (void)unsigned_counts(i, "following error window", a.following_error_window, "",
+                          od::kFollowingErrorWindow);
+    (void)unsigned_counts(i, "quick stop deceleration", a.quick_stop_deceleration, "/s^2",
+                          od::kQuickStopDeceleration);
+    rpdo_layouts_.push_back(layouts(a.plan, true));
+    tpdo_layouts_.push_back(layouts(a.plan, false));
+  }
+  std::vector<DrivePlan> plans;
+  for (const MasterAxis& a : axes_) plans.push_back(a.plan);
+  try {
+    check_pdo_identifiers(plans);
+  } catch (const ConfigError& e) {
+    throw HardwareError(bus_.url() + ": " + e.what());
   }
   const double ms = options_.period_s * 1000.0;
   if (!(ms >= 1.0) || std::abs(ms - std::round(ms)) > 1e-9 || ms > 255.0)
@@ -91,14 +110,70 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
                         " s must be a whole number of milliseconds in 1..255 ms (0x60C2)");
 }
 
+std::vector<Cia402Master::Layout> Cia402Master::layouts(const DrivePlan& plan, bool receive) {
+  std::vector<Layout> out;
+  for (const PdoPlan& p : receive ? plan.rpdos : plan.tpdos) {
+    Layout l;
+    l.id = p.cob_id & CAN_SFF_MASK;
+    l.bytes = static_cast<std::uint8_t>(p.bytes());
+    unsigned shift = 0;
+    for (const PdoEntry& m : p.entries) {
+      Field f;
+      f.shift = static_cast<std::uint8_t>(shift);
+      f.bits = m.bits;
+      shift += m.bits;
+      const eds::Entry* e = plan.eds ? plan.eds->entry(m.index, m.sub) : nullptr;
+      f.is_signed = e != nullptr && eds::is_signed(e->data_type);
+      if (m.index == od::kControlword && m.sub == 0)
+        f.role = Role::controlword;
+      else if (m.index == plan.target.index && m.sub == plan.target.sub)
+        f.role = Role::target;
+      else if (m.index == od::kDigitalOutputs && m.sub == 1)
+        f.role = Role::outputs;
+      else if (m.index == od::kStatusword && m.sub == 0)
+        f.role = Role::statusword;
+      else if (m.index == od::kPositionActual && m.sub == 0)
+        f.role = Role::position;
+      else if (m.index == od::kDigitalInputs && m.sub == 0)
+        f.role = Role::inputs;
+      else if (m.index == od::kVelocityActual && m.sub == 0)
+        f.role = Role::velocity;
+      else if (m.index == od::kTorqueActual && m.sub == 0)
+        f.role = Role::torque;
+      if (receive && (f.role == Role::controlword || f.role == Role::target)) l.cyclic = true;
+      if (receive && f.role == Role::outputs) l.outputs = true;
+      l.fields.push_back(f);
+    }
+    out.push_back(std::move(l));
+  }
+  return out;
+}
+
 std::string Cia402Master::who(std::size_t axis) const {
   return bus_.url() + " node " + std::to_string(axes_[axis].node) + " (axis '" + axes_[axis].name +
          "')";
 }
 
-std::int32_t Cia402Master::counts(std::size_t axis, double position) const noexcept {
-  const double c = std::round(position * axes_[axis].counts_per_unit);
-  return static_cast<std::int32_t>(std::clamp(c, -2147483648.0, 2147483647.0));
+std::optional<std::int32_t> Cia402Master::counts(std::size_t axis, double position) const noexcept {
+  const auto c = to_drive_units(position, axes_[axis].counts_per_unit, INT32_MIN, INT32_MAX);
+  if (!c) return std::nullopt;
+  return static_cast<std::int32_t>(*c);
+}
+
+std::uint32_t Cia402Master::unsigned_counts(std::size_t axis, const char* what, double value,
+                                            const char* unit, std::uint16_t index) const {
+  const MasterAxis& a = axes_[axis];
+  const auto c = to_drive_units(value, a.counts_per_unit, 0, UINT32_MAX);
+  if (!c) {
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "%s %.6g %s%s is %.6g counts at counts_per_unit %.6g counts/%s, outside "
+                  "0x%04X's range 0..4294967295 counts (UNSIGNED32)",
+                  what, value, a.unit.c_str(), unit, value * a.counts_per_unit, a.counts_per_unit,
+                  a.unit.c_str(), index);
+    throw HardwareError(who(axis) + ": " + text);
+  }
+  return static_cast<std::uint32_t>(*c);
 }
 
 void Cia402Master::set_fault(std::size_t axis, const char* what) noexcept {
@@ -117,6 +192,13 @@ void Cia402Master::handle(const Received& r) noexcept {
     }
     return;
   }
+  // A TPDO, by its identifier (a config may give any COB-ID).
+  for (std::size_t i = 0; i < axes_.size(); ++i)
+    for (std::size_t k = 0; k < tpdo_layouts_[i].size(); ++k)
+      if (tpdo_layouts_[i][k].id == r.frame.can_id) {
+        decode_tpdo(i, k, r.frame);
+        return;
+      }
   const canopen::CobId id = canopen::split_id(r.frame.can_id);
   for (std::size_t i = 0; i < axes_.size(); ++i) {
     if (axes_[i].node != id.node) continue;
@@ -128,39 +210,7 @@ void Cia402Master::handle(const Received& r) noexcept {
       if (enabled_) set_fault(i, "rebooted (boot-up message): its configuration is lost");
       return;
     }
-    if (r.frame.can_id == axes_[i].plan.feedback.cob_id) {
-      const auto pdo = canopen::decode_tpdo1(r.frame);
-      if (!pdo) return;
-      s.position = static_cast<double>(pdo->position_actual) / axes_[i].counts_per_unit;
-      s.home_switch = (pdo->inputs & canopen::kHomeSwitchBit) != 0U;
-      s.input_lines = static_cast<std::uint8_t>((pdo->inputs & canopen::kUserLineMask) >>
-                                                canopen::kUserLineShift);
-      s.last_tpdo_cycle = cycle_;
-      return;
-    }
-    if (r.frame.can_id == axes_[i].plan.statusword.cob_id) {
-      const auto pdo = canopen::decode_tpdo2(r.frame);
-      if (!pdo) return;
-      s.statusword = pdo->statusword;
-      s.state = canopen::decode_state(pdo->statusword);
-      s.last_statusword_cycle = cycle_;
-      if (enabled_ && !faulted_) {
-        char text[160];
-        if (s.state == DriveState::fault || s.state == DriveState::fault_reaction_active) {
-          const std::string_view what = canopen::describe_emcy(s.last_emcy);
-          std::snprintf(text, sizeof text, "in fault (statusword 0x%04X, last EMCY 0x%04X %.*s)",
-                        s.statusword, s.last_emcy, static_cast<int>(what.size()), what.data());
-          set_fault(i, text);
-        } else if (s.state != DriveState::operation_enabled &&
-                   !((quick_stopping_ || cycle_ < quick_stop_grace_until_) &&
-                     s.state == DriveState::quick_stop_active)) {
-          const std::string_view state = canopen::to_string(s.state);
-          std::snprintf(text, sizeof text, "left operation enabled by itself: %.*s",
-                        static_cast<int>(state.size()), state.data());
-          set_fault(i, text);
-        }
-      }
-    } else if (r.frame.can_id == canopen::emcy_id(id.node)) {
+    if (r.frame.can_id == canopen::emcy_id(id.node)) {
       const auto e = canopen::decode_emcy(r.frame);
       if (!e) return;
       s.last_emcy = e->code;
@@ -173,6 +223,71 @@ void Cia402Master::handle(const Received& r) noexcept {
       }
     }
     return;
+  }
+}
+
+void Cia402Master::decode_tpdo(std::size_t i, std::size_t k, const can_frame& frame) noexcept {
+  const Layout& l = tpdo_layouts_[i][k];
+  if (frame.len < l.bytes) return;  // shorter than its mapping: not processed (CiA 301)
+  std::uint64_t data = 0;
+  for (unsigned b = 0; b < frame.len && b < 8; ++b)
+    data |= static_cast<std::uint64_t>(frame.data[b]) << (8U * b);
+  DriveStatus& s = status_[i];
+  bool position = false;
+  bool statusword = false;
+  std::uint16_t sw = 0;
+  for (const Field& f : l.fields) {
+    const std::uint64_t mask = f.bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << f.bits) - 1U;
+    const std::uint64_t raw = (data >> f.shift) & mask;
+    std::int64_t value = static_cast<std::int64_t>(raw);
+    if (f.is_signed && f.bits < 64 && (raw >> (f.bits - 1U)) != 0U)
+      value = static_cast<std::int64_t>(raw | ~mask);  // sign-extended
+    switch (f.role) {
+      case Role::position:
+        s.position = static_cast<double>(value) / axes_[i].counts_per_unit;
+        position = true;
+        break;
+      case Role::inputs: {
+        const auto inputs = static_cast<std::uint32_t>(raw);
+        s.home_switch = (inputs & canopen::kHomeSwitchBit) != 0U;
+        s.input_lines =
+            static_cast<std::uint8_t>((inputs & canopen::kUserLineMask) >> canopen::kUserLineShift);
+        break;
+      }
+      case Role::statusword:
+        sw = static_cast<std::uint16_t>(raw);
+        statusword = true;
+        break;
+      case Role::velocity:
+        s.velocity_actual = static_cast<double>(value) / axes_[i].counts_per_unit;
+        break;
+      case Role::torque: s.torque_actual = static_cast<std::int16_t>(value); break;
+      default: break;  // mapped by the config, not used by the servo loop
+    }
+  }
+  if (position) s.last_tpdo_cycle = cycle_;
+  if (statusword) on_statusword(i, sw);
+}
+
+void Cia402Master::on_statusword(std::size_t i, std::uint16_t statusword) noexcept {
+  DriveStatus& s = status_[i];
+  s.statusword = statusword;
+  s.state = canopen::decode_state(statusword);
+  s.last_statusword_cycle = cycle_;
+  if (!enabled_ || faulted_) return;
+  char text[160];
+  if (s.state == DriveState::fault || s.state == DriveState::fault_reaction_active) {
+    const std::string_view what = canopen::describe_emcy(s.last_emcy);
+    std::snprintf(text, sizeof text, "in fault (statusword 0x%04X, last EMCY 0x%04X %.*s)",
+                  s.statusword, s.last_emcy, static_cast<int>(what.size()), what.data());
+    set_fault(i, text);
+  } else if (s.state != DriveState::operation_enabled &&
+             !((quick_stopping_ || cycle_ < quick_stop_grace_until_) &&
+               s.state == DriveState::quick_stop_active)) {
+    const std::string_view state = canopen::to_string(s.state);
+    std::snprintf(text, sizeof text, "left operation enabled by itself: %.*s",
+                  static_cast<int>(state.size()), state.data());
+    set_fault(i, text);
   }
 }
 
@@ -206,24 +321,47 @@ void Cia402Master::heartbeat_if_due() noexcept {
 
 void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets) {
   for (std::size_t i = 0; i < axes_.size(); ++i) {
-    canopen::Rpdo1 pdo{
-        controlword == canopen::controlword::kEnableOperation ? enable_command_[i] : controlword,
-        targets[i]};
     targets_[i] = targets[i];
-    const SendResult result = bus_.send(canopen::encode(axes_[i].node, pdo));
-    if (result == SendResult::bus_off && !faulted_) {
-      faulted_ = true;
-      std::snprintf(fault_, sizeof fault_, "CAN bus %s: bus-off (send failed)", bus_.url().c_str());
-    }
-  }
-  for (std::size_t i = 0; i < axes_.size(); ++i) {
-    if (!has_outputs(i)) continue;
     const bool refresh =
         cycle_ % canopen::kOutputRefreshCycles == i % canopen::kOutputRefreshCycles;
-    if (!refresh && sent_outputs_[i] == outputs_[i]) continue;
-    canopen::Rpdo2 pdo{static_cast<std::uint32_t>(outputs_[i]) << canopen::kUserLineShift};
-    if (bus_.send(canopen::encode(axes_[i].node, pdo)) == SendResult::sent)
-      sent_outputs_[i] = outputs_[i];
+    const bool outputs_due = has_outputs(i) && (refresh || sent_outputs_[i] != outputs_[i]);
+    for (const Layout& l : rpdo_layouts_[i]) {
+      if (!l.cyclic && !(l.outputs && outputs_due)) continue;
+      std::uint64_t data = 0;
+      for (const Field& f : l.fields) {
+        std::uint64_t value = 0;
+        switch (f.role) {
+          case Role::controlword:
+            value = controlword == canopen::controlword::kEnableOperation ? enable_command_[i]
+                                                                          : controlword;
+            break;
+          case Role::target:
+            value = static_cast<std::uint32_t>(
+                axes_[i].plan.mode == canopen::kModeCyclicSyncVelocity ? velocities_[i]
+                                                                       : targets[i]);
+            break;
+          case Role::outputs:
+            value = static_cast<std::uint32_t>(outputs_[i]) << canopen::kUserLineShift;
+            break;
+          default: break;
+        }
+        const std::uint64_t mask =
+            f.bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << f.bits) - 1U;
+        data |= (value & mask) << f.shift;
+      }
+      can_frame frame{};
+      frame.can_id = l.id;
+      frame.len = l.bytes;
+      for (unsigned b = 0; b < l.bytes; ++b)
+        frame.data[b] = static_cast<std::uint8_t>(data >> (8U * b));
+      const SendResult result = bus_.send(frame);
+      if (result == SendResult::bus_off && !faulted_) {
+        faulted_ = true;
+        std::snprintf(fault_, sizeof fault_, "CAN bus %s: bus-off (send failed)",
+                      bus_.url().c_str());
+      }
+      if (l.outputs && result == SendResult::sent && has_outputs(i)) sent_outputs_[i] = outputs_[i];
+    }
   }
   (void)bus_.send(canopen::sync_frame());
   heartbeat_if_due();
@@ -237,14 +375,60 @@ void Cia402Master::send(std::span<const double> targets, bool quick_stop) noexce
     // cycle old, more on a slow bus or emulator) still say quick stop active for a few cycles.
     quick_stopping_ = false;
     quick_stop_grace_until_ = cycle_ + kQuickStopReleaseCycles;
-    for (std::size_t i = 0; i < axes_.size(); ++i) held_[i] = counts(i, status_[i].position);
+    for (std::size_t i = 0; i < axes_.size(); ++i) {
+      held_[i] = counts(i, status_[i].position).value_or(targets_[i]);
+      velocities_[i] = 0;
+      last_target_[i] = target_before_[i] = status_[i].position;
+    }
     cycle_once(canopen::controlword::kEnableOperation, held_);
     return;
   }
-  quick_stopping_ = stop;
-  for (std::size_t i = 0; i < axes_.size(); ++i) held_[i] = counts(i, targets[i]);
-  cycle_once(stop ? canopen::controlword::kQuickStop : canopen::controlword::kEnableOperation,
-             held_);
+  for (std::size_t i = 0; i < axes_.size(); ++i) {
+    const std::optional<std::int32_t> c = counts(i, targets[i]);
+    held_[i] = c.value_or(targets_[i]);  // beyond the range: the last target, and a fault
+    if (!c) {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "target %.6g %s is %.6g counts at counts_per_unit %.6g counts/%s, outside "
+                    "the drive's position range -2147483648..2147483647 counts (INTEGER32)",
+                    targets[i], axes_[i].unit.c_str(), targets[i] * axes_[i].counts_per_unit,
+                    axes_[i].counts_per_unit, axes_[i].unit.c_str());
+      set_fault(i, text);
+    }
+    if (axes_[i].plan.mode == canopen::kModeCyclicSyncVelocity) {
+      // The targets' difference over the period, plus a correction towards where the drive
+      // should have been at the last SYNC (the target before the last: the velocity sent with
+      // it was to bring the axis there by that SYNC), from a TPDO of that SYNC only.
+      double velocity = (targets[i] - last_target_[i]) / options_.period_s;
+      // Within a count the axis is where it should be (the target lies between two counts).
+      const double error = target_before_[i] - status_[i].position;
+      if (status_[i].last_tpdo_cycle == cycle_ && std::abs(error) * axes_[i].counts_per_unit > 1.0)
+        velocity += error / (kCsvCorrectionCycles * options_.period_s);
+      const auto v = to_drive_units(velocity, axes_[i].counts_per_unit, INT32_MIN, INT32_MAX);
+      if (!v || !c) {
+        if (c) {
+          char text[200];
+          std::snprintf(text, sizeof text,
+                        "velocity %.6g %s/s is %.6g counts/s at counts_per_unit %.6g counts/%s, "
+                        "outside the drive's velocity range -2147483648..2147483647 counts/s "
+                        "(0x60FF, INTEGER32)",
+                        velocity, axes_[i].unit.c_str(), velocity * axes_[i].counts_per_unit,
+                        axes_[i].counts_per_unit, axes_[i].unit.c_str());
+          set_fault(i, text);
+        }
+        velocities_[i] = 0;
+      } else {
+        velocities_[i] = static_cast<std::int32_t>(*v);
+        target_before_[i] = last_target_[i];
+        last_target_[i] = targets[i];
+      }
+    }
+  }
+  quick_stopping_ = stop || faulted_;
+  if (quick_stopping_) std::fill(velocities_.begin(), velocities_.end(), 0);
+  cycle_once(
+      quick_stopping_ ? canopen::controlword::kQuickStop : canopen::controlword::kEnableOperation,
+      held_);
 }
 
 canopen::SdoResponse Cia402Master::sdo_transfer(std::uint8_t node, const canopen::SdoRequest& q) {
@@ -384,6 +568,102 @@ std::string Cia402Master::sdo_read_bytes(std::uint8_t node, std::uint16_t index,
   return out;
 }
 
+void Cia402Master::sdo_write_bytes(std::uint8_t node, std::uint16_t index, std::uint8_t subindex,
+                                   std::string_view data) {
+  namespace abort = canopen::sdo_abort;
+  const std::string what = "an SDO write of " + std::to_string(data.size()) + " bytes to " +
+                           hex(index, 4) + ":" + std::to_string(subindex);
+  const auto fail = [&](const std::string& why) {
+    return HardwareError(bus_.url() + " node " + std::to_string(node) + ": " + what + " " + why);
+  };
+  const auto code_of = [](const can_frame& f) {
+    return static_cast<std::uint32_t>(f.data[4]) | (static_cast<std::uint32_t>(f.data[5]) << 8U) |
+           (static_cast<std::uint32_t>(f.data[6]) << 16U) |
+           (static_cast<std::uint32_t>(f.data[7]) << 24U);
+  };
+  const auto aborted = [&](const can_frame& f, const std::string& when) {
+    const std::uint32_t code = code_of(f);
+    return fail("aborted" + when + ": " + hex(code, 8) + " " +
+                std::string(canopen::describe_sdo_abort(code)));
+  };
+  // The client's own abort, so that the server forgets the transfer.
+  const auto abort_transfer = [&](std::uint32_t code) {
+    can_frame f{};
+    f.can_id = canopen::sdo_request_id(node);
+    f.len = 8;
+    f.data[0] = 0x80;
+    f.data[1] = static_cast<std::uint8_t>(index);
+    f.data[2] = static_cast<std::uint8_t>(index >> 8U);
+    f.data[3] = subindex;
+    for (unsigned b = 0; b < 4; ++b) f.data[4 + b] = static_cast<std::uint8_t>(code >> (8U * b));
+    (void)bus_.send(f);
+  };
+  if (data.size() > 0xFFFFFFFFU) throw fail("is longer than an SDO can carry");
+  can_frame q{};
+  q.can_id = canopen::sdo_request_id(node);
+  q.len = 8;
+  q.data[1] = static_cast<std::uint8_t>(index);
+  q.data[2] = static_cast<std::uint8_t>(index >> 8U);
+  q.data[3] = subindex;
+  const bool expedited = !data.empty() && data.size() <= 4;
+  if (expedited) {
+    q.data[0] = static_cast<std::uint8_t>(0x23U | ((4U - data.size()) << 2U));
+    std::copy(data.begin(), data.end(), q.data + 4);
+  } else {
+    q.data[0] = 0x21;  // initiate a segmented download, size indicated
+    const auto size = static_cast<std::uint32_t>(data.size());
+    for (unsigned b = 0; b < 4; ++b) q.data[4 + b] = static_cast<std::uint8_t>(size >> (8U * b));
+  }
+  (void)bus_.send(q);
+  can_frame f{};
+  for (;;) {
+    if (!sdo_frame(node, f)) {
+      abort_transfer(abort::kTimeout);
+      throw fail("got no answer (" + std::to_string(options_.sdo_timeout.count()) + " ms)");
+    }
+    if (f.len == 8 && f.data[1] == q.data[1] && f.data[2] == q.data[2] && f.data[3] == subindex)
+      break;
+  }
+  if (f.data[0] == 0x80U) throw aborted(f, "");
+  if (f.data[0] != 0x60U) {
+    abort_transfer(abort::kCommandSpecifier);
+    throw fail("got command specifier " + hex(f.data[0], 2) + " (expected 0x60)");
+  }
+  if (expedited) return;
+  bool toggle = false;
+  std::size_t at = 0;
+  std::size_t segment = 0;
+  do {
+    const std::size_t n = std::min<std::size_t>(7, data.size() - at);
+    const bool last = at + n >= data.size();
+    can_frame seg{};
+    seg.can_id = canopen::sdo_request_id(node);
+    seg.len = 8;
+    seg.data[0] =
+        static_cast<std::uint8_t>((toggle ? 0x10U : 0U) | ((7U - n) << 1U) | (last ? 1U : 0U));
+    std::copy_n(data.begin() + static_cast<std::ptrdiff_t>(at), n, seg.data + 1);
+    (void)bus_.send(seg);
+    if (!sdo_frame(node, f)) {
+      abort_transfer(abort::kTimeout);
+      throw fail("got no answer to download segment " + std::to_string(segment));
+    }
+    if (f.data[0] == 0x80U) throw aborted(f, " at segment " + std::to_string(segment));
+    if ((f.data[0] & 0xE0U) != 0x20U) {
+      abort_transfer(abort::kCommandSpecifier);
+      throw fail("got command specifier " + hex(f.data[0], 2) + " to download segment " +
+                 std::to_string(segment));
+    }
+    if (((f.data[0] & 0x10U) != 0U) != toggle) {
+      abort_transfer(abort::kToggleBit);
+      throw fail("got an answer to download segment " + std::to_string(segment) +
+                 " whose toggle bit did not alternate (" + hex(f.data[0], 2) + ")");
+    }
+    at += n;
+    ++segment;
+    toggle = !toggle;
+  } while (at < data.size());
+}
+
 void Cia402Master::wait_boot_up(std::size_t i) {
   const std::uint8_t n = axes_[i].node;
   (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::reset_communication, n));
@@ -493,10 +773,13 @@ void Cia402Master::configure_drive(std::size_t i) {
   // PDOs: the drive's own first switched off (a default TPDO on the COB-ID mrroc maps must not
   // answer the SYNC while the mapping changes), then mrroc's.
   for (const PdoPlan& off : plan.switched_off) configure_pdo(i, off);
-  configure_pdo(i, plan.target);
-  if (plan.outputs && options_.digital_lines) configure_pdo(i, *plan.outputs);
-  configure_pdo(i, plan.feedback);
-  configure_pdo(i, plan.statusword);
+  for (const PdoPlan& p : plan.rpdos) {
+    // Without digital lines an RPDO of the outputs alone is left as it is (never sent).
+    const bool outputs_only = p.entries.size() == 1 && p.maps(od::kDigitalOutputs, 1);
+    if (outputs_only && !options_.digital_lines) continue;
+    configure_pdo(i, p);
+  }
+  for (const PdoPlan& p : plan.tpdos) configure_pdo(i, p);
   write_checked(i, od::kModesOfOperation, 0, static_cast<std::uint8_t>(plan.mode), 1);
   if (plan.has(od::kInterpolationPeriod, 1)) {
     sdo_write(n, od::kInterpolationPeriod, 1,
@@ -506,14 +789,15 @@ void Cia402Master::configure_drive(std::size_t i) {
   }
   if (plan.has(od::kFollowingErrorWindow))
     sdo_write(n, od::kFollowingErrorWindow, 0,
-              static_cast<std::uint32_t>(std::lround(a.following_error_window * a.counts_per_unit)),
+              unsigned_counts(i, "following error window", a.following_error_window, "",
+                              od::kFollowingErrorWindow),
               4);
   if (plan.has(od::kFollowingErrorTimeout))
     sdo_write(n, od::kFollowingErrorTimeout, 0, a.following_error_timeout_ms, 2);
   if (plan.has(od::kQuickStopDeceleration))
     sdo_write(n, od::kQuickStopDeceleration, 0,
-              static_cast<std::uint32_t>(
-                  std::max(1L, std::lround(a.quick_stop_deceleration * a.counts_per_unit))),
+              std::max(1U, unsigned_counts(i, "quick stop deceleration", a.quick_stop_deceleration,
+                                           "/s^2", od::kQuickStopDeceleration)),
               4);
   sdo_write(n, od::kHeartbeatTime, 0, options_.heartbeat_ms, 2);
   // Supervision of the master: heartbeat consumer, SYNC period, reaction (see the header).
@@ -544,8 +828,16 @@ void Cia402Master::configure_drive(std::size_t i) {
     if (!plan.has(o.index, o.sub)) continue;  // plan_drive required the ones that must be
     write_checked(i, o.index, o.sub, o.value, o.size);
   }
-  for (const SdoWrite& w : plan.writes)
-    write_checked(i, w.index, w.sub, static_cast<std::uint32_t>(w.value), w.size);
+  for (const SdoWrite& w : plan.writes) {
+    if (!w.text) {
+      write_checked(i, w.index, w.sub, static_cast<std::uint32_t>(w.value), w.size);
+      continue;
+    }
+    sdo_write_bytes(n, w.index, w.sub, *w.text);
+    if (const std::string back = sdo_read_bytes(n, w.index, w.sub); back != *w.text)
+      throw HardwareError(who(i) + ": " + object_name(plan.eds.get(), w.index, w.sub) +
+                          " reads back '" + back + "' after writing '" + *w.text + "'");
+  }
   const auto actual = static_cast<std::int32_t>(sdo_read(n, od::kPositionActual, 0));
   held_[i] = actual;
   status_[i].position = static_cast<double>(actual) / a.counts_per_unit;
@@ -573,6 +865,7 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
   faulted_ = false;
   quick_stopping_ = false;
   fault_[0] = '\0';
+  std::fill(velocities_.begin(), velocities_.end(), 0);
   // Configure every drive over SDO (pre-operational: no PDOs yet).
   (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::enter_pre_operational, 0));
   for (std::size_t i = 0; i < axes_.size(); ++i) configure_drive(i);
@@ -611,8 +904,9 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
     }
   }
   for (std::size_t i = 0; i < axes_.size(); ++i) {
-    held_[i] = counts(i, status_[i].position);
+    held_[i] = counts(i, status_[i].position).value_or(held_[i]);
     targets_[i] = held_[i];
+    last_target_[i] = target_before_[i] = status_[i].position;
   }
   enabled_ = true;
 }
@@ -633,7 +927,9 @@ void Cia402Master::switch_outputs_off() noexcept {
 void Cia402Master::shut_down() noexcept {
   enabled_ = false;
   quick_stopping_ = false;
-  for (std::size_t i = 0; i < axes_.size(); ++i) held_[i] = counts(i, status_[i].position);
+  std::fill(velocities_.begin(), velocities_.end(), 0);
+  for (std::size_t i = 0; i < axes_.size(); ++i)
+    held_[i] = counts(i, status_[i].position).value_or(targets_[i]);
   try {
     cycle_once(canopen::controlword::kDisableVoltage, held_);
   } catch (...) {

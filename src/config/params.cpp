@@ -19,6 +19,15 @@ SourceLocation Params::location_of(const std::string& key) const {
   return it == where_.end() ? location_ : it->second;
 }
 
+SourceLocation Params::location_of_row(const std::string& key, std::size_t row) const {
+  auto it = row_where_.find(key);
+  return it == row_where_.end() || row >= it->second.size() ? location_of(key) : it->second[row];
+}
+
+void Params::set_row_locations(const std::string& key, std::vector<SourceLocation> rows) {
+  row_where_[key] = std::move(rows);
+}
+
 const Params::Entry* Params::find(const std::string& key) const {
   static thread_local Entry entry;
   auto it = values_.find(key);

@@ -263,6 +263,11 @@ class Reader {
         p.set(k, std::string(**node.as_string()), at);
       } else if (node.is_array()) {
         p.set(k, array_value(*node.as_array(), k), at);
+        if (const toml::array& arr = *node.as_array(); !arr.empty() && arr[0].is_array()) {
+          std::vector<SourceLocation> rows;
+          for (const auto& row : arr) rows.push_back(where(row));
+          p.set_row_locations(k, std::move(rows));
+        }
       } else {
         fail(node,
              fmt::format("'{}' in [{}] must be a boolean, number, string or list", k, table_name));

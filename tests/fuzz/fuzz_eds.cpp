@@ -50,11 +50,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   request.axis = "fuzz";
   try {
     const DrivePlan plan = plan_drive(d, request);
-    for (const PdoPlan* p : {&plan.target, &plan.feedback, &plan.statusword}) {
-      int total = 0;
-      for (const PdoEntry& e : p->entries) total += e.bits;
-      fuzz::expect(total <= 64, "a planned PDO longer than 64 bits");
-    }
+    for (const auto* list : {&plan.rpdos, &plan.tpdos})
+      for (const PdoPlan& p : *list) {
+        int total = 0;
+        for (const PdoEntry& e : p.entries) total += e.bits;
+        fuzz::expect(total <= 64, "a planned PDO longer than 64 bits");
+      }
   } catch (const mrroc::ConfigErrors&) {
   }
   return 0;

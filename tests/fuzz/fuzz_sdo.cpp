@@ -1,12 +1,15 @@
-// The master's SDO client (Cia402Master::sdo_read_bytes: expedited and segmented uploads, aborts)
-// answered by a hostile server: the input is cut into 8-byte SDO responses of node 1 (COB-ID
-// 0x581), each handed to the client as it waits for its next frame; a byte before each selects a
-// length (its low 4 bits, 0..8; longer is 8) and, with bit 4, another node's identifier.
+// The master's SDO client (Cia402Master::sdo_read_bytes: expedited and segmented uploads;
+// sdo_write_bytes: expedited and segmented downloads; aborts) answered by a hostile server: the
+// input is cut into 8-byte SDO responses of node 1 (COB-ID 0x581), each handed to the client as
+// it waits for its next frame; a byte before each selects a length (its low 4 bits, 0..8; longer
+// is 8) and, with bit 4, another node's identifier. The client reads 0x1008, then writes 18
+// bytes (segmented: 7, 7, 4) and then 3 bytes (expedited) to 0x2100, each taking its answers
+// from where the one before left off.
 //
 // Properties (docs/fuzzing.md):
-// - the client returns a value of at most 4096 bytes or throws mrroc::HardwareError (a named
-//   abort code, a segment out of order, no answer, a length that differs from the announced
-//   one); nothing else escapes, nothing crashes or hangs;
+// - the client returns a value of at most 4096 bytes (or completes a write) or throws
+//   mrroc::HardwareError (a named abort code, a segment out of order, no answer, a length that
+//   differs from the announced one); nothing else escapes, nothing crashes or hangs;
 // - every frame the client sends is an SDO request to node 1 (COB-ID 0x601, 8 bytes) or the
 //   master's heartbeat.
 #include <linux/can.h>
@@ -73,6 +76,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const std::string value = master.sdo_read_bytes(1, 0x1008, 0);
     fuzz::expect(value.size() <= 4096 + 7, "a value longer than the client's limit");
   } catch (const mrroc::HardwareError&) {
+  }
+  for (const char* text : {"mrroc's axis label", "abc"}) {
+    try {
+      master.sdo_write_bytes(1, 0x2100, 0, text);
+    } catch (const mrroc::HardwareError&) {
+    }
   }
   return 0;
 }

@@ -284,6 +284,85 @@ TEST(ConfigCheck, ChecksEveryDriveAgainstItsEdsNamingFileLineNodeAndObject) {
   fs::remove_all(dir);
 }
 
+TEST(ConfigCheck, ChecksTheConfigsPdoMappingsAgainstTheFilesAtTheirRows) {
+  // PDO mappings chosen in the config: a read-only object in an RPDO, an object that cannot be
+  // mapped, more than 64 bits, and no TPDO that carries the statusword. Each error names its own
+  // row of the list, the node and the object; all of them in one run. A second robot's encoder
+  // resolution puts its joints' ranges beyond the drives' INTEGER32 positions.
+  BrokenConfig c;
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-check-pdo-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  c.file = dir / "pdos.toml";
+  const std::string drives = (kSource / "configs/drives/").string();
+  c.lines = {
+      "[system]",
+      "name = \"pdo-check\"",
+      "[mp]",
+      "task = \"start_and_wait\"",
+      "[[robot]]",
+      "name = \"irb6\"",
+      "model = \"" + (kSource / "robots/irb6").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"can\"",
+      "[robot.edp.params]",
+      "bus = \"virtual:irb6\"",
+      "eds = \"" + drives + "emu-csp.eds\"",
+      "digital_lines = false",
+      "rpdo = [[2, 1, 0, 1, 0, 0x60400010, 0x607A0020, 0x60410010]]  # read only",
+      "tpdo = [",
+      "  [3, 1, 0, 1, 0, 0x60640020, 0x60FD0020],",
+      "  [3, 2, 0, 255, 20, 0x60410010, 0x60650020],  # not mappable",
+      "  [4, 1, 0, 1, 0, 0x60640020, 0x60FD0020],",
+      "  [4, 2, 0, 255, 20, 0x60410010, 0x606C0020, 0x60770010, 0x60780010],  # 80 bits",
+      "  [5, 1, 0, 1, 0, 0x60640020, 0x60FD0020],  # node 5",
+      "  [5, 2, 0, 255, 20, 0x6077],",
+      "]",
+      "[robot.ecp]",
+      "task = \"visit_joint_poses\"",
+      "[robot.ecp.args]",
+      "poses = [[0.0, -1.5708, 0.0, 0.0, 0.0]]",
+      "[[robot]]",  // counts beyond the drives' INTEGER32 positions
+      "name = \"fine\"",
+      "model = \"" + (kSource / "robots/irb6").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"can\"",
+      "[robot.edp.params]",
+      "bus = \"virtual:fine\"",
+      "counts_per_unit = 1e9",
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+  };
+  c.write();
+  const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  const auto at = [&](const std::string& marker) {
+    return c.file.string() + ":" + std::to_string(c.line_of(marker)) + ": error: ";
+  };
+  for (const std::string& line : {
+           at("# read only") + "node 2 (axis 'lower_arm'): RPDO1: 0x6041 (Statusword) is 'ro' (" +
+               drives + "emu-csp.eds:",
+           at("# read only") +
+               "node 2 (axis 'lower_arm'): RPDO1: 0x6041 (Statusword): mrroc sends only the "
+               "controlword (0x6040), the target of mode cyclic synchronous position",
+           at("# not mappable") +
+               "node 3 (axis 'upper_arm'): TPDO2: 0x6065 (Following error window) cannot be "
+               "mapped (PDOMapping=0 (" +
+               drives + "emu-csp.eds:",
+           at("# 80 bits") +
+               "node 4 (axis 'wrist_pitch'): TPDO2: maps 80 bits; a PDO carries at most 64 bits",
+           at("# node 5") +
+               "node 5 (axis 'wrist_roll'): no TPDO of the config maps 0x6041 (Statusword), "
+               "which mrroc reads to follow the drive's state",
+           at("counts_per_unit = 1e9") +
+               "'counts_per_unit' = 1e+09 counts/rad: axis 0 (column) spans 5.93412 rad of its "
+               "range, 5.93412e+09 counts, beyond the drives' position range of 2147483647 "
+               "counts (INTEGER32) either side of their zero",
+       })
+    EXPECT_NE(out.find(line), std::string::npos) << "expected: " << line << "\n" << out;
+  fs::remove_all(dir);
+}
+
 TEST(ConfigCheck, ChecksTheEmulatorsSceneAndTheSetsRobotsAgainstIt) {
   // The cell emulator checks its scene (the file, its drives, sensors) and the [emulator] faults,
   // and the set's robots on emulated buses against the scene: the robot exists, bus, node ids,

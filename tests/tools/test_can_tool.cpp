@@ -119,6 +119,22 @@ TEST(CanTool, ScansRecordsAndPythonCanReadsTheRecordingFrameForFrame) {
       run({tool(), "--bus", "virtual:irb6", "sdo", "write", "2", "6041", "1", "--size", "2"});
   EXPECT_EQ(abort_code, 1) << abort;
   EXPECT_TRUE(has(abort, "aborted: 0x06010002 attempt to write a read only object")) << abort;
+  // A string, segmented (the axis label of emu-pp-split.eds), and read back.
+  const auto [text_code, text] = run(
+      {tool(), "--bus", "virtual:irb6", "sdo", "write", "2", "2100", "lower arm drive", "--text"});
+  EXPECT_EQ(text_code, 0) << text;
+  EXPECT_TRUE(has(text, "written: 'lower arm drive' (15 bytes, segmented)")) << text;
+  const auto [back_code, back] =
+      run({tool(), "--bus", "virtual:irb6", "sdo", "read", "2", "2100", "--text"});
+  EXPECT_EQ(back_code, 0) << back;
+  EXPECT_TRUE(has(back, "lower arm drive")) << back;
+  const auto [const_code, refused] =
+      run({tool(), "--bus", "virtual:irb6", "sdo", "write", "2", "1008", "another name", "--text"});
+  EXPECT_EQ(const_code, 1) << refused;
+  EXPECT_TRUE(has(refused,
+                  "an SDO write of 12 bytes to 0x1008:0 aborted: 0x06010002 attempt to "
+                  "write a read only object"))
+      << refused;
   const auto [pdo_code, pdo] = run({tool(), "--bus", "virtual:irb6", "pdo", "3"});
   EXPECT_EQ(pdo_code, 0) << pdo;
   EXPECT_TRUE(has(pdo,

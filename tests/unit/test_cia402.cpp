@@ -4,11 +4,15 @@
 // tests the real buses and tests/integration the same exchange between processes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <climits>
 #include <cmath>
 #include <condition_variable>
+#include <cstdint>
 #include <cstdio>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -20,7 +24,9 @@
 #include "mrroc/can/cia402_master.hpp"
 #include "mrroc/can/drive_setup.hpp"
 #include "mrroc/can/eds.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/core/error.hpp"
+#include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::can {
 namespace {
@@ -196,6 +202,7 @@ class DriveRack {
       drives_.push_back(
           std::make_unique<Cia402Drive>(c, [this](const can_frame& f) { (void)bus_.send(f); }));
       positions_.push_back(0.3 * i);
+      velocities_.push_back(0.0);
       lines_.push_back(0);
     }
     start_ = std::chrono::steady_clock::now();
@@ -210,7 +217,7 @@ class DriveRack {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   }
   AxisSample sample(std::size_t i) const {
-    return {positions_[i], 0.0, 0.0, positions_[i] > 0.5, lines_[i]};
+    return {positions_[i], velocities_[i], 0.0, positions_[i] > 0.5, lines_[i]};
   }
   /// Sets drive i's digital input lines.
   void set_input_lines(std::size_t i, std::uint8_t lines) {
@@ -233,15 +240,21 @@ class DriveRack {
         for (auto& d : drives_) d->on_frame(r.frame, now());
       }
       std::lock_guard lock(mutex_);
+      const double t = now();
       for (std::size_t i = 0; i < drives_.size(); ++i) {
+        const double before = positions_[i];
         if (drives_[i]->powered()) positions_[i] = drives_[i]->demand();
-        drives_[i]->update(sample(i), now());
+        velocities_[i] = t > last_step_ ? (positions_[i] - before) / (t - last_step_) : 0.0;
+        drives_[i]->update(sample(i), t);
       }
+      last_step_ = t;
     }
   }
   Bus& bus_;
   std::vector<std::unique_ptr<Cia402Drive>> drives_;
   std::vector<double> positions_;
+  std::vector<double> velocities_;  ///< over the last step [units/s]
+  double last_step_ = 0.0;
   std::vector<std::uint8_t> lines_;
   std::chrono::steady_clock::time_point start_;
   std::mutex mutex_;
@@ -897,6 +910,486 @@ TEST(Cia402Master, DrivesInInterpolatedPositionMode) {
   EXPECT_NE(master.status(0).statusword & co::statusword::kIpModeActive, 0);
 }
 
+/// The master's bus with the drives on it, in lock-step: every frame the master sends reaches
+/// the drives at once, and a SYNC steps their axes (perfect ones: position = demand) by one
+/// 2 ms cycle of simulated time, in 1 ms steps, after the drives have answered it. No thread:
+/// what a motion test measures is the drives', not the host's timing.
+class LockstepBus final : public Bus {
+ public:
+  explicit LockstepBus(const std::vector<std::shared_ptr<const eds::Dictionary>>& files) {
+    for (std::size_t i = 0; i < files.size(); ++i) {
+      DriveConfig c;
+      c.node = static_cast<std::uint8_t>(i + 1);
+      c.eds = files[i];
+      drives_.push_back(std::make_unique<Cia402Drive>(c, [this](const can_frame& f) {
+        queue_.push_back(f);
+        seen_.insert(f.can_id);
+      }));
+      positions_.push_back(0.2 * static_cast<double>(i));
+      velocities_.push_back(0.0);
+      lines_.push_back(0);
+      offsets_.push_back(0.0);
+    }
+    for (std::size_t i = 0; i < drives_.size(); ++i) drives_[i]->power_on(sample(i), now_);
+  }
+  [[nodiscard]] std::string url() const override { return "lockstep:test"; }
+  SendResult send(const can_frame& frame) noexcept override {
+    seen_.insert(frame.can_id);
+    for (auto& d : drives_) d->on_frame(frame, now_);
+    if (frame.can_id == co::kSyncId)
+      for (int step = 0; step < 2; ++step) {
+        now_ += 0.001;
+        for (std::size_t i = 0; i < drives_.size(); ++i) {
+          drives_[i]->update(sample(i), now_);
+          if (drives_[i]->powered()) {
+            velocities_[i] = drives_[i]->demand_velocity();
+            positions_[i] = drives_[i]->demand() + offsets_[i];
+          } else {
+            velocities_[i] = 0.0;
+          }
+        }
+      }
+    return SendResult::sent;
+  }
+  bool receive(Received& out, std::chrono::nanoseconds) noexcept override {
+    if (queue_.empty()) return false;
+    out.frame = queue_.front();
+    queue_.pop_front();
+    return true;
+  }
+  void set_filters(std::span<const can_filter>) override {}
+  void receive_error_frames(bool) override {}
+  [[nodiscard]] BusStats stats() const noexcept override { return {}; }
+  [[nodiscard]] std::string last_error() const override { return {}; }
+  [[nodiscard]] AxisSample sample(std::size_t i) const {
+    return {positions_[i], velocities_[i], 0.0, positions_[i] > 0.5, lines_[i]};
+  }
+  void set_input_lines(std::size_t i, std::uint8_t lines) { lines_[i] = lines; }
+  void forget_frames() { seen_.clear(); }
+  /// Moves axis i by `by` without its drive (a slip): the drive sees it in its next sample.
+  void slip(std::size_t i, double by) { offsets_[i] += by; }
+  [[nodiscard]] double position(std::size_t i) const { return positions_[i]; }
+  [[nodiscard]] std::size_t frames_with_id(canid_t id) const { return seen_.count(id); }
+
+ private:
+  std::vector<std::unique_ptr<Cia402Drive>> drives_;
+  std::vector<double> positions_;
+  std::vector<double> velocities_;
+  std::vector<std::uint8_t> lines_;
+  std::vector<double> offsets_;  ///< the axis' slip from its drive's demand
+  std::deque<can_frame> queue_;
+  std::multiset<canid_t> seen_;
+  double now_ = 0.0;
+};
+
+/// A motion's samples of one axis: the position the master read in each cycle.
+struct MotionCheck {
+  /// Velocity over windows of `window` cycles; each window must advance by `min_step` in the
+  /// direction `sign` while `moving(cycle)`, and stay within the limits.
+  static void expect(const std::vector<double>& positions, double period, double sign,
+                     double max_velocity, double max_acceleration,
+                     const std::function<bool(std::size_t)>& moving, const std::string& axis) {
+    constexpr std::size_t kWindow = 5;
+    std::vector<double> v;
+    for (std::size_t k = 0; k + kWindow < positions.size(); ++k) {
+      const double step = positions[k + kWindow] - positions[k];
+      v.push_back(step / (kWindow * period));
+      if (moving(k)) {
+        EXPECT_GT(sign * step, 0.0) << axis << " stood still at cycle " << k;
+      }
+      EXPECT_LE(std::abs(v.back()), max_velocity) << axis << " at cycle " << k;
+    }
+    for (std::size_t k = kWindow; k < v.size(); ++k) {
+      EXPECT_LE(std::abs(v[k] - v[k - kWindow]) / (kWindow * period), max_acceleration)
+          << axis << " at cycle " << k;
+    }
+  }
+};
+
+/// A PDO of the config: entries index << 16 | sub << 8 | bits.
+PdoRequest pdo_row(bool receive, int number, std::uint32_t cob_id, std::uint8_t type,
+                   std::uint16_t timer, std::vector<std::uint32_t> entries) {
+  PdoRequest r;
+  r.receive = receive;
+  r.number = number;
+  r.cob_id = cob_id;
+  r.transmission = type;
+  r.event_timer_ms = timer;
+  for (const std::uint32_t e : entries) r.entries.push_back(PdoEntry::from_raw(e));
+  r.where = {"cell.toml", 30 + number};
+  return r;
+}
+
+TEST(Cia402Master, DrivesWithThePdoMappingTheConfigChooses) {
+  // Mappings unlike mrroc's own, as vendors' defaults are: the statusword with the position,
+  // the target before the controlword on a COB-ID of the config's, the inputs with the velocity
+  // actual value, torque actual and the mode display event-driven in a third TPDO.
+  const std::vector files{drive_file("emu-csp.eds"), drive_file("emu-pp-split.eds")};
+  LockstepBus bus(files);
+  std::vector<MasterAxis> a = axes(2);
+  for (std::size_t i = 0; i < 2; ++i) {
+    DriveRequest request;
+    request.node = a[i].node;
+    request.axis = a[i].name;
+    request.where = {"cell.toml", 20};
+    const std::uint32_t node = a[i].node;
+    request.pdos = {
+        pdo_row(true, 1, 0x220 + node, 1, 0, {0x607A0000, 0x60400010}),  // bits 0: the file's
+        pdo_row(true, 2, 0, 1, 0, {0x60FE0120}),
+        pdo_row(false, 1, 0, 1, 0, {0x60410010, 0x60640020}),
+        pdo_row(false, 2, 0, 1, 0, {0x60FD0020, 0x606C0020}),
+        pdo_row(false, 3, 0x3A0 + node, 255, 50, {0x60770010, 0x60610008}),
+    };
+    a[i].plan = plan_drive(files[i], request);
+  }
+  EXPECT_EQ(a[0].plan.rpdos[0].entries[0], (PdoEntry{0x607A, 0, 32}));
+  Cia402Master master(bus, a, MasterOptions{});
+  master.bring_up(2000ms);
+  for (std::uint8_t n = 1; n <= 2; ++n) {
+    EXPECT_EQ(master.sdo_read(n, 0x1400, 1), 0x220U + n) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1600, 1), 0x607A0020U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1600, 2), 0x60400010U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A00, 1), 0x60410010U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A01, 2), 0x606C0020U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1A02, 0), 2U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1802, 1), 0x3A0U + n) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1802, 5), 50U) << int{n};
+  }
+  // emu-csp.eds's RPDO2 is already the outputs: only read; emu-pp-split.eds's is not.
+  EXPECT_NE(master.bring_up_report(0).find("PDOs written: RPDO1, TPDO1, TPDO2, TPDO3"),
+            std::string::npos)
+      << master.bring_up_report(0);
+  EXPECT_NE(master.bring_up_report(1).find("PDOs written: RPDO1, RPDO2, TPDO1, TPDO2, TPDO3"),
+            std::string::npos)
+      << master.bring_up_report(1);
+  EXPECT_TRUE(master.has_outputs(0));
+  master.set_outputs(0, 0x5A);
+  bus.set_input_lines(1, 0x81);
+  bus.forget_frames();
+  // A smooth motion of 0.2 rad in 0.8 s (peak 0.39 rad/s, 1.5 rad/s^2; limits 1 rad/s and
+  // 3 rad/s^2), axis 0 up, axis 1 down (negative counts and velocities through the mapping).
+  constexpr int kMove = 400;
+  constexpr double kPeriod = 0.002;
+  const std::vector<double> start{master.status(0).position, master.status(1).position};
+  const auto profile = [&](int k) {
+    const double s = std::clamp(static_cast<double>(k) / kMove, 0.0, 1.0);
+    return 0.1 * (1.0 - std::cos(M_PI * s));
+  };
+  std::vector<std::vector<double>> seen(2);
+  double velocity_reported = 0.0;
+  double worst_tracking = 0.0;
+  run_cycles(master, kMove + 20, [&](int k) {
+    for (std::size_t i = 0; i < 2; ++i) {
+      seen[i].push_back(master.status(i).position);
+      // The TPDO of the SYNC sent with target k - 1 shows the axis where target k - 2 put it,
+      // as the drive sampled it a 1 ms step before the SYNC: midway from target k - 3.
+      const double sign = i == 0 ? 1.0 : -1.0;
+      const double expected = start[i] + sign * 0.5 * (profile(k - 2) + profile(k - 3));
+      worst_tracking = std::max(worst_tracking, std::abs(master.status(i).position - expected));
+    }
+    if (k == kMove / 2) velocity_reported = master.status(1).velocity_actual;
+    return std::vector<double>{start[0] + profile(k), start[1] - profile(k)};
+  });
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_LT(worst_tracking, 2e-5);  // two counts
+  for (std::size_t i = 0; i < 2; ++i) {
+    const double sign = i == 0 ? 1.0 : -1.0;
+    EXPECT_NEAR(master.status(i).position, start[i] + sign * 0.2, 1e-5) << i;
+    EXPECT_NEAR(bus.position(i), 0.2 * static_cast<double>(i) + sign * 0.2, 1e-5) << i;
+    MotionCheck::expect(
+        seen[i], kPeriod, sign, 1.0, 3.0, [&](std::size_t k) { return k > 10 && k < kMove - 10; },
+        "axis " + std::to_string(i));
+  }
+  // The objects beyond what the servo loop needs are decoded: the velocity actual value (signed,
+  // after the inputs in TPDO2) at the profile's peak speed, downwards.
+  EXPECT_NEAR(velocity_reported, -M_PI * 0.2 / (2.0 * kMove * kPeriod), 0.01);
+  EXPECT_EQ(master.status(1).input_lines, 0x81);
+  EXPECT_EQ(master.sdo_read(1, co::od::kDigitalOutputs, 1), 0x005A0000U);
+  // Only the config's identifiers carry PDOs.
+  for (const canid_t id :
+       {0x221U, 0x222U, 0x301U, 0x302U, 0x181U, 0x182U, 0x281U, 0x282U, 0x3A1U, 0x3A2U})
+    EXPECT_GT(bus.frames_with_id(id), 0U) << std::hex << "no frame 0x" << id;
+  EXPECT_EQ(bus.frames_with_id(0x201U), 0U);
+  EXPECT_EQ(bus.frames_with_id(0x202U), 0U);
+  EXPECT_EQ(bus.frames_with_id(0x381U), 0U);
+  master.shut_down();
+}
+
+TEST(DrivePlan, BusLoadComesFromThePdosAsMapped) {
+  // mrroc's own mapping: the figures of the fixed arithmetic (docs/hil.md: IRb-6 56 % / 68 %).
+  std::vector<DrivePlan> plans;
+  for (std::uint8_t n = 1; n <= 5; ++n) {
+    DriveRequest request;
+    request.node = n;
+    request.axis = "axis";
+    plans.push_back(plan_drive(drive_file("emu-csp.eds"), request));
+  }
+  const co::BusLoad fixed = co::cyclic_bus_load(5, 0.002, 1e6, 0.1);
+  const co::BusLoad mapped = pdo_bus_load(plans, 0.002, 1e6, 0.1);
+  EXPECT_EQ(mapped.frames_per_cycle, fixed.frames_per_cycle);
+  EXPECT_NEAR(mapped.load_nominal, fixed.load_nominal, 1e-12);
+  EXPECT_NEAR(mapped.load_worst, fixed.load_worst, 1e-12);
+  // The statusword with the position (6 bytes every SYNC) and the inputs in a TPDO of their
+  // own (4 bytes every SYNC): one frame more per drive and cycle.
+  for (DrivePlan& p : plans) {
+    DriveRequest request;
+    request.node = p.node;
+    request.axis = "axis";
+    request.pdos = {pdo_row(false, 1, 0, 1, 0, {0x60410010, 0x60640020}),
+                    pdo_row(false, 2, 0, 1, 0, {0x60FD0020})};
+    p = plan_drive(drive_file("emu-csp.eds"), request);
+  }
+  const co::BusLoad split = pdo_bus_load(plans, 0.002, 1e6, 0.1);
+  EXPECT_EQ(split.frames_per_cycle, 16);
+  const double per_drive = co::frame_bits(6).nominal + co::frame_bits(4).nominal -
+                           co::frame_bits(8).nominal - co::frame_bits(2).nominal * 0.1;
+  EXPECT_NEAR(split.bits_per_cycle_nominal - fixed.bits_per_cycle_nominal, 5 * per_drive, 1e-9);
+}
+
+TEST(DrivePlan, ConfigPdosAreCheckedAgainstTheFileAtTheirRows) {
+  DriveRequest request;
+  request.node = 3;
+  request.axis = "upper_arm";
+  request.where = {"cell.toml", 20};
+  request.pdos = {
+      pdo_row(true, 1, 0, 1, 0, {0x60400010, 0x607A0020, 0x60410010}),   // read only in an RPDO
+      pdo_row(false, 1, 0, 1, 0, {0x60640020, 0x60650020}),              // not mappable
+      pdo_row(false, 2, 0, 1, 0, {0x60410010, 0x60FD0020, 0x606C0020}),  // 80 bits
+      pdo_row(false, 3, 0, 1, 0, {0x60640010}),                          // wrong width
+  };
+  try {
+    (void)plan_drive(drive_file("emu-csp.eds"), request);
+    FAIL() << "no error";
+  } catch (const mrroc::ConfigErrors& e) {
+    const std::string what = e.what();
+    for (const std::string line : {
+             "cell.toml:31: error: node 3 (axis 'upper_arm'): RPDO1: 0x6041 (Statusword) is 'ro' "
+             "(",
+             "cell.toml:31: error: node 3 (axis 'upper_arm'): RPDO1: 0x6041 (Statusword): mrroc "
+             "sends only the controlword (0x6040), the target of mode cyclic synchronous position",
+             "cell.toml:31: error: node 3 (axis 'upper_arm'): no RPDO of the config maps 0x60FE "
+             "sub "
+             "1",
+             "cell.toml:31: error: node 3 (axis 'upper_arm'): TPDO1: 0x6065 (Following error "
+             "window) cannot be mapped (PDOMapping=0 (",
+             "cell.toml:32: error: node 3 (axis 'upper_arm'): TPDO2: maps 80 bits; a PDO carries "
+             "at most 64 bits (8 bytes)",
+             "cell.toml:33: error: node 3 (axis 'upper_arm'): TPDO3: 0x6064 (Position actual "
+             "value) is INTEGER32, 32 bits (",
+         })
+      EXPECT_NE(what.find(line), std::string::npos) << "expected: " << line << "\n" << what;
+  }
+  // What the servo loop needs, missing from the config's TPDOs, named; a position TPDO that is
+  // not sent every SYNC refused.
+  request.pdos = {pdo_row(false, 1, 0, 255, 20, {0x60640020})};
+  request.outputs = false;
+  try {
+    (void)plan_drive(drive_file("emu-csp.eds"), request);
+    FAIL() << "no error";
+  } catch (const mrroc::ConfigErrors& e) {
+    const std::string what = e.what();
+    for (const std::string line : {
+             "cell.toml:31: error: node 3 (axis 'upper_arm'): no TPDO of the config maps 0x6041 "
+             "(Statusword), which mrroc reads to follow the drive's state",
+             "cell.toml:31: error: node 3 (axis 'upper_arm'): no TPDO of the config maps 0x60FD "
+             "(Digital inputs)",
+             "cell.toml:31: error: node 3 (axis 'upper_arm'): TPDO1 carries 0x6064 (Position "
+             "actual value) and has transmission type 255",
+         })
+      EXPECT_NE(what.find(line), std::string::npos) << "expected: " << line << "\n" << what;
+    EXPECT_EQ(e.errors().size(), 3U) << what;
+  }
+  // Two drives' PDOs on one identifier, and one CiA 301 reserves.
+  request.pdos = {pdo_row(false, 1, 0, 1, 0, {0x60410010, 0x60640020}),
+                  pdo_row(false, 2, 0, 1, 0, {0x60FD0020}),
+                  pdo_row(false, 3, 0x3A0, 255, 50, {0x60770010})};
+  DrivePlan one = plan_drive(drive_file("emu-csp.eds"), request);
+  request.node = 4;
+  DrivePlan two = plan_drive(drive_file("emu-csp.eds"), request);
+  try {
+    check_pdo_identifiers({one, two});
+    FAIL() << "no error";
+  } catch (const mrroc::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("cell.toml:33: error: node 4 (axis 'upper_arm') TPDO3: "
+                                         "COB-ID 0x3A0 is also node 3 (axis 'upper_arm') "
+                                         "TPDO3's"),
+              std::string::npos)
+        << e.what();
+  }
+  request.pdos[2] = pdo_row(false, 3, 0x5A0, 255, 50, {0x60770010});
+  EXPECT_THROW(check_pdo_identifiers({plan_drive(drive_file("emu-csp.eds"), request)}),
+               mrroc::ConfigError);
+}
+
+TEST(DriveUnits, ValuesAreBoundedBeforeTheCast) {
+  EXPECT_EQ(to_drive_units(0.1, 100000.0, INT32_MIN, INT32_MAX), 10000);
+  EXPECT_EQ(to_drive_units(-0.123456, 100000.0, INT32_MIN, INT32_MAX), -12346);
+  EXPECT_EQ(to_drive_units(21474.83647, 100000.0, INT32_MIN, INT32_MAX), INT32_MAX);
+  EXPECT_EQ(to_drive_units(-21474.83648, 100000.0, INT32_MIN, INT32_MAX), INT32_MIN);
+  EXPECT_FALSE(to_drive_units(21474.83648, 100000.0, INT32_MIN, INT32_MAX));
+  EXPECT_FALSE(to_drive_units(-21474.83649, 100000.0, INT32_MIN, INT32_MAX));
+  EXPECT_FALSE(to_drive_units(1e300, 1e300, INT32_MIN, INT32_MAX));  // infinite product
+  EXPECT_FALSE(to_drive_units(std::nan(""), 1.0, INT32_MIN, INT32_MAX));
+  EXPECT_FALSE(to_drive_units(1e19, 1.0, 0, INT64_MAX));           // beyond int64 itself
+  EXPECT_EQ(to_drive_units(-0.4e-5, 100000.0, 0, UINT32_MAX), 0);  // rounds to 0, in range
+  EXPECT_FALSE(to_drive_units(-1.0, 1.0, 0, UINT32_MAX));
+  EXPECT_EQ(to_drive_units(4294967295.0, 1.0, 0, UINT32_MAX), 4294967295LL);
+  // Randomised: inside the range the result is the rounded product, outside nothing.
+  std::uint64_t seed = 0x9E3779B97F4A7C15ULL;
+  for (int k = 0; k < 10000; ++k) {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    const double value = (static_cast<double>(seed >> 11U) / 9007199254740992.0 - 0.5) * 1e5;
+    const auto c = to_drive_units(value, 1e5, INT32_MIN, INT32_MAX);
+    const double product = std::round(value * 1e5);
+    if (product >= -2147483648.0 && product <= 2147483647.0) {
+      ASSERT_TRUE(c) << "seed state " << seed << " value " << value;
+      EXPECT_EQ(static_cast<double>(*c), product) << value;
+    } else {
+      EXPECT_FALSE(c) << value;
+    }
+  }
+}
+
+TEST(Cia402Master, ATargetBeyondTheDrivesRangeIsAFaultNamingValueUnitAndLimit) {
+  std::vector<MasterAxis> a = axes(1);
+  a[0].counts_per_unit = 1e9;  // counts per m
+  a[0].unit = "m";
+  a[0].following_error_window = 5.0;  // 5e9 counts: beyond 0x6065 (UNSIGNED32)
+  MemoryHub hub;
+  try {
+    Cia402Master refused(hub.add(), a, MasterOptions{});
+    FAIL() << "took a following error window of 5e9 counts";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find("node 1 (axis 'axis0'): following error window 5 m is "
+                                         "5e+09 counts at counts_per_unit 1e+09 counts/m, "
+                                         "outside 0x6065's range 0..4294967295 counts"),
+              std::string::npos)
+        << e.what();
+  }
+  a[0].following_error_window = 0.001;
+  a[0].quick_stop_deceleration = 1.0;
+  DriveRack rack(hub, 1);
+  Cia402Master master(hub.add(), a, MasterOptions{});
+  master.bring_up(2000ms);
+  const double start = master.status(0).position;
+  run_cycles(master, 5, [&](int) { return std::vector<double>{start}; });
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  const std::int32_t held = master.target_counts(0);
+  run_cycles(master, 1, [&](int) { return std::vector<double>{3.0}; });  // 3e9 counts
+  ASSERT_TRUE(master.faulted());
+  EXPECT_NE(std::string(master.fault_text())
+                .find("drive node 1 (axis 'axis0') on memory:test: target 3 m is 3e+09 counts at "
+                      "counts_per_unit 1e+09 counts/m, outside the drive's position range "
+                      "-2147483648..2147483647 counts (INTEGER32)"),
+            std::string::npos)
+      << master.fault_text();
+  EXPECT_EQ(master.target_counts(0), held);  // the drive keeps its last target
+  run_cycles(master, 1, [&](int) { return std::vector<double>{std::nan("")}; });
+  EXPECT_EQ(master.target_counts(0), held);
+  master.shut_down();
+}
+
+TEST(Cia402Master, RunsAnIrb6MotionInCyclicSynchronousVelocity) {
+  // The IRb-6's five axes on drives whose file lists CSV (emu-pp-split.eds, 0x6502 bit 8): each
+  // joint moves by a cosine profile at half its velocity or acceleration limit, whichever is
+  // lower; the master sends the drives velocities (0x60FF) made from the positions.
+  const RobotModel irb6 = load_robot_model(std::string(MRROC_SOURCE_DIR) + "/robots/irb6");
+  ASSERT_EQ(irb6.axes(), 5U);
+  const std::vector files(5, drive_file("emu-pp-split.eds"));
+  LockstepBus bus(files);
+  std::vector<MasterAxis> a = planned_axes(files, eds::mode::kCyclicSyncVelocity);
+  for (std::size_t i = 0; i < 5; ++i) {
+    a[i].name = irb6.joint_names[i];
+    a[i].following_error_window = 0.01;
+  }
+  EXPECT_EQ(a[0].plan.target_entry(), (PdoEntry{0x60FF, 0, 32}));
+  Cia402Master master(bus, a, MasterOptions{});
+  master.bring_up(2000ms);
+  for (std::uint8_t n = 1; n <= 5; ++n) {
+    EXPECT_EQ(master.sdo_read(n, co::od::kModesDisplay, 0), 9U) << int{n};
+    EXPECT_EQ(master.sdo_read(n, 0x1600, 2), 0x60FF0020U) << int{n};
+  }
+  constexpr int kMove = 600;  // 1.2 s
+  constexpr double kPeriod = 0.002;
+  const double duration = kMove * kPeriod;
+  std::vector<double> start(5);
+  std::vector<double> distance(5);
+  for (std::size_t i = 0; i < 5; ++i) {
+    start[i] = master.status(i).position;
+    // Cosine profile: peak velocity pi d / (2 T), peak acceleration pi^2 d / (2 T^2).
+    const double by_velocity = irb6.max_velocity[i] * 2.0 * duration / M_PI;
+    const double by_acceleration =
+        irb6.max_acceleration[i] * 2.0 * duration * duration / (M_PI * M_PI);
+    distance[i] = (i % 2 == 0 ? 0.5 : -0.5) * std::min(by_velocity, by_acceleration);
+  }
+  const auto target = [&](std::size_t i, int k) {
+    const double s = std::clamp(static_cast<double>(k) / kMove, 0.0, 1.0);
+    return start[i] + distance[i] * 0.5 * (1.0 - std::cos(M_PI * s));
+  };
+  std::vector<std::vector<double>> seen(5);
+  double worst_tracking = 0.0;
+  run_cycles(master, kMove + 50, [&](int k) {
+    for (std::size_t i = 0; i < 5; ++i) {
+      seen[i].push_back(master.status(i).position);
+      // The TPDO of the SYNC sent with target k - 1 shows the axis where target k - 2 put it.
+      worst_tracking =
+          std::max(worst_tracking, std::abs(master.status(i).position - target(i, k - 2)));
+    }
+    std::vector<double> t(5);
+    for (std::size_t i = 0; i < 5; ++i) t[i] = target(i, k);
+    return t;
+  });
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  std::printf("CSV: worst tracking %.2e rad\n", worst_tracking);
+  // Ten counts: the TPDO shows the axis a 1 ms step before its SYNC, a lag the correction
+  // takes out while the velocity changes.
+  EXPECT_LT(worst_tracking, 1e-4);
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_NEAR(master.status(i).position, start[i] + distance[i], 2e-5) << i;
+    const double sign = distance[i] > 0 ? 1.0 : -1.0;
+    MotionCheck::expect(
+        seen[i], kPeriod, sign, irb6.max_velocity[i], irb6.max_acceleration[i],
+        [&](std::size_t k) { return k > 10 && k < kMove - 10; }, irb6.joint_names[i]);
+  }
+  // At rest the drives get 0 counts/s.
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_EQ(master.velocity_counts(i), 0) << i;
+  EXPECT_EQ(master.sdo_read(1, co::od::kTargetVelocity, 0), 0U);
+  master.shut_down();
+}
+
+TEST(Cia402Master, CyclicSynchronousVelocityCorrectsFromTheMeasuredPosition) {
+  // An axis that slips 1 mrad behind its drive's demand: the targets' differences alone would
+  // leave it there; the correction from the measured position brings it to the target.
+  const std::vector files{drive_file("emu-pp-split.eds")};
+  LockstepBus bus(files);
+  Cia402Master master(bus, planned_axes(files, eds::mode::kCyclicSyncVelocity), MasterOptions{});
+  master.bring_up(2000ms);
+  const double start = master.status(0).position;
+  // A ramp at 0.1 rad/s for 0.4 s, then held: 0.04 rad.
+  std::int32_t moving = 0;
+  run_cycles(master, 250, [&](int k) {
+    if (k == 100) moving = master.velocity_counts(0);
+    return std::vector<double>{start + 0.1 * 0.002 * std::min(k, 200)};
+  });
+  EXPECT_NEAR(moving, 10000, 5);  // 0.1 rad/s at 100000 counts/rad, the axis on its target
+  EXPECT_EQ(master.velocity_counts(0), 0);
+  EXPECT_NEAR(master.status(0).position, start + 0.04, 1e-5);
+  bus.slip(0, -0.001);  // the axis is 1 mrad behind (a slip, a load)
+  std::int32_t largest = 0;
+  run_cycles(master, 4, [&](int) {
+    largest = std::max(largest, master.velocity_counts(0));
+    return std::vector<double>{start + 0.04};
+  });
+  largest = std::max(largest, master.velocity_counts(0));
+  // (1 mrad) / (8 cycles of 2 ms) = 62.5 mrad/s, the first cycle that sees the slip
+  EXPECT_NEAR(largest, 6250, 100);
+  run_cycles(master, 150, [&](int) { return std::vector<double>{start + 0.04}; });
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_NEAR(master.status(0).position, start + 0.04, 1.5e-5);
+  EXPECT_EQ(master.velocity_counts(0), 0);
+  master.shut_down();
+}
+
 TEST(Cia402Master, RefusesADriveWhoseIdentityDiffersNamingBoth) {
   MemoryHub hub;
   const std::vector files{drive_file("emu-ip.eds")};
@@ -987,10 +1480,139 @@ TEST(Cia402Drive, AnswersAsItsFileSaysWithTheAbortCodesOfADevice) {
   EXPECT_EQ(write_abort(master, co::od::kModesOfOperation, 0, 9, 1), 0U);                  // CSV
   EXPECT_EQ(write_abort(master, co::od::kStatusword, 0, 1, 2), abort::kReadOnly);
   EXPECT_EQ(write_abort(master, co::od::kControlword, 0, 6, 4), abort::kLengthMismatch);
-  EXPECT_EQ(write_abort(master, 0x2001, 0, 1, 2), abort::kNoObject);  // no manufacturer objects
+  EXPECT_EQ(write_abort(master, 0x2001, 0, 1, 2), abort::kNoObject);  // not in the file
   EXPECT_EQ(write_abort(master, 0x1018, 7, 1, 4), abort::kNoSubindex);
   // A string longer than 4 bytes comes segmented.
   EXPECT_EQ(master.sdo_read_bytes(1, 0x1008, 0), "EMU-PP-3");
+}
+
+/// The abort code in a HardwareError's text ("aborted...: 0x06010002 ..."), 0 when none.
+std::uint32_t abort_in(const std::string& text) {
+  const auto at = text.find(": 0x", text.find("aborted"));
+  return text.find("aborted") == std::string::npos || at == std::string::npos
+             ? 0U
+             : static_cast<std::uint32_t>(std::stoul(text.substr(at + 4, 8), nullptr, 16));
+}
+
+/// The abort code of `write` (0 when it wrote).
+template <typename F>
+std::uint32_t abort_of(F write) {
+  try {
+    write();
+    return 0;
+  } catch (const HardwareError& e) {
+    return abort_in(e.what());
+  }
+}
+
+TEST(Cia402Master, WritesStringsSegmentedAndNamesEveryAbort) {
+  MemoryHub hub;
+  const std::vector files{drive_file("emu-pp-split.eds")};
+  DriveRack rack(hub, 1, files);
+  Bus& master_bus = hub.add();
+  Cia402Master master(master_bus, axes(1), MasterOptions{});
+  namespace abort = co::sdo_abort;
+  EXPECT_EQ(master.sdo_read_bytes(1, 0x2100, 0), "axis");        // the file's value
+  master.sdo_write_bytes(1, 0x2100, 0, "lower arm, left cell");  // 20 bytes: three segments
+  EXPECT_EQ(master.sdo_read_bytes(1, 0x2100, 0), "lower arm, left cell");
+  master.sdo_write_bytes(1, 0x2100, 0, "ab");  // expedited
+  EXPECT_EQ(master.sdo_read_bytes(1, 0x2100, 0), "ab");
+  master.sdo_write_bytes(1, 0x2100, 0, std::string(700, 'x'));  // 100 segments
+  EXPECT_EQ(master.sdo_read_bytes(1, 0x2100, 0), std::string(700, 'x'));
+  // A number written as bytes takes the object's length (8 bytes go segmented and are refused).
+  master.sdo_write_bytes(1, 0x6065, 0, std::string("\x10\x27\x00\x00", 4));
+  EXPECT_EQ(master.sdo_read(1, 0x6065, 0), 10000U);
+  EXPECT_EQ(abort_of([&] { master.sdo_write_bytes(1, 0x6065, 0, "12345678"); }),
+            abort::kLengthTooHigh);
+  // Each refusal named: read only, no object, no sub-index, too long for the device.
+  try {
+    master.sdo_write_bytes(1, 0x1008, 0, "another name");
+    FAIL() << "wrote a const object";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find("memory:test node 1: an SDO write of 12 bytes to "
+                                         "0x1008:0 aborted: 0x06010002 attempt to write a read "
+                                         "only object"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(abort_of([&] { master.sdo_write_bytes(1, 0x2345, 0, "label text"); }),
+            abort::kNoObject);
+  EXPECT_EQ(abort_of([&] { master.sdo_write_bytes(1, 0x2100, 3, "label text"); }),
+            abort::kNoSubindex);
+  EXPECT_EQ(abort_of([&] { master.sdo_write_bytes(1, 0x2100, 0, std::string(2000, 'y')); }),
+            abort::kOutOfMemory);
+  EXPECT_EQ(master.sdo_read_bytes(1, 0x2100, 0), std::string(700, 'x'));  // unchanged
+
+  // The server's side of a transfer that goes wrong, frame by frame.
+  Bus& raw = hub.add();
+  const auto answer = [&](std::initializer_list<std::uint8_t> bytes) {
+    can_frame f{};
+    f.can_id = co::sdo_request_id(1);
+    f.len = 8;
+    std::copy(bytes.begin(), bytes.end(), f.data);
+    (void)raw.send(f);
+    Received r;
+    const auto deadline = std::chrono::steady_clock::now() + 500ms;
+    while (std::chrono::steady_clock::now() < deadline)
+      if (raw.receive(r, 10ms) && r.frame.can_id == co::sdo_response_id(1)) return r.frame;
+    ADD_FAILURE() << "no answer";
+    return can_frame{};
+  };
+  const auto code = [](const can_frame& f) {
+    return f.data[0] == 0x80U
+               ? static_cast<std::uint32_t>(f.data[4] | (f.data[5] << 8U) | (f.data[6] << 16U) |
+                                            (static_cast<unsigned>(f.data[7]) << 24U))
+               : 0U;
+  };
+  // A segment without an initiation.
+  EXPECT_EQ(code(answer({0x00, 'a', 'b', 'c', 'd', 'e', 'f', 'g'})), abort::kCommandSpecifier);
+  // A toggle bit that does not alternate.
+  EXPECT_EQ(answer({0x21, 0x00, 0x21, 0x00, 14, 0, 0, 0}).data[0], 0x60);
+  EXPECT_EQ(answer({0x00, 'a', 'b', 'c', 'd', 'e', 'f', 'g'}).data[0], 0x20);
+  EXPECT_EQ(code(answer({0x00, 'h', 'i', 'j', 'k', 'l', 'm', 'n'})), abort::kToggleBit);
+  // More than announced, and fewer.
+  EXPECT_EQ(answer({0x21, 0x00, 0x21, 0x00, 5, 0, 0, 0}).data[0], 0x60);
+  EXPECT_EQ(code(answer({0x01, 'a', 'b', 'c', 'd', 'e', 'f', 'g'})), abort::kLengthTooHigh);
+  EXPECT_EQ(answer({0x21, 0x00, 0x21, 0x00, 9, 0, 0, 0}).data[0], 0x60);
+  EXPECT_EQ(code(answer({0x03, 'a', 'b', 'c', 'd', 'e', 'f', 0})), abort::kLengthTooLow);
+  Received stale;  // the answers above, as the master's node saw them
+  while (master_bus.receive(stale, 0ms)) {
+  }
+  EXPECT_EQ(master.sdo_read_bytes(1, 0x2100, 0), std::string(700, 'x'));  // none was stored
+
+  // The config's text at bring-up: written segmented, read back.
+  DriveRequest request;
+  request.node = 1;
+  request.axis = "axis0";
+  SdoWrite label;
+  label.index = 0x2100;
+  label.text = "column drive of the IRb-6";
+  request.writes.push_back(label);
+  std::vector<MasterAxis> a = axes(1);
+  a[0].plan = plan_drive(files[0], request);
+  Cia402Master configured(hub.add(), a, MasterOptions{});
+  configured.bring_up(2000ms);
+  EXPECT_EQ(configured.sdo_read_bytes(1, 0x2100, 0), "column drive of the IRb-6");
+  configured.shut_down();
+  // A text for a number, and a number for a text, are the config's mistakes.
+  request.writes = {label, SdoWrite{0x2100, 0, 7, 0, {"cell.toml", 40}, std::nullopt}};
+  request.writes[0].index = 0x6065;
+  request.writes[0].where = {"cell.toml", 39};
+  try {
+    (void)plan_drive(files[0], request);
+    FAIL() << "no error";
+  } catch (const mrroc::ConfigErrors& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("cell.toml:39: error: node 1 (axis 'axis0'): 0x6065 (Following error "
+                        "window) is UNSIGNED32 ("),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("not a string: write it as a number (sdo)"), std::string::npos) << what;
+    EXPECT_NE(what.find("cell.toml:40: error: node 1 (axis 'axis0'): 0x2100 (Axis label) is "
+                        "VISIBLE_STRING ("),
+              std::string::npos)
+        << what;
+  }
 }
 
 }  // namespace

@@ -145,14 +145,18 @@ DriveRequest request(std::uint8_t node) {
 TEST(DrivePlan, MapsWhatTheServoLoopNeedsOnEachFile) {
   const DrivePlan csp = plan_drive(load("emu-csp.eds"), request(1));
   EXPECT_EQ(csp.mode, eds::mode::kCyclicSyncPosition);
-  EXPECT_EQ(csp.target.cob_id, 0x201U);
+  ASSERT_EQ(csp.rpdos.size(), 2U);
+  ASSERT_EQ(csp.tpdos.size(), 2U);
+  EXPECT_EQ(csp.rpdos[0].cob_id, 0x201U);
   EXPECT_EQ(csp.target_entry(), (PdoEntry{0x607A, 0, 32}));
+  EXPECT_EQ(csp.rpdos[0].entries, (std::vector<PdoEntry>{{0x6040, 0, 16}, {0x607A, 0, 32}}));
   ASSERT_TRUE(csp.outputs);
-  EXPECT_EQ(csp.feedback.cob_id, 0x181U);
-  EXPECT_EQ(csp.feedback.entries, (std::vector<PdoEntry>{{0x6064, 0, 32}, {0x60FD, 0, 32}}));
-  EXPECT_EQ(csp.statusword.cob_id, 0x281U);
-  EXPECT_EQ(csp.statusword.transmission, transmission::kEventProfile);
-  EXPECT_EQ(csp.statusword.event_timer_ms, 20);
+  EXPECT_EQ(csp.rpdos[1].cob_id, 0x301U);
+  EXPECT_EQ(csp.tpdos[0].cob_id, 0x181U);
+  EXPECT_EQ(csp.tpdos[0].entries, (std::vector<PdoEntry>{{0x6064, 0, 32}, {0x60FD, 0, 32}}));
+  EXPECT_EQ(csp.tpdos[1].cob_id, 0x281U);
+  EXPECT_EQ(csp.tpdos[1].transmission, transmission::kEventProfile);
+  EXPECT_EQ(csp.tpdos[1].event_timer_ms, 20);
   EXPECT_EQ(csp.switched_off.size(), 4U);  // RPDO3, RPDO4, TPDO3, TPDO4
 
   // Defaults to interpolated position, supports CSP: CSP chosen; no outputs on this drive.
@@ -165,16 +169,16 @@ TEST(DrivePlan, MapsWhatTheServoLoopNeedsOnEachFile) {
   EXPECT_EQ(plan_drive(load("emu-ip.eds"), wants_ip).target_entry(), (PdoEntry{0x60C1, 1, 32}));
 
   const DrivePlan split = plan_drive(load("emu-pp-split.eds"), request(3));
-  EXPECT_EQ(split.statusword.entries, (std::vector<PdoEntry>{{0x6041, 0, 16}}));
+  EXPECT_EQ(split.tpdos.at(1).entries, (std::vector<PdoEntry>{{0x6041, 0, 16}}));
 }
 
 TEST(DrivePlan, RefusesWhatTheFileDoesNotHaveNamingNodeObjectAndLine) {
   // Interpolated position on a drive that cannot, and a write the file does not allow.
   DriveRequest r = request(4);
   r.mode = eds::mode::kInterpolatedPosition;
-  r.writes.push_back({0x6041, 0, 5, 0, {"cell.toml", 20}});
-  r.writes.push_back({0x6065, 0, 0x1FFFFFFFF, 0, {"cell.toml", 21}});
-  r.writes.push_back({0x2345, 0, 1, 0, {"cell.toml", 22}});
+  r.writes.push_back({0x6041, 0, 5, 0, {"cell.toml", 20}, std::nullopt});
+  r.writes.push_back({0x6065, 0, 0x1FFFFFFFF, 0, {"cell.toml", 21}, std::nullopt});
+  r.writes.push_back({0x2345, 0, 1, 0, {"cell.toml", 22}, std::nullopt});
   try {
     (void)plan_drive(load("emu-csp.eds"), r);
     FAIL() << "no error";

@@ -123,15 +123,14 @@ int eds_check(const std::string& file, int node, const std::string& mode) {
   if (mode == "ip") request.mode = eds::mode::kInterpolatedPosition;
   const DrivePlan plan = plan_drive(d, request);
   std::cout << fmt::format("mrroc will drive it in {} and map:\n", eds::mode_name(plan.mode));
-  for (const PdoPlan* p :
-       {&plan.target, plan.outputs ? &*plan.outputs : nullptr, &plan.feedback, &plan.statusword}) {
-    if (p == nullptr) continue;
-    std::string entries;
-    for (const PdoEntry& e : p->entries)
-      entries += (entries.empty() ? "" : " + ") + object_name(d.get(), e.index, e.sub);
-    std::cout << fmt::format("  {} {}, type {}: {}\n", p->name(), hex(p->cob_id, 3),
-                             p->transmission, entries);
-  }
+  for (const auto* list : {&plan.rpdos, &plan.tpdos})
+    for (const PdoPlan& p : *list) {
+      std::string entries;
+      for (const PdoEntry& e : p.entries)
+        entries += (entries.empty() ? "" : " + ") + object_name(d.get(), e.index, e.sub);
+      std::cout << fmt::format("  {} {}, type {}: {}\n", p.name(), hex(p.cob_id, 3), p.transmission,
+                               entries);
+    }
   if (!plan.outputs) std::cout << "  no digital outputs (the file has no 0x60FE)\n";
   std::string off;
   for (const PdoPlan& p : plan.switched_off) off += (off.empty() ? "" : ", ") + p.name();
@@ -354,8 +353,11 @@ int main(int argc, char** argv) {
   CommandLine& write_cmd = sdo_cmd.subcommand("write", "writes VALUE to NODE's INDEX[:SUB]");
   write_cmd.option("node", node, "node id").required().range(1, 127);
   write_cmd.option("object", object, "INDEX[:SUB], e.g. 6060 or 1017").required();
-  write_cmd.option("value", value, "decimal or 0x hex").required();
+  write_cmd.option("value", value, "decimal or 0x hex, or text with --text").required();
   write_cmd.option("--size", size, "bytes (1, 2 or 4)").range(1, 4).show_default();
+  bool write_text = false;
+  write_cmd.flag("--text", write_text,
+                 "write VALUE as text (strings; segmented when longer than 4 bytes)");
 
   CommandLine& pdo_cmd = cli.subcommand(
       "pdo", "shows NODE's PDOs as the drive has them now (communication and mapping objects)");
@@ -431,8 +433,15 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (sdo_cmd.got("write")) {
-      if (size == 3) throw ConfigError("--size 3: an SDO write here is 1, 2 or 4 bytes");
       const auto [index, sub] = object_of(object);
+      if (write_text) {
+        c->sdo_write_bytes(n, index, sub, value);
+        std::cout << fmt::format("{} written: '{}' ({} bytes{})\n",
+                                 object_name(nullptr, index, sub), value, value.size(),
+                                 value.size() > 4 ? ", segmented" : "");
+        return 0;
+      }
+      if (size == 3) throw ConfigError("--size 3: an SDO write here is 1, 2 or 4 bytes");
       const std::uint64_t v = number(value, "value");
       c->sdo_write(n, index, sub, static_cast<std::uint32_t>(v), static_cast<std::uint8_t>(size));
       std::cout << fmt::format("{} written: {}\n", object_name(nullptr, index, sub), value);

@@ -37,6 +37,11 @@ class Params {
   [[nodiscard]] bool has(const std::string& key) const;
   [[nodiscard]] const SourceLocation& location() const { return location_; }
   [[nodiscard]] SourceLocation location_of(const std::string& key) const;
+  /// Where row `row` of a list of lists was written (its own line when the reader recorded it,
+  /// else the key's).
+  [[nodiscard]] SourceLocation location_of_row(const std::string& key, std::size_t row) const;
+  /// Records where each row of the list of lists `key` was written (see `location_of_row`).
+  void set_row_locations(const std::string& key, std::vector<SourceLocation> rows);
 
   /// Required values. @throws ConfigError when missing or of another type.
   [[nodiscard]] double get_double(const std::string& key) const;
@@ -81,6 +86,7 @@ class Params {
   SourceLocation location_;
   std::map<std::string, ParamValue> values_;
   std::map<std::string, SourceLocation> where_;
+  std::map<std::string, std::vector<SourceLocation>> row_where_;
   mutable std::map<std::string, bool> read_;
   /// The sink of `collect_unknown_keys`; a copy of it is null.
   struct Sink {

@@ -113,6 +113,7 @@ inline constexpr std::uint16_t kDigitalInputs = 0x60FD;          ///< u32, bit 2
 inline constexpr std::uint16_t kDigitalOutputs = 0x60FE;
 inline constexpr std::uint16_t kInterpolationPeriod = 0x60C2;  ///< sub 1: u8 value, sub 2: i8 exp
 inline constexpr std::uint16_t kInterpolationData = 0x60C1;    ///< sub 1: i32 target [counts]
+inline constexpr std::uint16_t kTargetVelocity = 0x60FF;       ///< i32 [counts/s] (CSV)
 inline constexpr std::uint16_t kVelocityActual = 0x606C;       ///< i32 [counts/s]
 inline constexpr std::uint16_t kTorqueActual = 0x6077;         ///< i16 [per mille of rated]
 inline constexpr std::uint16_t kErrorCode = 0x603F;            ///< u16, the last EMCY's code
@@ -142,6 +143,7 @@ inline constexpr std::uint8_t kDefaultMasterNode = 0x7F;
 inline constexpr std::int8_t kModeHoming = 6;
 inline constexpr std::int8_t kModeInterpolatedPosition = 7;
 inline constexpr std::int8_t kModeCyclicSyncPosition = 8;
+inline constexpr std::int8_t kModeCyclicSyncVelocity = 9;
 
 // --- CiA 402 drive state machine -----------------------------------------------------------------
 enum class DriveState {
@@ -273,7 +275,10 @@ inline constexpr std::uint32_t kWriteOnly = 0x06010001;
 inline constexpr std::uint32_t kNoObject = 0x06020000;
 inline constexpr std::uint32_t kNotMappable = 0x06040041;
 inline constexpr std::uint32_t kPdoTooLong = 0x06040042;
+inline constexpr std::uint32_t kOutOfMemory = 0x05040005;
 inline constexpr std::uint32_t kLengthMismatch = 0x06070010;
+inline constexpr std::uint32_t kLengthTooHigh = 0x06070012;
+inline constexpr std::uint32_t kLengthTooLow = 0x06070013;
 inline constexpr std::uint32_t kNoSubindex = 0x06090011;
 inline constexpr std::uint32_t kValueRange = 0x06090030;
 inline constexpr std::uint32_t kValueTooHigh = 0x06090031;

@@ -14,13 +14,17 @@
 ///  - Its object dictionary is its EDS/DCF (`DriveConfig::eds`, eds.hpp; mrroc's emulated drive,
 ///    configs/drives/emu-csp.eds, when none is given): the objects that exist, their access,
 ///    type, limits and defaults, its PDOs' default mappings and the modes it supports (0x6502).
-///    SDO (expedited; segmented upload of strings) answers as a device does: abort 0x06020000
+///    SDO (expedited; segmented upload and download of strings, up to kMaxSegmentedBytes)
+///    answers as a device does: abort 0x06020000
 ///    for an object the file lacks, 0x06090011 a sub-index, 0x06010002 a write of a read-only
 ///    object, 0x06010001 a read of a write-only one, 0x06070010 a wrong length, 0x06090031 /
 ///    0x06090032 a value above / below the file's limits, 0x06040041 a mapping of an object that
 ///    cannot be mapped, 0x06040042 a mapping longer than 64 bits, 0x06010000 a mapping changed
 ///    while its PDO is on or its count is not 0 (CiA 301's order: COB-ID bit 31, count 0,
-///    entries, count, COB-ID), 0x06090030 a mode the file does not list.
+///    entries, count, COB-ID), 0x06090030 a mode the file does not list. A segmented download:
+///    0x05030000 a segment whose toggle bit did not alternate, 0x05040001 a segment without an
+///    initiation, 0x06070012 / 0x06070013 more / fewer bytes than announced (or than a number's
+///    length), 0x05040005 more than kMaxSegmentedBytes.
 ///  - PDOs as their communication and mapping objects say (any number, any mapping of up to 64
 ///    bits): RPDOs of transmission type 0..240 take effect at the next SYNC, 254/255 at once;
 ///    TPDOs of type 1..240 are sampled and sent every n-th SYNC, type 0 at a SYNC when their data
@@ -107,6 +111,8 @@ struct AxisSample {
 class Cia402Drive {
  public:
   using Output = std::function<void(const can_frame&)>;
+  /// The longest value a segmented download may carry [bytes].
+  static constexpr std::size_t kMaxSegmentedBytes = 1024;
 
   Cia402Drive(const DriveConfig& config, Output output);
 
@@ -203,6 +209,14 @@ class Cia402Drive {
   void send_tpdo(ActivePdo& pdo, double now_s, bool only_if_changed);
   [[nodiscard]] std::uint64_t stored(std::uint16_t index, std::uint8_t sub) const;
   void upload_segment(const can_frame& frame);
+  /// A segmented download (CiA 301): its initiation, and each segment.
+  void initiate_download(const can_frame& frame, double now_s);
+  void download_segment(const can_frame& frame, double now_s);
+  /// Stores a downloaded value (a string, or a number of the object's length); 0 or an abort.
+  std::uint32_t store_download(std::uint16_t index, std::uint8_t sub, const std::string& data,
+                               double now_s);
+  /// The text of a string object: written by SDO, else the file's.
+  [[nodiscard]] std::string text_of(std::uint16_t index, std::uint8_t sub) const;
 
   DriveConfig config_;
   Output output_;
@@ -215,6 +229,16 @@ class Cia402Drive {
   std::size_t upload_at_ = 0;
   bool upload_toggle_ = false;
   bool uploading_ = false;
+  /// A segmented download in progress: its object, the bytes so far, the size announced (0:
+  /// none), the toggle bit the next segment must carry.
+  std::uint16_t download_index_ = 0;
+  std::uint8_t download_sub_ = 0;
+  std::string download_;
+  std::size_t download_size_ = 0;
+  bool download_toggle_ = false;
+  bool downloading_ = false;
+  /// String objects written by SDO (index << 8 | sub); the file's value until then.
+  std::map<std::uint32_t, std::string> texts_;
   std::uint32_t supported_modes_ = 0;
 
   canopen::NmtState nmt_ = canopen::NmtState::boot_up;
@@ -228,6 +252,8 @@ class Cia402Drive {
   std::int8_t mode_ = canopen::kModeCyclicSyncPosition;
   std::int32_t target_ = 0;
   bool target_valid_ = false;
+  /// Cyclic synchronous velocity: 0x60FF [counts/s], applied at each SYNC.
+  std::int32_t target_velocity_ = 0;
   // Interpolation from `from_` to `to_` starting at `segment_start_s_`.
   double from_ = 0.0;
   double to_ = 0.0;

@@ -45,8 +45,10 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "mrroc/can/bus.hpp"
@@ -61,6 +63,7 @@ struct MasterAxis {
   std::string name;                      ///< axis name, for messages
   std::uint8_t node = 1;                 ///< CANopen node id 1..127
   double counts_per_unit = 100000.0;     ///< encoder counts per rad (or m)
+  std::string unit = "rad";              ///< of the axis' positions: "rad" or "m", for messages
   double quick_stop_deceleration = 5.0;  ///< [units/s^2]
   double following_error_window = 0.2;   ///< [units]
   std::uint16_t following_error_timeout_ms = 10;
@@ -92,10 +95,15 @@ struct DriveStatus {
   std::uint16_t statusword = 0;
   canopen::DriveState state = canopen::DriveState::not_ready_to_switch_on;
   bool home_switch = false;
-  std::uint8_t input_lines = 0;             ///< the drive's 8 digital input lines (bit k = line k)
-  std::uint64_t last_tpdo_cycle = 0;        ///< cycle number of the last TPDO1 (position, inputs)
-  std::uint64_t last_statusword_cycle = 0;  ///< cycle number of the last TPDO2 (statusword)
+  std::uint8_t input_lines = 0;  ///< the drive's 8 digital input lines (bit k = line k)
+  /// cycle number of the last TPDO with the position (and the inputs, sampled with it)
+  std::uint64_t last_tpdo_cycle = 0;
+  std::uint64_t last_statusword_cycle = 0;  ///< cycle number of the last TPDO with the statusword
   std::uint16_t last_emcy = 0;
+  /// 0x606C velocity actual value [units/s], where a TPDO maps it (else 0).
+  double velocity_actual = 0.0;
+  /// 0x6077 torque actual value [per mille of the rated torque], where a TPDO maps it (else 0).
+  std::int16_t torque_actual = 0;
 };
 
 class Cia402Master {
@@ -115,7 +123,10 @@ class Cia402Master {
 
   /// Drains the bus; updates every drive's status; detects faults.
   void receive() noexcept;
-  /// One RPDO1 per drive with its target [units from the encoder's zero], then SYNC.
+  /// Each drive's RPDOs with its controlword and target [units from the encoder's zero] (and
+  /// its outputs when they changed or are due), then SYNC.
+  /// A target beyond the drive's position range (INTEGER32 counts) is a fault naming it, its
+  /// unit and the range; the drive holds its last target.
   /// While `quick_stop` is set the drives are told to quick-stop (targets are ignored by them);
   /// clearing it re-enables them (the caller must then send targets at the actual positions).
   void send(std::span<const double> targets, bool quick_stop) noexcept;
@@ -126,9 +137,9 @@ class Cia402Master {
   [[nodiscard]] std::uint8_t outputs(std::size_t axis) const noexcept { return outputs_[axis]; }
 
   [[nodiscard]] std::size_t axis_count() const noexcept { return axes_.size(); }
-  /// The drive has digital outputs the master drives (0x60FE mapped into its RPDO2).
+  /// The drive has digital outputs the master drives (0x60FE sub 1 mapped into an RPDO).
   [[nodiscard]] bool has_outputs(std::size_t axis) const noexcept {
-    return options_.digital_lines && axes_[axis].plan.outputs.has_value();
+    return options_.digital_lines && axes_[axis].plan.outputs;
   }
   [[nodiscard]] const DrivePlan& plan(std::size_t axis) const noexcept { return axes_[axis].plan; }
   /// What the last bring-up did to the drive, one line: "node 2 (axis 'lower_arm'): EMU-PP-3
@@ -141,6 +152,14 @@ class Cia402Master {
   [[nodiscard]] bool faulted() const noexcept { return faulted_; }
   [[nodiscard]] const char* fault_text() const noexcept { return fault_; }
   [[nodiscard]] std::uint64_t cycle() const noexcept { return cycle_; }
+  /// Cyclic synchronous velocity: the position correction's time constant, in cycles. Each
+  /// cycle's velocity is the targets' difference over the period plus (where the drive should
+  /// have been at the last SYNC - where it was) / (this many periods).
+  static constexpr int kCsvCorrectionCycles = 8;
+  /// Drives' velocity targets at the last `send` [counts/s] (cyclic synchronous velocity).
+  [[nodiscard]] std::int32_t velocity_counts(std::size_t axis) const noexcept {
+    return velocities_[axis];
+  }
   /// Drives' targets at the last `send` [counts]; for tests.
   [[nodiscard]] std::int32_t target_counts(std::size_t axis) const noexcept {
     return targets_[axis];
@@ -153,6 +172,13 @@ class Cia402Master {
   /// A value of any length (strings: 0x1008 device name, ...), segmented where it is longer than
   /// 4 bytes. @throws mrroc::HardwareError naming the abort code.
   std::string sdo_read_bytes(std::uint8_t node, std::uint16_t index, std::uint8_t subindex);
+  /// Writes a value of any length (strings, domains): expedited up to 4 bytes, else segmented
+  /// (CiA 301: initiate with the size, then segments of 7 bytes with alternating toggle bits).
+  /// @throws mrroc::HardwareError naming the object, the segment and the abort code; the client
+  /// aborts the transfer itself (0x05040000 time-out, 0x05030000 toggle bit) when the server
+  /// answers late or out of order.
+  void sdo_write_bytes(std::uint8_t node, std::uint16_t index, std::uint8_t subindex,
+                       std::string_view data);
 
  private:
   void handle(const Received& frame) noexcept;
@@ -169,16 +195,61 @@ class Cia402Master {
   /// Waits for one SDO response frame of `node` (other frames are handled meanwhile).
   bool sdo_frame(std::uint8_t node, can_frame& out);
   [[nodiscard]] std::string who(std::size_t axis) const;
-  [[nodiscard]] std::int32_t counts(std::size_t axis, double position) const noexcept;
+  /// A position [units] in counts, or nullopt outside the drives' INTEGER32 range.
+  [[nodiscard]] std::optional<std::int32_t> counts(std::size_t axis,
+                                                   double position) const noexcept;
+  /// A configured quantity in drive units, checked against the object's range.
+  /// @throws HardwareError naming the quantity, its value, unit and the limit.
+  [[nodiscard]] std::uint32_t unsigned_counts(std::size_t axis, const char* what, double value,
+                                              const char* unit, std::uint16_t index) const;
+  /// Decodes a TPDO of the axis' drive by its mapping (`handle`).
+  void decode_tpdo(std::size_t axis, std::size_t pdo, const can_frame& frame) noexcept;
+  /// The drive's statusword from a TPDO: its state, and a fault when it left operation enabled.
+  void on_statusword(std::size_t axis, std::uint16_t statusword) noexcept;
   void cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets);
   /// Sends the master's heartbeat when it is due (no allocation, no blocking).
   void heartbeat_if_due() noexcept;
 
+  /// What the master puts into an RPDO entry or takes from a TPDO entry.
+  enum class Role : std::uint8_t {
+    none,  ///< mapped by the config and not used by the servo loop: decoded and ignored
+    controlword,
+    target,
+    outputs,
+    statusword,
+    position,
+    inputs,
+    velocity,
+    torque,
+  };
+  struct Field {
+    Role role = Role::none;
+    std::uint8_t shift = 0;  ///< bit offset in the frame's data
+    std::uint8_t bits = 0;
+    bool is_signed = false;
+  };
+  /// One mapped PDO of a drive, laid out once (no allocation in the cycle).
+  struct Layout {
+    canid_t id = 0;
+    std::uint8_t bytes = 0;
+    bool cyclic = false;   ///< RPDO with the controlword or target: sent every cycle
+    bool outputs = false;  ///< RPDO with the digital outputs
+    std::vector<Field> fields;
+  };
+  [[nodiscard]] static std::vector<Layout> layouts(const DrivePlan& plan, bool receive);
+
   Bus& bus_;
   std::vector<MasterAxis> axes_;
+  std::vector<std::vector<Layout>> rpdo_layouts_;  ///< per axis
+  std::vector<std::vector<Layout>> tpdo_layouts_;  ///< per axis
   MasterOptions options_;
   std::vector<DriveStatus> status_;
   std::vector<std::int32_t> targets_;
+  /// Cyclic synchronous velocity: the velocity each drive gets [counts/s] (0 at bring-up, in a
+  /// quick stop, at re-enabling), and the last two position targets it came from [units].
+  std::vector<std::int32_t> velocities_;
+  std::vector<double> last_target_;
+  std::vector<double> target_before_;
   std::vector<std::int32_t> held_;     ///< bring-up / re-enable: targets at the actual positions
   std::vector<std::uint8_t> outputs_;  ///< digital output lines to send
   std::vector<std::int16_t> sent_outputs_;  ///< the lines last sent (-1: none yet)

@@ -21,6 +21,14 @@
 /// TPDOs do not load the bus. COB-IDs are the predefined connection set's (0x200 + node,
 /// 0x300 + node, 0x180 + node, 0x280 + node).
 ///
+/// The config may choose a drive's RPDOs or TPDOs instead (DriveRequest::pdos, the `can`
+/// plugin's `rpdo` and `tpdo` rows): each is checked against the file at its row (the PDO and
+/// the objects exist, the objects can be mapped, RPDO entries writable and TPDO entries
+/// readable, their widths, at most 64 bits, valid transmission types and COB-IDs), RPDOs map only
+/// what the master sends (controlword, the mode's target, digital outputs), and what the servo
+/// loop needs must be mapped somewhere (controlword and target; statusword, position actual and
+/// digital inputs, the last two every SYNC; the outputs when used).
+///
 /// Objects the master needs from every drive: 0x1000, 0x1016 sub 1, 0x1017, 0x6040, 0x6041,
 /// 0x6060, 0x6064, 0x60FD (home switch) and the target of the mode, all of them mappable where
 /// they are mapped; the PDO objects (0x1400/0x1600 x 1..2, 0x1800/0x1A00 x 1..2) with room for
@@ -33,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "mrroc/can/canopen.hpp"
 #include "mrroc/can/eds.hpp"
 #include "mrroc/core/error.hpp"
 
@@ -71,6 +80,7 @@ struct PdoPlan {
   std::uint8_t transmission = transmission::kSyncEvery;
   std::uint16_t event_timer_ms = 0;  ///< TPDO of type 254/255: sub 5 (0: none)
   std::vector<PdoEntry> entries;
+  SourceLocation where;  ///< the config's row that chose it (none: mrroc's own plan)
   [[nodiscard]] std::uint16_t communication_index() const noexcept {
     return static_cast<std::uint16_t>((receive ? 0x1400 : 0x1800) + number - 1);
   }
@@ -79,6 +89,18 @@ struct PdoPlan {
   }
   /// "RPDO1", "TPDO2"
   [[nodiscard]] std::string name() const;
+  /// Whether the PDO maps the object (any width).
+  [[nodiscard]] bool maps(std::uint16_t index, std::uint8_t sub = 0) const noexcept {
+    for (const PdoEntry& e : entries)
+      if (e.index == index && e.sub == sub) return true;
+    return false;
+  }
+  /// Its length on the bus [bytes]: the entries' bits rounded up.
+  [[nodiscard]] int bytes() const noexcept {
+    int bits = 0;
+    for (const PdoEntry& e : entries) bits += e.bits;
+    return (bits + 7) / 8;
+  }
 };
 
 struct DriveIdentity {
@@ -94,17 +116,41 @@ struct SdoWrite {
   std::uint64_t value = 0;
   std::uint8_t size = 0;  ///< bytes, from the object's type in the EDS
   SourceLocation where;   ///< in the config
+  /// A string or domain object's value (written segmented when longer than 4 bytes); `value`
+  /// and `size` are then unused.
+  std::optional<std::string> text;
 };
+
+/// One PDO as the config chooses it (the `rpdo` and `tpdo` rows of the `can` plugin): its
+/// entries replace mrroc's own mapping of the drive's RPDOs (or TPDOs).
+struct PdoRequest {
+  bool receive = false;  ///< RPDO or TPDO
+  int number = 1;        ///< 1..512
+  /// COB-ID: 0 picks the predefined connection set's (PDOs 1..4 only).
+  std::uint32_t cob_id = 0;
+  std::uint8_t transmission = transmission::kSyncEvery;
+  std::uint16_t event_timer_ms = 0;  ///< TPDOs of type 254/255 only
+  /// Entries; bits 0: the object's width from the file.
+  std::vector<PdoEntry> entries;
+  SourceLocation where;  ///< the row in the config
+};
+
+/// The longest text an SDO write of the config may carry [bytes].
+inline constexpr std::size_t kMaxSdoTextBytes = 1024;
 
 /// What the config asks of one drive.
 struct DriveRequest {
   std::uint8_t node = 1;
-  std::string axis;                 ///< for messages
-  std::optional<std::int8_t> mode;  ///< default: CSP if supported, else IP
-  bool outputs = true;              ///< use 0x60FE when the drive has it
+  std::string axis;  ///< for messages
+  /// CSP, IP or CSV; default: CSP if supported, else IP
+  std::optional<std::int8_t> mode;
+  bool outputs = true;  ///< use 0x60FE when the drive has it
   std::optional<DriveIdentity> identity;
   std::vector<SdoWrite> writes;  ///< index, sub and value; sizes filled in by plan_drive
-  SourceLocation where;          ///< of the drive's settings in the config
+  /// The config's own PDOs: when any RPDO (TPDO) is given, those are the drive's RPDOs (TPDOs)
+  /// and mrroc's own are not used; the other direction keeps mrroc's.
+  std::vector<PdoRequest> pdos;
+  SourceLocation where;  ///< of the drive's settings in the config
 };
 
 struct DrivePlan {
@@ -112,25 +158,48 @@ struct DrivePlan {
   std::uint8_t node = 1;
   std::string axis;
   std::int8_t mode = eds::mode::kCyclicSyncPosition;
-  PdoPlan target;                     ///< RPDO1
-  std::optional<PdoPlan> outputs;     ///< RPDO2, when the drive has 0x60FE and outputs are used
-  PdoPlan feedback;                   ///< TPDO1: position and inputs
-  PdoPlan statusword;                 ///< TPDO2
+  /// The object that takes the target: 0x607A (CSP), 0x60C1 sub 1 (IP) or 0x60FF (CSV: a
+  /// velocity, the master's from the servo loop's positions).
+  PdoEntry target{0x607A, 0, 32};
+  std::vector<PdoPlan> rpdos;         ///< mapped, in the order written (mrroc's: RPDO1, RPDO2)
+  std::vector<PdoPlan> tpdos;         ///< mapped (mrroc's: TPDO1, TPDO2)
   std::vector<PdoPlan> switched_off;  ///< every other PDO the drive has (entries empty)
+  /// 0x60FE sub 1 is mapped: the master drives the drive's output lines.
+  bool outputs = false;
   std::optional<DriveIdentity> identity;
   std::vector<SdoWrite> writes;
   /// Optional objects the drive has (the master writes them only then).
   bool has(std::uint16_t index, std::uint8_t sub = 0) const {
     return eds->entry(index, sub) != nullptr;
   }
-  /// The object that takes the position target (0x607A or 0x60C1 sub 1).
-  [[nodiscard]] PdoEntry target_entry() const { return target.entries.at(1); }
+  /// The object that takes the target (0x607A, 0x60C1 sub 1 or 0x60FF).
+  [[nodiscard]] PdoEntry target_entry() const { return target; }
+  /// The mapped PDO that carries the object, or null.
+  [[nodiscard]] const PdoPlan* pdo_with(std::uint16_t index, std::uint8_t sub = 0) const {
+    for (const auto* list : {&rpdos, &tpdos})
+      for (const PdoPlan& p : *list)
+        if (p.maps(index, sub)) return &p;
+    return nullptr;
+  }
 };
 
 /// Plans the drive and checks every object the master will touch against its file.
 /// @throws ConfigErrors with every problem, each naming the EDS `file:line` (or the config's
 /// location for a value the file does not have), the node and the object.
 DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequest& request);
+
+/// Checks that no two PDOs of the drives on one bus (one master) share a COB-ID, and that none
+/// uses an identifier CiA 301 reserves or mrroc's bus uses otherwise (NMT, SYNC, EMCY, SDO,
+/// heartbeat: 0x000..0x0FF, 0x101..0x180, 0x581..0x5FF, 0x601..0x67F, 0x6E0..0x7FF).
+/// @throws ConfigErrors naming both PDOs, their nodes and the config's rows.
+void check_pdo_identifiers(const std::vector<DrivePlan>& plans);
+
+/// The cyclic traffic of the planned drives on their bus: SYNC, each RPDO that carries the
+/// controlword or the target every cycle, output-only RPDOs every canopen::kOutputRefreshCycles,
+/// TPDOs of type n every n-th SYNC (type 0: every SYNC, the worst case), event-driven TPDOs at
+/// their event timer, the drives' heartbeats.
+canopen::BusLoad pdo_bus_load(const std::vector<DrivePlan>& plans, double period_s,
+                              double bitrate_bps, double heartbeat_period_s);
 
 /// An object of a drive: index and sub-index.
 struct ObjectId {
@@ -147,6 +216,12 @@ inline constexpr std::array<ObjectId, 9> kOptionalObjects{{{0x1006, 0},
                                                            {0x6085, 0},
                                                            {0x60C2, 1},
                                                            {0x60C2, 2}}};
+
+/// A value in drive units: `value` [rad, m, or per second, per second squared] times
+/// `counts_per_unit`, rounded to whole counts. Bounded before any cast.
+/// @returns nullopt when the product is not finite or lies outside [lowest, highest].
+std::optional<std::int64_t> to_drive_units(double value, double counts_per_unit,
+                                           std::int64_t lowest, std::int64_t highest) noexcept;
 
 /// The built-in description of mrroc's emulated drive (configs/drives/emu-csp.eds), for drives
 /// whose config names no file.

@@ -210,6 +210,76 @@ TEST_F(Hil, DemoRunsOverTheVirtualBusAgainstTheEmulator) {
   expect_clean_shutdown(r);
 }
 
+TEST_F(Hil, DemoRunsWithTheConfigsPdoMappingAndTwoDrivesInCyclicSynchronousVelocity) {
+  // The demo with PDOs the config chooses (the target before the controlword, the inputs before
+  // the position, the statusword on COB-IDs of the config's) and the two drives whose file lists
+  // cyclic synchronous velocity (emu-pp-split.eds, nodes 2 and 5) driven in it.
+  fs::path file = demo("mapped", "");
+  std::string text = read(file);
+  replace(text, "counts_per_unit = 100000",
+          "counts_per_unit = 100000\n"
+          "mode = [\"csp\", \"csv\", \"csp\", \"csp\", \"csv\"]\n"
+          "rpdo = [[1, 1, 0, 1, 0, 0x607A0020, 0x60400010], [1, 2, 0, 1, 0, 0x60FE0120],\n"
+          "        [2, 1, 0, 1, 0, 0x60FF0020, 0x60400010], [2, 2, 0, 1, 0, 0x60FE0120],\n"
+          "        [3, 1, 0, 1, 0, 0x607A0020, 0x60400010],\n"
+          "        [4, 1, 0, 1, 0, 0x607A0020, 0x60400010],\n"
+          "        [5, 1, 0, 1, 0, 0x60FF0020, 0x60400010], [5, 2, 0, 1, 0, 0x60FE0120]]\n"
+          "tpdo = [[0, 1, 0, 1, 0, 0x60FD0020, 0x60640020],\n"
+          "        [1, 2, 0x291, 255, 20, 0x6041], [2, 2, 0x292, 255, 20, 0x6041],\n"
+          "        [3, 2, 0x293, 255, 20, 0x6041], [4, 2, 0x294, 255, 20, 0x6041],\n"
+          "        [5, 2, 0x295, 255, 20, 0x6041]]");
+  std::ofstream(file) << text;
+  const mrroc::ProcessSetConfig config = mrroc::load_process_set(file);
+  const mrroc::RobotConfig& irb6 = config.robots.at(0);
+  const mrroc::RobotModel model = mrroc::load_robot_model(irb6.model_dir);
+  const auto poses = irb6.ecp.args.get_double_rows("poses");
+  mrroc::comm::Bus bus(config.lcm_url);
+  mrroc::test::StateWatch states(bus, "irb6");
+  bus.start();
+  const RunResult r = launch(file);
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // The same traffic as mrroc's own mapping: the same load.
+  EXPECT_TRUE(has(r.output, "5 drives, cycle 2 ms, 11 frames per cycle, bus load 56 % nominal"))
+      << r.output;
+  EXPECT_TRUE(has(r.output,
+                  "can: node 1 (axis 'column'): EMU-CSP-1 (emu-csp.eds), cyclic synchronous "
+                  "position; PDOs written: RPDO1, TPDO1, TPDO2; switched off: none"))
+      << r.output;
+  EXPECT_TRUE(has(r.output,
+                  "can: node 2 (axis 'lower_arm'): EMU-PP-3 (emu-pp-split.eds), cyclic "
+                  "synchronous velocity; PDOs written: RPDO1, RPDO2, TPDO1, TPDO2; switched "
+                  "off: TPDO3"))
+      << r.output;
+  EXPECT_TRUE(has(r.output, "robot 'irb6': all drives operation enabled")) << r.output;
+  for (std::size_t i = 1; i <= poses.size(); ++i)
+    EXPECT_TRUE(has(r.output,
+                    "pose " + std::to_string(i) + "/" + std::to_string(poses.size()) + " reached"))
+        << i << "\n"
+        << r.output;
+  EXPECT_TRUE(has(r.output, "task 'start_and_wait' finished")) << r.output;
+  EXPECT_FALSE(has(r.output, "no next macro-step")) << r.output;
+  EXPECT_FALSE(has(r.output, "refused")) << r.output;
+  const auto history = states.history();
+  ASSERT_GT(history.size(), 100u) << "robot states of the IRb-6's EDP";
+  const mrroc::test::MotionCheck motion =
+      mrroc::test::check_commanded_motion(history, model, irb6.edp.servo_period_s);
+  int moving = 0;
+  for (const auto& state : history)
+    if (state.max_speed > 1e-3) ++moving;
+  std::printf(
+      "IRb-6, config's PDOs, two drives in CSV: %d states, %d moving, commanded velocity up to "
+      "%.0f %% and acceleration up to %.0f %% of the limits\n",
+      motion.states, moving, motion.worst_velocity_share * 100,
+      motion.worst_acceleration_share * 100);
+  EXPECT_GT(moving, 100) << "states of the IRb-6 in motion";
+  const auto& last = history.back().q_desired;
+  ASSERT_EQ(last.size(), poses.back().size());
+  for (std::size_t j = 0; j < last.size(); ++j)
+    EXPECT_NEAR(last[j], poses.back()[j], 1e-3) << "joint " << j;
+  expect_clean_shutdown(r);
+}
+
 TEST_F(Hil, RntDemoRunsOnEmulatedDrivesWithinItsLimits) {
   const fs::path file = fs::path(MRROC_SOURCE_DIR) / "configs/demo-rnt-can.toml";
   const mrroc::ProcessSetConfig config = mrroc::load_process_set(file);

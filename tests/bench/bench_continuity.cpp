@@ -161,20 +161,25 @@ int main(int argc, char** argv) {
   int runs = 2;
   int loops = static_cast<int>(std::max(1L, sysconf(_SC_NPROCESSORS_ONLN)));
   std::vector<int> sweep;
+  bool smoke = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "-h" || a == "--help") {
       std::printf(
-          "bench_continuity [runs] [--sweep D1,D2,...] [--loops N]: B9, continuity under load.\n"
+          "bench_continuity [runs] [--sweep D1,D2,...] [--loops N] [--smoke]: B9, continuity "
+          "under load.\n"
           "Runs configs/tight-bar.toml and configs/engrave-rnt.toml RUNS times each (default 2)\n"
           "without load and with N CPU-bound busy loops beside them (default one per core),\n"
           "then the bar carry with its MP and with one ECP stopped for 50 ms mid-carry; counts\n"
           "the EDPs' standstills and reads the tasks' own error figures. --sweep runs both sets\n"
           "under load once per lookahead depth instead. Run inside scripts/netns-run.\n"
-          "Prints RESULT B9 and NOTE B9 (or SWEEP lines).\n");
+          "Prints RESULT B9 and NOTE B9 (or SWEEP lines). --smoke (a check that the benchmark\n"
+          "runs, tests/bench/smoke.py): one bar carry with its MP stopped, no load, no figure.\n");
       return 0;
     }
-    if (a == "--sweep" && i + 1 < argc) {
+    if (a == "--smoke") {
+      smoke = true;
+    } else if (a == "--sweep" && i + 1 < argc) {
       std::stringstream list(argv[++i]);
       std::string d;
       while (std::getline(list, d, ',')) {
@@ -226,6 +231,13 @@ int main(int argc, char** argv) {
   }
 
   Summary bar_idle, bar_load, engrave_idle, engrave_load, stopped_mp, stopped_ecp;
+  if (smoke) {
+    const Run mp = launch(launcher, bar, "mp", "carrying the bar", std::chrono::milliseconds(3500));
+    std::printf(
+        "RESULT B9 smoke=1 exit_code=%d paused=%d stop_stops=%d value_grip_mm=%.3f runs=1\n",
+        mp.exit_code, mp.paused ? 1 : 0, mp.standstills, mp.error_mm);
+    return mp.exit_code == 0 && mp.paused ? 0 : 1;
+  }
   for (int r = 0; r < runs; ++r) {
     add(bar_idle, launch(launcher, bar));
     add(engrave_idle, launch(launcher, engrave));

@@ -679,7 +679,10 @@ SetFigures run_process_set(const fs::path& bin, const fs::path& dir, double seco
     const double step_s = shape.steps * period_s;
     const auto cycles = static_cast<std::int64_t>(seconds / step_s);
     const double amplitude[5] = {0.2, 0.1, 0.0, 0.3, 0.4};
-    const double motion_period_s = 10.0;
+    // Whole periods of about 10 s: the motion ends at rest with the run, whatever its length (a
+    // run that ended mid-period stopped the arms with a last macro-step too abrupt to take).
+    const double motion_period_s =
+        seconds / std::max(1.0, std::round(static_cast<double>(seconds) / 10.0));
     const double late_interval_us = 2.0 * shape.steps * period_s * 1e6;
     std::atomic<bool> failed{false};
     auto robot_loop = [&](std::size_t r) {

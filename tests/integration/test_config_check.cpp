@@ -308,6 +308,7 @@ TEST(ConfigCheck, ChecksTheConfigsPdoMappingsAgainstTheFilesAtTheirRows) {
       "bus = \"virtual:irb6\"",
       "eds = \"" + drives + "emu-csp.eds\"",
       "digital_lines = false",
+      "sdo_text = [\"2 0x1008 0 lower arm\", \"3 0x2100 0 upper arm\", \"4 0x2100\"]",
       "rpdo = [[2, 1, 0, 1, 0, 0x60400010, 0x607A0020, 0x60410010]]  # read only",
       "tpdo = [",
       "  [3, 1, 0, 1, 0, 0x60640020, 0x60FD0020],",
@@ -354,6 +355,15 @@ TEST(ConfigCheck, ChecksTheConfigsPdoMappingsAgainstTheFilesAtTheirRows) {
            at("# node 5") +
                "node 5 (axis 'wrist_roll'): no TPDO of the config maps 0x6041 (Statusword), "
                "which mrroc reads to follow the drive's state",
+           at("sdo_text = ") +
+               "node 2 (axis 'lower_arm'): 0x1008 (Manufacturer device name) is "
+               "'const' (AccessType at " +
+               drives + "emu-csp.eds:",
+           at("sdo_text = ") + "node 3 (axis 'upper_arm'): " + drives +
+               "emu-csp.eds has no object 0x2100 to write",
+           at("sdo_text = ") +
+               "'sdo_text' entry \"4 0x2100\" is not \"node index sub text\" (node 0..127, 0: "
+               "every drive; index 0..0xFFFF; sub 0..255)",
            at("counts_per_unit = 1e9") +
                "'counts_per_unit' = 1e+09 counts/rad: axis 0 (column) spans 5.93412 rad of its "
                "range, 5.93412e+09 counts, beyond the drives' position range of 2147483647 "

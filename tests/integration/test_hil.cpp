@@ -213,12 +213,14 @@ TEST_F(Hil, DemoRunsOverTheVirtualBusAgainstTheEmulator) {
 TEST_F(Hil, DemoRunsWithTheConfigsPdoMappingAndTwoDrivesInCyclicSynchronousVelocity) {
   // The demo with PDOs the config chooses (the target before the controlword, the inputs before
   // the position, the statusword on COB-IDs of the config's) and the two drives whose file lists
-  // cyclic synchronous velocity (emu-pp-split.eds, nodes 2 and 5) driven in it.
+  // cyclic synchronous velocity (emu-pp-split.eds, nodes 2 and 5) driven in it; node 2 gets a
+  // label of 21 bytes at bring-up (segmented, read back: a drive that kept another is refused).
   fs::path file = demo("mapped", "");
   std::string text = read(file);
   replace(text, "counts_per_unit = 100000",
           "counts_per_unit = 100000\n"
           "mode = [\"csp\", \"csv\", \"csp\", \"csp\", \"csv\"]\n"
+          "sdo_text = [\"2 0x2100 0 lower arm, IRb-6 demo\"]\n"
           "rpdo = [[1, 1, 0, 1, 0, 0x607A0020, 0x60400010], [1, 2, 0, 1, 0, 0x60FE0120],\n"
           "        [2, 1, 0, 1, 0, 0x60FF0020, 0x60400010], [2, 2, 0, 1, 0, 0x60FE0120],\n"
           "        [3, 1, 0, 1, 0, 0x607A0020, 0x60400010],\n"

@@ -982,6 +982,19 @@ class LockstepBus final : public Bus {
   double now_ = 0.0;
 };
 
+/// Runs `cycles` master cycles on a LockstepBus, each with `targets(cycle)`, at most one a 2 ms
+/// of real time: simulated time never runs ahead of the real time that paces the master's
+/// heartbeat (every 10 ms of real time), however late the host runs this thread.
+template <typename F>
+void run_lockstep(Cia402Master& master, int cycles, F targets) {
+  for (int k = 0; k < cycles; ++k) {
+    master.receive();
+    const std::vector<double> t = targets(k);
+    master.send(t, false);
+    std::this_thread::sleep_for(2ms);
+  }
+}
+
 /// A motion's samples of one axis: the position the master read in each cycle.
 struct MotionCheck {
   /// Velocity over windows of `window` cycles; each window must advance by `min_step` in the
@@ -1078,7 +1091,7 @@ TEST(Cia402Master, DrivesWithThePdoMappingTheConfigChooses) {
   std::vector<std::vector<double>> seen(2);
   double velocity_reported = 0.0;
   double worst_tracking = 0.0;
-  run_cycles(master, kMove + 20, [&](int k) {
+  run_lockstep(master, kMove + 20, [&](int k) {
     for (std::size_t i = 0; i < 2; ++i) {
       seen[i].push_back(master.status(i).position);
       // The TPDO of the SYNC sent with target k - 1 shows the axis where target k - 2 put it,
@@ -1328,7 +1341,7 @@ TEST(Cia402Master, RunsAnIrb6MotionInCyclicSynchronousVelocity) {
   };
   std::vector<std::vector<double>> seen(5);
   double worst_tracking = 0.0;
-  run_cycles(master, kMove + 50, [&](int k) {
+  run_lockstep(master, kMove + 50, [&](int k) {
     for (std::size_t i = 0; i < 5; ++i) {
       seen[i].push_back(master.status(i).position);
       // The TPDO of the SYNC sent with target k - 1 shows the axis where target k - 2 put it.
@@ -1367,7 +1380,7 @@ TEST(Cia402Master, CyclicSynchronousVelocityCorrectsFromTheMeasuredPosition) {
   const double start = master.status(0).position;
   // A ramp at 0.1 rad/s for 0.4 s, then held: 0.04 rad.
   std::int32_t moving = 0;
-  run_cycles(master, 250, [&](int k) {
+  run_lockstep(master, 250, [&](int k) {
     if (k == 100) moving = master.velocity_counts(0);
     return std::vector<double>{start + 0.1 * 0.002 * std::min(k, 200)};
   });
@@ -1376,14 +1389,14 @@ TEST(Cia402Master, CyclicSynchronousVelocityCorrectsFromTheMeasuredPosition) {
   EXPECT_NEAR(master.status(0).position, start + 0.04, 1e-5);
   bus.slip(0, -0.001);  // the axis is 1 mrad behind (a slip, a load)
   std::int32_t largest = 0;
-  run_cycles(master, 4, [&](int) {
+  run_lockstep(master, 4, [&](int) {
     largest = std::max(largest, master.velocity_counts(0));
     return std::vector<double>{start + 0.04};
   });
   largest = std::max(largest, master.velocity_counts(0));
   // (1 mrad) / (8 cycles of 2 ms) = 62.5 mrad/s, the first cycle that sees the slip
   EXPECT_NEAR(largest, 6250, 100);
-  run_cycles(master, 150, [&](int) { return std::vector<double>{start + 0.04}; });
+  run_lockstep(master, 150, [&](int) { return std::vector<double>{start + 0.04}; });
   ASSERT_FALSE(master.faulted()) << master.fault_text();
   EXPECT_NEAR(master.status(0).position, start + 0.04, 1.5e-5);
   EXPECT_EQ(master.velocity_counts(0), 0);

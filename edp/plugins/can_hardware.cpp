@@ -559,7 +559,9 @@ class CanHardware final : public Hardware {
       for (std::size_t c = 0; c < axes && c < model.upper_limits.size(); ++c)
         reach += std::abs(s.coupling(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c))) *
                  (model.upper_limits[c] - model.lower_limits[c]);
-      if (!can::to_drive_units(reach, s.counts, INT32_MIN, INT32_MAX))
+      // A joint without finite limits (a continuous one) has no range to check here; its
+      // targets are checked as they are sent.
+      if (std::isfinite(reach) && !can::to_drive_units(reach, s.counts, INT32_MIN, INT32_MAX))
         throw ConfigError(
             params.location_of("counts_per_unit"),
             fmt::format("'counts_per_unit' = {:g} counts/{}: axis {} ({}) spans {:g} {} of its "

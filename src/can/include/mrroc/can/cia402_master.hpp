@@ -1,18 +1,19 @@
 #pragma once
 /// @file
 /// The master side of mrroc's drive protocol (canopen.hpp): brings a robot's CiA 402 drives on
-/// one CAN bus to operation enabled and streams cyclic synchronous positions to them.
+/// one CAN bus to operation enabled and streams cyclic synchronous positions to them (or, in
+/// cyclic synchronous velocity, velocities made from the positions: kCsvCorrectionCycles).
 ///
 /// Bring-up (`bring_up`, blocking, not for the servo loop), drive by drive, as each one's plan
 /// (drive_setup.hpp, from its EDS/DCF) says: NMT reset communication and its boot-up message;
 /// its device type (a CiA 402 drive) and, when the config gives one, its identity (0x1018);
 /// its PDOs mapped by SDO (each read first, written only where it differs, read back), the
-/// drive's other PDOs switched off; the mode (cyclic synchronous position, or interpolated
-/// position), the interpolation period (= the cycle), the following-error window and time, the
-/// quick-stop deceleration and the heartbeat time, where the drive has them; the config's own
-/// SDO writes; a drive in fault is reset. Then it starts the nodes (NMT) and steps the drives
-/// through shutdown -> switch on -> enable operation with the target held at each drive's actual
-/// position, so nothing moves.
+/// drive's other PDOs switched off; the mode (cyclic synchronous position, interpolated
+/// position or cyclic synchronous velocity), the interpolation period (= the cycle), the
+/// following-error window and time, the quick-stop deceleration and the heartbeat time, where the
+/// drive has them; the config's own SDO writes; a drive in fault is reset. Then it starts the nodes
+/// (NMT) and steps the drives through shutdown -> switch on -> enable operation with the target
+/// held at each drive's actual position, so nothing moves.
 ///
 /// Supervision (CiA 301/402): the master produces its own heartbeat (COB-ID 0x700 + `master_node`,
 /// every `master_heartbeat_ms`, from `send` and while waiting for SDO answers) and bring-up makes
@@ -30,6 +31,10 @@
 /// drive answers each SYNC with a TPDO1, so `receive` in the next cycle sees positions and
 /// digital inputs sampled at the last SYNC (one cycle old); its statusword comes in TPDO2, when
 /// it changes and every canopen::kStatuswordEventTimerMs (bring-up reads it first by SDO).
+/// That is mrroc's own mapping; with PDOs the config chooses (DriveRequest::pdos) the master
+/// encodes and decodes every PDO by its plan's mapping: each RPDO with the controlword or the
+/// target every cycle, one with only the outputs as RPDO2 above, and whatever TPDOs carry the
+/// statusword, the position, the inputs (and velocity and torque actual values, DriveStatus).
 ///
 /// Digital outputs (canopen.hpp), for the drives that have 0x60FE and unless
 /// `MasterOptions::digital_lines` is false: bring-up maps RPDO2, writes each such drive's output

@@ -140,19 +140,31 @@ std::string RunningSet::describe() const {
   return out;
 }
 
-std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::string>& robots) {
+std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::string>& robots,
+                                      std::vector<std::string>* ignored) {
   struct Heard {
     std::mutex mutex;
     std::string table;                        // from launch_status_t
     std::string announcer;                    // sender of stop announcements
     std::map<std::string, std::string> edps;  // robot -> sender
+    std::set<std::string> unauthenticated;    // what a set with a key does not believe
   } heard;
+  // With a key only what is signed with it counts: anybody could send a launcher's table or a
+  // robot's state and so keep the set from starting. What is not is listed, not acted on.
+  const bool keyed = bus.auth() != nullptr;
+  auto believed = [keyed, &heard](const comm::Received& in, const std::string& what) {
+    if (!keyed || in.authentic_unreported()) return true;
+    std::lock_guard lock(heard.mutex);
+    heard.unauthenticated.insert(fmt::format("{} from '{}'", what, in.header().sender));
+    return false;
+  };
   // Only listening: what does not decode is not the launcher's to report.
   const comm::SubscriberOptions quiet = comm::SubscriberOptions::unreported();
   std::optional<comm::Subscriber<LaunchStatus>> tables;
   tables.emplace(
       bus, channels::launch_status,
-      [&heard](const LaunchStatus& m, const comm::Received& in) {
+      [&heard, &believed](const LaunchStatus& m, const comm::Received& in) {
+        if (!believed(in, fmt::format("a launcher's table (set '{}')", m.set_name))) return;
         std::lock_guard lock(heard.mutex);
         heard.table = fmt::format(
             "a launcher (pid {}, '{}') runs set '{}' from {} (state {}, up {:.1f} s)",
@@ -162,8 +174,9 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
   std::optional<comm::Subscriber<EmergencyStop>> announcements;
   announcements.emplace(
       bus, channels::emergency_stop,
-      [&heard](const EmergencyStop& m, const comm::Received& in) {
+      [&heard, &believed](const EmergencyStop& m, const comm::Received& in) {
         if (m.action != EstopAction::engaged && m.action != EstopAction::released) return;
+        if (!believed(in, "an emergency stop announcement")) return;
         std::lock_guard lock(heard.mutex);
         heard.announcer = in.header().sender;
       },
@@ -172,7 +185,8 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
   for (const std::string& robot : robots)
     states.emplace_back(
         bus, channels::robot_state(robot),
-        [&heard](const RobotState& m, const comm::Received& in) {
+        [&heard, &believed](const RobotState& m, const comm::Received& in) {
+          if (!believed(in, fmt::format("the state of robot {}", m.robot))) return;
           std::lock_guard lock(heard.mutex);
           heard.edps[m.robot] = in.header().sender;
         },
@@ -199,6 +213,8 @@ std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::str
   announcements.reset();
   states.clear();
   std::lock_guard lock(heard.mutex);
+  if (ignored != nullptr)
+    ignored->assign(heard.unauthenticated.begin(), heard.unauthenticated.end());
   if (heard.table.empty() && heard.announcer.empty() && heard.edps.empty()) return std::nullopt;
   RunningSet out;
   out.launcher =

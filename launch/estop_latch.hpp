@@ -84,7 +84,10 @@ inline constexpr std::chrono::milliseconds kRunningSetNameWait{1100};
 
 /// Listens on the (started) bus for a running set, sending nothing: another launcher's table
 /// (launch_status_t) or stop announcements, or robot_state_t of one of `robots`. Nothing when
-/// the URL is quiet.
-std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::string>& robots);
+/// the URL is quiet. On a bus with a key (comm::Bus::auth) only messages signed with it count:
+/// the others cannot keep a set from starting; they are listed in `ignored` (what and from
+/// whom, e.g. "the state of robot irb6 from 'edp/irb6#7'") when it is given.
+std::optional<RunningSet> running_set(comm::Bus& bus, const std::vector<std::string>& robots,
+                                      std::vector<std::string>* ignored = nullptr);
 
 }  // namespace mrroc::launch

@@ -15,6 +15,12 @@ namespace mrroc::launch {
 
 namespace fs = std::filesystem;
 
+bool declares_real_devices(std::string_view declaration) {
+  constexpr std::string_view real = " drives real devices";
+  return declaration.size() >= real.size() &&
+         declaration.substr(declaration.size() - real.size()) == real;
+}
+
 std::string shell_quote(std::string_view word) {
   const bool safe = !word.empty() && std::all_of(word.begin(), word.end(), [](char ch) {
     return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
@@ -48,11 +54,15 @@ std::string_view remote_stop_script() {
 std::vector<std::string> host_command(const HostConfig& host, const std::vector<std::string>& env,
                                       const std::vector<std::string>& command,
                                       const RemoteStop& stop) {
-  const bool ssh = is_ssh_command(host.command);
-  // ssh: "--" before the destination (the last word with "{host}"), unless there is one.
+  // ssh in any word: a wrapper in front of it (sudo, env) does not change what ssh does.
+  const std::size_t ssh_at = ssh_word(host.command);
+  const bool ssh = ssh_at < host.command.size();
+  // ssh: "--" before the destination (the last word with "{host}" after ssh's), unless ssh's
+  // words have one.
   std::size_t destination = host.command.size();
-  if (ssh && std::find(host.command.begin(), host.command.end(), "--") == host.command.end())
-    for (std::size_t i = 0; i < host.command.size(); ++i)
+  const auto ssh_words = host.command.begin() + static_cast<std::ptrdiff_t>(ssh ? ssh_at : 0);
+  if (ssh && std::find(ssh_words, host.command.end(), "--") == host.command.end())
+    for (std::size_t i = ssh_at + 1; i < host.command.size(); ++i)
       if (host.command[i].find("{host}") != std::string::npos) destination = i;
   std::vector<std::string> argv;
   for (std::size_t i = 0; i < host.command.size(); ++i) {
@@ -94,6 +104,53 @@ fs::path log_file_of(const fs::path& log_dir, const std::string& name) {
   std::string file = name;
   std::replace(file.begin(), file.end(), '/', '_');
   return log_dir / (file + ".log");
+}
+
+int lcm_url_ttl(const std::string& url) {
+  const std::size_t query = url.find('?');
+  if (query == std::string::npos) return 0;
+  std::size_t at = query + 1;
+  while (at < url.size()) {
+    std::size_t end = url.find('&', at);
+    if (end == std::string::npos) end = url.size();
+    const std::string_view item = std::string_view(url).substr(at, end - at);
+    if (item.rfind("ttl=", 0) == 0) {
+      int ttl = 0;
+      const std::string_view digits = item.substr(4);
+      for (const char ch : digits) {
+        if (ch < '0' || ch > '9') return 1;  // not a number LCM reads: assume it leaves the host
+        ttl = std::min(ttl * 10 + (ch - '0'), 255);
+      }
+      return ttl;
+    }
+    at = end + 1;
+  }
+  return 0;
+}
+
+std::string unprotected_network_warning(const ProcessSetConfig& config) {
+  if (!config.auth_key_file.empty()) return {};
+  const std::string url = comm::resolve_lcm_url(config.lcm_url);
+  const int ttl = lcm_url_ttl(url);
+  std::vector<std::string> reasons;
+  if (ttl > 0)
+    reasons.push_back(
+        fmt::format("its LCM URL {} has ttl={} (its messages leave this computer)", url, ttl));
+  if (!config.launch.hosts.empty()) {
+    std::string names;
+    for (const auto& h : config.launch.hosts) names += (names.empty() ? "" : ", ") + h.name;
+    reasons.push_back(
+        fmt::format("it runs processes on other computers ([[launch.host]] {})", names));
+  }
+  if (reasons.empty()) return {};
+  std::string why = reasons[0];
+  if (reasons.size() > 1) why += " and " + reasons[1];
+  return fmt::format(
+      "warning: set '{}' ({}) has no [system] auth_key_file, but {}: anyone on that network can "
+      "start and stop its task, move its robots, release an emergency stop and forge their "
+      "states. Give it a key: openssl rand -hex 32 > set.key; chmod 600 set.key; auth_key_file "
+      "= \"set.key\" in [system] (docs/configs.md)",
+      config.name, config.file.string(), why);
 }
 
 std::string signal_text(int signal) {
@@ -139,9 +196,7 @@ std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const Plan
     add("vsp/" + v.name, v.options, {exe("mrroc-vsp"), "--config", cfg, "--vsp", v.name});
   for (const auto& r : config.robots) {
     add("edp/" + r.name, r.edp.options, {exe("mrroc-edp"), "--config", cfg, "--robot", r.name});
-    if (r.edp.plugin == "can")
-      plan.back().restart_needs_ack =
-          fmt::format("plugin 'can', drives on {}", r.edp.params.get_string("bus", "?"));
+    plan.back().edp = true;
   }
   for (const auto& r : config.robots)
     add("ecp/" + r.name, r.ecp.options, {exe("mrroc-ecp"), "--config", cfg, "--robot", r.name});

@@ -26,10 +26,14 @@ struct PlannedProcess {
   bool reports_ready = true;
   /// The process' own command line (before host templating).
   std::vector<std::string> command;
-  /// Not empty for an EDP on CiA 402 drives ([robot.edp] plugin = "can"): what drives it runs,
-  /// e.g. "plugin 'can', drives on socketcan:can0". Its restart policy then waits, after each
-  /// end, for an operator's acknowledgement (`mrroc-ui restart`) before the back-off starts.
-  std::string restart_needs_ack;
+  /// True for an EDP. Its restart policy waits, after each end, for an operator's
+  /// acknowledgement (`mrroc-ui restart`) before the back-off starts when its hardware plugin
+  /// declares that it drives real devices (edp::Hardware::drives_real_devices), which the EDP
+  /// says in its ready status and in `--check-config`, and when it said nothing.
+  bool edp = false;
+  /// The EDP's declaration when known, e.g. "plugin 'can' drives real devices" (--check fills
+  /// it from the EDP's --check-config; a running set from its ready status).
+  std::string devices;
   /// What the supervisor runs: the command, for another host wrapped in its start command with
   /// the environment in front (`env NAME=value ... program args`); log file, stop signal and
   /// grace period filled in.
@@ -47,6 +51,10 @@ struct PlanOptions {
 /// [ui] web = true), mp. Stopping goes in reverse order.
 /// @throws mrroc::Error when a process names an unknown host (load_process_set checks that).
 std::vector<PlannedProcess> make_plan(const ProcessSetConfig& config, const PlanOptions& options);
+
+/// Whether an EDP's declaration ("plugin 'X' drives real devices" / "... drives no real
+/// devices", PlannedProcess::devices) says that it drives real devices.
+bool declares_real_devices(std::string_view declaration);
 
 /// `word` quoted for a POSIX shell (unchanged when it has only safe characters).
 std::string shell_quote(std::string_view word);
@@ -81,6 +89,15 @@ std::vector<std::string> host_command(const HostConfig& host, const std::vector<
 
 /// The log file of a process: log_dir/<name with '/' as '_'>.log ("edp/irb6" -> edp_irb6.log).
 std::filesystem::path log_file_of(const std::filesystem::path& log_dir, const std::string& name);
+
+/// The multicast TTL of an LCM URL's `ttl=N` parameter (0 when it has none: LCM's default).
+int lcm_url_ttl(const std::string& url);
+
+/// A warning when the set's messages can reach other computers (`ttl` > 0 in its LCM URL, or a
+/// [[launch.host]]) while it has no [system] auth_key_file: then anyone on that network can
+/// command its processes, release an emergency stop and forge their states. Empty otherwise.
+/// `mrroc-launch` prints it at every start and with --check.
+std::string unprotected_network_warning(const ProcessSetConfig& config);
 
 /// "SIGTERM", "SIGINT", ... (or "signal N").
 std::string signal_text(int signal);

@@ -9,6 +9,7 @@
 #include <ctime>
 #include <string>
 #include <system_error>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -18,10 +19,11 @@ namespace mrroc::launch {
 
 namespace fs = std::filesystem;
 
-LogFile::LogFile(fs::path path, std::uintmax_t max_bytes, int keep)
+LogFile::LogFile(fs::path path, std::uintmax_t max_bytes, int keep, std::chrono::milliseconds retry)
     : path_(std::move(path)),
       max_bytes_(max_bytes < 1 ? 1 : max_bytes),
-      keep_(keep < 0 ? 0 : keep) {
+      keep_(keep < 0 ? 0 : keep),
+      retry_(retry) {
   std::error_code ec;
   // A folder made here is its owner's alone (0700): the logs may hold what the processes print,
   // a generated console token among it. A folder that exists keeps its permissions.
@@ -70,17 +72,41 @@ void LogFile::rotate() {
   }
   if (ec) ++errors_;
   ++rotations_;
-  try {
-    open();
-  } catch (const Error&) {
-    ++errors_;
-  }
+  lost_since_failure_ = 0;
+  (void)reopen();
 }
+
+bool LogFile::reopen() {
+  next_try_ = std::chrono::steady_clock::now() + retry_;
+  try {
+    // A folder removed while the set ran is made again, its owner's alone as at the start.
+    std::error_code ec;
+    if (path_.has_parent_path() && !fs::exists(path_.parent_path(), ec) &&
+        fs::create_directories(path_.parent_path(), ec))
+      fs::permissions(path_.parent_path(), fs::perms::owner_all, ec);
+    open();
+  } catch (const Error& e) {
+    ++errors_;
+    if (lost_since_failure_ == 0 && !notice_)
+      notice_ = fmt::format("{}; its lines are lost until it opens (tried again every {:.1f} s)",
+                            e.what(), std::chrono::duration<double>(retry_).count());
+    return false;
+  }
+  if (lost_since_failure_ > 0)
+    notice_ = fmt::format("the log file '{}' is open again ({} line{} lost)", path_.string(),
+                          lost_since_failure_, lost_since_failure_ == 1 ? "" : "s");
+  lost_since_failure_ = 0;
+  return true;
+}
+
+std::optional<std::string> LogFile::take_notice() { return std::exchange(notice_, std::nullopt); }
 
 void LogFile::write_line(std::string_view line) {
   if (fd_ >= 0 && size_ >= max_bytes_) rotate();
-  if (fd_ < 0) {
+  if (fd_ < 0 && (std::chrono::steady_clock::now() < next_try_ || !reopen())) {
     ++errors_;
+    ++lost_lines_;
+    ++lost_since_failure_;
     return;
   }
   timespec now{};

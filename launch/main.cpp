@@ -110,7 +110,16 @@ class ReadyWatch {
   void on_status(const ProcessStatus& s) {
     std::lock_guard lock(mutex_);
     seen_[s.process] = {s.state, Clock::now()};
+    if (s.state == ProcessState::ready && !s.detail.empty()) declared_[s.process] = s.detail;
     cv_.notify_all();
+  }
+  /// The detail of the last ready status of `process` (an EDP's: what its plugin drives, e.g.
+  /// "plugin 'can' drives real devices"); empty when none came. The launcher's listener takes
+  /// only authentic statuses when the set has a key.
+  std::string declaration(const std::string& process) {
+    std::lock_guard lock(mutex_);
+    auto it = declared_.find(process);
+    return it == declared_.end() ? std::string() : it->second;
   }
   /// The state `process` reported (other than "starting") after `since`; nothing if there is
   /// none yet. (A restarted process is started after its predecessor was reaped, so what
@@ -146,6 +155,7 @@ class ReadyWatch {
   std::mutex mutex_;
   std::condition_variable cv_;
   std::map<std::string, Seen> seen_;
+  std::map<std::string, std::string> declared_;
 };
 
 int describe_exit(const launch::ChildExit& e) {
@@ -212,7 +222,13 @@ void print_plan(const ProcessSetConfig& config, const std::vector<PlannedProcess
       restart += fmt::format(
           " (at most {}, back-off from {:.1f} s{})", p.options.max_restarts,
           p.options.restart_backoff_s,
-          p.restart_needs_ack.empty() ? "" : ", each after an operator's acknowledgement");
+          !p.edp ? ""
+          : p.devices.empty()
+              ? ", each after an operator's acknowledgement unless its plugin declares that it "
+                "drives no real devices"
+          : launch::declares_real_devices(p.devices)
+              ? fmt::format(", each after an operator's acknowledgement ({})", p.devices)
+              : "");
     std::cout << fmt::format(
         "     group {}, host {}, restart {}, {}, stop {} then SIGKILL after {:.1f} s, log {}\n",
         p.group, p.host, p.name == "mp" ? "never (its end is the end of the task)" : restart,
@@ -338,9 +354,9 @@ class ErrorReport {
 /// --check: every process that checks its own config (emulator, EDPs, ECPs, VSPs, MP) runs its
 /// `--check-config` here, the same code it runs at start (docs/configs.md, "When each part is
 /// checked"); their errors join `report`.
-void check_processes(const ProcessSetCheck& set, const std::vector<PlannedProcess>& plan,
+void check_processes(const ProcessSetCheck& set, std::vector<PlannedProcess>& plan,
                      ErrorReport& report) {
-  for (const auto& p : plan) {
+  for (auto& p : plan) {
     if (!checks_own_config(p) || set.broken_process(p.name)) continue;
     if (!program_exists(p.command[0])) continue;  // reported already
     std::vector<std::string> argv = p.command;
@@ -357,6 +373,9 @@ void check_processes(const ProcessSetCheck& set, const std::vector<PlannedProces
         report.add(line);
         any = true;
       }
+      // mrroc-edp: "...: config is valid; plugin 'can' drives real devices".
+      if (const std::size_t at = line.find(": config is valid; "); p.edp && at != std::string::npos)
+        p.devices = line.substr(at + 19);
     }
     if (code != 0 && !any)
       report.add(fmt::format("mrroc-launch: {}: '{} --check-config' ended with code {}: {}", p.name,
@@ -396,6 +415,12 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   }
 
   print_plan(config, plan, check_only);
+  // At every start (and with --check): a set reachable from the network without a key.
+  if (const std::string warning = launch::unprotected_network_warning(config); !warning.empty()) {
+    std::cout.flush();
+    std::fprintf(stderr, "%smrroc-launch: %s\n", check_only ? "" : stamp().c_str(),
+                 warning.c_str());
+  }
   if (check_only) {
     std::cout << "mrroc-launch: config is valid (--check: nothing started)\n";
     return 0;
@@ -411,7 +436,17 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   // One process set per LCM URL: listen (sending nothing) for a set that runs there already.
   std::vector<std::string> robot_names;
   for (const auto& r : config.robots) robot_names.push_back(r.name);
-  if (const auto other = launch::running_set(bus, robot_names)) {
+  std::vector<std::string> ignored;
+  const auto other = launch::running_set(bus, robot_names, &ignored);
+  if (!ignored.empty()) {
+    std::string list;
+    for (const auto& i : ignored) list += (list.empty() ? "" : "; ") + i;
+    std::fprintf(stderr,
+                 "%smrroc-launch: warning: unauthenticated messages on LCM %s, not signed with "
+                 "the set's key (ignored: they do not keep the set from starting): %s\n",
+                 stamp().c_str(), bus.url().c_str(), list.c_str());
+  }
+  if (other) {
     const std::string at = stamp();
     std::fprintf(stderr,
                  "%smrroc-launch: refusing to start set '%s' (%s): another process set runs on "
@@ -576,15 +611,20 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
         const RestartPolicy policy = p.options.restart;
         const bool wants_restart =
             policy == RestartPolicy::always || (policy == RestartPolicy::on_failure && code != 0);
-        if (wants_restart && rt[i].restarts < p.options.max_restarts &&
-            !p.restart_needs_ack.empty()) {
-          // Drives that a restarted EDP would enable again: only when an operator agrees.
+        // An EDP whose plugin drives real devices (or did not say): a restarted one would
+        // enable them again, so only when an operator agrees.
+        const std::string declared = p.edp ? ready.declaration(p.name) : std::string();
+        if (wants_restart && rt[i].restarts < p.options.max_restarts && p.edp &&
+            (declared.empty() || launch::declares_real_devices(declared))) {
           rt[i].held = true;
           board.update(p.name, [](launch::ProcessRow& r) { r.state = "held"; });
           const std::string text = fmt::format(
               "{} ({}) ended while the task was running (code {}); not restarted until an "
               "operator acknowledges: mrroc-ui restart -c {} {}",
-              p.name, p.restart_needs_ack, code, ui_config, p.name);
+              p.name,
+              declared.empty() ? "its plugin never declared whether it drives real devices"
+                               : declared,
+              code, ui_config, p.name);
           supervisor.log("mrroc-launch: " + text);
           srp_warning(p.name.substr(p.name.find('/') + 1), text);
           continue;

@@ -352,7 +352,11 @@ struct Supervisor::Impl {
   void format_line(const Child& c, const Stream& s, std::string_view line,
                    std::string& batch) const {
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (c.log) c.log->write_line(line);
+    if (c.log) {
+      c.log->write_line(line);
+      if (const auto notice = c.log->take_notice())
+        add_line(batch, fmt::format("mrroc-launch: {}: {}", c.name, *notice));
+    }
     if (!shows_on_console(c.name, s.is_stderr, line, report_printer != nullptr)) return;
     fmt::format_to(std::back_inserter(batch), "{} {:<{}} {}\n", format_utime(now_utime()),
                    fmt::format("[{}]", c.name), name_width + 2, line);

@@ -25,6 +25,7 @@ class MockHardware : public Hardware {
   std::string name() const override { return "mock"; }
   std::size_t axis_count() const override { return axes_; }
   bool simulated() const override { return true; }
+  bool drives_real_devices() const override { return false; }
 
   void configure(const HardwareSetup& setup) override {
     const Params& params = setup.params;  // not a copy: a check's sink of unknown keys is kept

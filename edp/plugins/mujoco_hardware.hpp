@@ -94,6 +94,7 @@ class MujocoHardware : public Hardware {
   [[nodiscard]] std::string name() const override { return "mujoco"; }
   /// Simulated time advances one servo period per write(): lock-step capable.
   [[nodiscard]] bool simulated() const override { return true; }
+  [[nodiscard]] bool drives_real_devices() const override { return false; }
   [[nodiscard]] std::size_t axis_count() const override { return axes_; }
 
   void configure(const HardwareSetup& setup) override;

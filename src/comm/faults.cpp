@@ -22,8 +22,8 @@ LinkFaults link_faults_from_environment() {
     if (!told.exchange(true))
       std::fprintf(stderr,
                    "MRROC_LINK_FAULTS is ignored: this build has no link fault injection (a "
-                   "testing aid: cmake -DMRROC_LINK_FAULT_INJECTION=ON, the default with the "
-                   "tests)\n");
+                   "testing aid, only in a build configured with "
+                   "-DMRROC_LINK_FAULT_INJECTION=ON)\n");
     return faults;
   }
   std::stringstream all(text);

@@ -478,11 +478,11 @@ class Reader {
   }
 
   /// "n" or "f" when the ssh command line `command` gives option -n or -f (stdin from
-  /// /dev/null), else "". Options with an argument (-o X, -oX, -p 22, ...) are skipped; the
-  /// scan ends at "--" or at the first word that is not an option.
+  /// /dev/null) after its ssh word, else "". Options with an argument (-o X, -oX, -p 22, ...) are
+  /// skipped; the scan ends at "--" or at the first word that is not an option.
   static std::string ssh_option_without_input(const std::vector<std::string>& command) {
     constexpr std::string_view with_argument = "BbcDEeFIiJLlmOoPpQRSWw";
-    for (std::size_t i = 1; i < command.size(); ++i) {
+    for (std::size_t i = ssh_word(command) + 1; i < command.size(); ++i) {
       const std::string& word = command[i];
       if (word == "--" || word.size() < 2 || word[0] != '-') break;
       for (std::size_t k = 1; k < word.size(); ++k) {
@@ -721,11 +721,18 @@ bool is_loopback(std::string_view host) {
   return inet_pton(AF_INET6, text.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
 }
 
+std::size_t ssh_word(const std::vector<std::string>& command) {
+  for (std::size_t i = 0; i < command.size(); ++i) {
+    const std::string& word = command[i];
+    const std::size_t slash = word.rfind('/');
+    if (std::string_view(word).substr(slash == std::string::npos ? 0 : slash + 1) == "ssh")
+      return i;
+  }
+  return command.size();
+}
+
 bool is_ssh_command(const std::vector<std::string>& command) {
-  if (command.empty()) return false;
-  const std::string& program = command.front();
-  const std::size_t slash = program.rfind('/');
-  return std::string_view(program).substr(slash == std::string::npos ? 0 : slash + 1) == "ssh";
+  return ssh_word(command) < command.size();
 }
 
 bool is_valid_host_address(std::string_view address) {

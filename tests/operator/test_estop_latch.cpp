@@ -3,17 +3,22 @@
 // started by mrroc-launch in the test's own network namespace (scripts/netns-run).
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <mutex>
 #include <regex>
+#include <thread>
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/edge.hpp"
+#include "mrroc/comm/messages.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/time.hpp"
 #include "mrroc/msg/emergency_stop.hpp"
-#include "mrroc_build_options.hpp"
+#include "mrroc/msg/launch.hpp"
+#include "mrroc/msg/robot_state.hpp"
 #include "mrroc_lcm/robot_state_t.hpp"
 #include "operator_helpers.hpp"
 
@@ -93,18 +98,21 @@ TEST(EstopLatch, UnconfirmedStopIsLoudAndARestartedEdpStaysStoppedUntilRelease) 
   ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
   ASSERT_TRUE(has(launch.output(), "emergency stop released (heard after")) << launch.output();
 
-  // Every datagram of the ENGAGE dropped: nobody stops, and mrroc-ui says so (exit 4).
-  if (mrroc::kLinkFaultInjection) {
-    auto [dropped_code, dropped] = run({"env", "MRROC_LINK_FAULTS=drop=0.9999999,seed=1", ui(),
-                                        "estop", "--config", config.string()});
-    std::printf("%s", dropped.c_str());
-    EXPECT_EQ(dropped_code, 4) << dropped;
-    EXPECT_TRUE(has(dropped, "NOT CONFIRMED by irb6 within 500 ms")) << dropped;
+  // A stop that reaches no robot (sent on another LCM URL, as if every datagram were lost):
+  // nobody stops, and mrroc-ui says so (exit 4).
+  {
+    std::string text = slurp(config);
+    text.replace(text.find(kUrl), std::string(kUrl).size(), "udpm://239.255.76.67:7668?ttl=0");
+    const fs::path elsewhere = config.parent_path() / "elsewhere.toml";
+    std::ofstream(elsewhere) << text;
+    auto [lost_code, lost] = run({ui(), "estop", "--config", elsewhere.string()});
+    std::printf("%s", lost.c_str());
+    EXPECT_EQ(lost_code, 4) << lost;
+    EXPECT_TRUE(has(lost, "NOT CONFIRMED by irb6 within 500 ms")) << lost;
+    EXPECT_TRUE(has(lost, "NOT LATCHED")) << lost;
     const auto recent = states.since(states.count() > 5 ? states.count() - 5 : 0);
     ASSERT_FALSE(recent.empty()) << "no robot_state_t of irb6 heard";
     EXPECT_FALSE(recent.back().estop);
-  } else {
-    std::printf("the unconfirmed stop is not run: built with MRROC_LINK_FAULT_INJECTION=OFF\n");
   }
 
   // The confirmed path: exit 0, confirmed from the robot's state, latched by the launcher.
@@ -284,4 +292,121 @@ TEST(OneSetPerUrl, ASecondLaunchAndASecondEdpRefuseAndTheFirstSetFinishes) {
   // A fatal report of the EDP: the SRP's line, or the EDP's own when the SRP is not running.
   EXPECT_FALSE(std::regex_search(all, std::regex("edp/irb6:? +fatal"))) << all;
   EXPECT_EQ(leftovers(), "");
+}
+
+// With a key, what is not signed with it cannot keep a set from starting: a stranger on the URL
+// sends a launcher's table and robot_state_t of the set's robot, unsigned, all the time the set
+// starts. The launcher says it ignored them, the EDP starts (its own check for another EDP
+// ignores them too) and the task finishes.
+TEST(OneSetPerUrl, UnauthenticatedTablesAndStatesDoNotBlockAKeyedSet) {
+  const fs::path dir = temp_dir("keyed-oneset");
+  const fs::path key = dir / "set.key";
+  std::ofstream(key) << "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n";
+  fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
+  std::string text = slurp(kSource / "configs/demo-irb6.toml");
+  text.replace(text.find("\"../robots/irb6\""), 16,
+               "\"" + (kSource / "robots/irb6").string() + "\"");
+  text.replace(text.find("[system]\n"), 9, "[system]\nauth_key_file = \"" + key.string() + "\"\n");
+  const fs::path config = dir / "demo-irb6.toml";
+  std::ofstream(config) << text;
+
+  mrroc::comm::Bus stranger(kUrl);  // no key
+  stranger.start();
+  std::atomic<bool> forging{true};
+  std::thread forger([&] {
+    mrroc::launch::LaunchStatus table;
+    table.set_name = "demo-irb6";
+    table.config_file = config.string();
+    table.state = "running";
+    table.launcher_pid = 4242;
+    mrroc::RobotState state;
+    state.robot = "irb6";
+    state.servo_period_s = 0.002;
+    state.q.assign(5, 0.0);
+    state.dq.assign(5, 0.0);
+    state.q_desired.assign(5, 0.0);
+    for (std::int64_t seq = 1; forging.load(); ++seq) {
+      const mrroc::comm::Envelope header{mrroc::now_utime(), "stranger#1", seq};
+      mrroc::comm::broadcast(stranger, mrroc::channels::launch_status, header, table);
+      state.servo_step = seq;
+      mrroc::comm::broadcast(stranger, mrroc::channels::robot_state("irb6"), header, state);
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
+  Background set({launcher(), config.string()});
+  // Through the launcher's listen and the EDP's start.
+  const bool running = set.wait_for("task running", 60s).has_value();
+  forging.store(false);
+  forger.join();
+  stranger.stop();
+  ASSERT_TRUE(running) << set.output();
+  EXPECT_EQ(set.wait(120s), 0) << set.output();
+  const std::string out = set.output();
+  EXPECT_FALSE(has(out, "refusing to start")) << out;
+  EXPECT_FALSE(has(out, "another EDP of robot")) << out;
+  EXPECT_TRUE(has(out, "mrroc-launch: warning: unauthenticated messages on LCM " +
+                           std::string(kUrl) +
+                           ", not signed with the set's key (ignored: they "
+                           "do not keep the set from starting): "))
+      << out;
+  EXPECT_TRUE(has(out, "a launcher's table (set 'demo-irb6') from 'stranger#1'")) << out;
+  EXPECT_TRUE(has(out, "the state of robot irb6 from 'stranger#1'")) << out;
+  EXPECT_TRUE(has(out, "pose 3/3 reached")) << out;
+  EXPECT_EQ(leftovers(), "");
+  fs::remove_all(dir);
+}
+
+// With a key, mrroc-ui needs it as the console does: the same commands from a copy of the config
+// without the key (what anyone on the network can send) start nothing and release nothing,
+// while the operator's, signed with the key, do. A stop is taken from anybody.
+TEST(EstopLatch, CommandsWithoutTheKeyAreRefusedByAKeyedSet) {
+  const fs::path config = idle_irb6_config("keyed-commands", "");
+  const fs::path key = config.parent_path() / "set.key";
+  std::ofstream(key) << "0123456789abcdef0123456789abcdef0123456789abcdef0123456789abcdef\n";
+  fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
+  const std::string text = slurp(config);
+  std::string keyed = text;
+  keyed.replace(keyed.find("[system]\n"), 9,
+                "[system]\nauth_key_file = \"" + key.string() + "\"\n");
+  std::ofstream(config) << keyed;
+  const fs::path stranger = config.parent_path() / "no-key.toml";
+  std::ofstream(stranger) << text;
+
+  States states;
+  Background launch({launcher(), config.string()});
+  ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
+
+  // START without the key: the MP drops it (no answer), the task stays IDLE.
+  auto [start_code, start_out] =
+      run({ui(), "start", "--config", stranger.string(), "--timeout", "1"});
+  EXPECT_EQ(start_code, 3) << start_out;
+  EXPECT_TRUE(has(start_out, "no MP answers")) << start_out;
+  auto [status_code, status_out] = run({ui(), "status", "--config", config.string()});
+  EXPECT_EQ(status_code, 0) << status_out;
+  EXPECT_TRUE(has(status_out, "IDLE, runs 0")) << status_out;
+
+  // A stop from anybody is obeyed; its release only with the key.
+  auto [stop_code, stop_out] = run({ui(), "estop", "--config", stranger.string()});
+  EXPECT_TRUE(has(stop_out, "confirmed by irb6 (")) << stop_out;
+  auto [release_code, release_out] = run({ui(), "release", "--config", stranger.string()});
+  EXPECT_EQ(release_code, 4) << release_out;
+  EXPECT_TRUE(has(release_out, "NOT CONFIRMED by irb6")) << release_out;
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto recent = states.since(states.count() > 3 ? states.count() - 3 : 0);
+  ASSERT_FALSE(recent.empty()) << "no robot_state_t of irb6 heard";
+  EXPECT_TRUE(recent.back().estop) << "a release without the key released the stop";
+  auto [keyed_code, keyed_out] = run({ui(), "release", "--config", config.string()});
+  EXPECT_EQ(keyed_code, 0) << keyed_out;
+  EXPECT_TRUE(has(keyed_out, "confirmed by irb6 (")) << keyed_out;
+
+  // The operator's START, signed with the key, runs the task.
+  auto [ok_code, ok_out] = run({ui(), "start", "--config", config.string()});
+  EXPECT_EQ(ok_code, 0) << ok_out;
+  EXPECT_TRUE(has(ok_out, "START accepted")) << ok_out;
+  EXPECT_TRUE(launch.wait_for("task 'start_and_wait' finished", 120s)) << launch.output();
+  auto [end_code, end_out] = run({ui(), "terminate", "--config", config.string()});
+  EXPECT_EQ(end_code, 0) << end_out;
+  EXPECT_EQ(launch.wait(60s), 0) << launch.output();
+  EXPECT_EQ(leftovers(), "");
+  fs::remove_all(config.parent_path());
 }

@@ -69,6 +69,11 @@ TEST(LaunchCheck, PrintsThePlanWithHostTemplatingAndStartsNothing) {
   EXPECT_TRUE(has(out, "4. mp           " + bin + "/mrroc-mp")) << out;
   EXPECT_TRUE(has(out, "config is valid (--check: nothing started)")) << out;
   EXPECT_FALSE(has(out, "mrroc-launch: started")) << out;
+  // Processes on other computers and no key: --check says so.
+  EXPECT_TRUE(has(out, "mrroc-launch: warning: set 'long-irb6' (" + cfg +
+                           ") has no [system] auth_key_file, but it runs processes on other "
+                           "computers ([[launch.host]] cell, b): anyone on that network can"))
+      << out;
   EXPECT_FALSE(fs::exists(dir / "logs")) << "--check must not create the log folder";
   EXPECT_EQ(leftovers(), "");
 
@@ -83,6 +88,50 @@ TEST(LaunchCheck, PrintsThePlanWithHostTemplatingAndStartsNothing) {
       << rout;
   EXPECT_TRUE(has(rout, "group record, host local, restart never, not required, stop SIGINT"))
       << rout;
+  fs::remove_all(dir);
+}
+
+/// `text` with its LCM URL's ttl=0 replaced by ttl=`ttl`.
+std::string with_ttl(std::string text, int ttl) {
+  const std::string zero = "?ttl=0\"";
+  text.replace(text.find(zero), zero.size(), "?ttl=" + std::to_string(ttl) + "\"");
+  return text;
+}
+
+TEST(LaunchCheck, ASetThatReachesTheNetworkWithoutAKeyIsWarnedAbout) {
+  const fs::path dir = temp_dir("nokey");
+  const fs::path key = dir / "set.key";
+  std::ofstream(key) << "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff\n";
+  fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
+  const fs::path config = write_config(dir, "long-irb6.toml", "");
+  const std::string text = slurp(config);
+  const std::string warning = "has no [system] auth_key_file, but ";
+  struct Case {
+    std::string what;
+    std::string text;
+    std::string expected;  // empty: no warning
+  };
+  const std::string keyed =
+      "[system]\nauth_key_file = \"" + key.string() + "\"\nname = \"long-irb6\"\n";
+  std::string with_key = with_ttl(text, 1);
+  with_key.replace(with_key.find("[system]\nname = \"long-irb6\"\n"),
+                   std::string("[system]\nname = \"long-irb6\"\n").size(), keyed);
+  const std::vector<Case> cases = {
+      {"ttl=1 without a key", with_ttl(text, 1),
+       warning + "its LCM URL udpm://239.255.76.67:7667?ttl=1 has ttl=1 (its messages leave "
+                 "this computer): anyone on that network can start and stop its task"},
+      {"ttl=0 on one computer", text, ""},
+      {"ttl=1 with a key", with_key, ""},
+  };
+  for (const auto& c : cases) {
+    std::ofstream(config) << c.text;
+    const auto [code, out] = run({launcher(), "--check", config.string()});
+    EXPECT_EQ(code, 0) << c.what << "\n" << out;  // a warning, not an error
+    if (c.expected.empty())
+      EXPECT_FALSE(has(out, "warning:")) << c.what << "\n" << out;
+    else
+      EXPECT_TRUE(has(out, c.expected)) << c.what << "\n" << out;
+  }
   fs::remove_all(dir);
 }
 
@@ -136,9 +185,16 @@ TEST(LaunchRecord, RecordsEveryMessageOfTheRunWithLcmLogger) {
   const auto begin = text.find("poses = [");
   const auto end = text.find("]\nvelocity_scale");
   text.replace(begin, end - begin + 1, "poses = [[0.0, -1.5708, 0.0, 0.0, 0.0]]");
-  std::ofstream(config) << text;
+  // ttl=1 (inside the test's private network namespace: only its loopback) and no key.
+  std::ofstream(config) << with_ttl(text, 1);
   const auto [code, out] = run({launcher(), "--record", log.string(), config.string()}, 120s);
   EXPECT_EQ(code, 0) << out;
+  // Every start warns of a set reachable from the network without a key.
+  EXPECT_TRUE(std::regex_search(
+      out,
+      std::regex("[0-9:.]+ mrroc-launch: warning: set 'long-irb6' \\(.*\\) has no \\[system\\] "
+                 "auth_key_file, but its LCM URL udpm://239.255.76.67:7667\\?ttl=1 has ttl=1")))
+      << out;
   EXPECT_TRUE(has(out, "started record (pid")) << out;
   EXPECT_TRUE(has(out, "stopping record (pid")) << out;
   EXPECT_TRUE(has(out, ") with SIGINT")) << out;

@@ -207,6 +207,52 @@ TEST(LaunchRestart, BackoffDoublesAndUsedUpRestartsStopTheSet) {
   fs::remove_all(dir);
 }
 
+// A plugin of one's own that does not say whether it drives real devices counts as driving
+// them: its EDP is held like one on drives (the plugin's declaration decides, not its name).
+TEST(LaunchRestart, AnEdpWhosePluginDoesNotDeclareSimulatedHardwareIsHeld) {
+  const fs::path dir = temp_dir("undeclared");
+  std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
+  auto replace = [&](const std::string& what, const std::string& with) {
+    const auto at = text.find(what);
+    ASSERT_NE(at, std::string::npos) << what;
+    text.replace(at, what.size(), with);
+  };
+  replace("\"../../../robots/irb6\"", "\"" + (kSource / "robots/irb6").string() + "\"");
+  replace("task = \"start_and_wait\"", "task = \"start_and_wait\"\nstart = \"operator\"");
+  replace("plugin = \"mujoco\"", "plugin = \"undeclared\"\nlibrary = \"" +
+                                     std::string(MRROC_UNDECLARED_HARDWARE) +
+                                     "\"\nrestart = \"on-failure\"\nrestart_backoff_s = 0.2");
+  const fs::path config = dir / "undeclared.toml";
+  std::ofstream(config) << text;
+
+  const auto [check_code, check] = run({launcher(), "--check", config.string()});
+  EXPECT_EQ(check_code, 0) << check;
+  EXPECT_TRUE(has(check,
+                  "back-off from 0.2 s, each after an operator's acknowledgement (plugin "
+                  "'undeclared' drives real devices)"))
+      << check;
+
+  Background launch({launcher(), config.string()});
+  ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
+  const pid_t old_pid = launch.pid_of("edp/irb6");
+  ASSERT_GT(old_pid, 0) << launch.output();
+  ASSERT_EQ(::kill(old_pid, SIGKILL), 0);
+  EXPECT_TRUE(
+      launch.wait_for("edp/irb6 (plugin 'undeclared' drives real devices) ended while "
+                      "the task was running (code 137); not restarted until an operator "
+                      "acknowledges",
+                      10s))
+      << launch.output();
+  std::this_thread::sleep_for(1s);  // its back-off (0.2 s) is long over
+  EXPECT_FALSE(has(launch.output(), "restarting edp/irb6")) << launch.output();
+  const auto [end_code, end_out] =
+      run({(kBin / "mrroc-ui").string(), "terminate", "-c", config.string()});
+  EXPECT_EQ(end_code, 0) << end_out;
+  EXPECT_GE(launch.wait(60s), 0) << launch.output();
+  EXPECT_EQ(leftovers(), "");
+  fs::remove_all(dir);
+}
+
 TEST(LaunchRestart, AnEdpOnCanDrivesIsRestartedOnlyAfterTheOperatorAcknowledges) {
   const fs::path dir = temp_dir("canack");
   std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
@@ -236,7 +282,11 @@ TEST(LaunchRestart, AnEdpOnCanDrivesIsRestartedOnlyAfterTheOperatorAcknowledges)
 
   const auto [check_code, check] = run({launcher(), "--check", config.string()});
   EXPECT_EQ(check_code, 0) << check;
-  EXPECT_TRUE(has(check, "back-off from 0.2 s, each after an operator's acknowledgement")) << check;
+  // The plugin's declaration (the EDP's --check-config), not its name, decides.
+  EXPECT_TRUE(has(check,
+                  "back-off from 0.2 s, each after an operator's acknowledgement (plugin 'can' "
+                  "drives real devices)"))
+      << check;
 
   Background launch({launcher(), config.string()});
   ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();
@@ -255,7 +305,7 @@ TEST(LaunchRestart, AnEdpOnCanDrivesIsRestartedOnlyAfterTheOperatorAcknowledges)
 
   ASSERT_EQ(::kill(old_pid, SIGKILL), 0);
   const auto held = launch.wait_for(
-      "edp/irb6 (plugin 'can', drives on virtual:irb6) ended while the task was running (code "
+      "edp/irb6 (plugin 'can' drives real devices) ended while the task was running (code "
       "137); not restarted until an operator acknowledges: mrroc-ui restart -c " +
           fs::absolute(config).lexically_normal().string() + " edp/irb6",
       10s);

@@ -387,8 +387,12 @@ TEST_F(ConfigTest, HostAddressesAreNamesOrAddressesNeverOptionsOrShellText) {
 TEST_F(ConfigTest, SshHostsAlwaysQuoteAndKeepTheirInput) {
   const std::string host = "\n[launch]\n[[launch.host]]\nname = \"cell\"\n";
   // A command of one's own that runs ssh is quoted all the same.
-  for (const char* command : {R"(["ssh", "-t", "-t", "-o", "BatchMode=yes", "{host}"])",
-                              R"(["/usr/bin/ssh", "{host}"])"}) {
+  // So is a command that runs ssh behind a wrapper: ssh in any word hands the line to a remote
+  // shell.
+  for (const char* command :
+       {R"(["ssh", "-t", "-t", "-o", "BatchMode=yes", "{host}"])", R"(["/usr/bin/ssh", "{host}"])",
+        R"(["sshpass", "-e", "ssh", "{host}"])",
+        R"(["sudo", "-n", "-u", "robot", "/usr/bin/ssh", "{host}"])"}) {
     const ProcessSetConfig c =
         load_process_set(write(valid() + host + "command = " + command + "\n"));
     ASSERT_EQ(c.launch.hosts.size(), 1U);
@@ -398,7 +402,9 @@ TEST_F(ConfigTest, SshHostsAlwaysQuoteAndKeepTheirInput) {
   EXPECT_TRUE(load_process_set(write(valid() + host + "quote = true\n")).launch.hosts[0].quote);
   // Other commands keep `quote` as given.
   EXPECT_FALSE(is_ssh_command({"ip", "netns", "exec", "{host}"}));
-  EXPECT_FALSE(is_ssh_command({"/usr/bin/sshpass", "ssh", "{host}"}));
+  EXPECT_FALSE(is_ssh_command({"/usr/bin/sshpass", "-e", "{host}"}));
+  EXPECT_FALSE(is_ssh_command({"ssh-agent", "run", "{host}"}));
+  EXPECT_EQ(ssh_word({"env", "A=1", "/usr/bin/ssh", "{host}"}), 2U);
   EXPECT_TRUE(load_process_set(write(valid() + host +
                                      "command = [\"ip\", \"netns\", \"exec\", \"{host}\"]\n"
                                      "quote = true\n"))
@@ -406,20 +412,23 @@ TEST_F(ConfigTest, SshHostsAlwaysQuoteAndKeepTheirInput) {
                   .quote);
 
   // quote = false with ssh (the default command or one's own) is refused at 'quote'.
-  for (const std::string command : {"", "command = [\"ssh\", \"-t\", \"-t\", \"{host}\"]\n"}) {
+  for (const std::string command : {"", "command = [\"ssh\", \"-t\", \"-t\", \"{host}\"]\n",
+                                    "command = [\"sudo\", \"ssh\", \"{host}\"]\n"}) {
     const std::string text = valid() + host + command + "quote = false\n";
     expect_located(error_of(text), dir_ / "set.toml", line_of(text, "quote = false"),
                    "'quote' = false does not go with an ssh command");
   }
   // -n and -f give ssh no input: refused at 'command'; option arguments are not options.
   for (const char* command : {R"(["ssh", "-n", "{host}"])", R"(["ssh", "-tn", "{host}"])",
-                              R"(["ssh", "-o", "BatchMode=yes", "-f", "{host}"])"}) {
+                              R"(["ssh", "-o", "BatchMode=yes", "-f", "{host}"])",
+                              R"(["sudo", "-u", "robot", "ssh", "-n", "{host}"])"}) {
     const std::string text = valid() + host + "command = " + command + "\n";
     expect_located(error_of(text), dir_ / "set.toml", line_of(text, "command ="),
                    "'command' gives ssh option -");
   }
-  for (const char* command : {R"(["ssh", "-o", "-n", "{host}"])", R"(["ssh", "-lfn", "{host}"])",
-                              R"(["ssh", "-p", "22", "--", "{host}", "-n"])"})
+  for (const char* command :
+       {R"(["ssh", "-o", "-n", "{host}"])", R"(["ssh", "-lfn", "{host}"])",
+        R"(["ssh", "-p", "22", "--", "{host}", "-n"])", R"(["sudo", "-n", "ssh", "{host}"])"})
     EXPECT_NO_THROW(load_process_set(write(valid() + host + "command = " + command + "\n")))
         << command;
 }

@@ -805,6 +805,42 @@ TEST(LogFile, IsItsOwnersAloneAndSoIsAFolderItMakes) {
             fs::perms::owner_read | fs::perms::owner_write);
 }
 
+// A log file that cannot be opened again after a rotation (here its folder has become a file)
+// is reported once, tried again every retry interval, and reported when it is open again; the
+// lines in between are counted as lost, the later ones written.
+TEST(LogFile, AFileThatFailsToReopenIsReportedAndRetried) {
+  namespace fs = std::filesystem;
+  const fs::path dir = temp_dir("reopen");
+  const fs::path folder = dir / "logs";
+  const fs::path path = folder / "edp_irb6.log";
+  LogFile log(path, 100, 1, std::chrono::milliseconds(100));
+  log.write_line(std::string(100, 'a'));  // full: the next line rotates
+  EXPECT_FALSE(log.take_notice());
+  fs::remove_all(folder);
+  std::ofstream(folder) << "not a folder\n";
+  log.write_line("lost 1");
+  const auto failed = log.take_notice();
+  ASSERT_TRUE(failed);
+  EXPECT_THAT(*failed, HasSubstr("cannot open the log file '" + path.string() + "'"));
+  EXPECT_THAT(*failed, HasSubstr("its lines are lost until it opens (tried again every 0.1 s)"));
+  log.write_line("lost 2");
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  log.write_line("lost 3");  // tried again: still a file there
+  EXPECT_FALSE(log.take_notice()) << "a failure is reported once";
+  EXPECT_EQ(log.lost_lines(), 3u);
+  fs::remove(folder);
+  log.write_line("lost 4");  // within the retry interval
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  log.write_line("written again");
+  const auto back = log.take_notice();
+  ASSERT_TRUE(back);
+  EXPECT_EQ(*back, "the log file '" + path.string() + "' is open again (4 lines lost)");
+  EXPECT_EQ(log.lost_lines(), 4u);
+  EXPECT_THAT(slurp(path), HasSubstr("Z written again\n"));
+  EXPECT_EQ(fs::status(folder).permissions() & fs::perms::all, fs::perms::owner_all);
+  fs::remove_all(dir);
+}
+
 TEST(LogFile, RotatesWhenLargerThanTheLimitKeepingNFiles) {
   const auto dir = temp_dir("rotate");
   const auto path = dir / "srp.log";
@@ -952,6 +988,16 @@ TEST(LaunchPlan, SshGetsDoubleDashBeforeTheDestinationOnce) {
   host.quote = false;
   EXPECT_EQ(host_command(host, {}, {"prog"}),
             (std::vector<std::string>{"ip", "netns", "exec", "cell-pc", "prog"}));
+  // ssh behind a wrapper (quote = false in the struct): "--" before the destination, the command
+  // line one quoted word for the remote shell, whatever the wrapper's own words hold.
+  host.command = {"sudo", "-u", "{host}", "ssh", "-o", "BatchMode=yes", "{host}"};
+  const auto argv = host_command(host, {}, {"prog", "a b"});
+  ASSERT_EQ(argv.size(), 9u);
+  EXPECT_EQ((std::vector<std::string>(argv.begin(), argv.begin() + 8)),
+            (std::vector<std::string>{"sudo", "-u", "cell-pc", "ssh", "-o", "BatchMode=yes", "--",
+                                      "cell-pc"}));
+  EXPECT_EQ(shell_words(argv[8]).back(), "a b");
+  EXPECT_EQ(shell_words(argv[8]).front(), "exec");
 }
 
 TEST(LaunchPlan, OrderGroupsHostsLogFilesAndRecording) {

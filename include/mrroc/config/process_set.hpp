@@ -66,7 +66,12 @@ struct HostConfig {
   SourceLocation where;
 };
 
-/// True when `command` runs ssh: its first word is "ssh" or a path ending in "/ssh".
+/// The index of the word of `command` that runs ssh ("ssh" or a path ending in "/ssh"), in any
+/// place: a wrapper in front (`sudo -u op ssh {host}`, `env X=1 /usr/bin/ssh {host}`) still
+/// hands the command line to a remote shell. `command.size()` when no word does.
+std::size_t ssh_word(const std::vector<std::string>& command);
+
+/// True when `command` runs ssh (`ssh_word`).
 bool is_ssh_command(const std::vector<std::string>& command);
 
 /// True for what a [[launch.host]] address may be: a host name, IPv4 address, IPv6 address

@@ -152,6 +152,14 @@ class Hardware {
   /// period. Real drives keep their own clock and must answer false (the default).
   [[nodiscard]] virtual bool simulated() const { return false; }
 
+  /// True when the plugin drives devices that move something real: drives, amplifiers, a bus
+  /// with emulated drives behind it counts too (the plugin cannot tell). After such an EDP ends,
+  /// `mrroc-launch` restarts it only when an operator acknowledges (`mrroc-ui restart`): a
+  /// restarted EDP enables its devices again. The EDP announces it in its ready status. The
+  /// default, true, is the safe answer for a plugin that does not say; simulations answer false.
+  /// Any thread; no side effects.
+  [[nodiscard]] virtual bool drives_real_devices() const { return true; }
+
   /// Text of the last fault (read after a `CycleStatus::fault`).
   [[nodiscard]] virtual std::string fault_text() const { return {}; }
 };

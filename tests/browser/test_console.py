@@ -3,8 +3,9 @@
 
 Runs configs/console-demo.toml (SRP, EDP with MuJoCo, ECP, MP waiting for the operator, and the
 console `mrroc-ui serve`, started by mrroc-launch because [ui] web = true) inside
-scripts/netns-run, reads the API token the console generated (no [ui] token_file) from the URL it
-prints (and checks its file, and that a request without it gets 401), opens the console with it
+scripts/netns-run, reads the API token the console generated (no [ui] token_file) from the file
+whose path it prints (its standard output is the launcher's pipe, so it does not print the token;
+no output line and no log file holds it; a request without it gets 401), opens the console with it
 and, through the page's buttons:
   Start -> MP RUNNING, the joints change -> FINISHED;
   Start, Pause -> PAUSED and the robot stands still (|dq| of the EDP's robot_state_t);
@@ -46,10 +47,14 @@ sys.dont_write_bytecode = True  # importing urdf_fk leaves no __pycache__ in the
 import urdf_fk  # noqa: E402 (beside this file)
 
 URL = "http://127.0.0.1:8080"
-# The console's API token, read from the URL it prints (set in main()).
+# The console's API token, read from the file whose path it prints (set in main()).
 TOKEN = ""
-URL_WITH_TOKEN = re.compile(r"web console of set 'console-demo' at "
-                            r"http://127\.0\.0\.1:8080/\?token=([0-9a-f]{48})$", re.M)
+# What the console prints when its standard output is not a terminal: the URL without the token,
+# and where the token is.
+URL_WITHOUT_TOKEN = re.compile(r"web console of set 'console-demo' at http://127\.0\.0\.1:8080/ "
+                               r"\(open it once as http://127\.0\.0\.1:8080/\?token=TOKEN", re.M)
+TOKEN_FILE_LINE = re.compile(r"mrroc-ui: API token in (\S+) \(removed when the console ends\)$",
+                             re.M)
 STANDSTILL_DQ = 0.01   # rad/s: every |dq| below this is a standstill
 # The poses and velocity scale of configs/console-demo.toml's task, for the emergency stop's choice
 # of a motion with ESTOP_TIME_LEFT_S left (read in main()).
@@ -345,6 +350,8 @@ def make_config(source_dir, artifacts):
                         f'model = "{os.path.join(source_dir, "robots", "irb6")}"')
     text = re.sub(r'^# teach_dir = .*$', f'teach_dir = "{os.path.join(artifacts, "taught")}"',
                   text, flags=re.M)
+    # Log files of every process, where the test looks for the token afterwards.
+    text += f'\n[launch]\nlog_dir = "{os.path.join(artifacts, "logs")}"\n'
     path = os.path.join(artifacts, "console-demo.toml")
     with open(path, "w") as f:
         f.write(text)
@@ -411,14 +418,19 @@ def check_generated_token(token_file):
     mode = os.stat(token_file).st_mode & 0o777 if os.path.exists(token_file) else None
     check(mode == 0o600, f"the generated token is in {token_file}, mode 0600 (got {mode and oct(mode)})")
     if mode is not None:
-        check(open(token_file).read() == TOKEN + "\n", "the token file holds the printed token")
+        check(open(token_file).read() == TOKEN + "\n", "the token file holds the token read from it at the start")
     status, error = status_and_error(URL + "/api/state")
     check(status == 401 and "?token=TOKEN" in (error or "") and token_file in (error or ""),
           f"no token: 401 saying how to send it and where it is: {status} {error}")
     status, _ = status_and_error(URL + "/api/state", {"Authorization": "Bearer " + "0" * 48})
     check(status == 401, f"a wrong token: 401 (got {status})")
-    status, _ = status_and_error(URL + "/api/state?token=" + TOKEN)
-    check(status == 200, f"the token as ?token=: 200 (got {status})")
+    status, _ = status_and_error(URL + "/api/state", {"Authorization": "Bearer " + TOKEN})
+    check(status == 200, f"the token in the header: 200 (got {status})")
+    # Only the page is opened with ?token= (its script moves the token into the header): the
+    # API refuses it in the query string, which servers, proxies and histories keep.
+    status, error = status_and_error(URL + "/api/state?token=" + TOKEN)
+    check(status == 401 and "not as ?token=" in (error or ""),
+          f"the token as ?token= on the API: 401 ({status} {error})")
     started = wait_for("the console's start message in the SRP's log", lambda: [
         m["text"] for m in api("/api/srp?max=5000")["messages"] if "web console at" in m["text"]],
         10) or []
@@ -426,6 +438,39 @@ def check_generated_token(token_file):
     check(len(started) == 1 and "API token required" in started[0] and TOKEN not in started[0],
           f"the SRP's message names the URL without the token: {started}")
     check(all(TOKEN not in m["text"] for m in messages), "no SRP message holds the token")
+
+
+def check_names_render_as_text(driver):
+    """A joint name (from a robot's model files) and an SRP message's text that look like HTML
+    show as text: the page builds them with textContent, so no element is made and no handler
+    runs. The robot is drawn by the page's own createRobot, as for /api/state's robots."""
+    hostile = "<img src=x onerror=\"window.__mrrocInjected=1\">"
+    shown = driver.execute_script("""
+        const name = arguments[0];
+        const robot = createRobot({name: "injected", joint_names: [name, "b<b>old</b>"],
+                                   units: ["rad", "m"], lower_limits: [0, 0], upper_limits: [1, 1],
+                                   cartesian: false});
+        const cells = Array.from(robot.element.querySelectorAll(".joints td.joint-name"));
+        const result = {texts: cells.map((c) => c.textContent),
+                        elements: robot.element.querySelectorAll(".joints img, .joints b").length};
+        robot.element.remove();
+        robots.delete("injected");
+        return result;""", hostile)
+    time.sleep(0.2)  # an image's error handler would have run by now
+    injected = driver.execute_script("return window.__mrrocInjected === undefined ? null : 1")
+    check(shown["texts"] == [hostile, "b<b>old</b>"] and shown["elements"] == 0 and injected is None,
+          f"joint names that look like HTML show as text: {shown}, handler ran: {injected}")
+
+
+def check_token_kept_secret(token, launched, log_dir):
+    """No line the launcher printed and no log file under log_dir holds the token."""
+    lines = [line for line in launched.lines if token in line]
+    check(token != "" and not lines, f"no output line holds the token: {lines[:3]}")
+    logs = sorted(os.listdir(log_dir)) if os.path.isdir(log_dir) else []
+    holding = [name for name in logs if token in open(os.path.join(log_dir, name),
+                                                      errors="replace").read()]
+    check("ui.log" in logs and "srp.log" in logs and not holding,
+          f"no log file in {log_dir} holds the token ({len(logs)} files: {logs}; holding: {holding})")
 
 
 def check_token(args, config):
@@ -499,18 +544,23 @@ def main():
         print(f"screenshot: {path}", flush=True)
 
     global TOKEN
-    # The console runs in the launcher's folder, this one; without [launch] log_dir its generated
-    # token goes to ui-<port>.token here.
-    token_file = os.path.join(os.getcwd(), "ui-8080.token")
+    # The console's generated token goes to ui-<port>.token in [launch] log_dir.
+    log_dir = os.path.join(args.artifacts, "logs")
+    token_file = os.path.join(log_dir, "ui-8080.token")
     launched = LaunchedSet(args.bin_dir, config)
-    # The launcher starts the console ([ui] web = true) and echoes what it prints.
-    printed = wait_for("the console prints its URL with the token",
-                       lambda: URL_WITH_TOKEN.search(launched.output()), 20)
+    # The launcher starts the console ([ui] web = true) and echoes what it prints; its standard
+    # output is the launcher's pipe, not a terminal: it prints where the token is, not the token.
+    printed = wait_for("the console prints where its token is",
+                       lambda: TOKEN_FILE_LINE.search(launched.output()), 20)
     if printed is None:
         launched.process.terminate()
         return 1
-    TOKEN = printed.group(1)
-    check(launched.output().count(TOKEN) == 1, "the token is printed once")
+    check(printed.group(1) == token_file, f"the printed token file is {token_file}: {printed.group(1)}")
+    check(URL_WITHOUT_TOKEN.search(launched.output()) is not None,
+          "the console prints its URL without the token")
+    TOKEN = open(token_file).read().strip() if os.path.exists(token_file) else ""
+    check(re.fullmatch(r"[0-9a-f]{48}", TOKEN) is not None, "the token file holds 48 hex digits")
+    first_token = TOKEN
     wait_for("the console answers", lambda: api("/api/state"), 20)
     state = wait_for("MP IDLE and robot_state_t from the EDP",
                      lambda: (lambda s: s if s["mp"]["state"] == "IDLE" and s["robots"][0]["state"]
@@ -549,6 +599,7 @@ def main():
         check("token" not in driver.current_url,
               f"the page took the token out of the address bar: {driver.current_url}")
         view_model = check_view_loaded(driver, args.source_dir)
+        check_names_render_as_text(driver)
         screenshot(driver, "idle")
         check_hostile_requests()
         # The command line: STATUS answers, RESUME while IDLE is refused (exit 1).
@@ -766,6 +817,7 @@ def main():
             code = None
         check(code == 0, f"the set ended after Terminate (launcher exit code {code})")
         check(not os.path.exists(token_file), f"the console removed {token_file} at its end")
+        check_token_kept_secret(first_token, launched, log_dir)
         time.sleep(1.0)
         screenshot(driver, "terminated")
         check("no connection" in driver.find_element(By.ID, "connection").text,

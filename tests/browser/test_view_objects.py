@@ -33,8 +33,6 @@ from selenium.webdriver.common.by import By
 sys.dont_write_bytecode = True
 import test_console as tc  # noqa: E402 (beside this file: api, check, wait_for, LaunchedSet)
 
-URL_WITH_TOKEN = re.compile(r"web console of set 'view-objects' at "
-                            r"http://127\.0\.0\.1:8080/\?token=([0-9a-f]{48})$", re.M)
 SIZE_TOL = 1e-9     # m: a drawn size vs. the scene file's
 POSE_TOL = 1e-9     # m and quaternion elements: a drawn pose vs. the published one
 ON_TABLE_TOL = 2e-3  # m: the bar's centre above the table top by its half-height
@@ -129,11 +127,12 @@ def main():
     driver = None
     profile = tempfile.mkdtemp(prefix="mrroc-chromium-")
     try:
-        printed = tc.wait_for("the console prints its URL with the token",
-                              lambda: URL_WITH_TOKEN.search(launched.output()), 30)
+        # The console's standard output is the launcher's pipe: it prints where its token is.
+        printed = tc.wait_for("the console prints where its token is",
+                              lambda: tc.TOKEN_FILE_LINE.search(launched.output()), 30)
         if printed is None:
             return 1
-        tc.TOKEN = printed.group(1)
+        tc.TOKEN = open(printed.group(1)).read().strip()
         served = tc.wait_for("GET /api/objects lists the emulator's objects", lambda: (
             lambda d: d if len(d["objects"]) == len(scene) else None)(tc.api("/api/objects")), 30)
         if served is None:

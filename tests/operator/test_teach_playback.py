@@ -172,9 +172,11 @@ def main():
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
     try:
-        url = re.compile(r"web console of set 'teach-playback' at http://127\.0\.0\.1:8080/\?token=([0-9a-f]+)$")
-        TOKEN = wait_for("the console's URL with its token", lambda: next(
+        # Its standard output is the launcher's pipe: the console prints where its token is.
+        url = re.compile(r"API token in (\S+) \(removed when the console ends\)$")
+        token_file = wait_for("the console's token file", lambda: next(
             (m.group(1) for m in map(url.search, list(lines)) if m), None), 30) or ""
+        TOKEN = open(token_file).read().strip() if token_file else ""
         state = wait_for("a robot state from the EDP", lambda: api("/api/state")["robots"][0]["state"], 30)
         check(state is not None and not state["synchronised"], "the robot starts not synchronised")
         wait_for("the MP waiting for the operator", lambda: mp_state().get("state") == "IDLE", 30)

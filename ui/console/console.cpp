@@ -1,6 +1,7 @@
 #include "console/console.hpp"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -109,8 +110,8 @@ struct Console::Impl : ConsoleActions {
     settings.token_hint =
         token_generated
             ? fmt::format(
-                  "mrroc-ui serve printed the page's URL with the token on its standard "
-                  "output and wrote the token to '{}'",
+                  "mrroc-ui serve wrote the token to '{}' (and printed the page's URL with "
+                  "it when its standard output was a terminal)",
                   token_path.string())
             : fmt::format("the token is the first line of [ui] token_file '{}'",
                           config.ui.token_file.string());
@@ -187,12 +188,24 @@ struct Console::Impl : ConsoleActions {
     // After binding: a console that cannot bind (the port is taken) leaves the file of the one
     // that did alone.
     std::optional<TokenFile> token_file;
+    // The token itself is printed only to a terminal: standard output that goes to a pipe or a
+    // file (the launcher's output, its log files, a service's journal) gets the file's path.
+    const bool terminal = ::isatty(STDOUT_FILENO) == 1;
     if (token_generated) {
       try {
         token_file.emplace(token_path, options.token);
       } catch (const Error& e) {
-        // The URL with the token is still printed below.
-        reporter->warning(e.what());
+        if (!terminal) {
+          // Nobody could learn the token: a console nobody can use.
+          const std::string text = fmt::format(
+              "{}; the token is printed only on a terminal, and standard output is none: set [ui] "
+              "token_file, or make the folder writable",
+              e.what());
+          reporter->report(Severity::fatal, 0, text);
+          reporter->set_state(ProcessState::failed, text);
+          throw Error(text);
+        }
+        reporter->warning(e.what());  // the URL with the token is still printed below
         std::fprintf(stderr, "mrroc-ui: %s\n", e.what());
       }
     }
@@ -209,11 +222,16 @@ struct Console::Impl : ConsoleActions {
     // The token never goes to the SRP, whose log more people may read.
     if (token_generated) {
       reporter->info(fmt::format(
-          "web console at {} (API token required; the URL with it is printed on the console's "
-          "standard output{})",
-          url, token_file ? fmt::format(", the token is in '{}'", token_path.string()) : ""));
-      std::printf("mrroc-ui: web console of set '%s' at %s?token=%s\n", config.name.c_str(),
-                  url.c_str(), options.token.c_str());
+          "web console at {} (API token required{})", url,
+          token_file ? fmt::format("; it is in '{}'", token_path.string()) : std::string()));
+      if (terminal)
+        std::printf("mrroc-ui: web console of set '%s' at %s?token=%s\n", config.name.c_str(),
+                    url.c_str(), options.token.c_str());
+      else
+        std::printf(
+            "mrroc-ui: web console of set '%s' at %s (open it once as %s?token=TOKEN, TOKEN "
+            "being the first line of the file below)\n",
+            config.name.c_str(), url.c_str(), url.c_str());
       if (token_file)
         std::printf("mrroc-ui: API token in %s (removed when the console ends)\n",
                     token_path.c_str());

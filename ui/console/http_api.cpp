@@ -257,10 +257,9 @@ HttpApi::HttpApi(const ConsoleState& state, ApiSettings settings, ConsoleActions
                     settings_.token.size()));
 }
 
-bool HttpApi::token_ok(const std::string& authorization, const std::string& token_param) const {
-  std::string given = authorization;
-  if (given.rfind("Bearer ", 0) == 0) given = given.substr(7);
-  if (given.empty()) given = token_param;
+bool HttpApi::token_ok(const std::string& authorization) const {
+  if (authorization.rfind("Bearer ", 0) != 0) return false;
+  const std::string given = authorization.substr(7);
   // Compare in constant time (the length is not secret).
   const std::string& token = settings_.token;
   if (given.size() != token.size()) return false;
@@ -525,12 +524,15 @@ void HttpApi::install(ConsoleServer& server) {
       return httplib::Server::HandlerResponse::Handled;
     }
     if (req.path.rfind("/api/", 0) != 0) return httplib::Server::HandlerResponse::Unhandled;
-    if (!token_ok(req.get_header_value("Authorization"),
-                  req.has_param("token") ? req.get_param_value("token") : std::string())) {
+    // Only in the header: a query string lands in proxies' and servers' logs and in the
+    // browser's history. `?token=` is for opening the page, whose script moves it to the header.
+    if (!token_ok(req.get_header_value("Authorization"))) {
       reply_json(res,
                  json{{"error", fmt::format("missing or wrong token: send the header "
-                                            "'Authorization: Bearer TOKEN' or add '?token=TOKEN' "
-                                            "(open the page as /?token=TOKEN); {}",
+                                            "'Authorization: Bearer TOKEN' (a browser: open the "
+                                            "page once as /?token=TOKEN; the API takes the token "
+                                            "only in the header){}; {}",
+                                            req.has_param("token") ? ", not as ?token=" : "",
                                             settings_.token_hint)}},
                  401);
       return httplib::Server::HandlerResponse::Handled;

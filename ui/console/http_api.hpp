@@ -41,8 +41,8 @@ struct ApiSettings {
   /// The names and addresses a request's Host (and a browser's Origin) may carry, without the
   /// port: others are refused (DNS rebinding; a page of another site). Compared in lower case.
   std::vector<std::string> hosts{"localhost", "127.0.0.1", "::1"};
-  /// Every /api request must carry it (header `Authorization: Bearer TOKEN` or `?token=`);
-  /// at least 16 characters.
+  /// Every /api request must carry it in the header `Authorization: Bearer TOKEN` (never in
+  /// the query string, which logs and histories keep); at least 16 characters.
   std::string token;
   /// Where a client finds the token, for the answer to a request without it, e.g. "it is the
   /// first line of [ui] token_file '/etc/mrroc/ui.token'".
@@ -146,10 +146,8 @@ class HttpApi {
   /// GET /api/srp. @throws ApiError 400 for a severity outside 0..4 or max outside 1..5000.
   [[nodiscard]] nlohmann::json srp_json(std::int64_t after, std::int64_t min_severity,
                                         std::int64_t max) const;
-  /// Whether `authorization` (the header's value) or `token_param` carries the token; compared
-  /// in constant time.
-  [[nodiscard]] bool token_ok(const std::string& authorization,
-                              const std::string& token_param) const;
+  /// Whether `authorization` (the header's value) is "Bearer TOKEN"; compared in constant time.
+  [[nodiscard]] bool token_ok(const std::string& authorization) const;
 
  private:
   const ConsoleState& state_;

@@ -31,9 +31,13 @@ class TeachIn {
 
   [[nodiscard]] const std::filesystem::path& dir() const { return dir_; }
 
-  /// Appends the robot's pose to `file` in dir() (the API's default is "<robot>.traj").
+  /// Appends the robot's pose to `file` in dir() (the API's default is "<robot>.traj"): under
+  /// an exclusive lock on `.<file>.lock` beside it (concurrent requests, of this console or
+  /// another, each add their pose), written to a temporary file of a unique name and renamed
+  /// over the file. Called from any HTTP thread.
   /// @throws ApiError 400 (file name), 404 (unknown robot), 409 (no fresh state, not
-  /// synchronised, or the file holds another robot's or another representation's poses).
+  /// synchronised, or the file holds another robot's or another representation's poses), 500
+  /// (the file cannot be locked or written).
   TeachResult record(const std::string& robot, const std::string& file);
 
  private:

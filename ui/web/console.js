@@ -6,8 +6,9 @@ const PLOT_WINDOW_S = 20;
 const SEVERITIES = ["DEBUG", "INFO", "WARNING", "ERROR", "FATAL"];
 const COLOURS = ["#0969da", "#cf222e", "#1a7f37", "#9a6700", "#8250df", "#bc4c00", "#1b7c83"];
 
-// The API token (of [ui] token_file, or the one `mrroc-ui serve` generated and printed with the
-// page's URL) comes once in the address (?token=...) and is kept for the tab.
+// The API token (of [ui] token_file, or the one `mrroc-ui serve` generated and wrote to the file
+// it names) comes once in the address (?token=...), is kept for the tab and sent in the header
+// only (the API refuses it in a query string).
 const params = new URLSearchParams(window.location.search);
 if (params.get("token")) {
   sessionStorage.setItem("mrroc-token", params.get("token"));
@@ -165,15 +166,33 @@ function createRobot(info) {
   element.querySelector(".teach-file").value = info.name + ".traj";
   const body = element.querySelector(".joints tbody");
   info.joint_names.forEach((joint, axis) => {
+    // Names and units come from the robot's model files: text, never markup.
     const tr = document.createElement("tr");
     const unit = (info.units && info.units[axis]) || "rad";
-    tr.innerHTML = `<td>${axis}</td><td>${joint}</td><td class="unit">${unit}</td>` +
-      `<td class="num q"></td><td class="num dq"></td>` +
-      `<td class="num qd"></td><td class="num">${fmt(info.lower_limits[axis], 2)} .. ${fmt(info.upper_limits[axis], 2)}</td>` +
-      `<td><button class="jog-minus" title="jog axis ${axis} by -step">&minus;</button> ` +
-      `<button class="jog-plus" title="jog axis ${axis} by +step">+</button></td>`;
-    for (const [cls, direction] of [[".jog-minus", -1], [".jog-plus", 1]])
-      tr.querySelector(cls).addEventListener("click", () => jog(info.name, axis, direction));
+    const cell = (className, text) => {
+      const td = document.createElement("td");
+      if (className) td.className = className;
+      if (text !== undefined) td.textContent = text;
+      tr.appendChild(td);
+      return td;
+    };
+    cell("", String(axis));
+    cell("joint-name", String(joint));
+    cell("unit", String(unit));
+    cell("num q");
+    cell("num dq");
+    cell("num qd");
+    cell("num", `${fmt(info.lower_limits[axis], 2)} .. ${fmt(info.upper_limits[axis], 2)}`);
+    const buttons = cell("");
+    for (const [cls, label, direction] of [["jog-minus", "\u2212", -1], ["jog-plus", "+", 1]]) {
+      const button = document.createElement("button");
+      button.className = cls;
+      button.title = `jog axis ${axis} by ${direction < 0 ? "-" : "+"}step`;
+      button.textContent = label;
+      button.addEventListener("click", () => jog(info.name, axis, direction));
+      if (direction > 0) buttons.append(" ");
+      buttons.appendChild(button);
+    }
     body.appendChild(tr);
   });
   if (info.cartesian) {
@@ -324,7 +343,12 @@ function renderLog() {
   box.replaceChildren(...shown.slice(-1000).map((m) => {
     const div = document.createElement("div");
     div.className = "msg s" + m.severity;
-    div.innerHTML = `<span class="time"></span> <span class="proc"></span> <span class="sev"></span> <span class="text"></span>`;
+    for (const [i, cls] of ["time", "proc", "sev", "text"].entries()) {
+      const span = document.createElement("span");
+      span.className = cls;
+      if (i > 0) div.append(" ");
+      div.appendChild(span);
+    }
     div.querySelector(".time").textContent = m.time;
     div.querySelector(".proc").textContent = m.process.padEnd(10);
     div.querySelector(".sev").textContent = m.severity_name;
@@ -367,7 +391,7 @@ async function pollState() {
   const connection = $("connection");
   if (state.error) {
     connection.textContent = state.httpStatus === 401
-      ? "token needed: open the URL with ?token=... that mrroc-ui serve printed"
+      ? "token needed: open the page as /?token=TOKEN (mrroc-ui serve names the file that holds it)"
       : "no connection to the console";
     connection.className = "badge bad";
     return;

@@ -282,9 +282,10 @@ int main(int argc, char** argv) {
       cli.subcommand("serve",
                      "web operator console on [ui] bind:port (default 127.0.0.1:8080); every API "
                      "request needs the token of [ui] token_file or, without one, the token "
-                     "generated at start (printed with the URL on standard output and written to "
-                     "<[launch] log_dir, or the current folder>/ui-<port>.token, mode 0600, until "
-                     "the console ends); SIGINT or SIGTERM stops it");
+                     "generated at start (written to <[launch] log_dir, or the current "
+                     "folder>/ui-<port>.token, mode 0600, until the console ends, and printed "
+                     "with the URL only when standard output is a terminal) in its header "
+                     "'Authorization: Bearer TOKEN'; SIGINT or SIGTERM stops it");
   serve_cmd.option("-c,--config", config, "process-set config file (TOML)").required();
   serve_cmd.option("--bind", bind, "listen on this address (default: [ui] bind)");
   serve_cmd.option("--port", port, "listen on this TCP port (default: [ui] port)").range(1, 65535);

@@ -236,6 +236,7 @@ void ServoLoop::store_reading(std::uint64_t id, int step_no) {
   r.macro_step = id;
   r.step_no = step_no;
   r.macro_steps_ahead = queued();
+  r.ramps_before = lost_successors_ + planned_stops_;
   reached_id_ = std::max(reached_id_, id);
   notify_pending_ = true;
 }
@@ -771,11 +772,13 @@ std::optional<Reading> ServoLoop::wait_reply(std::uint64_t id, std::uint64_t due
     if (refused() || faulted_ || emergency_stop_ || !running_) return true;
     if (reached_id_ < due_at) return false;
     if (const Reading& kept = delivered_[due_at % kDeliveredKept];
-        due_at != 0 && kept.macro_step == due_at) {
+        due_at != 0 && kept.macro_step == due_at &&
+        kept.ramps_before == lost_successors_ + planned_stops_) {
       out = kept;
     } else {
-      // The macro-step it waits for took no reading (it was dropped, or refused) or took it more
-      // than kDeliveredKept macro-steps ago: the freshest reading answers.
+      // The macro-step it waits for took no reading (it was dropped, or refused), took it more
+      // than kDeliveredKept macro-steps ago, or the robot was brought to rest since (a client
+      // resuming from there needs where it stands): the freshest reading answers.
       out = latest_;
       out->macro_step = due_at;
       out->step_no = current_ ? current_->step : 0;

@@ -52,6 +52,10 @@ struct Reading {
   std::size_t device_fields = 0;
   /// Macro-steps queued when the reading was taken, the running one included.
   int macro_steps_ahead = 0;
+  /// Stopping ramps for a missing successor (lost or waived) before the reading: a reading kept
+  /// for a late QUERY answers it only while this is still the count (the robot kept to the
+  /// planned motion since).
+  std::int64_t ramps_before = 0;
 };
 
 /// One servo cycle as recorded by the trace (see ServoLoop::enable_trace).
@@ -268,7 +272,8 @@ class ServoLoop {
   Reading latest_;
   /// The readings the last kDeliveredKept macro-steps requested, at delivered_[id % size]: a
   /// QUERY that comes late (its client was held up) still gets the reading of the macro-step it
-  /// asked about, the same servo step as every other robot of its group, not a later one.
+  /// asked about, the same servo step as every other robot of its group, not a later one. After
+  /// a stopping ramp the robot left the plan: the freshest reading (where it stands) answers.
   static constexpr std::size_t kDeliveredKept = 64;
   std::array<Reading, kDeliveredKept> delivered_{};
   AxisArray desired_{};             ///< joint coordinates (raw before synchronisation)

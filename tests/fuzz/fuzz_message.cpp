@@ -79,7 +79,9 @@ std::vector<const std::string*> strings_of(const mrroc_lcm::ecp_mp_reply_t& m) {
   return with_header(m, {&m.error_text});
 }
 std::vector<const std::string*> strings_of(const mrroc_lcm::emergency_stop_t& m) {
-  return with_header(m, {&m.robot, &m.reason});
+  std::vector<const std::string*> out = with_header(m, {&m.robot, &m.reason, &m.by_sender});
+  for (const std::string& s : m.engage_senders) out.push_back(&s);
+  return out;
 }
 std::vector<const std::string*> strings_of(const mrroc_lcm::srp_message_t& m) {
   return with_header(m, {&m.process, &m.robot, &m.text});

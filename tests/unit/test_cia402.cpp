@@ -1573,7 +1573,9 @@ TEST(Cia402Master, WritesStringsSegmentedAndNamesEveryAbort) {
   };
   const auto code = [](const can_frame& f) {
     return f.data[0] == 0x80U
-               ? static_cast<std::uint32_t>(f.data[4] | (f.data[5] << 8U) | (f.data[6] << 16U) |
+               ? static_cast<std::uint32_t>(static_cast<unsigned>(f.data[4]) |
+                                            (static_cast<unsigned>(f.data[5]) << 8U) |
+                                            (static_cast<unsigned>(f.data[6]) << 16U) |
                                             (static_cast<unsigned>(f.data[7]) << 24U))
                : 0U;
   };

@@ -338,10 +338,12 @@ class ConsoleServer::Reserved {
 
   /// Closes `e` without an answer (the server stops).
   void drop(Entry& e) const {
+    {
+      std::lock_guard lock(server_.shared_->mutex);
+      --server_.shared_->counts.waiting;
+    }
     close_socket(e.sock);
     e.gone = true;
-    std::lock_guard lock(server_.shared_->mutex);
-    --server_.shared_->counts.waiting;
   }
 
   /// Answers `e` 503 naming the limit it is over, closes it, counts it.
@@ -744,10 +746,14 @@ void ConsoleServer::serve(socket_t sock, const std::string& peer) {
       dropped += static_cast<std::size_t>(n);
     }
   }
+  {
+    // Counted closed before it is: a client that saw its connection end (and reconnects, or
+    // reads the counts) finds its place free.
+    std::lock_guard lock(s.mutex);
+    --s.counts.open;
+    if (--s.per_peer[peer] == 0) s.per_peer.erase(peer);
+  }
   close_socket(sock);
-  std::lock_guard lock(s.mutex);
-  --s.counts.open;
-  if (--s.per_peer[peer] == 0) s.per_peer.erase(peer);
 }
 
 void ConsoleServer::serve_stop(socket_t sock, std::string bytes) {

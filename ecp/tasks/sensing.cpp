@@ -418,6 +418,11 @@ class ForceCompliance : public FollowGenerator {
         largest_offset_ * 1e3));
     steps_ = pressed_ = 0;
     largest_force_ = largest_offset_ = pressed_sum_ = 0.0;
+    // The robot stands where the MP's images now show it, this correction included; the MP's next
+    // motion (a new Move, or the resumption of a group stopped for want of macro-steps) starts
+    // there. Kept, the correction would count twice: a jump of its size from rest, refused as too
+    // abrupt. It starts again from 0 at rest and follows the force from there.
+    offset_ = speed_ = 0.0;
   }
 
  private:

@@ -40,6 +40,12 @@ Eigen::Matrix3d grip_orientation(double side) {
 
 /// A carry resumed from rest takes at least this long to the end of the interrupted segment.
 constexpr double kMinResumeSegmentS = 0.5;
+/// After a resumption the grips' offsets from their nominal poses fade out over this long, or
+/// over the rest of the path where that is shorter. Where ECPs correct the grips from their wrist
+/// forces (follow_mp_compliant), those offsets are mostly the ECPs' corrections, which restart
+/// from 0 at rest and come back only as fast as the force error drives them (gain 3e-4 m/s per
+/// N): 2.5 mm faded over a 0.5 s segment needed about 10 mm/s, 33-41 N on the bar.
+constexpr double kResumeFadeS = 3.0;
 
 class BarCarryGenerator : public Generator {
  public:
@@ -53,7 +59,8 @@ class BarCarryGenerator : public Generator {
         half_(bar_length / 2.0),
         start_(path.front()),
         path_(path, std::vector<double>(path.size() - 1, speed), motion_steps * servo_period_s),
-        steps_(motion_steps) {}
+        steps_(motion_steps),
+        macro_step_s_(motion_steps * servo_period_s) {}
 
   bool first_step(const ImageList& robots, const ecp::SensorList&) override {
     // Approach: both robots go to the grips of the bar's first pose in one long macro-step.
@@ -113,6 +120,9 @@ class BarCarryGenerator : public Generator {
                           Eigen::Quaterniond(held[i].linear() * nominal.linear().transpose())});
     }
     path_ = path_.rest_from(centre, kMinResumeSegmentS);
+    faded_ = 0;
+    fade_macros_ = std::max(
+        1, static_cast<int>(std::ceil(std::min(kResumeFadeS, path_.duration_s()) / macro_step_s_)));
     Eigen::Vector3d next;
     if (!path_.next(next)) return false;
     ++resumes_;
@@ -135,9 +145,13 @@ class BarCarryGenerator : public Generator {
   }
 
   void command(const ImageList& robots, const Eigen::Vector3d& centre, int steps, int value) {
-    // After a resumption, the offsets of the grips from their nominal poses fade out over the
-    // first segment (path_.first_segment_share() goes 0 -> 1 with its time law).
-    const double keep = offsets_.empty() ? 0.0 : 1.0 - path_.first_segment_share();
+    // After a resumption, the offsets of the grips from their nominal poses fade out over
+    // fade_macros_ macro-steps with the quintic time law.
+    double keep = 0.0;
+    if (!offsets_.empty()) {
+      const double tau = std::min(1.0, static_cast<double>(++faded_) / fade_macros_);
+      keep = 1.0 - tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
+    }
     if (keep <= 0.0) offsets_.clear();
     for (std::size_t i = 0; i < robots.size(); ++i) {
       Eigen::Isometry3d grip = this->grip(i, centre);
@@ -178,11 +192,14 @@ class BarCarryGenerator : public Generator {
   };
   std::vector<Eigen::Isometry3d> bases_;
   std::vector<std::unique_ptr<edp::ArmKinematics>> kinematics_;
-  std::vector<Offset> offsets_;  ///< since the last resumption, until its first segment ends
+  std::vector<Offset> offsets_;  ///< since the last resumption, until they faded out
+  int faded_ = 0;                ///< macro-steps of the fade done
+  int fade_macros_ = 1;          ///< macro-steps the fade takes
   double half_;
   Eigen::Vector3d start_;
   StraightPath path_;
   int steps_;
+  double macro_step_s_;  ///< [s]
   int macro_total_ = 0;
   int resumes_ = 0;
   bool approaching_ = true;

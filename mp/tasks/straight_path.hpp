@@ -61,6 +61,15 @@ class StraightPath {
     return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau));
   }
 
+  /// How long the whole path takes [s], in whole macro-steps (a path not begun yet).
+  [[nodiscard]] double duration_s() const {
+    StraightPath copy(points_, speeds_, macro_step_s_);
+    copy.min_first_s_ = min_first_s_;
+    double total = 0.0;
+    for (std::size_t k = 0; copy.begin(k); ++k) total += copy.macros_ * macro_step_s_;
+    return total;
+  }
+
   /// Whether the point next() gave last is the path's end.
   [[nodiscard]] bool at_end() const {
     return started_ && segment_ + 2 == points_.size() && macro_ == macros_;

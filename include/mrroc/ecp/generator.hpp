@@ -79,7 +79,11 @@ class FollowGenerator {
   /// in place. `robot`: the image after the previous macro-step. Throw (GeneratorError) to refuse
   /// the command: the MP gets the error and nothing moves.
   virtual void correct(MpCommand& command, const RobotImage& robot, const SensorList& sensors) = 0;
-  /// The MP ended the continuous motion (END_MOTION); `robot` holds the state just read.
+  /// The MP ended the continuous motion (END_MOTION); `robot` holds the state just read. The
+  /// robot stands at rest where the MP's image of it now shows it, the corrections made so far
+  /// included, and the MP plans its next motion from there (a new Move, or a group's resumption
+  /// after a stop: mp::Generator::resume): a correction that keeps adding to the coming poses
+  /// what the robot already did would jump from rest. Restart such state here.
   virtual void end_motion(const RobotImage& /*robot*/) {}
 };
 

@@ -3,7 +3,8 @@
 // Value: `mrroc-launch` on a generated config with two IRb-6 (MuJoCo plugin, ECP task "follow_mp",
 // MP task "start_and_wait"), a range VSP and the web console ([ui] web = true), timed from
 // spawning the launcher until it prints "all N processes ready in X ms" (the launcher starts the
-// processes one after the other and waits for each one's ready status). The launcher is then
+// processes layer by layer, both EDPs together and both ECPs together, and waits for each one's
+// ready status before the next layer). The launcher is then
 // stopped with SIGTERM (it stops the set in reverse order) before the next repetition. X, the
 // launcher's own figure (from its first start to the last ready), is reported beside the wall time.
 //
@@ -204,8 +205,8 @@ int main(int argc, char** argv) {
     std::printf("  start to ready per process (p50): %s\n", stages.c_str());
     std::printf(
         "NOTE B8 %d launches of mrroc-launch on two IRb-6 (MuJoCo, follow_mp) with SRP, a "
-        "VSP, the UI (web console) and MP: %d processes started one after the other, each "
-        "waited for until it reports "
+        "VSP, the UI (web console) and MP: %d processes started layer by layer (both EDPs "
+        "together, both ECPs together), each waited for until it reports "
         "ready; timed from spawning the launcher to its 'all %d processes ready' line "
         "(the launcher's own figure, from its first start: p50 %.0f ms, p99 %.0f ms). "
         "Baseline: %d x /bin/true started and reaped one after the other through the "

@@ -130,8 +130,17 @@ void EstopLatch::run() {
     lock.unlock();
     announce();
     lock.lock();
-    cv_.wait_for(lock, kPeriod, [this] { return stop_ || changed_; });
+    cv_.wait_for(lock, starting_ ? kStartingPeriod : kPeriod, [this] { return stop_ || changed_; });
   }
+}
+
+void EstopLatch::set_starting(bool starting) {
+  {
+    std::lock_guard lock(mutex_);
+    starting_ = starting;
+    changed_ = changed_ || starting;  // the first announcement at once
+  }
+  cv_.notify_all();
 }
 
 std::string RunningSet::describe() const {

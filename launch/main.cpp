@@ -537,7 +537,8 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
   for (std::size_t i = 0; i < plan.size(); ++i) {
     const PlannedProcess& p = plan[i];
     if (i == 0 || layer(i) != layer(i - 1)) {
-      // The first of its layer: start the whole layer.
+      // The first of its layer: start the whole layer. Starting EDPs wait for the stop's state.
+      estop_latch.set_starting(plan[i].edp);
       for (std::size_t k = i; k < plan.size() && layer(k) == layer(i); ++k) {
         launched[k] = start(k);
         if (!launched[k] && plan[k].options.required) break;
@@ -591,6 +592,7 @@ int run(const std::string& config_path, bool check_only, const launch::PlanOptio
     return std::nullopt;
   };
 
+  estop_latch.set_starting(false);
   if (started_all) {
     board.set_state("running");
     supervisor.log(fmt::format("mrroc-launch: all {} processes ready in {} ms; task running",

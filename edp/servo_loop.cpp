@@ -102,6 +102,25 @@ void ServoLoop::start() {
   thread_ = std::thread([this] { run(); });
 }
 
+void ServoLoop::start_stepped() {
+  if (running_.load()) return;
+  hardware_.activate();
+  if (hardware_.read(std::span(feedback_.data(), axes_)) != CycleStatus::ok)
+    throw HardwareError("hardware plugin '" + hardware_.name() +
+                        "' failed its first read: " + hardware_.fault_text());
+  for (std::size_t i = 0; i < axes_; ++i) desired_[i] = feedback_[i].position;
+  if (!device_.reply.empty()) {
+    hardware_.read_device(std::span(device_sample_.data(), device_.reply.size()));
+    latest_.device = device_sample_;
+  }
+  running_ = true;
+}
+
+void ServoLoop::step(std::int64_t missed_periods) {
+  const auto period_ns = static_cast<std::int64_t>(std::llround(period_s_ * 1e9));
+  cycle(missed_periods * period_ns, period_ns, keeps_time_ ? missed_periods : std::int64_t{0});
+}
+
 void ServoLoop::stop() {
   if (!running_.exchange(false)) return;
   changed_.notify();  // wakes a lock-step loop waiting for work or a successor
@@ -505,7 +524,7 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
   return 1.0 + warp_;
 }
 
-void ServoLoop::start_next_macro_step() {
+bool ServoLoop::start_next_macro_step(bool mid_cycle) {
   // The macro-step starts where the previous one ended, with the velocity it ended with, or where
   // the robot stands (after a stopping ramp for a late successor, that is past the last target,
   // not where the task planned it to start). One that would need more than a joint's velocity or
@@ -538,7 +557,10 @@ void ServoLoop::start_next_macro_step() {
     refused_last_ = queue_.back().id;
     drop_queue();
     end_velocity_.fill(0.0);
-    if (moving) {
+    if (moving && mid_cycle) {
+      // This cycle already moved: the caller finishes it, and the ramp starts in the next one.
+      mode_ = Mode::stopping;
+    } else if (moving) {
       // The ramp's first step is taken in this cycle, from the velocity of the last one.
       mode_ = Mode::stopping;
       const RampStep r =
@@ -548,13 +570,15 @@ void ServoLoop::start_next_macro_step() {
       if (r.at_limit) ++limit_stops_;
       if (!r.moving) mode_ = Mode::hold;
     }
-  } else {
-    current_ = queue_.pop();
-    current_->start = desired_;
-    current_->start_velocity = end_velocity_;
-    current_->end_velocity = end_velocity;
+    notify_pending_ = true;
+    return false;
   }
+  current_ = queue_.pop();
+  current_->start = desired_;
+  current_->start_velocity = end_velocity_;
+  current_->end_velocity = end_velocity;
   notify_pending_ = true;  // a queue slot is free
+  return true;
 }
 
 void ServoLoop::motion_cycle(double advance) {
@@ -579,7 +603,7 @@ void ServoLoop::motion_cycle(double advance) {
       return;
     }
     start_held_cycles_ = 0;
-    start_next_macro_step();
+    start_next_macro_step(false);
   }
   // Whole steps as planned; only a catch-up (advance > 1) makes `progress` fractional, and then
   // the part of the advance past a macro-step's end is taken in its successor in the same cycle.
@@ -631,12 +655,34 @@ void ServoLoop::motion_cycle(double advance) {
         ++lost_successors_;
       mode_ = Mode::stopping;
       after_ramp_ = true;
+      coast(end_velocity_, left);
       end_velocity_.fill(0.0);  // the ramp ends at rest
       return;
     }
     if (left <= kEps || queue_.empty()) return;
-    start_next_macro_step();  // continues in this cycle with what is left of the advance
+    // Continues in this cycle with what is left of the advance; if the successor is refused, with
+    // the velocity this one ended with, and the ramp to rest from the next cycle.
+    const AxisArray ended_with = end_velocity_;
+    if (!start_next_macro_step(true)) {
+      coast(ended_with, left);
+      return;
+    }
   }
+}
+
+void ServoLoop::coast(const AxisArray& velocity, double steps) {
+  // A catch-up (or the lead it left, a fraction of a step) carries a motion's end into the middle
+  // of a cycle. When the stopping ramp follows, this cycle must still advance by all of it:
+  // stopping at the end point would take that fraction of a step's distance off this cycle's
+  // velocity at once (0.0058 rad/s of 0.3 rad/s after a stall of one period, 2.9 rad/s^2 against
+  // a limit of 2; 0.29 rad/s, 147 rad/s^2, with the rate still raised by a 20-period stall), before
+  // the ramp brakes from what is left within the limits. The plan's end velocity continues it.
+  if (steps <= 0.0) return;
+  if (!move_within_limits(std::span<const double>(velocity.data(), axes_), steps * period_s_,
+                          std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_),
+                          model_, guard_))
+    ++limit_stops_;
+  latest_.desired = desired_;
 }
 
 void ServoLoop::emergency_stop() {

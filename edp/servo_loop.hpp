@@ -78,6 +78,13 @@ class ServoLoop {
   void start();
   /// Stops the thread (holding the last setpoint) and deactivates the hardware. Idempotent.
   void stop();
+  /// Tests of the cycle itself: activates the hardware as start() does but starts no thread;
+  /// the caller runs every cycle with step(). @throws HardwareError.
+  void start_stepped();
+  /// Runs one cycle on the calling thread (only after start_stepped()), as the servo thread runs
+  /// one that woke `missed_periods` whole periods after its deadline (0: on time): a stall is an
+  /// argument, not a sleep, so what the loop does after it is the same in every run.
+  void step(std::int64_t missed_periods = 0);
 
   /// Macro-steps that may wait ahead of the servo loop (1..kMaxLookahead; default 1, the
   /// paper's single successor). Set before start().
@@ -237,7 +244,13 @@ class ServoLoop {
   void motion_cycle(double advance);
   /// The servo steps this cycle advances the motion (see "Catch-up" in docs/edp.md).
   double catch_up_advance(std::int64_t missed);
-  void start_next_macro_step();
+  /// Starts the macro-step at the queue's front, or refuses it with the queue behind it (false).
+  /// `mid_cycle`: this cycle already advanced the motion up to where it starts (the rest of a
+  /// catch-up's advance), so a refusal of a moving robot starts the ramp in the next cycle.
+  bool start_next_macro_step(bool mid_cycle);
+  /// Moves the setpoint on at `velocity` for `steps` servo steps' time, within the limits (the
+  /// part of a cycle's advance past a motion's end when the stopping ramp follows).
+  void coast(const AxisArray& velocity, double steps);
   void set_fault(const char* text);
   void store_reading(std::uint64_t id, int step_no);
   /// Drops every queued macro-step; waiters for them are answered by their refusal or the

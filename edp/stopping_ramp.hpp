@@ -29,4 +29,13 @@ RampStep stopping_ramp_step(std::span<const double> velocity, std::span<double> 
                             std::span<double> scratch, const RobotModel& model, double period_s,
                             const ArmKinematics* guard);
 
+/// Moves `desired` on at `velocity` [rad/s] for `duration_s` if the new position is inside the
+/// joint limits and the guard's (when not null); otherwise leaves it and returns false. The
+/// stopping ramp's steps are taken with it, and so is the part of a cycle's advance past the end
+/// of a motion that the ramp follows (servo_loop.cpp). `scratch` holds as many values as
+/// `desired`. Allocation-free.
+bool move_within_limits(std::span<const double> velocity, double duration_s,
+                        std::span<double> desired, std::span<double> scratch,
+                        const RobotModel& model, const ArmKinematics* guard);
+
 }  // namespace mrroc::edp

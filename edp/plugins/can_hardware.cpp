@@ -36,6 +36,13 @@
 ///   - `sdo_text` (list of strings "node index sub text"; node 0: every drive): SDO writes of
 ///     string objects at bring-up (segmented when longer than 4 bytes), after `sdo`'s, each
 ///     checked against the drive's file and read back.
+///   - `homing` (list of rows [node (0: every drive without a row of its own), method, switch
+///     search speed (units/s), zero search speed (units/s), acceleration (units/s^2), offset
+///     (units), timeout_s]): these drives home by their own homing mode (CiA 402 mode 6, 0x6098,
+///     0x6099, 0x609A, 0x607C; values in counts by counts_per_unit), checked against the drive's
+///     file (homing in 0x6502, the objects writable, every value within its object), and run
+///     by `DriveHoming::home_axes` (can_hardware.hpp). Without it the EDP's SYNCHRO searches the
+///     home switches, as before.
 ///   - `rpdo`, `tpdo` (lists of rows [node (0: every drive), PDO number, COB-ID (0: the
 ///     predefined one), transmission type, event timer ms, entries...]; an entry is
 ///     index << 16 | sub << 8 | bits, bits 0 for the object's width, or an index alone): the
@@ -74,6 +81,7 @@
 
 #include <fmt/format.h>
 
+#include "can_hardware.hpp"
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_master.hpp"
@@ -87,7 +95,7 @@
 namespace mrroc::edp {
 namespace {
 
-class CanHardware final : public Hardware {
+class CanHardware final : public Hardware, public DriveHoming {
  public:
   [[nodiscard]] std::string name() const override { return "can"; }
   [[nodiscard]] std::size_t axis_count() const override { return axes_; }
@@ -248,6 +256,19 @@ class CanHardware final : public Hardware {
     return master_ ? std::string(master_->fault_text()) : std::string();
   }
 
+  [[nodiscard]] std::uint32_t self_homing_axes() const override {
+    std::uint32_t axes = 0;
+    for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 32); ++i)
+      if (master_ && master_->plan(i).homing) axes |= 1U << i;
+    return axes;
+  }
+
+  void home_axes() override {
+    master_->home(quick_stop_);
+    // The homed drives' positions jumped to their new reference: no velocity across it.
+    first_read_ = true;
+  }
+
  private:
   static double canopen_max_node() { return static_cast<double>(can::canopen::kMaxNode); }
 
@@ -275,7 +296,7 @@ class CanHardware final : public Hardware {
   /// every drive at once).
   static std::vector<can::DrivePlan> plan_drives(const Params& params, const RobotModel& model,
                                                  const std::vector<std::int64_t>& nodes,
-                                                 bool outputs) {
+                                                 bool outputs, double counts) {
     const std::size_t axes = model.axes();
     ConfigErrorList errors;
     // A string for every axis, or a list of one per axis.
@@ -370,6 +391,42 @@ class CanHardware final : public Hardware {
         pdo_rows.push_back(std::move(p));
       }
     }
+    // Homing by the drives: [node (0: every drive not named in a row of its own), method, switch
+    // search speed, zero search speed, acceleration, offset, timeout_s].
+    std::map<std::int64_t, std::pair<std::vector<double>, SourceLocation>> homing_rows;
+    if (params.has("homing")) {
+      const std::vector<std::vector<double>> rows = params.get_double_rows("homing");
+      for (std::size_t r = 0; r < rows.size(); ++r) {
+        const std::vector<double>& row = rows[r];
+        const SourceLocation at = params.location_of_row("homing", r);
+        if (row.size() != 7 || !integer(row[0], 0, 127) || !integer(row[1], -128, 127) ||
+            !std::all_of(row.begin() + 2, row.end(), [](double v) { return std::isfinite(v); })) {
+          errors.add(ConfigError(
+              at,
+              "each row of 'homing' is [node (0: every drive without a row of its own), "
+              "method (CiA 402 homing method, 0x6098, an integer -128..127), switch search "
+              "speed (units/s), zero search speed (units/s), acceleration (units/s^2), "
+              "offset (units), timeout_s (s)], numbers"));
+          continue;
+        }
+        const auto node = static_cast<std::int64_t>(row[0]);
+        if (node != 0 && std::find(nodes.begin(), nodes.end(), node) == nodes.end()) {
+          errors.add(ConfigError(at, fmt::format("'homing' names node {}, which is none of robot "
+                                                 "'{}''s nodes",
+                                                 node, model.name)));
+          continue;
+        }
+        if (const auto it = homing_rows.find(node); it != homing_rows.end()) {
+          errors.add(
+              ConfigError(at, fmt::format("'homing' has a second row for {} (the first is at {})",
+                                          node == 0 ? std::string("every drive (node 0)")
+                                                    : fmt::format("node {}", node),
+                                          it->second.second.str())));
+          continue;
+        }
+        homing_rows[node] = {row, at};
+      }
+    }
     const std::filesystem::path base =
         std::filesystem::path(params.location_of("eds").file).parent_path();
     std::map<std::string, std::shared_ptr<const can::eds::Dictionary>> loaded;
@@ -445,6 +502,22 @@ class CanHardware final : public Hardware {
       }
       for (const PdoRow& row : pdo_rows)
         if (row.node == 0 || row.node == nodes[i]) request.pdos.push_back(row.pdo);
+      auto homing_row = homing_rows.find(nodes[i]);
+      if (homing_row == homing_rows.end()) homing_row = homing_rows.find(0);
+      if (homing_row != homing_rows.end()) {
+        const std::vector<double>& row = homing_row->second.first;
+        can::HomingRequest h;
+        h.method = static_cast<std::int64_t>(row[1]);
+        h.switch_speed = row[2];
+        h.zero_speed = row[3];
+        h.acceleration = row[4];
+        h.offset = row[5];
+        h.timeout_s = row[6];
+        h.counts_per_unit = counts;
+        h.unit = model.unit(i);
+        h.where = homing_row->second.second;
+        request.homing = h;
+      }
       std::shared_ptr<const can::eds::Dictionary> file;
       if (files[i].empty()) {
         file = can::default_drive_eds();
@@ -503,7 +576,7 @@ class CanHardware final : public Hardware {
     s.heartbeat = params.get_int("heartbeat_ms", 100);
     s.heartbeat_timeout = params.get_int("heartbeat_timeout_ms", emulated ? 150 : 50);
     s.digital_lines = params.get_bool("digital_lines", true);
-    s.plans = plan_drives(params, model, s.nodes, s.digital_lines);
+    s.plans = plan_drives(params, model, s.nodes, s.digital_lines, s.counts);
     params.reject_unread("robot.edp.params");
     try {
       can::check_bus_url(s.url);

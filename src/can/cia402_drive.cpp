@@ -156,6 +156,18 @@ std::uint16_t Cia402Drive::statusword() const noexcept {
       (controlword_ & canopen::controlword::kEnableIpMode) != 0U)
     sw |= canopen::statusword::kIpModeActive;
   if (following_error_) sw |= canopen::statusword::kFollowingError;
+  if (mode_ == canopen::kModeHoming) {
+    // Homing: bit 12 attained, bit 13 error, bit 10 at standstill and not homing (CiA 402's
+    // table: in progress 0/0/0, interrupted or not started 0/0/1, attained 1/0/1, error x/1/x).
+    const bool homing = homing_phase_ != HomingPhase::idle;
+    sw &= static_cast<std::uint16_t>(~canopen::statusword::kFollowingError);  // bit 13: homing's
+    if (homing_attained_) sw |= canopen::statusword::kHomingAttained;
+    if (homing_error_) sw |= canopen::statusword::kHomingError;
+    if (!homing && demand_velocity_ == 0.0) sw |= canopen::statusword::kTargetReached;
+    if (homing_phase_ == HomingPhase::stopping && demand_velocity_ == 0.0)
+      sw |= canopen::statusword::kTargetReached;
+    return sw;
+  }
   // Target reached: not in cyclic synchronous position, where CiA 402 reserves the bit (it would
   // flicker with every target, and each change of the statusword is a TPDO); in the other modes
   // once the interpolation has ended at the target.
@@ -181,6 +193,8 @@ void Cia402Drive::power_on(const AxisSample& sample, double now_s) {
   controlword_ = 0;
   following_error_ = false;
   following_error_since_s_ = over_current_since_s_ = -1.0;
+  homing_phase_ = HomingPhase::idle;
+  homing_attained_ = homing_error_ = false;
   heartbeat_ms_ = 0;
   reset_communication_objects();
   abort_connection_ = canopen::abort_connection::kFault;
@@ -203,6 +217,10 @@ void Cia402Drive::reset_communication_objects() noexcept {
 void Cia402Drive::enter(DriveState state, double now_s) {
   const bool was_powered = powered();
   state_ = state;
+  // Homing runs in operation enabled only; a quick stop ramps the axis down from its homing
+  // speed (below), and the homing is over.
+  if (state != DriveState::operation_enabled && homing_phase_ != HomingPhase::idle)
+    homing_phase_ = HomingPhase::idle;
   if (state == DriveState::operation_enabled && !was_powered) comm_error_ = 0;
   if (!powered()) {
     // Brake: hold where the axis is.
@@ -235,7 +253,20 @@ void Cia402Drive::inject_fault(std::uint16_t code, double now_s) { fault(code, n
 
 void Cia402Drive::apply_controlword(std::uint16_t cw, double now_s) {
   const bool reset_edge = (cw & 0x80U) != 0U && (controlword_ & 0x80U) == 0U;
+  const bool bit4_was = (controlword_ & canopen::controlword::kHomingStart) != 0U;
   controlword_ = cw;
+  apply_state_command(cw, reset_edge, now_s);
+  // Homing mode, in operation enabled (also when this very controlword enabled it): bit 4 from
+  // 0 to 1 starts the homing, from 1 to 0 interrupts it.
+  if (mode_ != canopen::kModeHoming || state_ != DriveState::operation_enabled) return;
+  const bool bit4 = (cw & canopen::controlword::kHomingStart) != 0U;
+  if (bit4 && !bit4_was)
+    start_homing(now_s);
+  else if (!bit4 && bit4_was && homing_phase_ != HomingPhase::idle)
+    homing_phase_ = HomingPhase::stopping;
+}
+
+void Cia402Drive::apply_state_command(std::uint16_t cw, bool reset_edge, double now_s) {
   const canopen::DriveCommand command = canopen::decode_command(cw);
   if (command == canopen::DriveCommand::fault_reset) {
     if (reset_edge && state_ == DriveState::fault) {
@@ -248,6 +279,107 @@ void Cia402Drive::apply_controlword(std::uint16_t cw, double now_s) {
   }
   if (const auto next = canopen::transition(state_, command); next && *next != state_)
     enter(*next, now_s);
+}
+
+void Cia402Drive::start_homing(double now_s) {
+  (void)now_s;
+  const auto method =
+      static_cast<std::int8_t>(static_cast<std::uint8_t>(stored(od::kHomingMethod, 0)));
+  homing_attained_ = false;
+  homing_error_ = false;
+  homing_start_ = demand_;
+  if (method == 35 || method == 37) {
+    // The current position is the home point.
+    home_ = sample_.position;
+    zero_ = home_ - static_cast<double>(static_cast<std::int32_t>(stored(od::kHomeOffset, 0))) /
+                        config_.counts_per_unit;
+    homing_attained_ = true;
+    homing_phase_ = HomingPhase::idle;
+    return;
+  }
+  if (method < 19 || method > 22) {  // not a method of this drive (0: none written)
+    homing_error_ = true;
+    homing_phase_ = HomingPhase::stopping;
+    return;
+  }
+  // 19/20: the switch is on above its edge; 21/22: below. 19 and 22 end moving down, 20 and 21
+  // moving up; 19 and 21 where the switch goes off, 20 and 22 where it comes on.
+  homing_direction_ = method == 20 || method == 21 ? 1.0 : -1.0;
+  homing_switch_before_ = method == 19 || method == 21;
+  homing_phase_ =
+      sample_.home_switch == homing_switch_before_ ? HomingPhase::approach : HomingPhase::search;
+}
+
+void Cia402Drive::homing_step(double dt) {
+  const double per_count = 1.0 / config_.counts_per_unit;
+  const double acceleration =
+      static_cast<double>(std::max<std::uint64_t>(1, stored(od::kHomingAcceleration, 0))) *
+      per_count;
+  const double switch_speed = static_cast<double>(stored(od::kHomingSpeeds, 1)) * per_count;
+  const double zero_speed = static_cast<double>(stored(od::kHomingSpeeds, 2)) * per_count;
+  double v = demand_velocity_;
+  const auto ramp_to = [&](double wanted) {
+    const double dv = acceleration * dt;
+    v = std::abs(wanted - v) <= dv ? wanted : v + std::copysign(dv, wanted - v);
+  };
+  const auto beyond_range = [&] {
+    return std::abs(demand_ - homing_start_) > config_.homing_search_range;
+  };
+  switch (homing_phase_) {
+    case HomingPhase::search:
+      if (sample_.home_switch == homing_switch_before_) {
+        homing_phase_ = HomingPhase::reverse;
+        ramp_to(0.0);
+      } else if (beyond_range()) {
+        homing_error_ = true;
+        homing_phase_ = HomingPhase::stopping;
+        ramp_to(0.0);
+      } else {
+        ramp_to(-homing_direction_ * switch_speed);
+      }
+      break;
+    case HomingPhase::reverse:
+      ramp_to(0.0);
+      if (v == 0.0) homing_phase_ = HomingPhase::approach;
+      break;
+    case HomingPhase::approach:
+      if (sample_.home_switch != homing_switch_before_) {
+        // The edge: here the position becomes the home offset.
+        home_ = sample_.position;
+        zero_ = home_ - static_cast<double>(static_cast<std::int32_t>(stored(od::kHomeOffset, 0))) *
+                            per_count;
+        homing_phase_ = HomingPhase::settle;
+      } else if (beyond_range()) {
+        homing_error_ = true;
+        homing_phase_ = HomingPhase::stopping;
+        ramp_to(0.0);
+        break;
+      } else {
+        ramp_to(homing_direction_ * zero_speed);
+        break;
+      }
+      [[fallthrough]];
+    case HomingPhase::settle: {
+      // Back to the home point at the zero search speed, rest to rest.
+      const double d = home_ - demand_;
+      const double dv = acceleration * dt;
+      if (std::abs(d) <= std::max(per_count, std::abs(v) * dt) && std::abs(v) <= dv) {
+        demand_ = home_;
+        v = 0.0;
+        homing_attained_ = true;
+        homing_phase_ = HomingPhase::idle;
+        break;
+      }
+      const bool brake = d * v < 0.0 || std::abs(d) <= v * v / (2.0 * acceleration);
+      ramp_to(brake ? 0.0 : std::copysign(std::max(zero_speed, dv), d));
+      break;
+    }
+    case HomingPhase::stopping: ramp_to(0.0); break;
+    case HomingPhase::idle: v = 0.0; break;
+  }
+  demand_velocity_ = v;
+  if (homing_phase_ != HomingPhase::idle || v != 0.0) demand_ += v * dt;
+  from_ = to_ = demand_;
 }
 
 void Cia402Drive::on_sync(double now_s) {
@@ -471,8 +603,21 @@ std::uint32_t Cia402Drive::write_object(std::uint16_t index, std::uint8_t sub, s
                                 : mode != canopen::kModeCyclicSyncPosition)
         return abort::kValueRange;
       if (state_ == DriveState::operation_enabled && mode != mode_) return abort::kDeviceState;
+      if (mode != mode_) {
+        homing_phase_ = HomingPhase::idle;
+        homing_attained_ = homing_error_ = false;
+      }
       mode_ = mode;
       return 0U;
+    }
+    case od::kHomingMethod: {
+      // The axis has a home switch (0x60FD bit 2) and nothing else: no limit switches, no index.
+      const auto method = static_cast<std::int8_t>(static_cast<std::uint8_t>(v));
+      if (method != 19 && method != 20 && method != 21 && method != 22 && method != 35 &&
+          method != 37)
+        return abort::kValueRange;
+      if (homing_phase_ != HomingPhase::idle) return abort::kDeviceState;
+      break;  // stored
     }
     case od::kFollowingErrorWindow: config_.following_error_window = v; return 0U;
     case od::kFollowingErrorTimeout:
@@ -805,7 +950,9 @@ void Cia402Drive::update(const AxisSample& sample, double now_s) {
     }
     if (state_ == DriveState::fault) return;
   }
-  if (state_ == DriveState::operation_enabled) {
+  if (state_ == DriveState::operation_enabled && mode_ == canopen::kModeHoming) {
+    homing_step(dt);
+  } else if (state_ == DriveState::operation_enabled) {
     const double s =
         std::clamp((now_s - segment_start_s_) / config_.interpolation_period_s, 0.0, 1.0);
     demand_ = from_ + (to_ - from_) * s;

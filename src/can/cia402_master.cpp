@@ -73,6 +73,8 @@ Cia402Master::Cia402Master(Bus& bus, std::vector<MasterAxis> axes, const MasterO
                         " ms must exceed the master's heartbeat period " +
                         std::to_string(options_.master_heartbeat_ms) + " ms");
   enable_command_.assign(axes_.size(), canopen::controlword::kEnableOperation);
+  controlword_override_.assign(axes_.size(), -1);
+  homing_axis_.assign(axes_.size(), 0);
   reports_.assign(axes_.size(), std::string());
   for (std::size_t i = 0; i < axes_.size(); ++i) {
     MasterAxis& a = axes_[i];
@@ -281,7 +283,7 @@ void Cia402Master::on_statusword(std::size_t i, std::uint16_t statusword) noexce
     std::snprintf(text, sizeof text, "in fault (statusword 0x%04X, last EMCY 0x%04X %.*s)",
                   s.statusword, s.last_emcy, static_cast<int>(what.size()), what.data());
     set_fault(i, text);
-  } else if (s.state != DriveState::operation_enabled &&
+  } else if (s.state != DriveState::operation_enabled && homing_axis_[i] == 0U &&
              !((quick_stopping_ || cycle_ < quick_stop_grace_until_) &&
                s.state == DriveState::quick_stop_active)) {
     const std::string_view state = canopen::to_string(s.state);
@@ -332,8 +334,10 @@ void Cia402Master::cycle_once(std::uint16_t controlword, std::span<const std::in
         std::uint64_t value = 0;
         switch (f.role) {
           case Role::controlword:
-            value = controlword == canopen::controlword::kEnableOperation ? enable_command_[i]
-                                                                          : controlword;
+            value = controlword_override_[i] >= 0
+                        ? static_cast<std::uint32_t>(controlword_override_[i])
+                    : controlword == canopen::controlword::kEnableOperation ? enable_command_[i]
+                                                                            : controlword;
             break;
           case Role::target:
             value = static_cast<std::uint32_t>(
@@ -862,6 +866,9 @@ void Cia402Master::configure_drive(std::size_t i) {
 
 void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
   enabled_ = false;
+  homing_ = false;
+  std::fill(controlword_override_.begin(), controlword_override_.end(), -1);
+  std::fill(homing_axis_.begin(), homing_axis_.end(), 0);
   faulted_ = false;
   quick_stopping_ = false;
   fault_[0] = '\0';
@@ -909,6 +916,190 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
     last_target_[i] = target_before_[i] = status_[i].position;
   }
   enabled_ = true;
+}
+
+bool Cia402Master::homes_by_drive() const noexcept {
+  return std::any_of(axes_.begin(), axes_.end(),
+                     [](const MasterAxis& a) { return a.plan.homing.has_value(); });
+}
+
+void Cia402Master::homing_cycle(bool quick_stop) {
+  if (quick_stop) std::fill(controlword_override_.begin(), controlword_override_.end(), -1);
+  cycle_once(quick_stop ? canopen::controlword::kQuickStop : canopen::controlword::kEnableOperation,
+             held_);
+  std::this_thread::sleep_for(std::chrono::duration<double>(options_.period_s));
+  receive();
+}
+
+void Cia402Master::home(const std::atomic<bool>& stop) {
+  namespace cw = canopen::controlword;
+  namespace sw = canopen::statusword;
+  using Clock = std::chrono::steady_clock;
+  if (!enabled_ || faulted_)
+    throw HardwareError(bus_.url() + ": homing needs every drive brought up and free of faults" +
+                        (faulted_ ? std::string(" (") + fault_ + ")" : std::string()));
+  std::vector<std::size_t> homing;
+  for (std::size_t i = 0; i < axes_.size(); ++i)
+    if (axes_[i].plan.homing) homing.push_back(i);
+  if (homing.empty()) return;
+  const Clock::time_point began = Clock::now();
+  std::vector<std::optional<Clock::time_point>> started(axes_.size());
+  const auto seconds = [&](std::size_t i) {
+    return std::chrono::duration<double>(Clock::now() - started[i].value_or(began)).count();
+  };
+  const auto method = [&](std::size_t i) { return static_cast<int>(axes_[i].plan.homing->method); };
+  const auto end_homing = [&] {
+    homing_ = false;
+    std::fill(controlword_override_.begin(), controlword_override_.end(), -1);
+    std::fill(homing_axis_.begin(), homing_axis_.end(), 0);
+  };
+  // Ends the homing as a fault (unless one is already there: its text stands): every drive is
+  // quick-stopped, the homing ones from their homing motion.
+  const auto fail = [&](std::size_t i, const std::string& why) {
+    char text[224];
+    std::snprintf(text, sizeof text, "homing by method %d failed after %.2f s: %s", method(i),
+                  seconds(i), why.c_str());
+    const bool earlier = faulted_;
+    set_fault(i, text);
+    quick_stopping_ = true;
+    for (int k = 0; k < 5; ++k) homing_cycle(true);
+    end_homing();
+    return HardwareError(earlier ? std::string(fault_) + "; " + who(i) + ": " + text
+                                 : std::string(fault_));
+  };
+  const auto hex_text = [](std::uint32_t v, int digits) { return hex(v, digits); };
+  // One cycle, then: the stop, or a fault the cycle found, ends the homing.
+  const auto cycle_checked = [&] {
+    homing_cycle(false);
+    if (stop.load(std::memory_order_relaxed))
+      throw fail(homing.front(), "stopped by the emergency stop (quick stop)");
+    if (faulted_) throw fail(homing.front(), "a fault while homing");
+  };
+  const auto sdo_checked = [&](std::size_t i, std::uint16_t index, std::uint8_t sub,
+                               std::uint32_t value, std::uint8_t size) {
+    try {
+      write_checked(i, index, sub, value, size);
+    } catch (const HardwareError& e) {
+      throw fail(i, e.what());
+    }
+    cycle_checked();
+  };
+  // Waits for every homing drive to report `state`, stepping it there with `controlword` (-1:
+  // the cycle's own enable operation, with the plan's mode's bits).
+  const auto step_to = [&](std::int32_t controlword, DriveState state) {
+    const std::uint64_t from = cycle_;
+    for (const std::size_t i : homing) controlword_override_[i] = controlword;
+    const auto deadline = Clock::now() + std::chrono::seconds(2);
+    for (;;) {
+      cycle_checked();
+      bool all = true;
+      for (const std::size_t i : homing)
+        all = all && status_[i].state == state && status_[i].last_statusword_cycle > from;
+      if (all) return;
+      if (Clock::now() > deadline)
+        for (const std::size_t i : homing)
+          if (status_[i].state != state)
+            throw fail(i, "did not reach '" + std::string(canopen::to_string(state)) +
+                              "' within 2 s; it is in '" +
+                              std::string(canopen::to_string(status_[i].state)) + "' (statusword " +
+                              hex_text(status_[i].statusword, 4) + ")");
+    }
+  };
+  const auto set_mode = [&](std::size_t i, std::int8_t mode) {
+    const std::uint8_t n = axes_[i].node;
+    try {
+      sdo_write(n, od::kModesOfOperation, 0, static_cast<std::uint8_t>(mode), 1);
+    } catch (const HardwareError& e) {
+      throw fail(i, e.what());
+    }
+    cycle_checked();
+    std::uint32_t shown = 0;
+    try {
+      shown = sdo_read(n, od::kModesDisplay, 0);
+    } catch (const HardwareError& e) {
+      throw fail(i, e.what());
+    }
+    if (static_cast<std::int8_t>(shown) != mode)
+      throw fail(i, "0x6061 (modes of operation display) reads " +
+                        std::to_string(static_cast<std::int8_t>(shown)) + " after 0x6060 = " +
+                        std::to_string(mode) + " (" + std::string(eds::mode_name(mode)) + ")");
+    cycle_checked();
+  };
+
+  homing_ = true;
+  std::fill(velocities_.begin(), velocities_.end(), 0);
+  // 1. The homing objects, each read back (a method the drive lacks is refused here, before
+  // anything moves).
+  for (const std::size_t i : homing) {
+    const HomingPlan& h = *axes_[i].plan.homing;
+    sdo_checked(i, od::kHomingMethod, 0, static_cast<std::uint8_t>(h.method), 1);
+    sdo_checked(i, od::kHomingSpeeds, 1, h.switch_speed, 4);
+    sdo_checked(i, od::kHomingSpeeds, 2, h.zero_speed, 4);
+    sdo_checked(i, od::kHomingAcceleration, 0, h.acceleration, 4);
+    sdo_checked(i, od::kHomeOffset, 0, static_cast<std::uint32_t>(h.offset), 4);
+  }
+  // 2. Homing mode, changed out of operation enabled (the brake holds meanwhile).
+  for (const std::size_t i : homing) homing_axis_[i] = 1;
+  step_to(cw::kSwitchOn, DriveState::switched_on);
+  for (const std::size_t i : homing) set_mode(i, canopen::kModeHoming);
+  step_to(cw::kEnableOperation, DriveState::operation_enabled);
+  // 3. Homing operation start: bit 4 from 0 to 1. Only a statusword the drive sent after it saw
+  // the start counts, and homing attained only once it was clear since (a drive may keep bit 12
+  // from an earlier homing until it starts again).
+  const std::uint64_t start_cycle = cycle_;
+  std::vector<std::uint8_t> attained_before(axes_.size(), 0);
+  std::vector<std::uint8_t> done(axes_.size(), 0);
+  for (const std::size_t i : homing) {
+    attained_before[i] = (status_[i].statusword & sw::kHomingAttained) != 0U ? 1 : 0;
+    controlword_override_[i] = cw::kEnableOperation | cw::kHomingStart;
+    started[i] = Clock::now();
+  }
+  for (std::size_t remaining = homing.size(); remaining > 0;) {
+    cycle_checked();
+    for (const std::size_t i : homing) {
+      if (done[i] != 0U) continue;
+      const std::uint16_t word = status_[i].statusword;
+      const bool fresh = status_[i].last_statusword_cycle >= start_cycle + 2;
+      if (fresh && (word & sw::kHomingAttained) == 0U) attained_before[i] = 0;
+      if (fresh && (word & sw::kHomingError) != 0U)
+        throw fail(i, "the drive reports a homing error (statusword " + hex_text(word, 4) +
+                          ": bit 13 set" +
+                          ((word & sw::kTargetReached) != 0U ? ", at standstill)" : ", moving)"));
+      if (fresh && attained_before[i] == 0U && (word & sw::kHomingAttained) != 0U &&
+          (word & sw::kTargetReached) != 0U) {
+        done[i] = 1;
+        --remaining;
+        continue;
+      }
+      if (seconds(i) > axes_[i].plan.homing->timeout_s) {
+        char text[160];
+        std::snprintf(text, sizeof text,
+                      "no homing attained (statusword bit 12 with bit 10) within its timeout "
+                      "of %.3g s (statusword 0x%04X)",
+                      axes_[i].plan.homing->timeout_s, word);
+        throw fail(i, text);
+      }
+    }
+  }
+  // 4. Back to the plan's mode, the target where the drive now is.
+  for (const std::size_t i : homing) controlword_override_[i] = cw::kEnableOperation;
+  cycle_checked();
+  step_to(cw::kSwitchOn, DriveState::switched_on);
+  for (const std::size_t i : homing) set_mode(i, axes_[i].plan.mode);
+  const std::uint64_t settled = cycle_;
+  for (bool fresh = false; !fresh;) {
+    cycle_checked();
+    fresh = true;
+    for (const std::size_t i : homing) fresh = fresh && status_[i].last_tpdo_cycle > settled;
+  }
+  for (const std::size_t i : homing) {
+    held_[i] = counts(i, status_[i].position).value_or(held_[i]);
+    targets_[i] = held_[i];
+    velocities_[i] = 0;
+    last_target_[i] = target_before_[i] = status_[i].position;
+  }
+  step_to(-1, DriveState::operation_enabled);
+  end_homing();
 }
 
 void Cia402Master::switch_outputs_off() noexcept {

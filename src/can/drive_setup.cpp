@@ -42,7 +42,14 @@ const char* known_name(std::uint16_t index, std::uint8_t sub) {
     case 0x606C: return "velocity actual value";
     case 0x6077: return "torque actual value";
     case 0x607A: return "target position";
+    case 0x607C: return "home offset";
     case 0x6085: return "quick stop deceleration";
+    case 0x6098: return "homing method";
+    case 0x6099:
+      return sub == 1   ? "speed during search for switch"
+             : sub == 2 ? "speed during search for zero"
+                        : "homing speeds";
+    case 0x609A: return "homing acceleration";
     case 0x60C1: return "interpolation data record";
     case 0x60C2: return "interpolation time period";
     case 0x60FD: return "digital inputs";
@@ -136,6 +143,124 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
     if (const eds::Entry* e = d.entry(index, sub); e != nullptr && !eds::writable(e->access))
       problem(d.where(*e), name(index, sub) + " is '" + std::string(eds::to_string(e->access)) +
                                "' (AccessType), mrroc configures it at bring-up");
+  };
+
+  // Homing: the objects, the mode in 0x6502, each value in drive units within its object.
+  const auto plan_homing = [&](const HomingRequest& h) -> std::optional<HomingPlan> {
+    const SourceLocation& at = h.where;
+    HomingPlan hp;
+    hp.timeout_s = h.timeout_s;
+    hp.where = at;
+    bool ok = true;
+    const std::string why =
+        "writes at SYNCHRO to home the axis by the drive's homing mode (config 'homing')";
+    const eds::Entry* modes = d.entry(0x6502, 0);
+    char bits[16];
+    std::snprintf(bits, sizeof bits, "0x%08X", d.supported_modes());
+    if (modes == nullptr) {
+      problem(at, d.file() +
+                      " has no object 0x6502 (supported drive modes), so it does not say "
+                      "that the drive has homing mode (6), which the config's 'homing' "
+                      "asks for");
+      ok = false;
+    } else if ((d.supported_modes() & eds::mode_bit(eds::mode::kHoming)) == 0U) {
+      problem(at, std::string("the drive does not support homing (6): 0x6502 = ") + bits + " at " +
+                      d.where(*modes).str() +
+                      " does not list it (bit 5), and the config's "
+                      "'homing' asks for it");
+      ok = false;
+    }
+    const eds::Entry* method = need_at(at, 0x6098, 0, true, false, why);
+    const eds::Entry* switch_speed = need_at(at, 0x6099, 1, true, false, why);
+    const eds::Entry* zero_speed = need_at(at, 0x6099, 2, true, false, why);
+    const eds::Entry* acceleration = need_at(at, 0x609A, 0, true, false, why);
+    const eds::Entry* offset = need_at(at, 0x607C, 0, true, false, why);
+    if (const eds::Entry* display =
+            need_at(at, 0x6061, 0, false, false, "reads it back after switching to homing mode");
+        display != nullptr && !eds::readable(display->access))
+      problem(d.where(*display), name(0x6061, 0) + " is '" +
+                                     std::string(eds::to_string(display->access)) +
+                                     "' (AccessType), mrroc reads it back");
+    ok = ok && method && switch_speed && zero_speed && acceleration && offset;
+    // A value in drive units, within the object's type and limits; `lowest` bounds the value in
+    // the config's units (speeds and acceleration: positive where the method moves).
+    const auto in_counts = [&](const eds::Entry* e, const char* what, double value,
+                               const char* unit, std::int64_t lowest,
+                               std::int64_t highest) -> std::optional<std::int64_t> {
+      const auto c = to_drive_units(value, h.counts_per_unit, lowest, highest);
+      char text[400];
+      if (!c) {
+        std::snprintf(text, sizeof text,
+                      "homing %s %.6g %s%s is %.6g counts at counts_per_unit %.6g counts/%s, "
+                      "outside %s's range %lld..%lld counts",
+                      what, value, h.unit.c_str(), unit, value * h.counts_per_unit,
+                      h.counts_per_unit, h.unit.c_str(), name(e->index, e->sub).c_str(),
+                      static_cast<long long>(lowest), static_cast<long long>(highest));
+        problem(at, text);
+        return std::nullopt;
+      }
+      const int width = eds::bit_size(e->data_type);
+      const std::uint64_t raw =
+          static_cast<std::uint64_t>(*c) &
+          (width >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << width) - 1U);
+      if (const auto bad = eds::out_of_range(*e, raw)) {
+        std::snprintf(text, sizeof text, "homing %s %.6g %s%s is %lld counts: %s (%s at %s)", what,
+                      value, h.unit.c_str(), unit, static_cast<long long>(*c), bad->c_str(),
+                      name(e->index, e->sub).c_str(), d.where(*e).str().c_str());
+        problem(at, text);
+        return std::nullopt;
+      }
+      return c;
+    };
+    if (method != nullptr) {
+      const std::uint64_t raw = static_cast<std::uint64_t>(h.method) & 0xFFU;
+      if (h.method < -128 || h.method > 127) {
+        problem(at, "homing method " + std::to_string(h.method) + " does not fit " +
+                        name(0x6098, 0) + " (INTEGER8, -128..127)");
+        ok = false;
+      } else if (const auto bad = eds::out_of_range(*method, raw)) {
+        problem(at, "homing method " + std::to_string(h.method) + ": " + *bad + " of " +
+                        name(0x6098, 0) + " (" + d.where(*method).str() + ")");
+        ok = false;
+      } else {
+        hp.method = static_cast<std::int8_t>(h.method);
+      }
+    }
+    // Methods 35 and 37 (the current position is home) move nothing: their speeds are unused.
+    const bool moves = h.method != 35 && h.method != 37;
+    const std::int64_t least = moves ? 1 : 0;
+    if (switch_speed != nullptr) {
+      const auto c =
+          in_counts(switch_speed, "switch search speed", h.switch_speed, "/s", least, UINT32_MAX);
+      ok = ok && c.has_value();
+      if (c) hp.switch_speed = static_cast<std::uint32_t>(*c);
+    }
+    if (zero_speed != nullptr) {
+      const auto c =
+          in_counts(zero_speed, "zero search speed", h.zero_speed, "/s", least, UINT32_MAX);
+      ok = ok && c.has_value();
+      if (c) hp.zero_speed = static_cast<std::uint32_t>(*c);
+    }
+    if (acceleration != nullptr) {
+      const auto c =
+          in_counts(acceleration, "acceleration", h.acceleration, "/s^2", least, UINT32_MAX);
+      ok = ok && c.has_value();
+      if (c) hp.acceleration = static_cast<std::uint32_t>(*c);
+    }
+    if (offset != nullptr) {
+      const auto c = in_counts(offset, "offset", h.offset, "", INT32_MIN, INT32_MAX);
+      ok = ok && c.has_value();
+      if (c) hp.offset = static_cast<std::int32_t>(*c);
+    }
+    if (!(h.timeout_s > 0.0) || !std::isfinite(h.timeout_s)) {
+      char text[160];
+      std::snprintf(text, sizeof text, "homing timeout %.6g s must be a positive number of seconds",
+                    h.timeout_s);
+      problem(at, text);
+      ok = false;
+    }
+    if (!ok) return std::nullopt;
+    return hp;
   };
 
   // Mode.
@@ -442,6 +567,9 @@ DrivePlan plan_drive(std::shared_ptr<const eds::Dictionary> eds, const DriveRequ
       plan.switched_off.push_back(off);
     }
   }
+
+  // Homing by the drive (mode 6), when the config asks for it.
+  if (request.homing) plan.homing = plan_homing(*request.homing);
 
   // The config's own SDO writes.
   for (SdoWrite w : request.writes) {

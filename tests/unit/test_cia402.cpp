@@ -12,10 +12,14 @@
 #include <cstdint>
 #include <cstdio>
 #include <deque>
+#include <fstream>
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
+#include <sstream>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -192,13 +196,16 @@ class MemoryHub {
 class DriveRack {
  public:
   /// `files`: each drive's EDS (default: mrroc's emulated drive).
+  /// `adjust`: changes each drive's config before it is made.
   DriveRack(MemoryHub& hub, int count,
-            const std::vector<std::shared_ptr<const eds::Dictionary>>& files = {})
+            const std::vector<std::shared_ptr<const eds::Dictionary>>& files = {},
+            const std::function<void(DriveConfig&)>& adjust = {})
       : bus_(hub.add()) {
     for (int i = 0; i < count; ++i) {
       DriveConfig c;
       c.node = static_cast<std::uint8_t>(i + 1);
       if (static_cast<std::size_t>(i) < files.size()) c.eds = files[static_cast<std::size_t>(i)];
+      if (adjust) adjust(c);
       drives_.push_back(
           std::make_unique<Cia402Drive>(c, [this](const can_frame& f) { (void)bus_.send(f); }));
       positions_.push_back(0.3 * i);
@@ -1685,6 +1692,354 @@ TEST(Cia402Master, WritesStringsSegmentedAndNamesEveryAbort) {
               std::string::npos)
         << what;
   }
+}
+
+// --- Homing by the drive's own homing mode (CiA 402 mode 6) -----------------------------------
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+HomingRequest homing_row(std::int64_t method, double switch_speed, double zero_speed,
+                         double acceleration, double offset, double timeout_s) {
+  HomingRequest h;
+  h.method = method;
+  h.switch_speed = switch_speed;
+  h.zero_speed = zero_speed;
+  h.acceleration = acceleration;
+  h.offset = offset;
+  h.timeout_s = timeout_s;
+  h.where = {"cell.toml", 40};
+  return h;
+}
+
+TEST(DrivePlan, HomingIsCheckedAgainstTheFileAtItsRow) {
+  DriveRequest request;
+  request.node = 2;
+  request.axis = "lower_arm";
+  request.where = {"cell.toml", 20};
+  // In counts by counts_per_unit (100000 counts/rad).
+  request.homing = homing_row(19, 0.5, 0.05, 2.0, -0.25, 10.0);
+  const DrivePlan plan = plan_drive(drive_file("emu-pp-split.eds"), request);
+  ASSERT_TRUE(plan.homing.has_value());
+  EXPECT_EQ(plan.homing->method, 19);
+  EXPECT_EQ(plan.homing->switch_speed, 50000U);
+  EXPECT_EQ(plan.homing->zero_speed, 5000U);
+  EXPECT_EQ(plan.homing->acceleration, 200000U);
+  EXPECT_EQ(plan.homing->offset, -25000);
+  EXPECT_DOUBLE_EQ(plan.homing->timeout_s, 10.0);
+  // Without a row: no homing by the drive (the EDP's search, as before).
+  request.homing.reset();
+  EXPECT_FALSE(plan_drive(drive_file("emu-pp-split.eds"), request).homing.has_value());
+
+  // Every problem at once, each at the row.
+  const auto errors = [&](const std::shared_ptr<const eds::Dictionary>& file) {
+    try {
+      (void)plan_drive(file, request);
+    } catch (const mrroc::ConfigError& e) {  // ConfigErrors when more than one
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  request.homing = homing_row(40, -0.5, 0.05, 0.0, 30000.0, 0.0);
+  std::string what = errors(drive_file("emu-pp-split.eds"));
+  for (const std::string line : {
+           "cell.toml:40: error: node 2 (axis 'lower_arm'): homing method 40: 40 above the high "
+           "limit 37 of 0x6098 (Homing method) (",
+           "cell.toml:40: error: node 2 (axis 'lower_arm'): homing switch search speed -0.5 "
+           "rad/s is -50000 counts at counts_per_unit 100000 counts/rad, outside 0x6099 sub 1 "
+           "(Speed during search for switch)'s range 1..4294967295 counts",
+           "cell.toml:40: error: node 2 (axis 'lower_arm'): homing acceleration 0 rad/s^2 is 0 "
+           "counts at counts_per_unit 100000 counts/rad, outside 0x609A (Homing acceleration)'s "
+           "range 1..4294967295 counts",
+           "cell.toml:40: error: node 2 (axis 'lower_arm'): homing offset 30000 rad is 3e+09 "
+           "counts at counts_per_unit 100000 counts/rad, outside 0x607C (Home offset)'s range "
+           "-2147483648..2147483647 counts",
+           "cell.toml:40: error: node 2 (axis 'lower_arm'): homing timeout 0 s must be a positive "
+           "number of seconds",
+       })
+    EXPECT_NE(what.find(line), std::string::npos) << "expected: " << line << "\n" << what;
+  EXPECT_EQ(what.find("0x6099 sub 2"), std::string::npos) << what;  // that one is right
+  // A file that lists homing mode without its objects (emu-csp.eds: 0x6502 = 0xA0).
+  request.homing = homing_row(19, 0.5, 0.05, 2.0, 0.0, 10.0);
+  what = errors(drive_file("emu-csp.eds"));
+  for (const std::string& line : std::vector<std::string>{
+           "cell.toml:40: error: node 2 (axis 'lower_arm'): " + drive_file("emu-csp.eds")->file() +
+               " has no object 0x6098 (homing method), which mrroc writes at SYNCHRO to home the "
+               "axis by the drive's homing mode (config 'homing')",
+           "has no object 0x6099 sub 1 (speed during search for switch)",
+           "has no object 0x6099 sub 2 (speed during search for zero)",
+           "has no object 0x609A (homing acceleration)",
+           "has no object 0x607C (home offset)",
+       })
+    EXPECT_NE(what.find(line), std::string::npos) << "expected: " << line << "\n" << what;
+  // A file whose 0x6502 does not list homing (bit 5), though it has the objects.
+  std::string text = read_text(std::string(MRROC_SOURCE_DIR) + "/configs/drives/emu-pp-split.eds");
+  const std::string modes = "DefaultValue=0x000001A5";
+  ASSERT_NE(text.find(modes), std::string::npos);
+  text.replace(text.find(modes), modes.size(), "DefaultValue=0x00000185");
+  what = errors(
+      std::make_shared<eds::Dictionary>(eds::Dictionary::parse(text, "/cell/no-homing.eds")));
+  EXPECT_NE(what.find("cell.toml:40: error: node 2 (axis 'lower_arm'): the drive does not "
+                      "support homing (6): 0x6502 = 0x00000185 at /cell/no-homing.eds:"),
+            std::string::npos)
+      << what;
+}
+
+/// A bus node that keeps every frame it sees (the traffic between master and drives).
+struct Spy {
+  explicit Spy(MemoryHub& hub) : bus(hub.add()) {}
+  /// The statuswords node `node` sent in its TPDO2 (mrroc's mapping) since the last call.
+  std::vector<std::uint16_t> statuswords(std::uint8_t node) {
+    std::vector<std::uint16_t> out;
+    Received r;
+    while (bus.receive(r, 0ns))
+      if (r.frame.can_id == co::tpdo2_id(node) && r.frame.len == 2)
+        out.push_back(static_cast<std::uint16_t>(r.frame.data[0] | (r.frame.data[1] << 8U)));
+    return out;
+  }
+  Bus& bus;
+};
+
+/// Axes on emu-pp-split.eds drives (homing mode 6), with the homing rows given (none: no homing).
+std::vector<MasterAxis> homing_axes(const std::vector<std::optional<HomingRequest>>& homing) {
+  std::vector<MasterAxis> out = axes(static_cast<int>(homing.size()));
+  for (std::size_t i = 0; i < homing.size(); ++i) {
+    DriveRequest request;
+    request.node = out[i].node;
+    request.axis = out[i].name;
+    request.homing = homing[i];
+    out[i].plan = plan_drive(drive_file("emu-pp-split.eds"), request);
+    out[i].quick_stop_deceleration = 5.0;
+  }
+  return out;
+}
+
+/// Waits (up to 1 s) until the rack's axis `i` stands still for 50 ms; returns where.
+std::optional<double> standstill(DriveRack& rack, std::size_t i) {
+  const auto until = std::chrono::steady_clock::now() + 1s;
+  double before = rack.with([&](auto&, auto& positions) { return positions[i]; });
+  while (std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(50ms);
+    const double now = rack.with([&](auto&, auto& positions) { return positions[i]; });
+    if (now == before) return now;
+    before = now;
+  }
+  return std::nullopt;
+}
+
+std::string homing_error(Cia402Master& master, const std::atomic<bool>& stop) {
+  try {
+    master.home(stop);
+  } catch (const HardwareError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(Cia402Master, HomesByTheDrivesHomingModeAndEndsAtTheOffset) {
+  // The rack's axes stand at 0.0, 0.3, 0.6 and 0.9 rad; each home switch is on above 0.5 rad.
+  MemoryHub hub;
+  DriveRack rack(hub, 4, std::vector(4, drive_file("emu-pp-split.eds")));
+  Spy spy(hub);
+  // Axis 0: method 20 (the edge where the switch comes on, moving up), from below it.
+  // Axis 1: method 19 (where it goes off, moving down), from below it: up past the edge first.
+  // Axis 2: method 37 (home where it stands). Axis 3: no homing, held.
+  Cia402Master master(hub.add(),
+                      homing_axes({homing_row(20, 0.5, 0.25, 4.0, 0.25, 5.0),
+                                   homing_row(19, 0.5, 0.25, 4.0, -0.1, 5.0),
+                                   homing_row(37, 0.0, 0.0, 1.0, 1.0, 5.0), std::nullopt}),
+                      rack_options());
+  EXPECT_TRUE(master.homes_by_drive());
+  master.bring_up(2000ms);
+  (void)spy.statuswords(1);
+  std::atomic<bool> stop{false};
+  const auto began = std::chrono::steady_clock::now();
+  master.home(stop);
+  const double took =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
+  ASSERT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_FALSE(master.homing());
+  // Each homed drive counts from its home point: the offset there. The axes stand at the
+  // switch's edge (0.5 rad, within one step of the rack's thread at the zero search speed: 1 ms,
+  // 8 ms allowed on a loaded host), axis 2 where it was.
+  EXPECT_NEAR(master.status(0).position, 0.25, 2e-5);
+  EXPECT_NEAR(master.status(1).position, -0.1, 2e-5);
+  EXPECT_NEAR(master.status(2).position, 1.0, 2e-5);
+  EXPECT_NEAR(master.status(3).position, 0.0, 1e-5);
+  rack.with([](auto& drives, auto& positions) {
+    EXPECT_NEAR(positions[0], 0.5, 0.25 * 0.008);
+    EXPECT_NEAR(positions[1], 0.5, 0.25 * 0.008);
+    EXPECT_NEAR(positions[2], 0.6, 1e-9);
+    EXPECT_NEAR(positions[3], 0.9, 1e-9);
+    for (auto& d : drives) EXPECT_EQ(d->state(), co::DriveState::operation_enabled);
+    return 0;
+  });
+  // Back in cyclic synchronous position, enabled at the actual position.
+  for (std::uint8_t n = 1; n <= 4; ++n)
+    EXPECT_EQ(static_cast<std::int8_t>(master.sdo_read(n, co::od::kModesDisplay, 0)),
+              co::kModeCyclicSyncPosition);
+  // What drive 1 said on the way (its TPDO2): in progress (bits 12, 13, 10 clear) in operation
+  // enabled, then homing attained with target reached; never a homing error.
+  const std::vector<std::uint16_t> words = spy.statuswords(1);
+  const auto homing_state = [](std::uint16_t w) {
+    return co::decode_state(w) == co::DriveState::operation_enabled ? (w & 0x3400U) : 0xFFFFU;
+  };
+  const auto in_progress = std::find_if(words.begin(), words.end(),
+                                        [&](std::uint16_t w) { return homing_state(w) == 0U; });
+  ASSERT_NE(in_progress, words.end());
+  const auto attained = std::find_if(in_progress, words.end(), [&](std::uint16_t w) {
+    return homing_state(w) == (co::statusword::kHomingAttained | co::statusword::kTargetReached);
+  });
+  EXPECT_NE(attained, words.end());
+  for (const std::uint16_t w : words)
+    EXPECT_FALSE(homing_state(w) != 0xFFFFU && (w & co::statusword::kHomingError) != 0U &&
+                 co::decode_state(w) == co::DriveState::operation_enabled &&
+                 (w & co::statusword::kHomingAttained) == 0U)
+        << std::hex << w;
+  // Nothing jumps: held at the actual positions, then moved from there.
+  std::vector<double> held(4);
+  for (std::size_t i = 0; i < 4; ++i) held[i] = master.status(i).position;
+  run_cycles(master, 50, [&](int k) {
+    std::vector<double> t = held;
+    t[0] += 0.01 * std::min(1.0, (k + 1) / 25.0);
+    return t;
+  });
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_NEAR(master.status(0).position, 0.26, 2e-5);
+  EXPECT_NEAR(master.status(1).position, -0.1, 2e-5);
+  rack.with([](auto&, auto& positions) {
+    EXPECT_NEAR(positions[0], 0.51, 0.25 * 0.008);
+    return 0;
+  });
+  std::printf("homing of three drives took %.2f s\n", took);
+  master.shut_down();
+}
+
+TEST(Cia402Master, AHomingMethodTheDriveRefusesIsANamedErrorAndNothingMoves) {
+  // emu-pp-split.eds allows methods 1..37 (its limits, so the config check passes), the drive
+  // has no limit switch for 17: it aborts the SDO write, before anything moves.
+  MemoryHub hub;
+  DriveRack rack(hub, 2, std::vector(2, drive_file("emu-pp-split.eds")));
+  Cia402Master master(hub.add(),
+                      homing_axes({std::nullopt, homing_row(17, 0.5, 0.1, 4.0, 0.0, 5.0)}),
+                      rack_options());
+  master.bring_up(2000ms);
+  std::atomic<bool> stop{false};
+  const std::string what = homing_error(master, stop);
+  EXPECT_NE(what.find("drive node 2 (axis 'axis1') on memory:test: homing by method 17 failed "
+                      "after "),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("0x6098:0 aborted: 0x06090030"), std::string::npos) << what;
+  EXPECT_TRUE(master.faulted());
+  EXPECT_EQ(std::string(master.fault_text()), what);
+  rack.with([](auto& drives, auto& positions) {
+    EXPECT_DOUBLE_EQ(positions[0], 0.0);
+    EXPECT_DOUBLE_EQ(positions[1], 0.3);
+    // Quick-stopped, as after any fault; still in cyclic synchronous position.
+    for (auto& d : drives) EXPECT_EQ(d->state(), co::DriveState::quick_stop_active);
+    return 0;
+  });
+  EXPECT_EQ(static_cast<std::int8_t>(master.sdo_read(2, co::od::kModesDisplay, 0)),
+            co::kModeCyclicSyncPosition);
+  // A new bring-up (the EDP's SYNCHRO after a fault) clears it.
+  master.bring_up(2000ms);
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  master.shut_down();
+}
+
+TEST(Cia402Master, AHomingErrorAndATimeoutAreNamedErrorsAndTheAxisStops) {
+  // Method 21 looks for a switch on the negative side: on this axis (switch on above 0.5 rad)
+  // the search runs down, away from it, and the drive gives up after its search range.
+  MemoryHub hub;
+  DriveRack rack(hub, 2, std::vector(2, drive_file("emu-pp-split.eds")),
+                 [](DriveConfig& c) { c.homing_search_range = 0.1; });
+  Cia402Master master(hub.add(),
+                      homing_axes({homing_row(21, 0.5, 0.1, 4.0, 0.0, 5.0), std::nullopt}),
+                      rack_options());
+  master.bring_up(2000ms);
+  std::atomic<bool> stop{false};
+  std::string what = homing_error(master, stop);
+  EXPECT_NE(what.find("drive node 1 (axis 'axis0') on memory:test: homing by method 21 failed "
+                      "after "),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("s: the drive reports a homing error (statusword 0x"), std::string::npos)
+      << what;
+  EXPECT_NE(what.find(": bit 13 set"), std::string::npos) << what;
+  EXPECT_TRUE(standstill(rack, 0).has_value());
+  rack.with([](auto&, auto& positions) {
+    // Down by the search range and the ramp (0.5^2 / (2 * 4) rad) at most.
+    EXPECT_LT(positions[0], -0.05);
+    EXPECT_GT(positions[0], -0.1 - 0.0313 - 0.01);
+    EXPECT_DOUBLE_EQ(positions[1], 0.3);
+    return 0;
+  });
+
+  // A timeout: method 20 at a crawl, given 0.3 s.
+  master.bring_up(2000ms);
+  Cia402Master slow(hub.add(),
+                    homing_axes({homing_row(20, 0.5, 0.01, 4.0, 0.0, 0.3), std::nullopt}),
+                    rack_options());
+  slow.bring_up(2000ms);
+  what = homing_error(slow, stop);
+  EXPECT_NE(what.find("drive node 1 (axis 'axis0') on memory:test: homing by method 20 failed "
+                      "after 0.3"),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("no homing attained (statusword bit 12 with bit 10) within its timeout "
+                      "of 0.3 s"),
+            std::string::npos)
+      << what;
+  EXPECT_TRUE(standstill(rack, 0).has_value());
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->state(), co::DriveState::quick_stop_active);
+    return 0;
+  });
+}
+
+TEST(Cia402Master, AnEmergencyStopDuringHomingQuickStopsTheDrive) {
+  MemoryHub hub;
+  DriveRack rack(hub, 1, {drive_file("emu-pp-split.eds")});
+  // Method 20 from 0.0: up at 0.25 rad/s towards the switch at 0.5 rad (2 s away).
+  Cia402Master master(hub.add(), homing_axes({homing_row(20, 0.5, 0.25, 4.0, 0.0, 5.0)}),
+                      rack_options());
+  master.bring_up(2000ms);
+  std::atomic<bool> stop{false};
+  std::string what;
+  std::thread homing([&] { what = homing_error(master, stop); });
+  // Wait until the axis moves at its zero search speed, then stop.
+  const auto until = std::chrono::steady_clock::now() + 3s;
+  double at_stop = 0.0;
+  while (std::chrono::steady_clock::now() < until) {
+    at_stop = rack.with([](auto&, auto& positions) { return positions[0]; });
+    if (at_stop > 0.1) break;
+    std::this_thread::sleep_for(1ms);
+  }
+  stop = true;
+  homing.join();
+  ASSERT_GT(at_stop, 0.1) << what;
+  EXPECT_NE(what.find("drive node 1 (axis 'axis0') on memory:test: homing by method 20 failed "
+                      "after "),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("stopped by the emergency stop (quick stop)"), std::string::npos) << what;
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[0]->state(), co::DriveState::quick_stop_active);
+    return 0;
+  });
+  const std::optional<double> stood = standstill(rack, 0);
+  ASSERT_TRUE(stood.has_value());
+  // Ramped down at the quick stop deceleration (5 rad/s^2: 6.3 mrad from 0.25 rad/s) after the
+  // cycles the stop took to reach the drive (30 ms allowed); far from the switch at 0.5 rad.
+  EXPECT_GT(*stood, at_stop);
+  EXPECT_LT(*stood, at_stop + 0.25 * 0.03 + 0.0063);
+  std::printf("stopped %.1f mrad after the emergency stop\n", (*stood - at_stop) * 1000.0);
+  EXPECT_TRUE(master.faulted());
 }
 
 }  // namespace

@@ -117,6 +117,11 @@ inline constexpr std::uint16_t kTargetVelocity = 0x60FF;       ///< i32 [counts/
 inline constexpr std::uint16_t kVelocityActual = 0x606C;       ///< i32 [counts/s]
 inline constexpr std::uint16_t kTorqueActual = 0x6077;         ///< i16 [per mille of rated]
 inline constexpr std::uint16_t kErrorCode = 0x603F;            ///< u16, the last EMCY's code
+inline constexpr std::uint16_t kHomeOffset = 0x607C;           ///< i32 [counts]
+inline constexpr std::uint16_t kHomingMethod = 0x6098;         ///< i8
+inline constexpr std::uint16_t kHomingSpeeds =
+    0x6099;  ///< sub 1 switch, sub 2 zero: u32 [counts/s]
+inline constexpr std::uint16_t kHomingAcceleration = 0x609A;  ///< u32 [counts/s^2]
 inline constexpr std::uint32_t kServoDeviceType = 0x00020192;
 }  // namespace od
 
@@ -174,6 +179,8 @@ inline constexpr std::uint16_t kTargetReached = 1U << 10;
 inline constexpr std::uint16_t kFollowingTarget = 1U << 12;  ///< CSP: drive follows the target
 inline constexpr std::uint16_t kIpModeActive = 1U << 12;     ///< IP: interpolation active
 inline constexpr std::uint16_t kFollowingError = 1U << 13;   ///< CSP: following error
+inline constexpr std::uint16_t kHomingAttained = 1U << 12;   ///< homing mode: homing attained
+inline constexpr std::uint16_t kHomingError = 1U << 13;      ///< homing mode: homing error
 }  // namespace statusword
 /// The state bits (0-3, 5, 6) of a statusword for a state.
 std::uint16_t state_bits(DriveState state);
@@ -199,6 +206,8 @@ inline constexpr std::uint16_t kQuickStop = 0x0002;
 inline constexpr std::uint16_t kFaultReset = 0x0080;
 /// Operation mode specific bit 4: in interpolated position mode, "enable ip mode".
 inline constexpr std::uint16_t kEnableIpMode = 0x0010;
+/// Bit 4 in homing mode: homing operation start (0 -> 1 starts, 1 -> 0 interrupts).
+inline constexpr std::uint16_t kHomingStart = 0x0010;
 }  // namespace controlword
 /// Decodes bits 0-3 and 7 of a controlword (bit 7 counts as fault reset here; the edge is the
 /// drive's business).

@@ -53,6 +53,20 @@
 ///  - Quick stop: the demand decelerates at 0x6085 from the axis' velocity to standstill; then
 ///    quick stop option code 0x605A 6 holds in quick stop active (until enable operation or
 ///    disable voltage), 2 goes to switch on disabled (brake).
+///  - Homing (mode 6, where the file's 0x6502 lists it): controlword bit 4 from 0 to 1 in
+///    operation enabled starts the method in 0x6098, at the speeds 0x6099 sub 1 (search for the
+///    switch) and sub 2 (search for zero) and the acceleration 0x609A; at the home point the
+///    position becomes the home offset 0x607C. Methods 19 and 20 (home switch on the positive
+///    side: the home point where it goes off moving down, or on moving up), 21 and 22 (the same
+///    on the negative side), each starting in the direction the switch's state says (the axis'
+///    home switch, 0x60FD bit 2), the last approach at the zero search speed; the axis then
+///    returns to the home point and stops there. 35 and 37: the position where the axis stands is
+///    the home point (nothing moves). Other methods are refused (SDO abort 0x06090030): the
+///    axis has no limit switches (17, 18) and no index pulse. Statusword in homing mode: bit 12
+///    homing attained, bit 13 homing error, bit 10 target reached (at standstill, not homing);
+///    a search that travels farther than `DriveConfig::homing_search_range` without its edge is a
+///    homing error (the axis ramps down and stops). Bit 4 back to 0 interrupts the homing (the
+///    axis ramps down); leaving operation enabled (quick stop, fault) ends it.
 ///  - Digital lines: 0x60FD shows the home switch and the axis' 8 input lines
 ///    (`AxisSample::input_lines`); 0x60FE sub 1 and sub 2 (outputs and their mask, by SDO or
 ///    PDO), where the file has it, set the 8 output lines (`output_lines()`).
@@ -97,6 +111,9 @@ struct DriveConfig {
   /// (manufacturer) setting; the master's consumer time makes the two supervisions agree (a
   /// master stalled by its host stops both its heartbeat and its SYNCs).
   double sync_loss_periods = 25.0;
+  /// Homing: the farthest a search for the switch's edge travels before the drive reports a
+  /// homing error [units] (a real drive's manufacturer-specific limit).
+  double homing_search_range = 2.0;
 };
 
 /// What the owner samples from the axis every physics step.
@@ -170,6 +187,8 @@ class Cia402Drive {
   void enter(canopen::DriveState state, double now_s);
   void fault(std::uint16_t code, double now_s);
   void apply_controlword(std::uint16_t controlword, double now_s);
+  /// The controlword's device control command (bits 0-3, 7).
+  void apply_state_command(std::uint16_t controlword, bool reset_edge, double now_s);
   void on_sync(double now_s);
   void on_sdo(const can_frame& frame, double now_s);
   void on_nmt(const can_frame& frame, double now_s);
@@ -177,6 +196,10 @@ class Cia402Drive {
   void communication_error(std::uint16_t code, double now_s);
   void reset_communication_objects() noexcept;
   [[nodiscard]] double position_of(std::int32_t counts) const noexcept;
+  /// Homing (mode 6): starts the method in 0x6098 (controlword bit 4 rising).
+  void start_homing(double now_s);
+  /// One physics step of the homing motion (operation enabled, mode 6).
+  void homing_step(double dt);
 
   /// A PDO that is on (COB-ID bit 31 clear), as its communication and mapping objects say.
   struct ActivePdo {
@@ -265,6 +288,22 @@ class Cia402Drive {
   double following_error_since_s_ = -1.0;
   double over_current_since_s_ = -1.0;
   bool following_error_ = false;
+  /// Homing (mode 6): what the homing motion is doing.
+  enum class HomingPhase : std::uint8_t {
+    idle,      ///< not started, or attained
+    search,    ///< at the switch search speed, away from the final approach's direction
+    reverse,   ///< ramping down before the final approach
+    approach,  ///< at the zero search speed towards the switch's edge
+    settle,    ///< back to the home point, to stop there
+    stopping,  ///< interrupted or failed: ramping down
+  };
+  HomingPhase homing_phase_ = HomingPhase::idle;
+  bool homing_attained_ = false;       ///< statusword bit 12
+  bool homing_error_ = false;          ///< statusword bit 13
+  double homing_direction_ = 1.0;      ///< of the final approach: +1 or -1
+  bool homing_switch_before_ = false;  ///< the switch's state before the home point's edge
+  double homing_start_ = 0.0;          ///< where the search began [units]
+  double home_ = 0.0;                  ///< the home point [units]
   std::uint16_t heartbeat_ms_ = 0;
   double next_heartbeat_s_ = 0.0;
   std::uint16_t last_emcy_ = 0;

@@ -42,11 +42,16 @@
 /// and reads both back. `switch_outputs_off` (the EDP's exit) switches every drive's outputs off
 /// by SDO.
 ///
+/// Homing (`home`, blocking, from the thread that runs the cycle; the EDP's SYNCHRO of drives
+/// whose plan has `homing`): the drive's own homing mode (CiA 402 mode 6) by the book, the cycle
+/// going on meanwhile (see `home`).
+///
 /// Faults (after which `faulted()` is true and `fault_text()` says which drive, which axis and
 /// why): an EMCY with a non-zero code; a statusword in fault; a drive that left operation enabled
 /// by itself; no TPDO from a drive for `silent_cycles` cycles; the bus going bus-off (error frame
 /// or failed send); a boot-up message from a drive (it rebooted and lost its configuration). On a
 /// fault the master quick-stops every other drive.
+#include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -118,6 +123,33 @@ class Cia402Master {
   /// Brings every drive to operation enabled at its actual position.
   /// @throws mrroc::HardwareError naming the bus, node, axis and the step that failed.
   void bring_up(std::chrono::milliseconds timeout);
+  /// Homes every drive whose plan has `homing` by its own homing mode (CiA 402 mode 6), all of
+  /// them at once; the other drives hold where they are. After `bring_up`, from the thread that
+  /// runs the cycle; blocking for as long as the homing takes, while the cycle goes on every
+  /// period (RPDOs with the held targets, SYNC, the master's heartbeat; one cycle between any two
+  /// SDO transfers, so that no drive misses its SYNC). Per homing drive: SDO writes of 0x6098
+  /// method, 0x6099 sub 1 and 2 speeds, 0x609A acceleration, 0x607C home offset (each read back);
+  /// disable operation (switched on; the mode is changed out of operation enabled), 0x6060 = 6
+  /// and 0x6061 read back; enable operation; controlword bit 4 from 0 to 1 (homing operation
+  /// start); then it waits for statusword bit 12 (homing attained) with bit 10 (target reached),
+  /// seen in a statusword the drive sent after the start. Then it disables operation again,
+  /// writes the plan's mode (0x6061 read back) and enables operation with the target at the
+  /// drive's actual position (the new reference: the home offset at the home point), so that
+  /// nothing jumps.
+  /// `stop` is read every cycle: once it is set, every drive is quick-stopped (the homing drives'
+  /// quick stop ramps them down at 0x6085) and the homing fails.
+  /// @throws mrroc::HardwareError naming the drive (bus, node, axis), the method and the time since
+  /// the homing began, on statusword bit 13 (homing error), on the drive's `timeout_s`, on an SDO
+  /// abort (a method the drive does not have: no motion), on a fault while homing (EMCY, fault
+  /// state, silence, bus-off: its text, as every fault's), and on `stop`. Then `faulted()` is
+  /// true with the same text: the drives are quick-stopped and held, and a new `bring_up` (the
+  /// EDP's SYNCHRO after a fault) is needed.
+  void home(const std::atomic<bool>& stop);
+  /// Whether any drive's plan asks for homing by the drive (`home`).
+  [[nodiscard]] bool homes_by_drive() const noexcept;
+  /// Inside `home` (the drives in homing mode or on the way there and back).
+  [[nodiscard]] bool homing() const noexcept { return homing_; }
+
   /// Switches the output lines off (an SDO write of 0x60FE sub 1 to each drive that had lines on
   /// or to switch on; blocking, for
   /// the end of the controller's run: the drives hold their outputs otherwise). The lines given
@@ -214,6 +246,10 @@ class Cia402Master {
   void cycle_once(std::uint16_t controlword, std::span<const std::int32_t> targets);
   /// Sends the master's heartbeat when it is due (no allocation, no blocking).
   void heartbeat_if_due() noexcept;
+  /// One cycle of `home`: RPDOs (the homing drives' controlwords from controlword_override_,
+  /// the others enable operation, or quick stop when `quick_stop`), SYNC, a period's sleep, then
+  /// `receive`.
+  void homing_cycle(bool quick_stop);
 
   /// What the master puts into an RPDO entry or takes from a TPDO entry.
   enum class Role : std::uint8_t {
@@ -270,6 +306,11 @@ class Cia402Master {
   /// quick stop active; they are accepted until this cycle (excluded).
   std::uint64_t quick_stop_grace_until_ = 0;
   bool enabled_ = false;  ///< bring-up done: drives are expected in operation enabled
+  bool homing_ = false;   ///< inside `home`
+  /// `home`: the controlword each homing drive gets (-1: the cycle's own).
+  std::vector<std::int32_t> controlword_override_;
+  /// `home`: the drive is homing (it may leave operation enabled; the master steps it so).
+  std::vector<std::uint8_t> homing_axis_;
   std::chrono::steady_clock::time_point next_heartbeat_{};
   char fault_[256] = {};
 };

@@ -135,6 +135,32 @@ struct PdoRequest {
   SourceLocation where;  ///< the row in the config
 };
 
+/// The drive's own homing (CiA 402 homing mode 6) as the robot's SYNCHRO, as the config asks
+/// for it (the `can` plugin's `homing` rows), in the robot's units. plan_drive converts the values
+/// to counts with `counts_per_unit` and checks them against the drive's file.
+struct HomingRequest {
+  std::int64_t method = 0;    ///< CiA 402 homing method (0x6098, INTEGER8): 19..22, 35, 37, ...
+  double switch_speed = 0.0;  ///< speed during the search for the switch [units/s] (0x6099 sub 1)
+  double zero_speed = 0.0;    ///< speed during the search for zero [units/s] (0x6099 sub 2)
+  double acceleration = 0.0;  ///< homing acceleration [units/s^2] (0x609A)
+  double offset = 0.0;        ///< home offset [units] (0x607C): the position at the home point
+  double timeout_s = 0.0;     ///< the longest the master waits for homing attained [s]
+  double counts_per_unit = 100000.0;  ///< the drive's encoder counts per unit
+  std::string unit = "rad";           ///< of the axis: "rad" or "m", for messages
+  SourceLocation where;               ///< the row in the config
+};
+
+/// The drive's homing in drive units, checked against its file (DrivePlan::homing).
+struct HomingPlan {
+  std::int8_t method = 0;
+  std::uint32_t switch_speed = 0;  ///< [counts/s] 0x6099 sub 1
+  std::uint32_t zero_speed = 0;    ///< [counts/s] 0x6099 sub 2
+  std::uint32_t acceleration = 0;  ///< [counts/s^2] 0x609A
+  std::int32_t offset = 0;         ///< [counts] 0x607C
+  double timeout_s = 0.0;
+  SourceLocation where;
+};
+
 /// The longest text an SDO write of the config may carry [bytes].
 inline constexpr std::size_t kMaxSdoTextBytes = 1024;
 
@@ -150,6 +176,8 @@ struct DriveRequest {
   /// The config's own PDOs: when any RPDO (TPDO) is given, those are the drive's RPDOs (TPDOs)
   /// and mrroc's own are not used; the other direction keeps mrroc's.
   std::vector<PdoRequest> pdos;
+  /// Home by the drive's own homing mode at SYNCHRO (none: the EDP's search for the home switch).
+  std::optional<HomingRequest> homing;
   SourceLocation where;  ///< of the drive's settings in the config
 };
 
@@ -168,6 +196,10 @@ struct DrivePlan {
   bool outputs = false;
   std::optional<DriveIdentity> identity;
   std::vector<SdoWrite> writes;
+  /// Homing by the drive (CiA 402 mode 6) at SYNCHRO; checked: 0x6098, 0x6099 sub 1 and 2,
+  /// 0x609A and 0x607C exist and are writable, 0x6061 readable, the file's 0x6502 lists homing
+  /// (bit 5), every value within its object's type and limits.
+  std::optional<HomingPlan> homing;
   /// Optional objects the drive has (the master writes them only then).
   bool has(std::uint16_t index, std::uint8_t sub = 0) const {
     return eds->entry(index, sub) != nullptr;

@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <regex>
@@ -24,8 +25,10 @@
 
 #include "edp_parts.hpp"
 #include "emu_process.hpp"
+#include "mrroc/config/check.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/edp/hardware.hpp"
+#include "plugins/can_hardware.hpp"
 #include "servo_loop.hpp"
 
 using namespace mrroc;
@@ -57,8 +60,10 @@ class Emulator : public test::EmuProcess {
   }
 };
 
-std::unique_ptr<edp::Hardware> plugin(const std::string& url) {
-  auto hw = edp::make_hardware("can");
+/// The setup of the `can` plugin for configs/scenes/irb6.toml's drives on `url`; `adjust` adds
+/// parameters.
+edp::HardwareSetup plugin_setup(const std::string& url,
+                                const std::function<void(Params&)>& adjust = {}) {
   edp::HardwareSetup setup;
   setup.robot = "irb6";
   setup.model_dir = std::string(MRROC_SOURCE_DIR) + "/robots/irb6";
@@ -73,8 +78,15 @@ std::unique_ptr<edp::Hardware> plugin(const std::string& url) {
                                  drives + "emu-ip.eds", drives + "emu-ip.eds",
                                  drives + "emu-pp-split.eds"},
         {});
+  if (adjust) adjust(p);
   setup.params = p;
-  hw->configure(setup);
+  return setup;
+}
+
+std::unique_ptr<edp::Hardware> plugin(const std::string& url,
+                                      const std::function<void(Params&)>& adjust = {}) {
+  auto hw = edp::make_hardware("can");
+  hw->configure(plugin_setup(url, adjust));
   return hw;
 }
 
@@ -284,4 +296,150 @@ TEST(CanPlugin, NoDrivesIsAClearError) {
               std::string::npos)
         << e.what();
   }
+}
+
+// Homing by the drives' own homing mode (CiA 402 mode 6) through the plugin, on the emulator's
+// MuJoCo axes: configs/scenes/irb6.toml's lower arm (node 2) and wrist roll (node 5) have
+// emu-pp-split.eds drives, whose file has homing; each axis powers on 0.05 rad above its
+// synchronisation position, where its home switch is on.
+namespace {
+
+constexpr double kLowerArmSynchro = -1.5707963267948966;
+
+void homing_rows(Params& p) {
+  // Lower arm: method 19, home where the switch goes off moving down, the offset its joint
+  // position there. Wrist roll: method 20, off the switch first, then up onto it; offset 0.
+  p.set("homing",
+        std::vector<std::vector<double>>{{2, 19, 0.2, 0.05, 1.0, kLowerArmSynchro, 10.0},
+                                         {5, 20, 0.2, 0.05, 1.0, 0.0, 10.0}},
+        {"cell.toml", 30});
+  p.set_row_locations("homing", {{"cell.toml", 30}, {"cell.toml", 31}});
+}
+
+}  // namespace
+
+TEST(CanPlugin, DrivesHomeByTheirHomingModeAndEndAtTheOffset) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  auto hw = plugin(url, homing_rows);
+  auto* homing = dynamic_cast<edp::DriveHoming*>(hw.get());
+  ASSERT_NE(homing, nullptr);
+  EXPECT_EQ(homing->self_homing_axes(), (1U << 1U) | (1U << 4U));
+  hw->activate();
+  std::vector<edp::AxisFeedback> fb(5);
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  std::vector<double> before(5);
+  for (std::size_t i = 0; i < 5; ++i) before[i] = fb[i].position;
+  EXPECT_TRUE(fb[1].synchro_switch);  // 0.05 rad above the switch's edge
+  const auto began = std::chrono::steady_clock::now();
+  homing->home_axes();
+  const double took =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
+  // Held where the homing left them: the homed axes count from their home points.
+  std::vector<double> hold(5);
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  for (std::size_t i = 0; i < 5; ++i) hold[i] = fb[i].position;
+  for (int k = 0; k < 50; ++k)
+    ASSERT_EQ(cycle(*hw, fb, hold), edp::CycleStatus::ok) << hw->fault_text();
+  // The lower arm stands at its switch's edge, which is its synchronisation position, and the
+  // drive says so: its offset (within the MuJoCo servo's sag under gravity and the 1 ms step).
+  EXPECT_NEAR(fb[1].position, kLowerArmSynchro, 2e-3);
+  EXPECT_NEAR(fb[4].position, 0.0, 2e-3);
+  // The axes not homed did not move; the homed ones stood still before the last 50 cycles.
+  for (const std::size_t i : {0U, 2U, 3U}) EXPECT_NEAR(fb[i].position, before[i], 1e-4) << i;
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(fb[i].position, hold[i], 1e-4) << i;
+  EXPECT_NEAR(fb[1].velocity, 0.0, 1e-3);
+  // Then driven from there as before.
+  for (int k = 1; k <= 100; ++k) {
+    std::vector<double> target = hold;
+    target[1] += 0.05 * std::min(1.0, k / 50.0);
+    ASSERT_EQ(cycle(*hw, fb, target), edp::CycleStatus::ok) << hw->fault_text();
+  }
+  EXPECT_NEAR(fb[1].position, hold[1] + 0.05, 2e-3);
+  EXPECT_TRUE(fb[1].synchro_switch);  // above the edge again
+  std::printf(
+      "two drives homed in %.2f s; lower arm at %.5f rad (synchronisation position "
+      "%.5f rad)\n",
+      took, hold[1], kLowerArmSynchro);
+  hw->deactivate();
+}
+
+TEST(CanPlugin, AnEmergencyStopDuringHomingQuickStopsTheDrivesAndIsAFault) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  auto hw = plugin(url, [](Params& p) {
+    // Wrist roll: method 20 at a crawl, so that the stop comes mid-homing.
+    p.set("homing", std::vector<std::vector<double>>{{5, 20, 0.2, 0.02, 1.0, 0.0, 20.0}},
+          {"cell.toml", 30});
+    p.set_row_locations("homing", {{"cell.toml", 30}});
+  });
+  hw->activate();
+  std::vector<edp::AxisFeedback> fb(5);
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  std::string what;
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(800ms);
+    hw->emergency_stop(true);  // as the EDP's emergency-stop listener does
+  });
+  try {
+    dynamic_cast<edp::DriveHoming&>(*hw).home_axes();
+    what = "no error";
+  } catch (const HardwareError& e) {
+    what = e.what();
+  }
+  stopper.join();
+  EXPECT_NE(what.find("drive node 5 (axis 'wrist_roll') on " + url +
+                      ": homing by method 20 failed after "),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("stopped by the emergency stop (quick stop)"), std::string::npos) << what;
+  // A fault as the others: the plugin reports it and holds the drives quick-stopped.
+  std::vector<double> hold(5);
+  for (std::size_t i = 0; i < 5; ++i) hold[i] = fb[i].position;
+  EXPECT_EQ(cycle(*hw, fb, hold), edp::CycleStatus::fault);
+  EXPECT_EQ(hw->fault_text(), what);
+  const double at = fb[4].position;
+  for (int k = 0; k < 50; ++k) (void)cycle(*hw, fb, hold);
+  EXPECT_NEAR(fb[4].position, at, 2e-3);  // ramped down from 0.02 rad/s: 0.2 mrad at most
+  EXPECT_NEAR(fb[4].velocity, 0.0, 1e-3);
+  // A new bring-up (the EDP's SYNCHRO after a fault) clears it.
+  hw->emergency_stop(false);
+  hw->deactivate();
+  hw->activate();
+  ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
+  hw->deactivate();
+}
+
+TEST(CanPlugin, HomingRowsAreCheckedAgainstTheDrivesFilesAtTheirRows) {
+  const std::string url = bus_url();
+  auto hw = edp::make_hardware("can");
+  try {
+    hw->check(plugin_setup(url, [](Params& p) {
+      p.set("homing",
+            std::vector<std::vector<double>>{
+                {3, 19, 0.2, 0.05, 1.0, 0.0, 10.0},  // upper arm: emu-ip.eds has no 0x6098
+                {9, 19, 0.2, 0.05, 1.0, 0.0, 10.0},  // no such node
+                {5, 19, 0.2, 0.05, 1.0},             // too short
+                {3, 20, 0.2, 0.05, 1.0, 0.0, 10.0},  // node 3 again
+            },
+            {"cell.toml", 30});
+      p.set_row_locations(
+          "homing", {{"cell.toml", 30}, {"cell.toml", 31}, {"cell.toml", 32}, {"cell.toml", 33}});
+    }));
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    for (const std::string line : {
+             "cell.toml:30: error: node 3 (axis 'upper_arm'): ",
+             "emu-ip.eds has no object 0x6098 (homing method), which mrroc writes at SYNCHRO to "
+             "home the axis by the drive's homing mode (config 'homing')",
+             "cell.toml:31: error: 'homing' names node 9, which is none of robot 'irb6''s nodes",
+             "cell.toml:32: error: each row of 'homing' is [node",
+             "cell.toml:33: error: 'homing' has a second row for node 3 (the first is at "
+             "cell.toml:30)",
+         })
+      EXPECT_NE(what.find(line), std::string::npos) << "expected: " << line << "\n" << what;
+  }
+  // Rows the files allow pass (what mrroc-launch --check runs).
+  EXPECT_NO_THROW(hw->check(plugin_setup(url, homing_rows)));
 }

@@ -124,6 +124,14 @@ class CanHardware final : public Hardware, public DriveHoming {
                    "can: warning: worst-case bus load %.0f %% is above the recommended "
                    "%.0f %%\n",
                    settings.load_worst * 100.0, can::canopen::kRecommendedMaxLoad * 100.0);
+    for (std::size_t i = 0; i < settings.plans.size(); ++i)
+      if (settings.plans[i].homing)
+        std::fprintf(stderr,
+                     "can: note: node %u (axis '%s') homes by its drive's homing mode (method "
+                     "%d) through DriveHoming::home_axes; the EDP's SYNCHRO does not call it yet "
+                     "and still searches the home switch (docs/hil.md, 'Not yet')\n",
+                     static_cast<unsigned>(settings.plans[i].node), settings.plans[i].axis.c_str(),
+                     static_cast<int>(settings.plans[i].homing->method));
     const auto n = static_cast<Eigen::Index>(axes_);
     const std::vector<std::int64_t>& nodes = settings.nodes;
     const double counts = settings.counts;

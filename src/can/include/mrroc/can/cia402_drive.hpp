@@ -31,9 +31,10 @@
 ///    changed, 254/255 when their data changed (no sooner than the inhibit time, sub 3) and when
 ///    the event timer (sub 5) runs out.
 ///  - CiA 402 device control (transitions 2-12, 15, 16). Modes that move the axis: 8 (cyclic
-///    synchronous position, target 0x607A) and 7 (interpolated position, target 0x60C1 sub 1,
-///    while controlword bit 4 "enable ip mode" is set); in the other modes the file lists the
-///    drive holds its position.
+///    synchronous position, target 0x607A), 9 (cyclic synchronous velocity, 0x60FF), 7
+///    (interpolated position, target 0x60C1 sub 1, while controlword bit 4 "enable ip mode" is
+///    set) and 6 (homing, below); in the other modes the file lists the drive holds its
+///    position.
 ///  - CSP and IP: at each SYNC the demand moves linearly from the previous target to the new one
 ///    over one interpolation period (0x60C2), so the axis follows a ramp, not steps.
 ///  - Monitors (operation enabled): following error |demand - actual| > 0x6065 counts for longer

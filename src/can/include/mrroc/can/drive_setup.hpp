@@ -33,7 +33,9 @@
 /// 0x6060, 0x6064, 0x60FD (home switch) and the target of the mode, all of them mappable where
 /// they are mapped; the PDO objects (0x1400/0x1600 x 1..2, 0x1800/0x1A00 x 1..2) with room for
 /// two entries, and TPDO2's event timer (0x1801 sub 5). Used when present (and then checked):
-/// 0x1006, 0x1029 sub 1, 0x6007, 0x605A, 0x6065, 0x6066, 0x6085, 0x60C2, 0x60FE.
+/// 0x1006, 0x1029 sub 1, 0x6007, 0x605A, 0x6065, 0x6066, 0x6085, 0x60C2, 0x60FE. With homing by
+/// the drive (DriveRequest::homing): 0x6098, 0x6099 sub 1 and 2, 0x609A, 0x607C (writable),
+/// 0x6061 (readable), and homing (bit 5) in the file's 0x6502.
 #include <array>
 #include <cstdint>
 #include <memory>

@@ -975,13 +975,25 @@ void Cia402Master::home(const std::atomic<bool>& stop) {
       throw fail(homing.front(), "stopped by the emergency stop (quick stop)");
     if (faulted_) throw fail(homing.front(), "a fault while homing");
   };
+  // An SDO write, read back, with a cycle after each transfer.
   const auto sdo_checked = [&](std::size_t i, std::uint16_t index, std::uint8_t sub,
                                std::uint32_t value, std::uint8_t size) {
+    const std::uint8_t n = axes_[i].node;
     try {
-      write_checked(i, index, sub, value, size);
+      sdo_write(n, index, sub, value, size);
     } catch (const HardwareError& e) {
       throw fail(i, e.what());
     }
+    cycle_checked();
+    std::uint32_t back = 0;
+    try {
+      back = sdo_read(n, index, sub);
+    } catch (const HardwareError& e) {
+      throw fail(i, e.what());
+    }
+    if (back != value)
+      throw fail(i, object_name(axes_[i].plan.eds.get(), index, sub) + " reads back " +
+                        hex_text(back, 8) + " after writing " + hex_text(value, 8));
     cycle_checked();
   };
   // Waits for every homing drive to report `state`, stepping it there with `controlword` (-1:

@@ -1840,6 +1840,90 @@ std::string homing_error(Cia402Master& master, const std::atomic<bool>& stop) {
   return "no error";
 }
 
+TEST(Cia402Drive, HomingStatuswordBitsFollowCia402AndBit4InterruptsAndRestarts) {
+  // One emulated drive (emu-pp-split.eds) driven by SDO frames directly; its axis follows the
+  // demand perfectly, home switch on above 0.5 rad, the axis at 0.2 rad at power-on.
+  std::vector<can_frame> sent;
+  Cia402Drive drive(DriveConfig{.node = 1, .eds = drive_file("emu-pp-split.eds")},
+                    [&](const can_frame& f) { sent.push_back(f); });
+  double position = 0.2;
+  double t = 0.0;
+  const auto sample = [&] { return AxisSample{position, 0.0, 0.0, position > 0.5, 0}; };
+  drive.power_on(sample(), t);
+  const auto write = [&](std::uint16_t index, std::uint8_t sub, std::uint32_t value,
+                         std::uint8_t size) -> std::uint32_t {
+    sent.clear();
+    drive.on_frame(co::encode_request(1, {true, index, sub, value, size}), t);
+    for (const can_frame& f : sent)
+      if (const auto r = co::decode_response(f)) return r->abort ? r->abort_code : 0U;
+    return 0xFFFFFFFFU;  // no answer
+  };
+  const auto step = [&](int ms) {
+    for (int k = 0; k < ms; ++k) {
+      t += 0.001;
+      if (drive.powered()) position = drive.demand();
+      drive.update(sample(), t);
+    }
+  };
+  const auto homing_bits = [&] {
+    return drive.statusword() & (co::statusword::kHomingError | co::statusword::kHomingAttained |
+                                 co::statusword::kTargetReached);
+  };
+  namespace sw = co::statusword;
+  namespace abort = co::sdo_abort;
+  EXPECT_EQ(write(co::od::kModesOfOperation, 0, 6, 1), 0U);
+  EXPECT_EQ(write(co::od::kHomingMethod, 0, 18, 1), abort::kValueRange);    // no limit switch
+  EXPECT_EQ(write(co::od::kHomingMethod, 0, 40, 1), abort::kValueTooHigh);  // its HighLimit 37
+  EXPECT_EQ(write(co::od::kHomingMethod, 0, 20, 1), 0U);
+  EXPECT_EQ(write(co::od::kHomingSpeeds, 1, 50000, 4), 0U);         // 0.5 rad/s
+  EXPECT_EQ(write(co::od::kHomingSpeeds, 2, 20000, 4), 0U);         // 0.2 rad/s
+  EXPECT_EQ(write(co::od::kHomingAcceleration, 0, 400000, 4), 0U);  // 4 rad/s^2
+  EXPECT_EQ(write(co::od::kHomeOffset, 0, static_cast<std::uint32_t>(-12345), 4), 0U);
+  for (const std::uint16_t cw :
+       {co::controlword::kShutdown, co::controlword::kSwitchOn, co::controlword::kEnableOperation})
+    EXPECT_EQ(write(co::od::kControlword, 0, cw, 2), 0U);
+  ASSERT_EQ(drive.state(), co::DriveState::operation_enabled);
+  step(10);
+  EXPECT_EQ(homing_bits(), sw::kTargetReached);  // not started: 0/0/1
+  EXPECT_EQ(position, 0.2);
+  // Start: in progress (0/0/0), moving up at the zero search speed (20: from below the edge).
+  EXPECT_EQ(write(co::od::kControlword, 0, 0x1F, 2), 0U);
+  step(200);
+  EXPECT_EQ(homing_bits(), 0U);
+  EXPECT_GT(position, 0.2 + 0.2 * 0.15);
+  EXPECT_EQ(write(co::od::kHomingMethod, 0, 19, 1), abort::kDeviceState);  // not while homing
+  // Bit 4 back to 0: interrupted, ramps down (0.2 rad/s at 4 rad/s^2: 50 ms), then 0/0/1.
+  EXPECT_EQ(write(co::od::kControlword, 0, 0x0F, 2), 0U);
+  step(100);
+  EXPECT_EQ(homing_bits(), sw::kTargetReached);
+  const double stopped = position;
+  step(50);
+  EXPECT_EQ(position, stopped);
+  EXPECT_LT(position, 0.5);
+  // Started again: on to the edge at 0.5 rad, where the position becomes the offset, and back
+  // to it: attained, target reached (1/0/1).
+  EXPECT_EQ(write(co::od::kControlword, 0, 0x1F, 2), 0U);
+  step(2000);
+  EXPECT_EQ(homing_bits(), sw::kHomingAttained | sw::kTargetReached);
+  EXPECT_NEAR(position, 0.5, 0.2 * 0.001 + 1e-12);
+  EXPECT_EQ(drive.counts(position), -12345);
+  // A quick stop ends a homing: started again (method 37: no motion, attained at once).
+  EXPECT_EQ(write(co::od::kControlword, 0, 0x0F, 2), 0U);
+  EXPECT_EQ(write(co::od::kHomingMethod, 0, 37, 1), 0U);
+  EXPECT_EQ(write(co::od::kHomeOffset, 0, 1000, 4), 0U);
+  EXPECT_EQ(write(co::od::kControlword, 0, 0x1F, 2), 0U);
+  step(1);
+  EXPECT_EQ(homing_bits(), sw::kHomingAttained | sw::kTargetReached);
+  EXPECT_EQ(drive.counts(position), 1000);
+  // Out of homing mode, the bits are CSP's again (bit 12: following the target).
+  for (const std::uint16_t cw : {co::controlword::kSwitchOn})
+    EXPECT_EQ(write(co::od::kControlword, 0, cw, 2), 0U);
+  EXPECT_EQ(write(co::od::kModesOfOperation, 0, 8, 1), 0U);
+  EXPECT_EQ(write(co::od::kControlword, 0, co::controlword::kEnableOperation, 2), 0U);
+  EXPECT_EQ(drive.statusword() & (sw::kHomingError | sw::kTargetReached), 0U);
+  EXPECT_NE(drive.statusword() & sw::kFollowingTarget, 0U);
+}
+
 TEST(Cia402Master, HomesByTheDrivesHomingModeAndEndsAtTheOffset) {
   // The rack's axes stand at 0.0, 0.3, 0.6 and 0.9 rad; each home switch is on above 0.5 rad.
   MemoryHub hub;

@@ -299,14 +299,15 @@ std::vector<MasterAxis> axes(int count) {
 /// output applied at a SYNC): a fixed count of cycles assumed that thread ran within them, and a
 /// loaded host held it back longer (an input still 0 after 3 cycles).
 template <typename F, typename D>
-bool run_cycles_until(Cia402Master& master, F targets, D done, int limit = 500) {
+bool run_cycles_until(Cia402Master& master, F targets, D done, int limit = 500,
+                      bool quick_stop = false) {
   auto next = std::chrono::steady_clock::now();
   for (int k = 0; k < limit; ++k) {
     next += 2ms;
     std::this_thread::sleep_until(next);
     master.receive();
     const std::vector<double> t = targets(k);
-    master.send(t, false);
+    master.send(t, quick_stop);
     if (done()) return true;
   }
   return false;
@@ -315,14 +316,8 @@ bool run_cycles_until(Cia402Master& master, F targets, D done, int limit = 500) 
 /// Runs `cycles` master cycles of 2 ms, each with `targets(cycle)`.
 template <typename F>
 void run_cycles(Cia402Master& master, int cycles, F targets, bool quick_stop = false) {
-  auto next = std::chrono::steady_clock::now();
-  for (int k = 0; k < cycles; ++k) {
-    next += 2ms;
-    std::this_thread::sleep_until(next);
-    master.receive();
-    const std::vector<double> t = targets(k);
-    master.send(t, quick_stop);
-  }
+  (void)run_cycles_until(
+      master, targets, [] { return false; }, cycles, quick_stop);
 }
 
 TEST(Cia402Master, BringsDrivesUpStreamsPositionsAndReadsThemBack) {

@@ -390,7 +390,11 @@ Reply CommandInterpreter::query() {
       if (!servo_.wait_synchronised(kSynchroTimeout))
         return error(error_code::hardware_fault,
                      "synchronisation failed: " +
-                         (servo_.faulted() ? servo_.fault_text() : std::string("timed out")));
+                         (servo_.faulted() ? servo_.fault_text()
+                          : servo_.emergency_stopped()
+                              ? std::string("interrupted by the emergency stop; the robot is "
+                                            "held (release it, then SYNCHRO again)")
+                              : std::string("timed out")));
       return reading_reply(servo_.latest());
     case Due::get: return reading_reply(servo_.latest());
     case Due::arm_reading: {

@@ -70,6 +70,8 @@ ServoLoop::ServoLoop(Hardware& hardware, const RobotModel& model, double period_
                                     hardware_.name(), hardware_.axis_count(), model.name, axes_));
   device_ = hardware_.device();
   keeps_time_ = !hardware_.simulated();
+  homed_axes_ = hardware_.self_homing_axes();
+  if (axes_ < 32) homed_axes_ &= (1U << axes_) - 1U;
   if (device_.command.size() > kMaxDeviceFields || device_.reply.size() > kMaxDeviceFields)
     throw HardwareError(
         fmt::format("hardware plugin '{}': device '{}' has {} command and {} reply "
@@ -119,6 +121,7 @@ void ServoLoop::start_stepped() {
 void ServoLoop::step(std::int64_t missed_periods) {
   const auto period_ns = static_cast<std::int64_t>(std::llround(period_s_ * 1e9));
   cycle(missed_periods * period_ns, period_ns, keeps_time_ ? missed_periods : std::int64_t{0});
+  blocked_ = false;  // the caller keeps the time
 }
 
 void ServoLoop::stop() {
@@ -157,6 +160,15 @@ void ServoLoop::run() {
     const std::int64_t late_ns = woke - deadline;
     cycle(late_ns, period_ns, keeps_time_ ? late_ns / period_ns : std::int64_t{0});
     clock_gettime(CLOCK_MONOTONIC, &now);
+    if (blocked_) {
+      // The cycle ran a recovery that blocks (a bring-up after a fault, the hardware's own
+      // homing): the robot stood still meanwhile, so the periods it took are not a lateness
+      // to report or make up. The clock starts again from here.
+      blocked_ = false;
+      work_ns_ = 0;
+      deadline = to_ns(now) + period_ns;
+      continue;
+    }
     work_ns_ = to_ns(now) - woke;  // recorded with the next cycle
     deadline += period_ns;
     // After an overrun, skip the periods already missed instead of running a burst of cycles.
@@ -180,6 +192,13 @@ void ServoLoop::run() {
         ++caught_up_total_;
       }
       clock_gettime(CLOCK_MONOTONIC, &now);
+      if (blocked_) {  // as after the cycle above
+        blocked_ = false;
+        owed_cycles_ = 0;
+        work_ns_ = 0;
+        deadline = to_ns(now) + period_ns;
+        break;
+      }
       work_ns_ = to_ns(now) - start;
     }
   }
@@ -229,6 +248,7 @@ void ServoLoop::run_lock_step() {
     });
     if (!running_.load(std::memory_order_relaxed)) break;
     cycle(0, 1, 0);
+    blocked_ = false;  // no deadlines in lock-step
   }
 }
 
@@ -239,6 +259,7 @@ void ServoLoop::set_fault(const char* text) {
   end_velocity_.fill(0.0);
   drop_queue();
   synchroniser_.abandon();
+  homing_pending_ = false;
   mode_ = Mode::hold;
   notify_pending_ = true;
 }
@@ -273,15 +294,38 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns, std::int64_t
     lock_wait_ns = std::max(lock_wait_ns, to_ns(t1) - to_ns(t0));
   };
   bool reset = false;
+  bool home = false;
   lock_timed();
   reset = reset_pending_;
+  home = homing_pending_ && !reset && !faulted_ && !emergency_stop_ && mode_ == Mode::synchronising;
+  if (home) {
+    homing_pending_ = false;
+    homing_running_ = true;
+  }
   mutex_.unlock();
   if (reset) {
+    blocked_ = true;
     try {
       hardware_.deactivate();
       hardware_.activate();
     } catch (...) {
       // Stays faulted: read() below reports why.
+    }
+  }
+  // SYNCHRO of hardware that homes axes itself: the homing blocks this thread (the plugin keeps
+  // its devices supervised meanwhile, and an emergency stop reaches it through
+  // Hardware::emergency_stop), then the synchroniser starts from the positions read below.
+  char homing_failure[sizeof fault_] = {};
+  if (home) {
+    blocked_ = true;
+    try {
+      hardware_.home_axes();
+    } catch (const std::exception& e) {
+      // The plugin's text names the axis, the method and the time (Hardware::home_axes).
+      std::snprintf(homing_failure, sizeof homing_failure, "%s", e.what());
+    } catch (...) {
+      std::snprintf(homing_failure, sizeof homing_failure,
+                    "plugin threw in home_axes(): unknown exception");
     }
   }
   // 1. Sample, without the lock. A plugin must not throw here; if it does, the loop holds the
@@ -329,6 +373,7 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns, std::int64_t
       }
       notify_pending_ = true;
     }
+    if (home) finish_homing(homing_failure, read_status == CycleStatus::ok);
     if (read_status != CycleStatus::ok && !faulted_) {
       if (thrown[0] != '\0') {
         char text[256];
@@ -383,6 +428,45 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns, std::int64_t
     }
     changed_.notify();
   }
+}
+
+void ServoLoop::finish_homing(const char* failure, bool read_ok) {
+  homing_running_ = false;
+  notify_pending_ = true;
+  // The homed axes count from their new reference now: hold every axis where it stands, so
+  // that nothing jumps whatever comes next.
+  for (std::size_t i = 0; i < axes_; ++i) desired_[i] = feedback_[i].position;
+  if (failure[0] != '\0') {
+    if (!faulted_) set_fault(failure);
+    return;
+  }
+  // A read that failed is reported as a fault by the caller.
+  if (!read_ok || mode_ != Mode::synchronising) return;
+  if (emergency_stop_) {
+    // Engaged as the homing ended (the hardware's quick stop ends one that still runs, as a
+    // failure): the synchronisation is abandoned, the robot held.
+    synchroniser_.abandon();
+    mode_ = Mode::hold;
+    return;
+  }
+  for (std::size_t i = 0; i < axes_; ++i) {
+    if ((homed_axes_ & (1U << i)) == 0U) continue;
+    const double q = feedback_[i].position;
+    const bool below = q < model_.lower_limits[i];
+    if (below || q > model_.upper_limits[i]) {
+      char text[sizeof fault_];
+      std::snprintf(text, sizeof text,
+                    "axis %zu (%s) stands at %.4f %s after its homing, %s its %s limit of "
+                    "%.4f %s (the homing's offset is the joint's position at the home point)",
+                    i, model_.joint_names[i].c_str(), q, model_.unit(i), below ? "below" : "above",
+                    below ? "lower" : "upper",
+                    below ? model_.lower_limits[i] : model_.upper_limits[i], model_.unit(i));
+      set_fault(text);
+      return;
+    }
+  }
+  synchroniser_.begin(std::span<const AxisFeedback>(feedback_.data(), axes_), desired_, offset_,
+                      homed_axes_);
 }
 
 void ServoLoop::plan_cycle(std::int64_t missed) {
@@ -700,8 +784,12 @@ void ServoLoop::emergency_stop() {
     drop_queue();
     if (synchronised_ && !faulted_ && (mode_ == Mode::hold || mode_ == Mode::stopping)) {
       mode_ = Mode::stopping;
+    } else if (homing_running_) {
+      // The hardware's homing runs on the servo thread: the quick stop (hardware_.emergency_stop
+      // above) ends it, and the cycle after it reports how (finish_homing); SYNCHRO waits for it.
     } else if (mode_ != Mode::hold) {
       synchroniser_.abandon();  // a synchronisation search is simply abandoned (it is slow)
+      homing_pending_ = false;
       mode_ = Mode::hold;
     }
   }
@@ -874,7 +962,11 @@ bool ServoLoop::stopped() const {
 void ServoLoop::begin_synchronisation() {
   {
     std::lock_guard lock(mutex_);
-    synchroniser_.begin(std::span<const AxisFeedback>(feedback_.data(), axes_), desired_);
+    if (homed_axes_ != 0U)
+      homing_pending_ = true;  // the next cycle homes them; the search begins after it
+    else
+      synchroniser_.begin(std::span<const AxisFeedback>(feedback_.data(), axes_), desired_,
+                          offset_);
     mode_ = Mode::synchronising;
   }
   changed_.notify();

@@ -124,7 +124,16 @@ class ServoLoop {
   [[nodiscard]] Reading latest() const;
 
   /// Starts synchronisation (searching every axis' switch, then moving to the synchronisation
-  /// pose). Returns at once; `wait_synchronised` waits for the end.
+  /// pose). Returns at once; `wait_synchronised` waits for the end. When the hardware homes
+  /// axes itself (Hardware::self_homing_axes), the servo thread first calls
+  /// Hardware::home_axes() between two cycles, off the cycle as the reset after a fault (no
+  /// cycle runs meanwhile; the periods it takes are neither counted late nor made up), holds
+  /// every axis where the homing left it, and searches only the other axes' switches; the homed
+  /// axes are synchronised with offset 0 and approach the pose with the others. A homing that
+  /// fails (its exception's text), or leaves a homed axis outside its joint limits, is a fault
+  /// (faulted(), fault_text()) and the robot is held unsynchronised; the next SYNCHRO resets it
+  /// and homes again. An emergency stop mid-homing reaches the hardware through
+  /// Hardware::emergency_stop, which ends the homing as a failure.
   void begin_synchronisation();
   bool wait_synchronised(double timeout_s);
   [[nodiscard]] bool synchronised() const { return synchronised_.load(); }
@@ -240,6 +249,10 @@ class ServoLoop {
   void cycle(std::int64_t late_ns, std::int64_t period_ns, std::int64_t missed);
   /// The part of a cycle that decides the setpoints (mutex_ held; no hardware call).
   void plan_cycle(std::int64_t missed);
+  /// After Hardware::home_axes() in this cycle (mutex_ held, feedback_ read after it): holds
+  /// every axis where it stands, then a fault (`failure` not empty, or a homed axis outside its
+  /// limits) or the synchroniser's start with the homed axes found.
+  void finish_homing(const char* failure, bool read_ok);
   /// Advances the motion by `advance` servo steps (1: as planned; more while catching up).
   void motion_cycle(double advance);
   /// The servo steps this cycle advances the motion (see "Catch-up" in docs/edp.md).
@@ -299,6 +312,12 @@ class ServoLoop {
   bool emergency_stop_ = false;
   bool hold_at_measured_ = false;  ///< after an emergency stop: hold at the measured joints
   bool reset_pending_ = false;
+  bool homing_pending_ = false;   ///< SYNCHRO: the next cycle calls Hardware::home_axes()
+  bool homing_running_ = false;   ///< the servo thread is inside Hardware::home_axes()
+  std::uint32_t homed_axes_ = 0;  ///< Hardware::self_homing_axes(), constant after construction
+  /// Servo thread only: the last cycle ran a blocking recovery (reset, homing); run() restarts
+  /// its clock after it.
+  bool blocked_ = false;
   std::int64_t lost_successors_ = 0;
   std::int64_t planned_stops_ = 0;
   std::uint64_t waived_upto_ = 0;       ///< macro-steps up to this id need no successor

@@ -14,9 +14,11 @@ constexpr double kSynchroSearchRange = 0.4;        // farthest a switch may be f
 constexpr double kSynchroAccelerationShare = 0.5;  // of each joint's acceleration limit
 }  // namespace
 
-void Synchroniser::begin(std::span<const AxisFeedback> feedback, const AxisArray& desired) {
+void Synchroniser::begin(std::span<const AxisFeedback> feedback, const AxisArray& desired,
+                         AxisArray& offset, std::uint32_t homed) {
   for (std::size_t i = 0; i < axes_; ++i) {
-    switch_found_[i] = false;
+    switch_found_[i] = i < 32 && (homed & (1U << i)) != 0U;
+    if (switch_found_[i]) offset[i] = 0.0;
     switch_initial_[i] = feedback[i].synchro_switch;
     // A pressed switch is released by moving down, a released one pressed by moving up.
     search_direction_[i] = feedback[i].synchro_switch ? -1.0 : 1.0;

@@ -4,11 +4,14 @@
 /// velocity towards its synchronisation switch; where the switch toggles, the offset between raw
 /// axis position and joint coordinate is known and the axis slows down to rest; then the arm
 /// approaches the synchronisation pose exactly, from rest to rest. Every velocity change stays
-/// within half the joint's acceleration limit.
+/// within half the joint's acceleration limit. Axes the hardware homed by itself
+/// (Hardware::self_homing_axes, homed before `begin`) are taken as found where they stand, with
+/// offset 0 (their raw positions are joint coordinates), and only approach the pose.
 /// Driven one servo step at a time by the servo loop (under its mutex); allocation-free.
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <span>
 
 #include "macro_step_queue.hpp"
@@ -24,8 +27,10 @@ class Synchroniser {
 
   explicit Synchroniser(const RobotModel& model) : model_(model), axes_(model.axes()) {}
 
-  /// Starts from the raw positions `desired` and the switches as they are now.
-  void begin(std::span<const AxisFeedback> feedback, const AxisArray& desired);
+  /// Starts from the raw positions `desired` and the switches as they are now; the axes of
+  /// `homed` (bit i = axis i) count as found, their `offset` 0.
+  void begin(std::span<const AxisFeedback> feedback, const AxisArray& desired, AxisArray& offset,
+             std::uint32_t homed = 0);
   /// One servo step: moves `desired` (raw until the switches are found, then joint
   /// coordinates), fills `offset` (joint = raw + offset). On `failed`, `text` says why.
   Result step(std::span<const AxisFeedback> feedback, double period_s, AxisArray& desired,

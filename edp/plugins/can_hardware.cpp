@@ -41,8 +41,9 @@
 ///     (units), timeout_s]): these drives home by their own homing mode (CiA 402 mode 6, 0x6098,
 ///     0x6099, 0x609A, 0x607C; values in counts by counts_per_unit), checked against the drive's
 ///     file (homing in 0x6502, the objects writable, every value within its object), and run
-///     by `DriveHoming::home_axes` (can_hardware.hpp). Without it the EDP's SYNCHRO searches the
-///     home switches, as before.
+///     by `home_axes` at the EDP's SYNCHRO (Cia402Master::home). The EDP takes those axes as
+///     synchronised where their homing leaves them (the offset is the position at the home
+///     point) and searches the home switches of the others.
 ///   - `rpdo`, `tpdo` (lists of rows [node (0: every drive), PDO number, COB-ID (0: the
 ///     predefined one), transmission type, event timer ms, entries...]; an entry is
 ///     index << 16 | sub << 8 | bits, bits 0 for the object's width, or an index alone): the
@@ -54,7 +55,9 @@
 /// Joint coordinates q and drive coordinates a are related by the robot's transmission coupling
 /// (parameters.toml [robot.transmission] coupling, default identity): targets are sent as a = M q
 /// and positions read back as q = M^-1 a. Positions are incremental (zero at the drives' power-on);
-/// the EDP's SYNCHRO finds the offset by the home switch each drive reports in its TPDO.
+/// the EDP's SYNCHRO finds the offset by the home switch each drive reports in its TPDO, or, for
+/// the drives with a `homing` row, has them home themselves (home_axes) and takes their positions
+/// as they are then.
 /// Binary I/O on the drives' digital lines (CiA 402 0x60FD, 0x60FE; 8 input and 8 output lines a
 /// drive, canopen.hpp): inputs 0..15 are the home switches of axes 0..15 (as the mujoco plugin's
 /// synchronisation switches), inputs 16..23 the input lines 0..7 of axis 0's drive and 24..31
@@ -81,7 +84,6 @@
 
 #include <fmt/format.h>
 
-#include "can_hardware.hpp"
 #include "mrroc/can/bus.hpp"
 #include "mrroc/can/canopen.hpp"
 #include "mrroc/can/cia402_master.hpp"
@@ -95,7 +97,7 @@
 namespace mrroc::edp {
 namespace {
 
-class CanHardware final : public Hardware, public DriveHoming {
+class CanHardware final : public Hardware {
  public:
   [[nodiscard]] std::string name() const override { return "can"; }
   [[nodiscard]] std::size_t axis_count() const override { return axes_; }
@@ -124,12 +126,23 @@ class CanHardware final : public Hardware, public DriveHoming {
                    "can: warning: worst-case bus load %.0f %% is above the recommended "
                    "%.0f %%\n",
                    settings.load_worst * 100.0, can::canopen::kRecommendedMaxLoad * 100.0);
+    // The joints read from homed drives only (read_settings refuses a joint read from homed
+    // and unhomed ones): their positions are absolute after home_axes().
+    self_homing_ = 0;
+    for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 32); ++i) {
+      bool homed = true;
+      for (std::size_t j = 0; j < axes_; ++j)
+        if (std::abs(inverse_(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j))) >
+                1e-12 &&
+            !settings.plans[j].homing)
+          homed = false;
+      if (homed) self_homing_ |= 1U << i;
+    }
     for (std::size_t i = 0; i < settings.plans.size(); ++i)
       if (settings.plans[i].homing)
         std::fprintf(stderr,
-                     "can: note: node %u (axis '%s') homes by its drive's homing mode (method "
-                     "%d) through DriveHoming::home_axes; the EDP's SYNCHRO does not call it yet "
-                     "and still searches the home switch (docs/hil.md, 'Not yet')\n",
+                     "can: node %u (axis '%s'): SYNCHRO homes it by its drive's homing mode "
+                     "(method %d)\n",
                      static_cast<unsigned>(settings.plans[i].node), settings.plans[i].axis.c_str(),
                      static_cast<int>(settings.plans[i].homing->method));
     const auto n = static_cast<Eigen::Index>(axes_);
@@ -264,12 +277,7 @@ class CanHardware final : public Hardware, public DriveHoming {
     return master_ ? std::string(master_->fault_text()) : std::string();
   }
 
-  [[nodiscard]] std::uint32_t self_homing_axes() const override {
-    std::uint32_t axes = 0;
-    for (std::size_t i = 0; i < std::min<std::size_t>(axes_, 32); ++i)
-      if (master_ && master_->plan(i).homing) axes |= 1U << i;
-    return axes;
-  }
+  [[nodiscard]] std::uint32_t self_homing_axes() const override { return self_homing_; }
 
   void home_axes() override {
     master_->home(quick_stop_);
@@ -631,6 +639,32 @@ class CanHardware final : public Hardware, public DriveHoming {
       throw ConfigError(SourceLocation::whole_file(model.parameters_file().string()),
                         "robot.transmission.coupling is singular");
     s.inverse = lu.inverse();
+    // A drive's homing makes a joint's position absolute only with every drive the joint is
+    // read from (its row of M^-1) homed too; a joint read from homed and unhomed drives would
+    // need both the drive's reference and the EDP's switch search.
+    const auto reads_from = [&](std::size_t joint, std::size_t drive) {
+      return std::abs(s.inverse(static_cast<Eigen::Index>(joint),
+                                static_cast<Eigen::Index>(drive))) > 1e-12;
+    };
+    ConfigErrorList homing_errors;
+    for (std::size_t j = 0; j < axes && j < s.plans.size(); ++j) {
+      if (!s.plans[j].homing) continue;
+      for (std::size_t i = 0; i < axes; ++i) {
+        if (!reads_from(i, j)) continue;
+        for (std::size_t k = 0; k < axes && k < s.plans.size(); ++k)
+          if (reads_from(i, k) && !s.plans[k].homing)
+            homing_errors.add(ConfigError(
+                s.plans[j].homing->where,
+                fmt::format("node {} (axis '{}'): the transmission (robot.transmission.coupling) "
+                            "reads joint {} ({}) from node {} (axis '{}') too, which has no "
+                            "'homing' row: home every drive of that joint by its homing mode, "
+                            "or none",
+                            static_cast<unsigned>(s.plans[j].node), s.plans[j].axis, i,
+                            model.joint_names[i], static_cast<unsigned>(s.plans[k].node),
+                            s.plans[k].axis)));
+      }
+    }
+    homing_errors.throw_if_any();
 
     // Every target of the joints' ranges in counts, wherever a drive's power-on put its zero
     // (encoders count from there): |a_i| up to sum_c |M_ic| (upper_c - lower_c). The drives take
@@ -690,6 +724,7 @@ class CanHardware final : public Hardware, public DriveHoming {
   bool active_ = false;
   bool first_read_ = true;
   std::atomic<bool> quick_stop_{false};
+  std::uint32_t self_homing_ = 0;  ///< self_homing_axes(): joints read from homed drives only
   std::string load_text_;
 };
 

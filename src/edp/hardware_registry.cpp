@@ -4,6 +4,7 @@
 #include "../core/registry.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/core/error.hpp"
 #include "mrroc/edp/hardware.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
@@ -15,6 +16,10 @@ namespace {
   return r;
 }
 }  // namespace
+
+void Hardware::home_axes() {
+  throw HardwareError(fmt::format("hardware plugin '{}' cannot home its axes by itself", name()));
+}
 
 void register_hardware(const std::string& name, HardwareFactory factory) {
   registry().add(name, std::move(factory));

@@ -23,12 +23,13 @@
 #include <thread>
 #include <vector>
 
+#include "command_interpreter.hpp"
 #include "edp_parts.hpp"
 #include "emu_process.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/config/params.hpp"
+#include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/edp/hardware.hpp"
-#include "plugins/can_hardware.hpp"
 #include "servo_loop.hpp"
 
 using namespace mrroc;
@@ -322,9 +323,7 @@ TEST(CanPlugin, DrivesHomeByTheirHomingModeAndEndAtTheOffset) {
   const std::string url = bus_url();
   Emulator emu(url);
   auto hw = plugin(url, homing_rows);
-  auto* homing = dynamic_cast<edp::DriveHoming*>(hw.get());
-  ASSERT_NE(homing, nullptr);
-  EXPECT_EQ(homing->self_homing_axes(), (1U << 1U) | (1U << 4U));
+  EXPECT_EQ(hw->self_homing_axes(), (1U << 1U) | (1U << 4U));
   hw->activate();
   std::vector<edp::AxisFeedback> fb(5);
   ASSERT_EQ(hw->read(fb), edp::CycleStatus::ok) << hw->fault_text();
@@ -332,7 +331,7 @@ TEST(CanPlugin, DrivesHomeByTheirHomingModeAndEndAtTheOffset) {
   for (std::size_t i = 0; i < 5; ++i) before[i] = fb[i].position;
   EXPECT_TRUE(fb[1].synchro_switch);  // 0.05 rad above the switch's edge
   const auto began = std::chrono::steady_clock::now();
-  homing->home_axes();
+  hw->home_axes();
   const double took =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
   // Held where the homing left them: the homed axes count from their home points.
@@ -382,7 +381,7 @@ TEST(CanPlugin, AnEmergencyStopDuringHomingQuickStopsTheDrivesAndIsAFault) {
     hw->emergency_stop(true);  // as the EDP's emergency-stop listener does
   });
   try {
-    dynamic_cast<edp::DriveHoming&>(*hw).home_axes();
+    hw->home_axes();
     what = "no error";
   } catch (const HardwareError& e) {
     what = e.what();
@@ -442,4 +441,259 @@ TEST(CanPlugin, HomingRowsAreCheckedAgainstTheDrivesFilesAtTheirRows) {
   }
   // Rows the files allow pass (what mrroc-launch --check runs).
   EXPECT_NO_THROW(hw->check(plugin_setup(url, homing_rows)));
+}
+
+// The EDP's SYNCHRO with the `can` plugin's drive homing: the servo loop and the command
+// interpreter as mrroc-edp builds them, on the emulator's MuJoCo axes. The lower arm (node 2)
+// and the wrist roll (node 5) home by their drives' homing mode, the column, upper arm and wrist
+// pitch by the EDP's own search for their home switches.
+namespace {
+
+constexpr double kPeriod = 0.002;
+
+class CanEdp {
+ public:
+  CanEdp(const std::string& url, const std::function<void(Params&)>& adjust)
+      : model_(test::stock_model("irb6")),
+        hardware_(plugin(url, adjust)),
+        kinematics_(edp::make_arm_kinematics(model_)) {
+    servo_ = std::make_unique<edp::ServoLoop>(*hardware_, model_, kPeriod);
+    servo_->set_limit_guard(kinematics_.get());
+    servo_->enable_trace(20000);
+    servo_->start();
+    interpreter_ =
+        std::make_unique<edp::CommandInterpreter>(*servo_, model_, *kinematics_, kPeriod);
+  }
+  ~CanEdp() { servo_->stop(); }
+  CanEdp(const CanEdp&) = delete;
+  CanEdp& operator=(const CanEdp&) = delete;
+
+  edp::Reply exec(const edp::Instruction& in) { return interpreter_->execute(in); }
+  edp::Reply query() {
+    edp::Instruction q;
+    q.type = edp::InstructionType::query;
+    return exec(q);
+  }
+  edp::Reply synchro() {
+    edp::Instruction s;
+    s.type = edp::InstructionType::synchro;
+    return exec(s);
+  }
+  /// SYNCHRO and its QUERY.
+  edp::Reply synchronise() {
+    const edp::Reply r = synchro();
+    return r.type == edp::ReplyType::error ? r : query();
+  }
+  /// The measured joints [rad] (raw before synchronisation).
+  std::vector<double> joints() const {
+    const edp::Reading r = servo_->latest();
+    return {r.joints.begin(), r.joints.begin() + 5};
+  }
+
+  RobotModel model_;
+  std::unique_ptr<edp::Hardware> hardware_;
+  std::unique_ptr<edp::ArmKinematics> kinematics_;
+  std::unique_ptr<edp::ServoLoop> servo_;
+  std::unique_ptr<edp::CommandInterpreter> interpreter_;
+};
+
+/// Waits until `edp`'s robot stands still (no motion planned, and no measured joint moving
+/// faster than 1 mrad/s), at most `timeout`.
+bool wait_still(const CanEdp& edp, std::chrono::milliseconds timeout) {
+  const auto until = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < until) {
+    const edp::Reading r = edp.servo_->latest();
+    bool still = edp.servo_->stopped();
+    for (std::size_t i = 0; i < 5; ++i) still = still && std::abs(r.velocities[i]) < 1e-3;
+    if (still) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+}  // namespace
+
+TEST(CanPlugin, SynchroHomesTheDrivesWithHomingRowsAndSearchesTheOtherAxes) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  CanEdp edp(url, homing_rows);
+  ASSERT_EQ(edp.hardware_->self_homing_axes(), (1U << 1U) | (1U << 4U));
+  std::this_thread::sleep_for(50ms);
+  const std::vector<double> raw = edp.joints();  // from the drives' power-on
+  const auto began = std::chrono::steady_clock::now();
+  const edp::Reply r = edp.synchronise();
+  const double took =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
+  ASSERT_EQ(r.type, edp::ReplyType::data) << r.error_text << "\n" << emu.output();
+  EXPECT_TRUE(r.synchronised);
+  ASSERT_TRUE(wait_still(edp, 2s));
+
+  // Every axis at its synchronisation position; the homed ones there because their drives'
+  // offsets are those positions. 2 mrad: the MuJoCo position servo's error under gravity (the
+  // lower arm's) with the 1 ms physics step, as in the plugin's homing test above; the drives'
+  // home points lie within one physics step of the switch's edge (50 urad at the zero search
+  // speed of 0.05 rad/s).
+  const std::vector<double> q = edp.joints();
+  for (std::size_t i = 0; i < 5; ++i)
+    EXPECT_NEAR(q[i], edp.model_.synchro_joint_positions[i], 2e-3) << "axis " << i;
+  EXPECT_NEAR(q[1], kLowerArmSynchro, 2e-3);  // the row's offset
+  EXPECT_NEAR(q[4], 0.0, 2e-3);
+
+  // The homed axes took no part in the EDP's search: from the cycle after their homing (the
+  // first with the lower arm's commanded position at its offset) their commands moved only by
+  // the approach from where the homing left them to the pose; the searched axes moved down
+  // across their switches' edges, which their power-on put 0.05 rad below them.
+  const std::vector<edp::TraceSample> trace = edp.servo_->trace();
+  std::size_t homed_at = trace.size();
+  for (std::size_t k = 0; k < trace.size(); ++k)
+    if (std::abs(trace[k].desired[1] - kLowerArmSynchro) < 0.01) {
+      homed_at = k;
+      break;
+    }
+  ASSERT_LT(homed_at, trace.size()) << "no cycle with the lower arm at its offset";
+  double homed_moved = 0.0;
+  std::array<double, 5> searched{};
+  for (std::size_t k = homed_at; k < trace.size(); ++k) {
+    for (const std::size_t i : {1U, 4U})
+      homed_moved =
+          std::max(homed_moved, std::abs(trace[k].desired[i] - trace[homed_at].desired[i]));
+    for (const std::size_t i : {0U, 2U, 3U})
+      if (!trace[k].synchronised) searched[i] = std::max(searched[i], raw[i] - trace[k].desired[i]);
+  }
+  EXPECT_LT(homed_moved, 2e-3);
+  for (const std::size_t i : {0U, 2U, 3U}) EXPECT_GT(searched[i], 0.05) << "axis " << i;
+  // The homing paused the servo cycle without counting as a lateness (it took a second or so).
+  const edp::TimingStats timing = edp.servo_->timing();
+  EXPECT_LT(timing.lateness_max_us, 500e3);
+
+  // A motion after SYNCHRO: every joint 0.05 rad, the homed ones included.
+  std::vector<double> target = edp.model_.synchro_joint_positions;
+  for (double& t : target) t += 0.05;
+  const int steps = test::rest_to_rest_steps(edp.model_, q, target, kPeriod, 0.5);
+  const edp::Reply set = edp.exec(test::set_joints_instruction(target, steps, steps + 1));
+  ASSERT_EQ(set.type, edp::ReplyType::acknowledge) << set.error_text;
+  const edp::Reply done = edp.query();
+  ASSERT_EQ(done.type, edp::ReplyType::data) << done.error_text;
+  ASSERT_TRUE(wait_still(edp, 2s));
+  const std::vector<double> moved = edp.joints();
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(moved[i], target[i], 2e-3) << "axis " << i;
+  std::printf(
+      "SYNCHRO in %.2f s: lower arm at %.5f rad, wrist roll at %.5f rad (offsets %.5f, 0); "
+      "homed axes' commands moved %.2e rad after their homing; the others searched %.3f, "
+      "%.3f, %.3f rad; worst lateness %.1f ms; then %d steps to +0.05 rad, lower arm at "
+      "%.5f rad\n",
+      took, q[1], q[4], kLowerArmSynchro, homed_moved, searched[0], searched[2], searched[3],
+      timing.lateness_max_us / 1000.0, steps, moved[1]);
+}
+
+TEST(CanPlugin, SynchroFailsNamingTheDriveWhenItRefusesItsHomingMethod) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  // Method 17 (negative limit switch) is within 0x6098's limits in emu-pp-split.eds, so the
+  // config check passes it; the emulated drive has no limit switch and refuses it (SDO abort
+  // 0x06090030) before anything moves.
+  CanEdp edp(url, [](Params& p) {
+    p.set("homing",
+          std::vector<std::vector<double>>{{2, 17, 0.2, 0.05, 1.0, kLowerArmSynchro, 10.0},
+                                           {5, 20, 0.2, 0.05, 1.0, 0.0, 10.0}},
+          {"cell.toml", 30});
+    p.set_row_locations("homing", {{"cell.toml", 30}, {"cell.toml", 31}});
+  });
+  std::this_thread::sleep_for(50ms);
+  const std::vector<double> before = edp.joints();
+  for (int attempt = 1; attempt <= 2; ++attempt) {  // the second: a later SYNCHRO retries
+    const edp::Reply r = edp.synchronise();
+    ASSERT_EQ(r.type, edp::ReplyType::error) << "attempt " << attempt;
+    EXPECT_EQ(r.error_code, edp::error_code::hardware_fault);
+    EXPECT_FALSE(r.synchronised);
+    EXPECT_NE(r.error_text.find("synchronisation failed: drive node 2 (axis 'lower_arm') on " +
+                                url + ": homing by method 17 failed after 0.0"),
+              std::string::npos)
+        << r.error_text;
+    EXPECT_NE(r.error_text.find("0x06090030"), std::string::npos) << r.error_text;
+    EXPECT_FALSE(edp.servo_->synchronised());
+    // Held still, where it stood before.
+    std::this_thread::sleep_for(300ms);
+    const std::vector<double> after = edp.joints();
+    for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(after[i], before[i], 1e-4) << "axis " << i;
+    // Motion is refused until a SYNCHRO succeeds.
+    const edp::Reply set = edp.exec(test::set_joints_instruction(after, 100, 101));
+    EXPECT_EQ(set.type, edp::ReplyType::error);
+    if (attempt == 1) std::printf("SYNCHRO refused: %s\n", r.error_text.c_str());
+  }
+}
+
+TEST(CanPlugin, AnEmergencyStopMidHomingFailsSynchroAndALaterSynchroHomesAgain) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  CanEdp edp(url, [](Params& p) {
+    // Wrist roll: method 20 at a crawl (0.02 rad/s towards the edge), so that the stop comes
+    // mid-homing.
+    p.set("homing",
+          std::vector<std::vector<double>>{{2, 19, 0.2, 0.05, 1.0, kLowerArmSynchro, 10.0},
+                                           {5, 20, 0.2, 0.02, 1.0, 0.0, 20.0}},
+          {"cell.toml", 30});
+    p.set_row_locations("homing", {{"cell.toml", 30}, {"cell.toml", 31}});
+  });
+  std::this_thread::sleep_for(50ms);
+  ASSERT_EQ(edp.synchro().type, edp::ReplyType::acknowledge);
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(800ms);
+    edp.servo_->emergency_stop();  // as the EDP's emergency-stop listener does
+  });
+  const edp::Reply r = edp.query();
+  stopper.join();
+  ASSERT_EQ(r.type, edp::ReplyType::error);
+  EXPECT_FALSE(r.synchronised);
+  EXPECT_NE(r.error_text.find(": homing by method 19 failed after "), std::string::npos)
+      << r.error_text;
+  EXPECT_NE(r.error_text.find("stopped by the emergency stop (quick stop)"), std::string::npos)
+      << r.error_text;
+  // Quick-stopped from the crawl and held.
+  ASSERT_TRUE(wait_still(edp, 1s));
+  const std::vector<double> stopped = edp.joints();
+  std::this_thread::sleep_for(300ms);
+  const std::vector<double> held = edp.joints();
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(held[i], stopped[i], 1e-4) << "axis " << i;
+  // Refused while the stop is engaged; after the release a SYNCHRO resets the fault and homes
+  // the drives again.
+  EXPECT_EQ(edp.synchronise().error_code, edp::error_code::emergency_stop);
+  edp.servo_->release_emergency_stop();
+  const edp::Reply again = edp.synchronise();
+  ASSERT_EQ(again.type, edp::ReplyType::data) << again.error_text << "\n" << emu.output();
+  EXPECT_TRUE(again.synchronised);
+  ASSERT_TRUE(wait_still(edp, 2s));
+  const std::vector<double> q = edp.joints();
+  for (std::size_t i = 0; i < 5; ++i)
+    EXPECT_NEAR(q[i], edp.model_.synchro_joint_positions[i], 2e-3) << "axis " << i;
+  std::printf("stopped mid-homing: %s\nthen SYNCHRO: wrist roll at %.5f rad\n",
+              r.error_text.c_str(), q[4]);
+}
+
+// A homing that ends with a homed axis outside its joint limits (an offset that is not the
+// joint's position at the home point) fails SYNCHRO as well: the EDP would otherwise take a
+// wrong reference for a right one.
+TEST(CanPlugin, SynchroFailsWhenAHomedAxisStandsOutsideItsLimits) {
+  const std::string url = bus_url();
+  Emulator emu(url);
+  CanEdp edp(url, [](Params& p) {
+    // The lower arm's offset 0.1 rad: above its upper limit of -0.8727 rad.
+    p.set("homing", std::vector<std::vector<double>>{{2, 19, 0.2, 0.05, 1.0, 0.1, 10.0}},
+          {"cell.toml", 30});
+    p.set_row_locations("homing", {{"cell.toml", 30}});
+  });
+  const edp::Reply r = edp.synchronise();
+  ASSERT_EQ(r.type, edp::ReplyType::error);
+  EXPECT_FALSE(r.synchronised);
+  EXPECT_NE(r.error_text.find("synchronisation failed: axis 1 (lower_arm) stands at 0.1"),
+            std::string::npos)
+      << r.error_text;
+  EXPECT_NE(r.error_text.find("after its homing, above its upper limit of -0.8727 rad"),
+            std::string::npos)
+      << r.error_text;
+  const std::vector<double> stopped = edp.joints();
+  std::this_thread::sleep_for(300ms);
+  const std::vector<double> held = edp.joints();
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(held[i], stopped[i], 1e-4) << "axis " << i;
+  std::printf("SYNCHRO refused: %s\n", r.error_text.c_str());
 }

@@ -147,6 +147,24 @@ class Hardware {
   /// so concurrently with read/write: keep it to an atomic flag.
   virtual void emergency_stop(bool engaged) { (void)engaged; }
 
+  /// The axes the hardware homes by itself (bit i = axis i), e.g. drives that run their own
+  /// homing mode (CiA 402 mode 6): after home_axes() their raw positions are joint coordinates
+  /// (the position reference is the hardware's), so SYNCHRO takes them as synchronised (offset
+  /// 0) and searches the synchronisation switches of the other axes only. Valid after
+  /// configure(); constant until the next configure(). Any thread; no side effects. The default,
+  /// none: SYNCHRO searches every axis' switch.
+  [[nodiscard]] virtual std::uint32_t self_homing_axes() const { return 0; }
+  /// Homes the axes of self_homing_axes(), all at once, holding the others where they stand.
+  /// Called by the servo loop at SYNCHRO (only when self_homing_axes() is not 0), from the servo
+  /// thread between two cycles, never concurrently with read() and write(): it blocks for as long
+  /// as the homing takes (the servo cycle pauses meanwhile; the plugin keeps its devices
+  /// supervised itself) and must end soon after emergency_stop(true), which may come from another
+  /// thread meanwhile. After it the next read() returns the new raw positions. After activate().
+  /// The default homes nothing and throws: a plugin that names self-homing axes implements it.
+  /// @throws HardwareError naming the axis or device, what failed and after how long; the plugin
+  /// then holds its axes still and reports a fault (read()) until the next activate().
+  virtual void home_axes();
+
   /// True for simulated hardware whose time advances only in write(): the servo loop may then
   /// run lock-step (`[robot.edp] lock_step = true`), cycles back to back instead of one per
   /// period. Real drives keep their own clock and must answer false (the default).

@@ -697,3 +697,43 @@ TEST(CanPlugin, SynchroFailsWhenAHomedAxisStandsOutsideItsLimits) {
   for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(held[i], stopped[i], 1e-4) << "axis " << i;
   std::printf("SYNCHRO refused: %s\n", r.error_text.c_str());
 }
+
+// The RNT's transmission reads the elbow from two drives (a3 = q2 + q3, so q3 = a3 - a2): its
+// position is absolute after homing only with both drives homed. A row for the elbow's drive
+// alone is refused at the row; rows for both make the shoulder and the elbow self-homing.
+TEST(CanPlugin, HomingOfAJointReadFromSeveralDrivesNeedsThemAll) {
+  const auto rnt_setup = [](const std::vector<std::vector<double>>& rows) {
+    edp::HardwareSetup setup;
+    setup.robot = "rnt";
+    setup.model_dir = std::string(MRROC_SOURCE_DIR) + "/robots/rnt";
+    setup.servo_period_s = 0.003;
+    Params p;
+    p.set("bus", bus_url(), {});
+    p.set("eds", std::string(MRROC_SOURCE_DIR) + "/configs/drives/emu-pp-split.eds", {});
+    p.set("homing", rows, {"rnt.toml", 40});
+    std::vector<SourceLocation> at;
+    for (std::size_t r = 0; r < rows.size(); ++r)
+      at.push_back({"rnt.toml", static_cast<int>(40 + r)});
+    p.set_row_locations("homing", at);
+    setup.params = p;
+    return setup;
+  };
+  auto hw = edp::make_hardware("can");
+  try {
+    hw->check(rnt_setup({{3, 20, 0.2, 0.05, 1.0, 0.0, 10.0}}));
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "rnt.toml:40: error: node 3 (axis 'elbow'): the transmission "
+                  "(robot.transmission.coupling) reads joint 2 (elbow) from node 2 (axis "
+                  "'shoulder') too, which has no 'homing' row"),
+              std::string::npos)
+        << e.what();
+  }
+  const edp::HardwareSetup both =
+      rnt_setup({{2, 20, 0.2, 0.05, 1.0, 0.0, 10.0}, {3, 20, 0.2, 0.05, 1.0, 0.0, 10.0}});
+  EXPECT_NO_THROW(hw->check(both));
+  hw->configure(both);  // opens the bus, starts no drive
+  EXPECT_EQ(hw->self_homing_axes(), (1U << 1U) | (1U << 2U));
+  EXPECT_EQ(plugin(bus_url())->self_homing_axes(), 0U);  // no rows: the EDP searches every axis
+}

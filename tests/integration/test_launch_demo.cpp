@@ -18,6 +18,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "mrroc/comm/bus.hpp"
@@ -116,12 +117,28 @@ class EdpReplyRecorder {
   void on_reply(const mrroc_lcm::edp_reply_t* msg) {
     if (msg->header.kind != mrroc_lcm::header_t::REPLY) return;
     std::lock_guard lock(mutex_);
+    last_arrival_ = std::chrono::steady_clock::now();
     replies_.push_back(comm::decode(*msg));
     const bool to_ecp = msg->header.recipient.rfind("ecp/", 0) == 0;
     if (to_ecp && replies_.back().type == edp::ReplyType::data &&
         (!final_ || msg->header.seq > final_seq_)) {
       final_ = replies_.back();
       final_seq_ = msg->header.seq;
+    }
+  }
+  /// Returns once no reply has arrived for `quiet` (at most `limit`): the replies the EDP sent
+  /// before the set ended may still wait in this process' socket. The bus' thread reads them
+  /// after the launcher exited when the host is busy; stopping the bus at once would drop them
+  /// (a lock-step run sends its whole motion in about a second).
+  void wait_until_quiet(std::chrono::milliseconds quiet = std::chrono::milliseconds(300),
+                        std::chrono::seconds limit = std::chrono::seconds(10)) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      {
+        std::lock_guard lock(mutex_);
+        if (std::chrono::steady_clock::now() - last_arrival_ >= quiet) return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
   }
   /// Every reply, in the order it arrived (with faulty links: copies, and out of order).
@@ -141,6 +158,7 @@ class EdpReplyRecorder {
   std::vector<edp::Reply> replies_;
   std::optional<edp::Reply> final_;
   std::int64_t final_seq_ = 0;
+  std::chrono::steady_clock::time_point last_arrival_ = std::chrono::steady_clock::now();
 };
 
 std::string launcher() { return (kBin / "mrroc-launch").string(); }
@@ -156,6 +174,7 @@ TEST(LaunchDemo, RunsToTheEndAndReachesTheTargets) {
   bus.start();
 
   const RunResult r = run({launcher(), demo_config()}, 60.0);
+  recorder.wait_until_quiet();
   bus.stop();
   ASSERT_FALSE(r.timed_out) << r.output;
   EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -427,6 +446,7 @@ TEST(LaunchDemo, LockStepDemoRunsToTheEnd) {
   EdpReplyRecorder recorder(bus, "irb6");
   bus.start();
   const RunResult r = run({launcher(), file.string()}, 60.0);
+  recorder.wait_until_quiet();
   bus.stop();
   fs::remove_all(file.parent_path());
   ASSERT_FALSE(r.timed_out) << r.output;
@@ -482,6 +502,7 @@ void demo_reaches_final_pose_with_link_faults(const char* faults, const char* wh
   EdpReplyRecorder recorder(bus, "irb6");
   bus.start();
   const RunResult r = run({launcher(), demo_config()}, 600.0);
+  recorder.wait_until_quiet();
   bus.stop();
   ::unsetenv("MRROC_LINK_FAULTS");
   ASSERT_FALSE(r.timed_out) << r.output;

@@ -134,6 +134,12 @@ Reply CommandInterpreter::accept(const Instruction& in) {
     }
     if (servo_.synchronised())
       throw CommandError(error_code::already_synchronised, "SYNCHRO refused: already synchronised");
+    if (!servo_.stopped())
+      // A motion before SYNCHRO that a QUERY answered early (value_in_step_no < motion_steps)
+      // still runs: the synchronisation starts from where it ends.
+      throw CommandError(error_code::bad_argument,
+                         "SYNCHRO refused: the robot is still moving (a motion before "
+                         "synchronisation runs); send SYNCHRO once it is at rest");
     servo_.begin_synchronisation();
     due_ = Due::synchro;
     return Reply{};
@@ -303,9 +309,6 @@ void CommandInterpreter::validate_device(const Instruction& in) const {
 }
 
 std::vector<double> CommandInterpreter::arm_target(const Instruction& in) const {
-  if (!servo_.synchronised())
-    throw CommandError(error_code::not_synchronised,
-                       "SET ARM refused: robot not synchronised (send SYNCHRO first)");
   if (in.motion_steps < 1 || in.motion_steps > 100000)
     throw CommandError(error_code::bad_argument,
                        fmt::format("motion_steps {} is outside 1..100000", in.motion_steps));
@@ -313,6 +316,7 @@ std::vector<double> CommandInterpreter::arm_target(const Instruction& in) const 
     throw CommandError(error_code::bad_argument,
                        fmt::format("value_in_step_no {} is outside 1..{} (motion_steps + 1)",
                                    in.value_in_step_no, in.motion_steps + 1));
+  if (!servo_.synchronised()) return unsynchronised_target(in);
   const bool relative = in.motion_type == MotionType::relative;
   const std::vector<double> start = servo_.planned_end();
   std::vector<double> target;
@@ -320,16 +324,7 @@ std::vector<double> CommandInterpreter::arm_target(const Instruction& in) const 
     case ArmRepresentation::joint:
     case ArmRepresentation::motor: {
       const bool motor = in.set_arm_type == ArmRepresentation::motor;
-      if (in.arm.size() != model_.axes())
-        throw CommandError(
-            error_code::bad_argument,
-            fmt::format("SET ARM {} has {} values, robot '{}' has {} axes",
-                        to_string(in.set_arm_type), in.arm.size(), model_.name, model_.axes()));
-      for (std::size_t i = 0; i < in.arm.size(); ++i)
-        if (!std::isfinite(in.arm[i]))
-          throw CommandError(error_code::bad_argument,
-                             fmt::format("SET ARM {} value {} ({}) is not a finite number",
-                                         to_string(in.set_arm_type), i, model_.joint_names[i]));
+      check_axis_values(in);
       std::vector<double> values = in.arm;
       if (relative) {
         const std::vector<double> base = motor ? kinematics_.motors_from_joints(start) : start;
@@ -354,6 +349,70 @@ std::vector<double> CommandInterpreter::arm_target(const Instruction& in) const 
     }
   }
   check_path(start, target, in.motion_steps);
+  return target;
+}
+
+void CommandInterpreter::check_axis_values(const Instruction& in) const {
+  if (in.arm.size() != model_.axes())
+    throw CommandError(
+        error_code::bad_argument,
+        fmt::format("SET ARM {} has {} values, robot '{}' has {} axes", to_string(in.set_arm_type),
+                    in.arm.size(), model_.name, model_.axes()));
+  for (std::size_t i = 0; i < in.arm.size(); ++i)
+    if (!std::isfinite(in.arm[i]))
+      throw CommandError(error_code::bad_argument,
+                         fmt::format("SET ARM {} value {} ({}) is not a finite number",
+                                     to_string(in.set_arm_type), i, model_.joint_names[i]));
+}
+
+std::vector<double> CommandInterpreter::unsynchronised_target(const Instruction& in) const {
+  const bool relative = in.motion_type == MotionType::relative;
+  const bool axis_values =
+      in.set_arm_type == ArmRepresentation::joint || in.set_arm_type == ArmRepresentation::motor;
+  if (!relative || !axis_values)
+    throw CommandError(
+        error_code::not_synchronised,
+        fmt::format("SET ARM {} {} refused: robot not synchronised (its position is unknown: "
+                    "send SYNCHRO first; before it only RELATIVE MOTOR and JOINT moves are "
+                    "allowed, at reduced limits)",
+                    to_string(in.set_arm_type), relative ? "RELATIVE" : "ABSOLUTE"));
+  check_axis_values(in);
+  const bool motor = in.set_arm_type == ArmRepresentation::motor;
+  // The change of every joint. A motor move goes through the transmission at the
+  // synchronisation pose, the only position known: exact for a linear transmission, the change
+  // there for a nonlinear one (the IRb-6's ball screws).
+  std::vector<double> change = in.arm;
+  if (motor) {
+    const std::vector<double>& base = model_.synchro_joint_positions;
+    std::vector<double> motors = kinematics_.motors_from_joints(base);
+    for (std::size_t i = 0; i < motors.size(); ++i) motors[i] += in.arm[i];
+    try {
+      change = kinematics_.joints_from_motors(motors);
+    } catch (const CommandError& e) {
+      throw CommandError(e.code(), fmt::format("SET ARM MOTOR RELATIVE refused before SYNCHRO: "
+                                               "the motor change is too large for the "
+                                               "transmission: {}",
+                                               e.what()));
+    }
+    for (std::size_t i = 0; i < change.size(); ++i) change[i] -= base[i];
+  }
+  const double bound = servo_.unsynchronised_limits().max_move;
+  for (std::size_t i = 0; i < change.size(); ++i)
+    if (std::abs(change[i]) > bound)
+      throw CommandError(
+          error_code::out_of_limits,
+          fmt::format("SET ARM {} RELATIVE refused before SYNCHRO: axis {} ({}) would move "
+                      "{:.4f} {}{}, more than the {:.4f} {} one move may take before "
+                      "synchronisation ([robot.edp] unsynchronised_max_move; the joint limits "
+                      "cannot be checked while the position is unknown)",
+                      to_string(in.set_arm_type), i, model_.joint_names[i], change[i],
+                      model_.unit(i),
+                      motor ? fmt::format(" (motor {:.4f} rad)", in.arm[i]) : std::string(), bound,
+                      model_.unit(i)));
+  // Raw axis positions: relative to where the motion already queued ends. The planning of the
+  // macro-step (the servo loop) keeps it within the reduced velocity and acceleration limits.
+  std::vector<double> target = servo_.planned_end();
+  for (std::size_t i = 0; i < target.size(); ++i) target[i] += change[i];
   return target;
 }
 

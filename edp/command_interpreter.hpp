@@ -23,8 +23,12 @@
 ///   range (`bad_argument`, `out_of_limits`, naming field, value, unit and limit), the command
 ///   must have one value per field, and SET DEVICE is refused during an emergency stop. It needs
 ///   no SYNCHRO.
-/// - Motion before SYNCHRO is refused ("not synchronised"); a second SYNCHRO is refused
-///   ("already synchronised").
+/// - Before SYNCHRO only RELATIVE MOTOR and JOINT moves are accepted (the position is unknown;
+///   docs/edp.md, "Motion before synchronisation"): each joint's change at most
+///   `[robot.edp] unsynchronised_max_move` (no joint limit can be checked), planned by the
+///   servo loop within its reduced velocity and acceleration limits; ABSOLUTE and Cartesian
+///   moves are refused ("not synchronised"). SYNCHRO is refused while such a move still runs,
+///   and a second SYNCHRO is refused ("already synchronised").
 /// - A SET applies MODEL first, then TOOL, then ARM (so an arm target in the same SET uses the new
 ///   model and tool); if any item is refused, none is applied.
 /// - Arm targets in every representation become joint targets (inverse kinematics for frames,
@@ -71,6 +75,12 @@ class CommandInterpreter {
   /// SET DEVICE: one finite value per command field of the plugin's device, each in its range.
   void validate_device(const Instruction& instruction) const;
   std::vector<double> arm_target(const Instruction& instruction) const;
+  /// SET ARM MOTOR or JOINT: one finite value per axis. @throws CommandError (bad_argument).
+  void check_axis_values(const Instruction& instruction) const;
+  /// The target of a SET ARM before SYNCHRO, in raw axis positions: RELATIVE MOTOR or JOINT
+  /// only, each joint's change at most ServoLoop::unsynchronised_limits().max_move.
+  /// @throws CommandError (not_synchronised, out_of_limits, bad_argument).
+  std::vector<double> unsynchronised_target(const Instruction& instruction) const;
   void check_path(const std::vector<double>& start, const std::vector<double>& target,
                   int steps) const;
   std::vector<double> arm_values(const std::vector<double>& joints, ArmRepresentation type) const;

@@ -167,6 +167,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
                                     : std::string("it has no binary outputs")));
     servo.set_stop_outputs(robot.edp.safe_outputs, robot.edp.kept_outputs);
     servo.set_lookahead(robot.edp.lookahead);
+    servo.set_unsynchronised_limits({robot.edp.unsynchronised_velocity_fraction,
+                                     robot.edp.unsynchronised_acceleration_fraction,
+                                     robot.edp.unsynchronised_max_move});
     servo.start();
     // Its own socket and thread; the robot is stopped from here until the stop's state is heard.
     edp::EstopListener estop(servo, robot.name, config.lcm_url, config.auth_key_file,
@@ -320,7 +323,9 @@ int run(const std::string& config_path, const std::string& robot_name) {
       if (stop_requested() && !last_state) {
         const auto t = std::chrono::steady_clock::now();
         if (!ramping) {
-          if (!servo.synchronised() || servo.faulted() || servo.stopped()) break;
+          // A motion before SYNCHRO is ramped down as well (within its reduced limits); a
+          // synchronisation search is abandoned where it is (ServoLoop::emergency_stop).
+          if (servo.faulted() || servo.stopped()) break;
           ramping = true;
           ramp_start = t;
           ramp_first_step = servo.latest().cycle;

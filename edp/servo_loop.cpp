@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <mutex>
 
 #include <fmt/format.h>
@@ -61,7 +62,8 @@ ServoLoop::ServoLoop(Hardware& hardware, const RobotModel& model, double period_
       model_(model),
       axes_(model.axes()),
       period_s_(period_s),
-      synchroniser_(model) {
+      synchroniser_(model),
+      unsynced_model_(model) {
   if (axes_ == 0 || axes_ > kMaxAxes)
     throw HardwareError(
         fmt::format("robot '{}' has {} axes; the EDP supports 1..{}", model.name, axes_, kMaxAxes));
@@ -79,6 +81,27 @@ ServoLoop::ServoLoop(Hardware& hardware, const RobotModel& model, double period_
                     hardware_.name(), device_.name, device_.command.size(), device_.reply.size(),
                     kMaxDeviceFields));
   latest_.device_fields = device_.reply.size();
+  set_unsynchronised_limits(UnsynchronisedLimits{});
+}
+
+void ServoLoop::set_unsynchronised_limits(const UnsynchronisedLimits& limits) {
+  if (!(limits.velocity_fraction >= 0.01 && limits.velocity_fraction <= 1.0))
+    throw Error(fmt::format("unsynchronised velocity fraction {} is outside 0.01..1",
+                            limits.velocity_fraction));
+  if (!(limits.acceleration_fraction >= 0.01 && limits.acceleration_fraction <= 1.0))
+    throw Error(fmt::format("unsynchronised acceleration fraction {} is outside 0.01..1",
+                            limits.acceleration_fraction));
+  if (!(limits.max_move > 0.0) || !std::isfinite(limits.max_move))
+    throw Error(
+        fmt::format("unsynchronised max_move {} is not a positive length", limits.max_move));
+  unsynced_ = limits;
+  for (std::size_t i = 0; i < axes_; ++i) {
+    unsynced_model_.max_velocity[i] = model_.max_velocity[i] * limits.velocity_fraction;
+    unsynced_model_.max_acceleration[i] = model_.max_acceleration[i] * limits.acceleration_fraction;
+    // Raw axis positions are not joint coordinates: no joint limit applies to them.
+    unsynced_model_.lower_limits[i] = -std::numeric_limits<double>::infinity();
+    unsynced_model_.upper_limits[i] = std::numeric_limits<double>::infinity();
+  }
 }
 
 ServoLoop::~ServoLoop() { stop(); }
@@ -490,7 +513,7 @@ void ServoLoop::plan_cycle(std::int64_t missed) {
     const RampStep r =
         stopping_ramp_step(std::span<const double>(commanded_velocity_.data(), axes_),
                            std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_),
-                           model_, period_s_, guard_);
+                           motion_limits(), period_s_, ramp_guard());
     if (r.at_limit) ++limit_stops_;
     if (!r.moving) {
       mode_ = Mode::hold;
@@ -512,7 +535,9 @@ void ServoLoop::plan_cycle(std::int64_t missed) {
     motion_cycle(synced ? catch_up_advance(missed) : 1.0);
   }
   warp_velocity_ = commanded_velocity_;
-  if (synced && !faulted_)
+  // The commanded velocity in one coordinate system: not across the cycle in which the
+  // synchronisation switches desired_ from raw axis positions to joint coordinates.
+  if (synced == synchronised_.load(std::memory_order_relaxed) && !faulted_)
     for (std::size_t i = 0; i < axes_; ++i)
       commanded_velocity_[i] = (desired_[i] - previous_desired[i]) / period_s_;
   else
@@ -625,12 +650,19 @@ bool ServoLoop::start_next_macro_step(bool mid_cycle) {
   in.period_s = period_s_;
   in.after_ramp = after_ramp_;
   AxisArray end_velocity{};
-  const BlendRefusal refusal = plan_blend(in, model_, axes_, end_velocity, refused_text_);
+  const bool synced = synchronised_.load(std::memory_order_relaxed);
+  const BlendRefusal refusal = plan_blend(in, motion_limits(), axes_, end_velocity, refused_text_);
   after_ramp_ = false;
   if (refusal != BlendRefusal::none) {
     bool moving = false;
     for (std::size_t i = 0; i < axes_; ++i) moving = moving || end_velocity_[i] != 0.0;
-    const std::size_t used = std::strlen(refused_text_);
+    std::size_t used = std::strlen(refused_text_);
+    if (!synced && used < sizeof refused_text_)
+      std::snprintf(refused_text_ + used, sizeof refused_text_ - used,
+                    " (before SYNCHRO: %.2f of the velocity and %.2f of the acceleration limits, "
+                    "[robot.edp] unsynchronised_*)",
+                    unsynced_.velocity_fraction, unsynced_.acceleration_fraction);
+    used = std::strlen(refused_text_);
     std::snprintf(refused_text_ + used, sizeof refused_text_ - used, "%s",
                   moving ? "; the robot is brought to rest within its acceleration limits"
                          : "; the robot holds");
@@ -650,7 +682,7 @@ bool ServoLoop::start_next_macro_step(bool mid_cycle) {
       const RampStep r =
           stopping_ramp_step(std::span<const double>(commanded_velocity_.data(), axes_),
                              std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_),
-                             model_, period_s_, guard_);
+                             motion_limits(), period_s_, ramp_guard());
       if (r.at_limit) ++limit_stops_;
       if (!r.moving) mode_ = Mode::hold;
     }
@@ -764,7 +796,7 @@ void ServoLoop::coast(const AxisArray& velocity, double steps) {
   if (steps <= 0.0) return;
   if (!move_within_limits(std::span<const double>(velocity.data(), axes_), steps * period_s_,
                           std::span(desired_.data(), axes_), std::span(scratch_.data(), axes_),
-                          model_, guard_))
+                          motion_limits(), ramp_guard()))
     ++limit_stops_;
   latest_.desired = desired_;
 }
@@ -782,7 +814,9 @@ void ServoLoop::emergency_stop() {
     current_.reset();
     end_velocity_.fill(0.0);
     drop_queue();
-    if (synchronised_ && !faulted_ && (mode_ == Mode::hold || mode_ == Mode::stopping)) {
+    if (!faulted_ && (mode_ == Mode::hold || mode_ == Mode::stopping)) {
+      // A motion (synchronised or before SYNCHRO, within motion_limits()) is ramped to rest;
+      // a robot at rest ends the ramp in the next cycle.
       mode_ = Mode::stopping;
     } else if (homing_running_) {
       // The hardware's homing runs on the servo thread: the quick stop (hardware_.emergency_stop

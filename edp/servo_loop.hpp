@@ -67,6 +67,16 @@ struct TraceSample {
   std::uint32_t outputs = 0;  ///< binary outputs written in this cycle
 };
 
+/// What the EDP allows before SYNCHRO ([robot.edp] unsynchronised_*; docs/edp.md, "Motion
+/// before synchronisation"): RELATIVE MOTOR and JOINT moves, planned and stopped within these
+/// fractions of every joint's velocity and acceleration limit, each moving no joint by more than
+/// `max_move` (the joint limits cannot be checked while the position is unknown).
+struct UnsynchronisedLimits {
+  double velocity_fraction = 0.1;      ///< of RobotModel::max_velocity, 0.01..1
+  double acceleration_fraction = 0.1;  ///< of RobotModel::max_acceleration, 0.01..1
+  double max_move = 0.1;               ///< [rad | m], > 0
+};
+
 class ServoLoop {
  public:
   ServoLoop(Hardware& hardware, const RobotModel& model, double period_s);
@@ -124,10 +134,11 @@ class ServoLoop {
   [[nodiscard]] Reading latest() const;
 
   /// Starts synchronisation (searching every axis' switch, then moving to the synchronisation
-  /// pose). Returns at once; `wait_synchronised` waits for the end. When the hardware homes
-  /// axes itself (Hardware::self_homing_axes), the servo thread first calls
-  /// Hardware::home_axes() between two cycles, off the cycle as the reset after a fault (no
-  /// cycle runs meanwhile; the periods it takes are neither counted late nor made up), holds
+  /// pose) from where the robot stands, also after motion before it. Only while stopped() (the
+  /// command interpreter refuses SYNCHRO otherwise). Returns at once; `wait_synchronised` waits for
+  /// the end. When the hardware homes axes itself (Hardware::self_homing_axes), the servo thread
+  /// first calls Hardware::home_axes() between two cycles, off the cycle as the reset after a fault
+  /// (no cycle runs meanwhile; the periods it takes are neither counted late nor made up), holds
   /// every axis where the homing left it, and searches only the other axes' switches; the homed
   /// axes are synchronised with offset 0 and approach the pose with the others. A homing that
   /// fails (its exception's text), or leaves a homed axis outside its joint limits, is a fault
@@ -156,6 +167,15 @@ class ServoLoop {
     successor_wait_s_ = successor_wait_s;
   }
   [[nodiscard]] bool lock_step() const { return lock_step_; }
+
+  /// Motion before SYNCHRO: its limits (default UnsynchronisedLimits{}). Before start().
+  /// Until the robot is synchronised, every macro-step is planned (motion_blend.hpp) and every
+  /// stopping ramp (a lost successor, the emergency stop) braked within these fractions of the
+  /// joints' velocity and acceleration limits, in raw axis positions, with no joint-limit check
+  /// (they are not known); the command interpreter admits only RELATIVE MOTOR and JOINT moves
+  /// of at most `max_move`. @throws Error for a fraction outside 0.01..1 or max_move <= 0.
+  void set_unsynchronised_limits(const UnsynchronisedLimits& limits);
+  [[nodiscard]] const UnsynchronisedLimits& unsynchronised_limits() const { return unsynced_; }
 
   /// Limits the stopping ramp must respect (besides the model's joint limits): a ramp step that
   /// would leave them ends the ramp where it is. Set before start(); may be null.
@@ -265,6 +285,15 @@ class ServoLoop {
   /// part of a cycle's advance past a motion's end when the stopping ramp follows).
   void coast(const AxisArray& velocity, double steps);
   void set_fault(const char* text);
+  /// The limits motion is planned and stopped within: the model's once synchronised, else
+  /// unsynced_model_ (reduced velocity and acceleration, no joint limits); and the ramp's guard
+  /// (none before synchronisation: the limits are in joint coordinates, the positions raw).
+  [[nodiscard]] const RobotModel& motion_limits() const {
+    return synchronised_.load(std::memory_order_relaxed) ? model_ : unsynced_model_;
+  }
+  [[nodiscard]] const ArmKinematics* ramp_guard() const {
+    return synchronised_.load(std::memory_order_relaxed) ? guard_ : nullptr;
+  }
   void store_reading(std::uint64_t id, int step_no);
   /// Drops every queued macro-step; waiters for them are answered by their refusal or the
   /// emergency stop.
@@ -308,6 +337,10 @@ class ServoLoop {
   std::array<const MacroStep*, MacroStepQueue::kCapacity> following_{};  ///< for plan_blend
   AxisArray scratch_{};  ///< the stopping ramp's proposal
   const ArmKinematics* guard_ = nullptr;
+  UnsynchronisedLimits unsynced_;
+  /// model_ with the velocity and acceleration limits of unsynced_ and no joint limits (+-inf):
+  /// what motion before SYNCHRO is planned and stopped within (constant once the loop runs).
+  RobotModel unsynced_model_;
   std::int64_t limit_stops_ = 0;  ///< stopping ramps ended at a limit
   bool emergency_stop_ = false;
   bool hold_at_measured_ = false;  ///< after an emergency stop: hold at the measured joints
@@ -325,7 +358,7 @@ class ServoLoop {
   std::uint64_t refused_last_ = 0;      ///< ... and the newest one dropped with it
   bool after_ramp_ = false;             ///< the robot stands where a lost successor's ramp left it
   std::int64_t start_held_cycles_ = 0;  ///< cycles a motion from rest waited for its lookahead
-  char refused_text_[384] = {};
+  char refused_text_[512] = {};
   int refused_code_ = 0;
   AxisArray offset_{};                           ///< joint = raw + offset (valid once synchronised)
   std::array<AxisFeedback, kMaxAxes> sample_{};  ///< servo thread only

@@ -642,7 +642,9 @@ class Reader {
   EdpConfig edp(const toml::table& t) const {
     only_keys(t, "robot.edp",
               with_options({"plugin", "library", "servo_period_ms", "lookahead", "lock_step",
-                            "safe_outputs", "kept_outputs", "params"}));
+                            "safe_outputs", "kept_outputs", "unsynchronised_velocity_fraction",
+                            "unsynchronised_acceleration_fraction", "unsynchronised_max_move",
+                            "params"}));
     EdpConfig c;
     c.where = where(t);
     c.plugin = string(t, "plugin", "robot.edp");
@@ -668,9 +670,26 @@ class Reader {
                     "the state of each binary output line during an emergency stop");
     set_output_mask(t, "kept_outputs", c.kept_outputs,
                     "the binary output lines an emergency stop leaves as they are");
+    set_fraction(t, "unsynchronised_velocity_fraction", c.unsynchronised_velocity_fraction,
+                 "every joint's max_joint_velocity, kept to before SYNCHRO");
+    set_fraction(t, "unsynchronised_acceleration_fraction", c.unsynchronised_acceleration_fraction,
+                 "every joint's max_joint_acceleration, kept to before SYNCHRO");
+    set_number(t, "unsynchronised_max_move", c.unsynchronised_max_move, 0.001, 1.0, "rad (or m)");
     c.params = table_params(t, "params", "robot.edp.params");
     c.options = options(t, "edp");
     return c;
+  }
+
+  /// A fraction (0.01..1) of `of` at `key`, when given.
+  void set_fraction(const toml::table& t, const char* key, double& field, const char* of) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return;
+    if (!n->is_number()) fail(*n, fmt::format("'{}' must be a number: a fraction of {}", key, of));
+    const double v =
+        n->is_integer() ? static_cast<double>(**n->as_integer()) : **n->as_floating_point();
+    if (!(v >= 0.01 && v <= 1.0))
+      fail(*n, fmt::format("'{}' = {} is outside 0.01..1 (a fraction of {})", key, v, of));
+    field = v;
   }
 
   /// A mask of binary output lines (bit i = line i, 0..0xFFFFFFFF) at `key`, when given.

@@ -133,6 +133,37 @@ TEST_F(ConfigTest, LockStepIsABooleanAndOffByDefault) {
                  "'lock_step' must be true or false");
 }
 
+TEST_F(ConfigTest, UnsynchronisedLimitsHaveDefaultsAndRangesNamedAtTheirLine) {
+  const EdpConfig defaults;
+  const ProcessSetConfig plain = load_process_set(write(valid()));
+  EXPECT_EQ(plain.robots[0].edp.unsynchronised_velocity_fraction, 0.1);
+  EXPECT_EQ(plain.robots[0].edp.unsynchronised_acceleration_fraction, 0.1);
+  EXPECT_EQ(plain.robots[0].edp.unsynchronised_max_move, 0.1);
+  EXPECT_EQ(plain.robots[0].edp.unsynchronised_max_move, defaults.unsynchronised_max_move);
+  const ProcessSetConfig given =
+      load_process_set(write(valid("unsynchronised_velocity_fraction = 0.2\n"
+                                   "unsynchronised_acceleration_fraction = 1\n"
+                                   "unsynchronised_max_move = 0.05\n")));
+  EXPECT_DOUBLE_EQ(given.robots[0].edp.unsynchronised_velocity_fraction, 0.2);
+  EXPECT_DOUBLE_EQ(given.robots[0].edp.unsynchronised_acceleration_fraction, 1.0);
+  EXPECT_DOUBLE_EQ(given.robots[0].edp.unsynchronised_max_move, 0.05);
+
+  const std::string fast = valid("unsynchronised_velocity_fraction = 1.5\n");
+  expect_located(error_of(fast), dir_ / "set.toml", line_of(fast, "unsynchronised_velocity"),
+                 "'unsynchronised_velocity_fraction' = 1.5 is outside 0.01..1 (a fraction of "
+                 "every joint's max_joint_velocity, kept to before SYNCHRO)");
+  const std::string zero = valid("unsynchronised_acceleration_fraction = 0\n");
+  expect_located(error_of(zero), dir_ / "set.toml", line_of(zero, "unsynchronised_acceleration"),
+                 "'unsynchronised_acceleration_fraction' = 0 is outside 0.01..1");
+  const std::string text = valid("unsynchronised_acceleration_fraction = \"low\"\n");
+  expect_located(error_of(text), dir_ / "set.toml", line_of(text, "unsynchronised_acceleration"),
+                 "'unsynchronised_acceleration_fraction' must be a number: a fraction of every "
+                 "joint's max_joint_acceleration");
+  const std::string far = valid("unsynchronised_max_move = 2\n");
+  expect_located(error_of(far), dir_ / "set.toml", line_of(far, "unsynchronised_max_move"),
+                 "'unsynchronised_max_move' = 2 rad (or m) is outside 0.001..1 rad (or m)");
+}
+
 TEST_F(ConfigTest, DuplicateRobotAndBadName) {
   std::string text = valid();
   const std::string robot = text.substr(text.find("[[robot]]"));

@@ -139,6 +139,14 @@ struct EdpConfig {
   /// (default: every line off). A release restores nothing.
   std::uint32_t safe_outputs = 0;
   std::uint32_t kept_outputs = 0;
+  /// Motion before SYNCHRO (RELATIVE MOTOR and JOINT moves only, docs/edp.md): the fractions
+  /// (0.01..1) of every joint's velocity and acceleration limit (`max_joint_velocity`,
+  /// `max_joint_acceleration` of the model's parameters.toml) it keeps to, and the largest
+  /// change of any joint one such move may ask for [rad | m] (joint limits cannot be checked
+  /// before the position is known).
+  double unsynchronised_velocity_fraction = 0.1;
+  double unsynchronised_acceleration_fraction = 0.1;
+  double unsynchronised_max_move = 0.1;
   Params params;  ///< the plugin's own parameters ([robot.edp.params])
   ProcessOptions options;
   SourceLocation where;

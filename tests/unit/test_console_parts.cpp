@@ -489,11 +489,6 @@ TEST(Jog, RefusesWhatTheStateForbids) {
   on_state(p.state, s);
   EXPECT_EQ(refusal().second,
             "jogging refused: irb6 has a hardware fault: drive 2 over temperature");
-  s = robot_state(4);
-  s.synchronised = false;
-  on_state(p.state, s);
-  EXPECT_TRUE(has(refusal().second, "jogging refused: irb6 is not synchronised"))
-      << refusal().second;
   s = robot_state(5);
   s.moving = true;
   on_state(p.state, s);
@@ -723,15 +718,63 @@ TEST(Jog, TheToolFrameOfARobotWithoutCartesianKinematicsIsRefused) {
   EXPECT_TRUE(shared->tool_calls.empty());
 }
 
-TEST(Synchronise, JoggingARobotNotSynchronisedPointsToTheButton) {
+// Before SYNCHRO a joint jog is the EDP's motion before synchronisation: the same relative
+// SET ARM JOINT, within the EDP's unsynchronised limits (0.1 of the axis' limits by default,
+// not the jog's quarter), at most its unsynchronised_max_move, and marked in the text, the
+// result and the report; a tool jog needs the position and points to Synchronise.
+TEST(Synchronise, JoggingARobotNotSynchronisedIsSlowerBoundedAndMarked) {
   Parts p;
   mp_is(p.state, "IDLE");
   auto s = robot_state(1);
   s.synchronised = false;
   on_state(p.state, s);
-  const auto [status, text] = api_error([&] { (void)p.jogger->jog({"irb6", 0, 0.1, 1}); });
-  EXPECT_EQ(status, 409);
-  EXPECT_TRUE(has(text, "irb6 is not synchronised (press Synchronise")) << text;
+  const ConsoleRobot& info = p.state.robots()[0];
+  ASSERT_EQ(info.unsynchronised_fraction, 0.1);
+  ASSERT_EQ(info.unsynchronised_max_move, 0.1);
+  std::thread broadcaster([&] {
+    std::this_thread::sleep_for(20ms);
+    auto after = robot_state(900);
+    after.synchronised = false;
+    on_state(p.state, after);
+  });
+  const JogResult r = p.jogger->jog({"irb6", 0, 0.08, -1});
+  broadcaster.join();
+  ASSERT_EQ(p.link->calls.size(), 1u);
+  const auto& [delta, steps] = p.link->calls[0];
+  EXPECT_EQ(delta, (std::vector<double>{-0.08, 0.0, 0.0, 0.0, 0.0}));
+  std::vector<double> magnitude(5, 0.0);
+  magnitude[0] = 0.08;
+  EXPECT_EQ(steps, ecp::rest_to_rest_steps(irb6(), magnitude, 0.1, 0.002, 0.1));
+  EXPECT_GT(steps, ecp::rest_to_rest_steps(irb6(), magnitude, 0.25, 0.002, 0.1));
+  const double t = steps * 0.002;
+  EXPECT_LE(2 * 0.08 / t, 0.1 * irb6().max_velocity[0] + 1e-9);
+  EXPECT_LE(4 * 0.08 / (t * t), 0.1 * irb6().max_acceleration[0] + 1e-9);
+  EXPECT_FALSE(r.synchronised);
+  EXPECT_EQ(r.text.rfind("UNSYNCHRONISED: irb6 axis 0 (", 0), 0u) << r.text;
+  EXPECT_TRUE(has(r.text, "(raw axis position; at most 0.10 of the axis' limits until SYNCHRO)"))
+      << r.text;
+  ASSERT_EQ(p.reports.sent.size(), 1u);
+  EXPECT_EQ(p.reports.sent[0].second, "operator jog: " + r.text);
+
+  // Larger than the EDP takes before SYNCHRO: refused here, nothing sent.
+  std::pair<int, std::string> refused = api_error([&] {
+    (void)p.jogger->jog({"irb6", 0, 0.15, 1});
+  });
+  EXPECT_EQ(refused.first, 400);
+  EXPECT_EQ(refused.second,
+            "jog step 0.15 rad is outside (0, 0.1] rad while irb6 is not synchronised "
+            "([robot.edp] unsynchronised_max_move)");
+  JogRequest tool{"irb6", 2, 0.01, 1};
+  tool.space = JogSpace::tool;
+  refused = api_error([&] { (void)p.jogger->jog(tool); });
+  EXPECT_EQ(refused.first, 409);
+  EXPECT_TRUE(has(refused.second,
+                  "tool jog refused: irb6 is not synchronised (its position is "
+                  "unknown: press Synchronise; joint jogs work before it, at "
+                  "reduced limits)"))
+      << refused.second;
+  EXPECT_EQ(p.link->calls.size(), 1u);
+  EXPECT_TRUE(p.link->tool_calls.empty());
 }
 
 // --- teach-in ----------------------------------------------------------------------------------

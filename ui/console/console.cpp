@@ -42,7 +42,10 @@ std::vector<ConsoleRobot> load_robots(const ProcessSetConfig& config) {
   for (const RobotConfig& r : config.robots) {
     RobotModel model = load_robot_model(r.model_dir);
     const bool cartesian = edp::make_arm_kinematics(model)->cartesian();
-    robots.push_back(ConsoleRobot{r.name, std::move(model), r.edp.servo_period_s, cartesian});
+    robots.push_back(ConsoleRobot{r.name, std::move(model), r.edp.servo_period_s, cartesian,
+                                  std::min(r.edp.unsynchronised_velocity_fraction,
+                                           r.edp.unsynchronised_acceleration_fraction),
+                                  r.edp.unsynchronised_max_move});
   }
   return robots;
 }

@@ -221,7 +221,8 @@ json jog_json(const JogResult& r) {
               {"text", r.text},
               {"q", r.q},
               {"q_before", r.q_before},
-              {"motion_steps", r.motion_steps}};
+              {"motion_steps", r.motion_steps},
+              {"synchronised", r.synchronised}};
 }
 
 json teach_json(const TeachResult& r) {

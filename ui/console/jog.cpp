@@ -3,8 +3,10 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <thread>
 
 #include "mrroc/ecp/robot_image.hpp"
@@ -57,10 +59,16 @@ std::vector<double> Jogger::check(const JogRequest& request) const {
                                     "joints)",
                                     robot));
   const RobotReading reading = check_ready(index, "jogging");
-  if (!reading.state.synchronised)
-    throw ApiError(409, fmt::format("jogging refused: {} is not synchronised (press "
-                                    "Synchronise, or run a task: its ECP synchronises the robot)",
+  if (!reading.state.synchronised && tool)
+    throw ApiError(409, fmt::format("tool jog refused: {} is not synchronised (its position is "
+                                    "unknown: press Synchronise; joint jogs work before it, at "
+                                    "reduced limits)",
                                     robot));
+  // Before SYNCHRO the EDP refuses a larger move ([robot.edp] unsynchronised_max_move).
+  if (!reading.state.synchronised && step > info.unsynchronised_max_move)
+    throw ApiError(400, fmt::format("jog step {} {} is outside (0, {}] {} while {} is not "
+                                    "synchronised ([robot.edp] unsynchronised_max_move)",
+                                    step, unit, info.unsynchronised_max_move, unit, robot));
   return reading.state.q;
 }
 
@@ -155,6 +163,9 @@ JogResult Jogger::jog(const JogRequest& request) {
   const std::string& robot = request.robot;
   const std::size_t index = state_.robot_index(robot);
   const ConsoleRobot& info = state_.robots()[index];
+  // check() passed a robot that is not synchronised for a joint jog only.
+  const std::optional<RobotReading> before = state_.reading(index);
+  const bool synchronised = before && before->state.synchronised;
   Link& link = link_of(robot, "jogging");
   std::unique_lock jog_lock(link.busy, std::try_to_lock);
   if (!jog_lock.owns_lock())
@@ -172,8 +183,11 @@ JogResult Jogger::jog(const JogRequest& request) {
   const double period = info.servo_period_s;
   std::vector<double> delta(info.model.axes(), 0.0);
   delta[a] = step;
-  const int steps = ecp::rest_to_rest_steps(info.model, delta, options_.velocity_fraction, period,
-                                            options_.min_duration_s);
+  const double fraction = synchronised
+                              ? options_.velocity_fraction
+                              : std::min(options_.velocity_fraction, info.unsynchronised_fraction);
+  const int steps =
+      ecp::rest_to_rest_steps(info.model, delta, fraction, period, options_.min_duration_s);
   delta[a] = direction * step;
   const std::string joint = info.model.joint_names[a];
   std::vector<double> after;
@@ -183,8 +197,9 @@ JogResult Jogger::jog(const JogRequest& request) {
     jog_done = SteadyClock::now();
   } catch (const JogRefused& e) {
     report_(Severity::warning,
-            fmt::format("operator jog of {} axis {} ({}) by {:+.4f} {} refused: {}", robot,
-                        request.axis, joint, direction * step, info.model.unit(a), e.what()));
+            fmt::format("operator {}jog of {} axis {} ({}) by {:+.4f} {} refused: {}",
+                        synchronised ? "" : "UNSYNCHRONISED ", robot, request.axis, joint,
+                        direction * step, info.model.unit(a), e.what()));
     throw ApiError(409, e.what());
   } catch (const TimeoutError& e) {
     throw ApiError(504, e.what());
@@ -192,12 +207,17 @@ JogResult Jogger::jog(const JogRequest& request) {
   // Answer once the EDP's broadcast shows the robot at rest (the next jog is then allowed).
   for (int i = 0; i < 10 && !state_.at_rest_since(index, jog_done); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  const std::string text =
+  std::string text =
       fmt::format("{} axis {} ({}) moved {:+.4f} {} in {} servo steps ({:.3f} s): {:.4f} {}", robot,
                   request.axis, joint, direction * step, info.model.unit(a), steps, steps * period,
                   a < after.size() ? after[a] : std::nan(""), info.model.unit(a));
+  if (!synchronised)
+    text = fmt::format(
+        "UNSYNCHRONISED: {} (raw axis position; at most {:.2f} of the axis' "
+        "limits until SYNCHRO)",
+        text, fraction);
   report_(Severity::info, "operator jog: " + text);
-  return JogResult{text, after, q, steps};
+  return JogResult{text, after, q, steps, synchronised};
 }
 
 // Called with the robot's link locked (jog()).

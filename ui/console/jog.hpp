@@ -2,8 +2,10 @@
 // Jogging: one axis of one robot by a step [rad], from rest to rest, in one macro-step sent by
 // the console's own EDP link (docs/operating.md, "Jogging"). The checks use the console's state
 // (the MP answering and its task IDLE, FINISHED or FAILED; robot fresh, released, without
-// fault, synchronised, at rest); the motion goes through a JogLink, which the console makes
-// from its EDP client (edp_jog_link.hpp).
+// fault, at rest; synchronised for a tool jog); the motion goes through a JogLink, which the
+// console makes from its EDP client (edp_jog_link.hpp). A joint jog of a robot not synchronised
+// is the EDP's motion before synchronisation (docs/edp.md): within its reduced limits and its
+// largest move, and marked UNSYNCHRONISED in its text and result.
 
 #include <cstdint>
 #include <map>
@@ -75,6 +77,8 @@ struct JogResult {
   std::vector<double> q;         ///< after the motion [rad]
   std::vector<double> q_before;  ///< from the last robot_state_t before it [rad]
   int motion_steps = 0;
+  /// False for a jog before synchronisation (q and q_before are raw axis positions).
+  bool synchronised = true;
 };
 
 class Jogger {
@@ -91,8 +95,10 @@ class Jogger {
   /// state shows it at rest again (at most 100 ms after the EDP's answer).
   /// @throws ApiError 404 (unknown robot), 400 (axis or step out of range), 409 (refused: the
   /// MP's state unknown (no answer, or none in the last kMpFreshS) or not IDLE, FINISHED or
-  /// FAILED, no fresh state, stop engaged, fault, not synchronised, moving, another jog of the
-  /// robot in progress, or the EDP refused), 504 (no EDP answers).
+  /// FAILED, no fresh state, stop engaged, fault, a tool jog not synchronised, moving, another
+  /// jog of the robot in progress, or the EDP refused), 504 (no EDP answers). Not synchronised,
+  /// a joint jog moves within the smaller of velocity_fraction and the EDP's unsynchronised
+  /// fraction of the axis' limits, and a step above its unsynchronised_max_move is a 400.
   JogResult jog(const JogRequest& request);
 
   /// Synchronises `robot` through its link (the console's Synchronise button) with the checks of

@@ -47,6 +47,10 @@ struct ConsoleRobot {
   RobotModel model;
   double servo_period_s = kDefaultServoPeriodS;  ///< the EDP's configured period [s]
   bool cartesian = false;  ///< its kinematics offer FRAME etc. (the console's tool jogs)
+  /// Its EDP's limits before SYNCHRO ([robot.edp] unsynchronised_*): the smaller of the
+  /// velocity and acceleration fractions, and the largest joint change of one move [rad | m].
+  double unsynchronised_fraction = 0.1;
+  double unsynchronised_max_move = 0.1;
 };
 
 /// One robot state as the plots need it.

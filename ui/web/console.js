@@ -264,6 +264,10 @@ function updateRobot(info) {
       (s.age_s > 1 ? `, last state ${s.age_s.toFixed(0)} s ago` : "")
     : "";
   e.querySelector(".synchronise").disabled = !s || !!s.synchronised;
+  // Before SYNCHRO the EDP takes relative joint moves only, at reduced limits (docs/edp.md).
+  e.querySelector(".jog-mode").textContent = s && !s.synchronised
+    ? "UNSYNCHRONISED: joint jogs at reduced limits, raw axis positions; tool jogs need Synchronise"
+    : "";
   const rows = e.querySelectorAll(".joints tbody tr");
   rows.forEach((tr, axis) => {
     tr.querySelector(".q").textContent = s ? fmt(s.q[axis], 4) : "–";

@@ -398,7 +398,7 @@ std::vector<double> CommandInterpreter::unsynchronised_target(const Instruction&
   }
   const double bound = servo_.unsynchronised_limits().max_move;
   for (std::size_t i = 0; i < change.size(); ++i)
-    if (std::abs(change[i]) > bound)
+    if (!(std::abs(change[i]) <= bound))  // also a change that is not a number
       throw CommandError(
           error_code::out_of_limits,
           fmt::format("SET ARM {} RELATIVE refused before SYNCHRO: axis {} ({}) would move "

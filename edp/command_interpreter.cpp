@@ -1,6 +1,7 @@
 #include "command_interpreter.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <bit>
@@ -401,14 +402,16 @@ std::vector<double> CommandInterpreter::unsynchronised_target(const Instruction&
     if (!(std::abs(change[i]) <= bound))  // also a change that is not a number
       throw CommandError(
           error_code::out_of_limits,
-          fmt::format("SET ARM {} RELATIVE refused before SYNCHRO: axis {} ({}) would move "
-                      "{:.4f} {}{}, more than the {:.4f} {} one move may take before "
-                      "synchronisation ([robot.edp] unsynchronised_max_move; the joint limits "
-                      "cannot be checked while the position is unknown)",
-                      to_string(in.set_arm_type), i, model_.joint_names[i], change[i],
-                      model_.unit(i),
-                      motor ? fmt::format(" (motor {:.4f} rad)", in.arm[i]) : std::string(), bound,
-                      model_.unit(i)));
+          fmt::format(
+              "SET ARM {} RELATIVE refused before SYNCHRO: axis {} ({}) would move "
+              "{:.4f} {}{}, more than the {:.4f} {} one move may take before "
+              "synchronisation ([robot.edp] unsynchronised_max_move; the joint limits "
+              "cannot be checked while the position is unknown)",
+              to_string(in.set_arm_type), i, model_.joint_names[i], change[i], model_.unit(i),
+              // A coupled transmission moves a joint by other motors' changes too.
+              motor ? fmt::format(" (from the motor changes [{:.4f}] rad)", fmt::join(in.arm, ", "))
+                    : std::string(),
+              bound, model_.unit(i)));
   // Raw axis positions: relative to where the motion already queued ends. The planning of the
   // macro-step (the servo loop) keeps it within the reduced velocity and acceleration limits.
   std::vector<double> target = servo_.planned_end();

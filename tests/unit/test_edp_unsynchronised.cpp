@@ -288,8 +288,9 @@ TEST(EdpUnsynchronised, AMoveLargerThanTheBoundIsRefused) {
   EXPECT_EQ(r.error_code, error_code::out_of_limits) << r.error_text;
   EXPECT_TRUE(contains(r.error_text,
                        "SET ARM MOTOR RELATIVE refused before SYNCHRO: axis 0 "
-                       "(column) would move -0.1266 rad (motor 20.0000 rad), more "
-                       "than the 0.1000 rad"))
+                       "(column) would move -0.1266 rad (from the motor changes "
+                       "[20.0000, 0.0000, 0.0000, 0.0000, 0.0000] rad), more than "
+                       "the 0.1000 rad"))
       << r.error_text;
   change.assign(3, 0.01);
   r = edp.exec(Edp::set_arm(ArmRepresentation::joint, MotionType::relative, change, 100));

@@ -349,7 +349,8 @@ TEST(EdpUnsynchronised, EmergencyStopStopsTheMoveThenSynchroSucceeds) {
 
 // An arm parked on its switches: the column moved off its switch by a relative JOINT move
 // before SYNCHRO, and the switch input reads released; SYNCHRO is refused while a move still
-// runs, then searches from where the column stands (upwards now) and finds the same pose.
+// runs (its reading came early: the missing successor's stopping ramp keeps the reduced limits
+// too), then searches from where the column stands (upwards now) and finds the same pose.
 TEST(EdpUnsynchronised, MoveOffTheSwitchThenSynchronise) {
   Edp edp;
   ASSERT_TRUE(edp.wait_stopped(1.0));
@@ -371,6 +372,13 @@ TEST(EdpUnsynchronised, MoveOffTheSwitchThenSynchronise) {
   EXPECT_EQ(r.error_code, error_code::bad_argument) << r.error_text;
   EXPECT_TRUE(contains(r.error_text, "SYNCHRO refused: the robot is still moving")) << r.error_text;
   ASSERT_TRUE(edp.wait_stopped(5.0));
+  // The first move promised a successor that never came: it ended moving and a stopping ramp
+  // brought the column to rest, the whole of it within the reduced limits.
+  EXPECT_EQ(edp.servo_->lost_successors(), 1);
+  const auto [speed, acceleration] = Edp::peaks(edp.velocities(0), 0);
+  EXPECT_GT(speed, 0.0);
+  EXPECT_LE(speed, edp.reduced_velocity(0) * (1 + 1e-9));
+  EXPECT_LE(acceleration, edp.reduced_acceleration(0) * (1 + 1e-6));
   EXPECT_EQ(edp.inputs() & 0x1U, 0x1U) << "0.04 rad down, the column is still on its switch";
   ASSERT_EQ(
       edp.exec(Edp::set_arm(ArmRepresentation::joint, MotionType::relative, change, steps)).type,

@@ -10,10 +10,12 @@
 // surface), lift (above it), cutter (tool length along the flange z axis), speed [m/s],
 // acceleration [m/s^2], tolerance [m], servo_algorithm (1: velocity feed-forward).
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generators/cartesian_path.hpp"
 #include "mrroc/ecp/stroke_font.hpp"
@@ -54,27 +56,58 @@ class Engrave : public EcpTask {
  public:
   explicit Engrave(TaskContext& context) : context_(context) {
     const Params& a = context.args;
-    text_ = a.get_string("text", "MRROC");
-    const auto origin = a.get_doubles("origin");
-    height_ = a.get_double("letter_height", 0.04);
-    width_ = a.get_double("letter_width", 0.03);
-    spacing_ = a.get_double("spacing", 0.012);
-    depth_ = a.get_double("depth", 0.002);
-    lift_ = a.get_double("lift", 0.01);
-    cutter_ = a.get_double("cutter", 0.15);
-    speed_ = a.get_double("speed", 0.06);
-    tolerance_ = a.get_double("tolerance", 0.001);
-    acceleration_ = a.get_double("acceleration", 1.0);
-    servo_algorithm_ = a.get_int("servo_algorithm", 1);
-    a.reject_unread("robot.ecp.args");
-    if (origin.size() != 3)
-      throw ConfigError(a.location_of("origin"), "'origin' must be [x, y, z] (m)");
-    origin_ = Eigen::Vector3d(origin[0], origin[1], origin[2]);
-    for (char c : text_)
-      if (c != ' ' && engraving::letter_strokes(c) == nullptr)
+    // Every argument checked on its own at its own line: a mistake in one does not hide the
+    // others.
+    ConfigErrorList errors;
+    errors.run(a.location_of("text"), [&] {
+      text_ = a.get_string("text", "MRROC");
+      std::string unknown;
+      for (char c : text_)
+        if (c != ' ' && engraving::letter_strokes(c) == nullptr &&
+            unknown.find(c) == std::string::npos)
+          unknown += c;
+      if (!unknown.empty())
         throw ConfigError(
             a.location_of("text"),
-            fmt::format("letter '{}' is not in the stroke font ({})", c, engraving::kFontLetters));
+            fmt::format("letter{} '{}' of \"{}\" {} not in the stroke font ({})",
+                        unknown.size() > 1 ? "s" : "", fmt::join(unknown, "', '"), text_,
+                        unknown.size() > 1 ? "are" : "is", engraving::kFontLetters));
+    });
+    errors.run(a.location_of("origin"), [&] {
+      const auto origin = a.get_doubles("origin");
+      if (origin.size() != 3)
+        throw ConfigError(
+            a.location_of("origin"),
+            fmt::format("'origin' must be [x, y, z] (m), not {} values", origin.size()));
+      origin_ = Eigen::Vector3d(origin[0], origin[1], origin[2]);
+    });
+    // A length, speed or acceleration: finite, above zero (or at zero where `zero` allows).
+    const auto number = [&](const char* key, double fallback, const char* unit, bool zero) {
+      double value = fallback;
+      errors.run(a.location_of(key), [&] {
+        value = a.get_double(key, fallback);
+        if (!std::isfinite(value) || value < 0.0 || (value == 0.0 && !zero)) {
+          const double given = value;
+          value = fallback;
+          throw ConfigError(a.location_of(key), fmt::format("'{}' = {} {} must be {} 0 {}", key,
+                                                            given, unit, zero ? ">=" : ">", unit));
+        }
+      });
+      return value;
+    };
+    height_ = number("letter_height", 0.04, "m", false);
+    width_ = number("letter_width", 0.03, "m", false);
+    spacing_ = number("spacing", 0.012, "m", true);
+    depth_ = number("depth", 0.002, "m", true);
+    lift_ = number("lift", 0.01, "m", false);
+    cutter_ = number("cutter", 0.15, "m", true);
+    speed_ = number("speed", 0.06, "m/s", false);
+    tolerance_ = number("tolerance", 0.001, "m", false);
+    acceleration_ = number("acceleration", 1.0, "m/s^2", false);
+    errors.run(a.location_of("servo_algorithm"),
+               [&] { servo_algorithm_ = a.get_int("servo_algorithm", 1); });
+    errors.run(a.location(), [&] { a.reject_unread("robot.ecp.args"); });
+    errors.throw_if_any();
   }
 
   void main_task() override {
@@ -166,8 +199,9 @@ class Engrave : public EcpTask {
  private:
   TaskContext& context_;
   std::string text_;
-  Eigen::Vector3d origin_;
-  double height_, width_, spacing_, depth_, lift_, cutter_, speed_, tolerance_, acceleration_;
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
+  double height_ = 0.0, width_ = 0.0, spacing_ = 0.0, depth_ = 0.0, lift_ = 0.0, cutter_ = 0.0,
+         speed_ = 0.0, tolerance_ = 0.0, acceleration_ = 0.0;
   std::int64_t servo_algorithm_ = 1;
 };
 

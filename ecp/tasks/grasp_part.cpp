@@ -22,23 +22,25 @@ class GraspPart : public EcpTask {
   explicit GraspPart(TaskContext& context)
       : context_(context), gripper_(context.robot_as<Gripper>()) {
     const Params& args = context.args;
-    above_ = args.get_doubles("above");
-    grasp_ = args.get_doubles("grasp");
-    lift_ = args.get_doubles("lift");
-    force_ = args.get_double("force", 20.0);
-    options_ = joint_motion_options(args, context.servo_period_s);
-    args.reject_unread("robot.ecp.args");
+    // Every argument checked on its own at its own line: a mistake in one does not hide the
+    // others.
     ConfigErrorList errors;
     const RobotModel& model = gripper_.model();
     for (const char* key : {"above", "grasp", "lift"}) {
-      const std::vector<double>& pose = pose_of(key);
-      errors.run(args.location_of(key), [&] { model.check_joint_limits(pose, key); });
+      std::vector<double>& pose = pose_of(key);
+      errors.run(args.location_of(key), [&] {
+        pose = args.get_doubles(key);
+        model.check_joint_limits(pose, key);
+      });
     }
     errors.run(args.location_of("force"), [&] {
+      force_ = args.get_double("force", 20.0);
       if (!(force_ > 0.0 && force_ <= Gripper::kMaxForce))
         throw ConfigError(fmt::format("force {} N is outside (0, {}] N of the gripper", force_,
                                       Gripper::kMaxForce));
     });
+    options_ = joint_motion_options(args, context.servo_period_s, errors);
+    errors.run(args.location(), [&] { args.reject_unread("robot.ecp.args"); });
     if (errors.empty())
       errors.run(args.location_of("above"), [&] {
         JointPosesGenerator check(model, {above_, grasp_, lift_, grasp_, above_}, options_);
@@ -73,7 +75,7 @@ class GraspPart : public EcpTask {
   }
 
  private:
-  const std::vector<double>& pose_of(const std::string& key) const {
+  std::vector<double>& pose_of(const std::string& key) {
     return key == "above" ? above_ : key == "grasp" ? grasp_ : lift_;
   }
   void move_to(const std::vector<double>& pose) {

@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/ecp/generators/teach_in.hpp"
 #include "mrroc/ecp/generators/trajectory_file.hpp"
 #include "mrroc/ecp/task.hpp"
@@ -22,12 +23,18 @@ namespace mrroc::ecp {
 
 namespace {
 
-double fraction(const Params& args, const std::string& key) {
-  const double value = args.get_double(key, 0.5);
-  if (!(value > 0.0 && value <= 1.0))
-    throw ConfigError(
-        args.location_of(key),
-        fmt::format("{} {} is outside (0, 1] (a fraction of the robot's limits)", key, value));
+/// The fraction `key` (default 0.5); one of another type or outside (0, 1] is added to `errors`
+/// at its line and the default used.
+double fraction(const Params& args, const std::string& key, ConfigErrorList& errors) {
+  double value = 0.5;
+  errors.run(args.location_of(key), [&] {
+    const double given = args.get_double(key, 0.5);
+    if (!(given > 0.0 && given <= 1.0))
+      throw ConfigError(
+          args.location_of(key),
+          fmt::format("{} {} is outside (0, 1] (a fraction of the robot's limits)", key, given));
+    value = given;
+  });
   return value;
 }
 
@@ -37,19 +44,29 @@ class PlayTrajectory : public EcpTask {
  public:
   explicit PlayTrajectory(TaskContext& context) : context_(context) {
     const Params& args = context.args;
-    const SourceLocation where = args.location_of("file");
-    std::filesystem::path file = args.get_string("file");
-    if (file.empty()) throw ConfigError(where, "file is empty (a trajectory file is needed)");
-    if (file.is_relative() && !where.file.empty())
-      file = std::filesystem::path(where.file).parent_path() / file;
-    file_ = file.lexically_normal();
-    const double velocity = fraction(args, "velocity_scale");
-    const double acceleration = fraction(args, "acceleration_scale");
-    const std::int64_t steps = args.get_int("motion_steps", 10);
-    if (steps < 2 || steps > 1000)
-      throw ConfigError(args.location_of("motion_steps"),
-                        fmt::format("motion_steps {} is outside 2..1000", steps));
-    args.reject_unread("robot.ecp.args");
+    // Every argument checked on its own at its own line: a mistake in one does not hide the
+    // others.
+    ConfigErrorList errors;
+    errors.run(args.location_of("file"), [&] {
+      const SourceLocation where = args.location_of("file");
+      std::filesystem::path file = args.get_string("file");
+      if (file.empty()) throw ConfigError(where, "file is empty (a trajectory file is needed)");
+      if (file.is_relative() && !where.file.empty())
+        file = std::filesystem::path(where.file).parent_path() / file;
+      file_ = file.lexically_normal();
+    });
+    const double velocity = fraction(args, "velocity_scale", errors);
+    const double acceleration = fraction(args, "acceleration_scale", errors);
+    std::int64_t steps = 10;
+    errors.run(args.location_of("motion_steps"), [&] {
+      const std::int64_t given = args.get_int("motion_steps", 10);
+      if (given < 2 || given > 1000)
+        throw ConfigError(args.location_of("motion_steps"),
+                          fmt::format("motion_steps {} is outside 2..1000", given));
+      steps = given;
+    });
+    errors.run(args.location(), [&] { args.reject_unread("robot.ecp.args"); });
+    errors.throw_if_any();
     options_.interpolation.velocity_scale = velocity;
     options_.interpolation.acceleration_scale = acceleration;
     options_.interpolation.motion_steps = static_cast<int>(steps);

@@ -46,6 +46,7 @@
 #include <cmath>
 #include <memory>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/ecp/errors.hpp"
 #include "mrroc/ecp/generators/cartesian_path.hpp"
 #include "mrroc/ecp/generators/errors.hpp"
@@ -59,19 +60,55 @@ namespace mrroc::ecp {
 
 namespace {
 
-Eigen::Vector3d vector3(const Params& a, const char* key, std::vector<double> fallback) {
-  const std::vector<double> v = a.get_doubles(key, fallback);
-  if (v.size() != 3)
-    throw ConfigError(a.location_of(key), fmt::format("'{}' must be [x, y, z] (m)", key));
+// The arguments' readers: a value of another type or out of range is added to `errors` at its
+// line and the default used, so that a task's other arguments are checked too.
+
+Eigen::Vector3d vector3(const Params& a, const char* key, std::vector<double> fallback,
+                        ConfigErrorList& errors) {
+  std::vector<double> v = fallback;
+  errors.run(a.location_of(key), [&] {
+    const std::vector<double> given = a.get_doubles(key, fallback);
+    if (given.size() != 3)
+      throw ConfigError(a.location_of(key), fmt::format("'{}' must be [x, y, z] (m), not {} values",
+                                                        key, given.size()));
+    v = given;
+  });
   return {v[0], v[1], v[2]};
 }
 
-double positive(const Params& a, const char* key, double fallback, const char* unit) {
-  const double v = a.get_double(key, fallback);
-  if (!(v > 0.0) || !std::isfinite(v))
-    throw ConfigError(a.location_of(key),
-                      fmt::format("'{}' = {} {} must be a positive number", key, v, unit));
+double positive(const Params& a, const char* key, double fallback, const char* unit,
+                ConfigErrorList& errors) {
+  double v = fallback;
+  errors.run(a.location_of(key), [&] {
+    const double given = a.get_double(key, fallback);
+    if (!(given > 0.0) || !std::isfinite(given))
+      throw ConfigError(a.location_of(key),
+                        fmt::format("'{}' = {} {} must be a positive number", key, given, unit));
+    v = given;
+  });
   return v;
+}
+
+/// The number `key` (default `fallback`) in [low, high] `unit`, as `positive`.
+double in_range(const Params& a, const char* key, double fallback, double low, double high,
+                const char* unit, ConfigErrorList& errors) {
+  double v = fallback;
+  errors.run(a.location_of(key), [&] {
+    const double given = a.get_double(key, fallback);
+    if (!(given >= low && given <= high))
+      throw ConfigError(a.location_of(key), fmt::format("'{}' = {} {} is outside [{}, {}] {}", key,
+                                                        given, unit, low, high, unit));
+    v = given;
+  });
+  return v;
+}
+
+/// The VSP named by argument `key` (TaskContext::sensor_argument), as `positive`.
+std::string sensor_argument(const TaskContext& context, const char* key, const char* fallback,
+                            ConfigErrorList& errors) {
+  std::string name = fallback;
+  errors.run(context.args.location_of(key), [&] { name = context.sensor_argument(key, fallback); });
+  return name;
 }
 
 /// The wrist sensor as Move and Wait see it: before each INITIATE_READING it tells the VSP the
@@ -97,19 +134,22 @@ class WristSensor : public Sensor {
   const edp::ArmKinematics& flange_;
 };
 
-/// Shared by touch and follow_surface: arguments, the approach and the guarded move.
+/// Shared by touch and follow_surface: arguments, the approach and the guarded move. The
+/// errors of the shared arguments are kept in `argument_errors_`, which the derived task's
+/// constructor throws with its own.
 class Touching : public EcpTask {
  public:
   explicit Touching(TaskContext& context) : context_(context) {
     const Params& a = context.args;
-    sensor_name_ = context.sensor_argument("sensor", "wrist_force");
-    tool_length_ = positive(a, "tool", 0.15, "m");
-    start_ = vector3(a, "start", {0.9, 0.0, 0.40});
-    speed_ = positive(a, "speed", 0.01, "m/s");
-    max_distance_ = positive(a, "max_distance", 0.1, "m");
-    contact_force_ = positive(a, "contact_force", 5.0, "N");
-    touch_force_ = positive(a, "touch_force", 0.5, "N");
-    stop_within_ = positive(a, "stop_within", 0.002, "m");
+    ConfigErrorList& e = argument_errors_;
+    sensor_name_ = sensor_argument(context, "sensor", "wrist_force", e);
+    tool_length_ = positive(a, "tool", 0.15, "m", e);
+    start_ = vector3(a, "start", {0.9, 0.0, 0.40}, e);
+    speed_ = positive(a, "speed", 0.01, "m/s", e);
+    max_distance_ = positive(a, "max_distance", 0.1, "m", e);
+    contact_force_ = positive(a, "contact_force", 5.0, "N", e);
+    touch_force_ = positive(a, "touch_force", 0.5, "N", e);
+    stop_within_ = positive(a, "stop_within", 0.002, "m", e);
   }
 
  protected:
@@ -184,6 +224,7 @@ class Touching : public EcpTask {
   }
 
   TaskContext& context_;
+  ConfigErrorList argument_errors_;
   std::string sensor_name_;
   double tool_length_, speed_, max_distance_, contact_force_, touch_force_, stop_within_;
   Eigen::Vector3d start_;
@@ -197,7 +238,9 @@ class Touching : public EcpTask {
 class Touch : public Touching {
  public:
   explicit Touch(TaskContext& context) : Touching(context) {
-    context.args.reject_unread("robot.ecp.args");
+    argument_errors_.run(context.args.location(),
+                         [&] { context.args.reject_unread("robot.ecp.args"); });
+    argument_errors_.throw_if_any();
   }
   void main_task() override { (void)touch(); }
 };
@@ -292,23 +335,28 @@ class FollowSurface : public Touching {
  public:
   explicit FollowSurface(TaskContext& context) : Touching(context) {
     const Params& a = context.args;
-    force_ = positive(a, "force", 10.0, "N");
-    tolerance_ = positive(a, "force_tolerance", 3.0, "N");
-    direction_ = vector3(a, "direction", {1.0, 0.0, 0.0});
-    length_ = positive(a, "length", 0.1, "m");
-    follow_speed_ = positive(a, "follow_speed", 0.02, "m/s");
-    gain_ = positive(a, "gain", 2e-5, "m/N");
-    settle_ = a.get_double("settle", 0.6);
-    motion_steps_ = static_cast<int>(a.get_int("motion_steps", 20));
-    if (motion_steps_ < 4 || motion_steps_ > 1000)
-      throw ConfigError(
-          a.location_of("motion_steps"),
-          fmt::format("'motion_steps' = {} must be in 4..1000 servo steps", motion_steps_));
-    a.reject_unread("robot.ecp.args");
+    ConfigErrorList& e = argument_errors_;
+    force_ = positive(a, "force", 10.0, "N", e);
+    tolerance_ = positive(a, "force_tolerance", 3.0, "N", e);
+    direction_ = vector3(a, "direction", {1.0, 0.0, 0.0}, e);
+    length_ = positive(a, "length", 0.1, "m", e);
+    follow_speed_ = positive(a, "follow_speed", 0.02, "m/s", e);
+    gain_ = positive(a, "gain", 2e-5, "m/N", e);
+    e.run(a.location_of("settle"), [&] { settle_ = a.get_double("settle", 0.6); });
+    e.run(a.location_of("motion_steps"), [&] {
+      const std::int64_t steps = a.get_int("motion_steps", 20);
+      if (steps < 4 || steps > 1000)
+        throw ConfigError(a.location_of("motion_steps"),
+                          fmt::format("'motion_steps' = {} must be in 4..1000 servo steps", steps));
+      motion_steps_ = static_cast<int>(steps);
+    });
+    e.run(a.location(), [&] { a.reject_unread("robot.ecp.args"); });
     direction_.z() = 0.0;
     if (direction_.norm() < 1e-9)
-      throw ConfigError(a.location_of("direction"), "'direction' must have a horizontal part");
-    direction_.normalize();
+      e.add(ConfigError(a.location_of("direction"), "'direction' must have a horizontal part"));
+    else
+      direction_.normalize();
+    e.throw_if_any();
   }
 
   void main_task() override {
@@ -442,26 +490,20 @@ class FollowMpCompliant : public EcpTask {
  public:
   explicit FollowMpCompliant(TaskContext& context) : context_(context) {
     const Params& a = context.args;
-    sensor_name_ = context.sensor_argument("sensor", "wrist_force");
-    tool_length_ = a.get_double("tool", 0.15);
-    if (!(tool_length_ >= 0.0 && tool_length_ <= 1.0))
-      throw ConfigError(a.location_of("tool"),
-                        fmt::format("'tool' = {} m is outside [0, 1] m", tool_length_));
-    settings_.force = a.get_double("force", 5.0);
-    if (!(settings_.force >= 0.0 && settings_.force <= 1000.0))
-      throw ConfigError(a.location_of("force"),
-                        fmt::format("'force' = {} N is outside [0, 1000] N", settings_.force));
-    settings_.gain = positive(a, "gain", 3e-4, "m/s per N");
-    settings_.max_speed = positive(a, "max_speed", 0.02, "m/s");
-    settings_.max_acceleration = positive(a, "max_acceleration", 0.2, "m/s^2");
-    settings_.max_offset = positive(a, "max_offset", 0.01, "m");
-    settings_.min_offset = a.get_double("min_offset", 0.0);
-    if (!(settings_.min_offset <= 0.0 && settings_.min_offset >= -1.0))
-      throw ConfigError(
-          a.location_of("min_offset"),
-          fmt::format("'min_offset' = {} m is outside [-1, 0] m", settings_.min_offset));
+    // Every argument checked on its own at its own line: a mistake in one does not hide the
+    // others.
+    ConfigErrorList e;
+    sensor_name_ = sensor_argument(context, "sensor", "wrist_force", e);
+    tool_length_ = in_range(a, "tool", 0.15, 0.0, 1.0, "m", e);
+    settings_.force = in_range(a, "force", 5.0, 0.0, 1000.0, "N", e);
+    settings_.gain = positive(a, "gain", 3e-4, "m/s per N", e);
+    settings_.max_speed = positive(a, "max_speed", 0.02, "m/s", e);
+    settings_.max_acceleration = positive(a, "max_acceleration", 0.2, "m/s^2", e);
+    settings_.max_offset = positive(a, "max_offset", 0.01, "m", e);
+    settings_.min_offset = in_range(a, "min_offset", 0.0, -1.0, 0.0, "m", e);
     settings_.servo_period_s = context.servo_period_s;
-    a.reject_unread("robot.ecp.args");
+    e.run(a.location(), [&] { a.reject_unread("robot.ecp.args"); });
+    e.throw_if_any();
   }
 
   void main_task() override {
@@ -521,16 +563,22 @@ class PickWhenSeen : public EcpTask {
  public:
   explicit PickWhenSeen(TaskContext& context) : context_(context) {
     const Params& a = context.args;
-    camera_name_ = context.sensor_argument("camera", "camera");
-    region_ = a.get_doubles("region");
-    if (region_.size() != 4 || region_[0] >= region_[1] || region_[2] >= region_[3])
-      throw ConfigError(a.location_of("region"),
-                        "'region' must be [xmin, xmax, ymin, ymax] (m) with min < max");
-    above_ = positive(a, "above", 0.1, "m");
-    tool_length_ = positive(a, "tool", 0.15, "m");
-    timeout_ = positive(a, "timeout", 30.0, "s");
-    base_ = vector3(a, "base", {0.0, 0.0, 0.0});
-    a.reject_unread("robot.ecp.args");
+    // Every argument checked on its own at its own line: a mistake in one does not hide the
+    // others.
+    ConfigErrorList e;
+    camera_name_ = sensor_argument(context, "camera", "camera", e);
+    e.run(a.location_of("region"), [&] {
+      region_ = a.get_doubles("region");
+      if (region_.size() != 4 || region_[0] >= region_[1] || region_[2] >= region_[3])
+        throw ConfigError(a.location_of("region"),
+                          "'region' must be [xmin, xmax, ymin, ymax] (m) with min < max");
+    });
+    above_ = positive(a, "above", 0.1, "m", e);
+    tool_length_ = positive(a, "tool", 0.15, "m", e);
+    timeout_ = positive(a, "timeout", 30.0, "s", e);
+    base_ = vector3(a, "base", {0.0, 0.0, 0.0}, e);
+    e.run(a.location(), [&] { a.reject_unread("robot.ecp.args"); });
+    e.throw_if_any();
   }
 
   void main_task() override {

@@ -24,33 +24,42 @@ class VisitJointPoses : public EcpTask {
  public:
   explicit VisitJointPoses(TaskContext& context) : context_(context) {
     const Params& args = context.args;
-    poses_ = args.get_double_rows("poses");
-    options_ = joint_motion_options(args, context.servo_period_s);
-    if (args.has("wait_input")) {
-      const std::int64_t line = args.get_int("wait_input");
-      if (line < 0 || line > 31)
-        throw ConfigError(
-            args.location_of("wait_input"),
-            fmt::format("'wait_input' = {} is not a binary input line (0..31)", line));
-      wait_input_ = static_cast<int>(line);
-      wait_state_ = args.get_bool("wait_input_state", true);
-      wait_timeout_ = args.get_double("wait_timeout", 60.0);
-      if (!(std::isfinite(wait_timeout_) && wait_timeout_ >= 0.0))
-        throw ConfigError(args.location_of("wait_timeout"),
-                          fmt::format("'wait_timeout' = {} s must be >= 0 s", wait_timeout_));
-    }
-    if (args.has("outputs_at_end")) outputs_at_end_ = outputs_argument(args, "outputs_at_end");
-    args.reject_unread("robot.ecp.args");
-    // Validate every pose and option before anything moves, naming where they were written:
-    // the options, each pose on its own (arity, joint limits), then the paths between them.
+    // Every argument checked on its own at its own line (a mistake in one does not hide the
+    // others), then each pose (arity, joint limits), then the paths between them.
     ConfigErrorList errors;
-    const SourceLocation at = args.location_of("poses");
+    const bool have_poses =
+        errors.run(args.location_of("poses"), [&] { poses_ = args.get_double_rows("poses"); });
+    options_ = joint_motion_options(args, context.servo_period_s, errors);
+    if (args.has("wait_input")) {
+      errors.run(args.location_of("wait_input"), [&] {
+        const std::int64_t line = args.get_int("wait_input");
+        if (line < 0 || line > 31)
+          throw ConfigError(
+              args.location_of("wait_input"),
+              fmt::format("'wait_input' = {} is not a binary input line (0..31)", line));
+        wait_input_ = static_cast<int>(line);
+      });
+      errors.run(args.location_of("wait_input_state"),
+                 [&] { wait_state_ = args.get_bool("wait_input_state", true); });
+      errors.run(args.location_of("wait_timeout"), [&] {
+        wait_timeout_ = args.get_double("wait_timeout", 60.0);
+        if (!(std::isfinite(wait_timeout_) && wait_timeout_ >= 0.0))
+          throw ConfigError(args.location_of("wait_timeout"),
+                            fmt::format("'wait_timeout' = {} s must be >= 0 s", wait_timeout_));
+      });
+    }
+    if (args.has("outputs_at_end"))
+      errors.run(args.location_of("outputs_at_end"),
+                 [&] { outputs_at_end_ = outputs_argument(args, "outputs_at_end"); });
+    errors.run(args.location(), [&] { args.reject_unread("robot.ecp.args"); });
     const RobotModel& model = context.robot.model();
-    errors.run(at, [&] { JointPosesGenerator options_only(model, {}, options_); });
     for (std::size_t i = 0; i < poses_.size(); ++i)
-      errors.run(
-          at, [&] { model.check_joint_limits(poses_[i], fmt::format("pose {}", i + 1).c_str()); });
-    if (errors.empty()) errors.run(at, [&] { JointPosesGenerator check(model, poses_, options_); });
+      errors.run(args.location_of_row("poses", i), [&] {
+        model.check_joint_limits(poses_[i], fmt::format("pose {}", i + 1).c_str());
+      });
+    if (have_poses && errors.empty())
+      errors.run(args.location_of("poses"),
+                 [&] { JointPosesGenerator check(model, poses_, options_); });
     errors.throw_if_any();
   }
 

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <memory>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/mp/task.hpp"
@@ -214,25 +215,52 @@ class CarryBar : public MpTask {
  public:
   explicit CarryBar(TaskContext& context) : context_(context) {
     const Params& args = context.args;
-    const auto names = args.get_strings("robots");
-    if (names.size() != 2)
-      throw ConfigError(args.location_of("robots"), "'robots' must name exactly two robots");
-    for (const auto& n : names) robots_.push_back(&context.robot(n));
-    bar_length_ = args.get_double("bar_length");
-    for (const auto& p : args.get_double_rows("path")) {
-      if (p.size() != 3)
-        throw ConfigError(args.location_of("path"), "every 'path' point is [x, y, z] (m)");
-      path_.emplace_back(p[0], p[1], p[2]);
-    }
-    if (path_.size() < 2)
-      throw ConfigError(args.location_of("path"), "'path' needs at least two points");
-    speed_ = args.get_double("speed", 0.05);
-    motion_steps_ = static_cast<int>(args.get_int("motion_steps", 10));
-    tolerance_ = args.get_double("tolerance", 0.003);
-    args.reject_unread("mp.args");
-    if (!(speed_ > 0.0 && speed_ <= 0.5))
-      throw ConfigError(args.location_of("speed"),
-                        fmt::format("speed {} m/s is outside (0, 0.5] m/s", speed_));
+    // Every argument checked on its own at its own line: a mistake in one does not hide the
+    // others.
+    ConfigErrorList errors;
+    errors.run(args.location_of("robots"), [&] {
+      const auto names = args.get_strings("robots");
+      if (names.size() != 2)
+        throw ConfigError(
+            args.location_of("robots"),
+            fmt::format("'robots' must name exactly two robots, not {}", names.size()));
+      for (const auto& n : names) robots_.push_back(&context.robot(n));
+    });
+    errors.run(args.location_of("bar_length"), [&] {
+      bar_length_ = args.get_double("bar_length");
+      if (!(bar_length_ > 0.0 && std::isfinite(bar_length_)))
+        throw ConfigError(args.location_of("bar_length"),
+                          fmt::format("'bar_length' = {} m must be > 0 m", bar_length_));
+    });
+    errors.run(args.location_of("path"), [&] {
+      const auto rows = args.get_double_rows("path");
+      for (std::size_t i = 0; i < rows.size(); ++i)
+        if (rows[i].size() != 3)
+          throw ConfigError(args.location_of_row("path", i),
+                            fmt::format("every 'path' point is [x, y, z] (m); point {} has {} "
+                                        "values",
+                                        i + 1, rows[i].size()));
+      for (const auto& p : rows) path_.emplace_back(p[0], p[1], p[2]);
+      if (path_.size() < 2)
+        throw ConfigError(args.location_of("path"),
+                          fmt::format("'path' needs at least two points, it has {}", path_.size()));
+    });
+    errors.run(args.location_of("speed"), [&] {
+      speed_ = args.get_double("speed", 0.05);
+      if (!(speed_ > 0.0 && speed_ <= 0.5))
+        throw ConfigError(args.location_of("speed"),
+                          fmt::format("speed {} m/s is outside (0, 0.5] m/s", speed_));
+    });
+    errors.run(args.location_of("motion_steps"),
+               [&] { motion_steps_ = static_cast<int>(args.get_int("motion_steps", 10)); });
+    errors.run(args.location_of("tolerance"), [&] {
+      tolerance_ = args.get_double("tolerance", 0.003);
+      if (!(tolerance_ > 0.0))
+        throw ConfigError(args.location_of("tolerance"),
+                          fmt::format("'tolerance' = {} m must be > 0 m", tolerance_));
+    });
+    errors.run(args.location(), [&] { args.reject_unread("mp.args"); });
+    errors.throw_if_any();
   }
 
   void main_task() override {

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/ecp/generator.hpp"
 #include "mrroc/kinematics/pose.hpp"
 #include "mrroc/mp/task.hpp"
@@ -84,38 +85,59 @@ class ToolPath : public MpTask {
  public:
   explicit ToolPath(TaskContext& context) : context_(context) {
     const Params& args = context.args;
-    robot_ = &context.robot(args.get_string("robot"));
-    for (const auto& p : args.get_double_rows("path")) {
-      if (p.size() != 3)
-        throw ConfigError(args.location_of("path"), "every 'path' point is [x, y, z] (m)");
-      path_.emplace_back(p[0], p[1], p[2]);
-    }
-    if (path_.size() < 2)
-      throw ConfigError(args.location_of("path"), "'path' needs at least two points");
-    const std::vector<double> r = args.get_doubles("rotation", {0.0, 0.0, 0.0});
-    if (r.size() != 3)
-      throw ConfigError(args.location_of("rotation"),
-                        "'rotation' is a rotation vector [rx, ry, rz] (rad)");
-    const Eigen::Vector3d axis(r[0], r[1], r[2]);
-    orientation_ = axis.norm() > 0.0
-                       ? Eigen::AngleAxisd(axis.norm(), axis.normalized()).toRotationMatrix()
-                       : Eigen::Matrix3d::Identity();
-    const double speed = args.get_double("speed", 0.02);
-    speeds_ = args.get_doubles("speeds", std::vector<double>(path_.size() - 1, speed));
+    // Every argument checked on its own at its own line: a mistake in one does not hide the
+    // others.
+    ConfigErrorList errors;
+    errors.run(args.location_of("robot"),
+               [&] { robot_ = &context.robot(args.get_string("robot")); });
+    const bool have_path = errors.run(args.location_of("path"), [&] {
+      const auto rows = args.get_double_rows("path");
+      for (std::size_t i = 0; i < rows.size(); ++i)
+        if (rows[i].size() != 3)
+          throw ConfigError(args.location_of_row("path", i),
+                            fmt::format("every 'path' point is [x, y, z] (m); point {} has {} "
+                                        "values",
+                                        i + 1, rows[i].size()));
+      for (const auto& p : rows) path_.emplace_back(p[0], p[1], p[2]);
+      if (path_.size() < 2)
+        throw ConfigError(args.location_of("path"),
+                          fmt::format("'path' needs at least two points, it has {}", path_.size()));
+    });
+    errors.run(args.location_of("rotation"), [&] {
+      const std::vector<double> r = args.get_doubles("rotation", {0.0, 0.0, 0.0});
+      if (r.size() != 3)
+        throw ConfigError(args.location_of("rotation"),
+                          "'rotation' is a rotation vector [rx, ry, rz] (rad)");
+      const Eigen::Vector3d axis(r[0], r[1], r[2]);
+      orientation_ = axis.norm() > 0.0
+                         ? Eigen::AngleAxisd(axis.norm(), axis.normalized()).toRotationMatrix()
+                         : Eigen::Matrix3d::Identity();
+    });
+    // The speeds: one for every segment, or one for all; counted only against a valid path.
     const char* key = args.has("speeds") ? "speeds" : "speed";
-    if (speeds_.size() != path_.size() - 1)
-      throw ConfigError(args.location_of(key), fmt::format("'speeds' has {} values for {} segments",
-                                                           speeds_.size(), path_.size() - 1));
-    for (double v : speeds_)
-      if (!(v > 0.0 && v <= 0.5))
-        throw ConfigError(args.location_of(key),
-                          fmt::format("{} {} m/s is outside (0, 0.5] m/s", key, v));
-    motion_steps_ = static_cast<int>(args.get_int("motion_steps", 10));
-    args.reject_unread("mp.args");
-    if (motion_steps_ < 4 || motion_steps_ > 1000)
-      throw ConfigError(
-          args.location_of("motion_steps"),
-          fmt::format("motion_steps {} is outside 4..1000 servo steps", motion_steps_));
+    errors.run(args.location_of(key), [&] {
+      const std::size_t segments = have_path ? path_.size() - 1 : 0;
+      const double speed = args.get_double("speed", 0.02);
+      speeds_ = args.get_doubles("speeds",
+                                 std::vector<double>(std::max<std::size_t>(segments, 1), speed));
+      if (have_path && speeds_.size() != segments)
+        throw ConfigError(
+            args.location_of(key),
+            fmt::format("'speeds' has {} values for {} segments", speeds_.size(), segments));
+      for (double v : speeds_)
+        if (!(v > 0.0 && v <= 0.5))
+          throw ConfigError(args.location_of(key),
+                            fmt::format("{} {} m/s is outside (0, 0.5] m/s", key, v));
+    });
+    errors.run(args.location_of("motion_steps"), [&] {
+      const std::int64_t steps = args.get_int("motion_steps", 10);
+      if (steps < 4 || steps > 1000)
+        throw ConfigError(args.location_of("motion_steps"),
+                          fmt::format("motion_steps {} is outside 4..1000 servo steps", steps));
+      motion_steps_ = static_cast<int>(steps);
+    });
+    errors.run(args.location(), [&] { args.reject_unread("mp.args"); });
+    errors.throw_if_any();
   }
 
   void main_task() override {

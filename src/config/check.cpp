@@ -42,6 +42,19 @@ void ConfigErrorList::add(const std::vector<ConfigError>& errors) {
   errors_.insert(errors_.end(), errors.begin(), errors.end());
 }
 
+std::vector<ConfigError> noted(const std::vector<ConfigError>& errors, const std::string& note) {
+  std::vector<ConfigError> out;
+  out.reserve(errors.size());
+  for (const auto& e : errors) {
+    std::string message = e.message();
+    message += ' ';
+    message += note;
+    out.push_back(e.located() ? ConfigError(e.where(), std::move(message))
+                              : ConfigError(std::move(message)));
+  }
+  return out;
+}
+
 void ConfigErrorList::throw_if_any() const {
   if (errors_.size() == 1) throw errors_.front();
   if (!errors_.empty()) throw ConfigErrors(errors_);

@@ -37,8 +37,36 @@ const Params::Entry* Params::find(const std::string& key) const {
   return &entry;
 }
 
+namespace {
+
+/// The value as the error names it: `5`, `"fast"`, `a list of 3 numbers`.
+std::string describe(const ParamValue& value) {
+  const auto list = [](std::size_t n, const char* of) {
+    return n == 0 ? std::string("an empty list") : fmt::format("a list of {} {}", n, of);
+  };
+  if (const auto* b = std::get_if<bool>(&value)) return *b ? "true" : "false";
+  if (const auto* i = std::get_if<std::int64_t>(&value)) return std::to_string(*i);
+  if (const auto* d = std::get_if<double>(&value)) return fmt::format("{}", *d);
+  if (const auto* s = std::get_if<std::string>(&value)) return fmt::format("\"{}\"", *s);
+  if (const auto* v = std::get_if<std::vector<double>>(&value)) return list(v->size(), "numbers");
+  if (const auto* r = std::get_if<std::vector<std::vector<double>>>(&value))
+    return list(r->size(), "lists");
+  if (const auto* n = std::get_if<std::vector<std::string>>(&value))
+    return list(n->size(), "strings");
+  return "another type";
+}
+
+}  // namespace
+
 void Params::type_error(const std::string& key, const char* expected) const {
-  throw ConfigError(location_of(key), fmt::format("'{}' must be {}", key, expected));
+  throw ConfigError(location_of(key), fmt::format("'{}' must be {}, not {}", key, expected,
+                                                  describe(values_.at(key))));
+}
+
+bool Params::collected(const ConfigError& error, const std::string& key) const {
+  if (sink_.list == nullptr || !sink_.type_errors) return false;
+  if (sink_.reported.insert(key).second) sink_.list->add(error);
+  return true;
 }
 
 void Params::missing(const std::string& key) const {
@@ -102,21 +130,53 @@ std::vector<std::string> Params::get_strings(const std::string& key) const {
   type_error(key, "a list of strings");
 }
 
+// An optional value of another type: thrown, or (collecting) reported once and the default used,
+// so that the task's other arguments are checked too.
 double Params::get_double(const std::string& key, double fallback) const {
-  return has(key) ? get_double(key) : fallback;
+  if (!has(key)) return fallback;
+  try {
+    return get_double(key);
+  } catch (const ConfigError& e) {
+    if (!collected(e, key)) throw;
+    return fallback;
+  }
 }
 std::int64_t Params::get_int(const std::string& key, std::int64_t fallback) const {
-  return has(key) ? get_int(key) : fallback;
+  if (!has(key)) return fallback;
+  try {
+    return get_int(key);
+  } catch (const ConfigError& e) {
+    if (!collected(e, key)) throw;
+    return fallback;
+  }
 }
 bool Params::get_bool(const std::string& key, bool fallback) const {
-  return has(key) ? get_bool(key) : fallback;
+  if (!has(key)) return fallback;
+  try {
+    return get_bool(key);
+  } catch (const ConfigError& e) {
+    if (!collected(e, key)) throw;
+    return fallback;
+  }
 }
 std::string Params::get_string(const std::string& key, const std::string& fallback) const {
-  return has(key) ? get_string(key) : fallback;
+  if (!has(key)) return fallback;
+  try {
+    return get_string(key);
+  } catch (const ConfigError& e) {
+    if (!collected(e, key)) throw;
+    return fallback;
+  }
 }
 std::vector<double> Params::get_doubles(const std::string& key,
                                         const std::vector<double>& fallback) const {
-  return has(key) ? get_doubles(key) : fallback;
+  if (!has(key)) return fallback;
+  try {
+    return get_doubles(key);
+  } catch (const ConfigError& e) {
+    if (!collected(e, key)) throw;
+    return fallback;
+  }
 }
 
 std::vector<std::string> Params::unread_keys() const {

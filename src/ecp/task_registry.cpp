@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <optional>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -33,9 +34,11 @@ void ecp::register_ecp_task(const std::string& name, EcpTaskFactory factory, Rob
 std::unique_ptr<ecp::Robot> ecp::make_task_robot(const std::string& task, comm::Bus& bus,
                                                  const std::string& process,
                                                  const std::string& robot, RobotModel model) {
-  const std::vector<std::string> with_robot = robot_registry().names();
-  if (std::find(with_robot.begin(), with_robot.end(), task) != with_robot.end())
-    return robot_registry().get(task)(bus, process, robot, std::move(model));
+  // An unknown name is checked as the task it suggests (check_ecp_task): that task's robot.
+  const std::string name =
+      ecp_registry().has(task) ? task : ecp_registry().nearest(task).value_or(task);
+  if (robot_registry().has(name))
+    return robot_registry().get(name)(bus, process, robot, std::move(model));
   return std::make_unique<Robot>(bus, process, robot, std::move(model));
 }
 std::unique_ptr<ecp::EcpTask> ecp::make_ecp_task(const std::string& name, TaskContext& context) {
@@ -47,14 +50,27 @@ std::vector<ConfigError> ecp::check_ecp_task(const std::string& name, const Task
                                              const SourceLocation& where) {
   ConfigErrorList errors;
   EcpTaskFactory factory;
-  if (!errors.run(name_where, [&] { factory = ecp_registry().get(name); })) return errors.errors();
-  // A copy of the arguments that collects every unknown key instead of throwing at the first.
+  std::string checked_as = name;
+  if (!errors.run(name_where, [&] { factory = ecp_registry().get(name); })) {
+    // A name near a known one (the error suggests it): the arguments are checked against that
+    // task, so that their own mistakes show in the same run.
+    const std::optional<std::string> near = ecp_registry().nearest(name);
+    if (!near) return errors.errors();
+    checked_as = *near;
+    factory = ecp_registry().get(checked_as);
+  }
+  // A copy of the arguments that collects every unknown key and every optional argument of
+  // another type instead of throwing at the first.
+  ConfigErrorList argument_errors;
   Params args = context.args;
-  args.collect_unknown_keys(&errors);
+  args.collect_errors(&argument_errors);
   TaskContext built{context.robot, context.reporter, args,    context.servo_period_s,
                     context.bus,   context.process,  nullptr, context.vsps};
-  errors.run(where, [&] { (void)factory(built); });
+  argument_errors.run(where, [&] { (void)factory(built); });
   args.collect_unknown_keys(nullptr);
+  errors.add(checked_as == name ? argument_errors.errors()
+                                : noted(argument_errors.errors(),
+                                        fmt::format("(checked as ECP task '{}')", checked_as)));
   return errors.errors();
 }
 

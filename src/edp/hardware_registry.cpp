@@ -1,6 +1,8 @@
 // Registry of EDP hardware plugins.
 #include <fmt/format.h>
 
+#include <optional>
+
 #include "../core/registry.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -35,7 +37,31 @@ std::unique_ptr<Hardware> make_configured_hardware(const RobotConfig& robot,
   try {
     hardware = make_hardware(robot.edp.plugin);
   } catch (const ConfigError& e) {
-    throw e.at(robot.edp.plugin_where.known() ? robot.edp.plugin_where : robot.edp.where);
+    ConfigErrorList errors;
+    errors.add(e, robot.edp.plugin_where.known() ? robot.edp.plugin_where : robot.edp.where);
+    // A name near a known plugin (the error suggests it): the parameters are checked against
+    // that plugin, opening no device, so that their own mistakes show in the same run.
+    if (const std::optional<std::string> near = registry().nearest(robot.edp.plugin)) {
+      ConfigErrorList parameter_errors;
+      parameter_errors.run(robot.edp.where, [&] {
+        const std::unique_ptr<Hardware> suggested = make_hardware(*near);
+        HardwareSetup setup;
+        setup.robot = robot.name;
+        setup.model_dir = robot.model_dir;
+        setup.servo_period_s = robot.edp.servo_period_s;
+        setup.synchro_positions = model.synchro_joint_positions;
+        setup.params = robot.edp.params;
+        setup.params.collect_errors(&parameter_errors);
+        if (suggested->simulated())
+          suggested->configure(setup);
+        else
+          suggested->check(setup);
+        setup.params.collect_unknown_keys(nullptr);
+      });
+      errors.add(noted(parameter_errors.errors(),
+                       fmt::format("(checked as hardware plugin '{}')", *near)));
+    }
+    errors.throw_if_any();
   }
   // Before configure(), which opens the devices of real hardware.
   if (robot.edp.lock_step && !hardware->simulated())
@@ -51,7 +77,12 @@ std::unique_ptr<Hardware> make_configured_hardware(const RobotConfig& robot,
   setup.servo_period_s = robot.edp.servo_period_s;
   setup.synchro_positions = model.synchro_joint_positions;
   setup.params = robot.edp.params;
-  setup.params.collect_unknown_keys(&errors);  // every unknown key, and the other checks too
+  // Every unknown key, and the other checks too; an optional parameter of another type as well
+  // where nothing opens a device (a plugin of real devices configured at start stops at it).
+  if (open_devices && !hardware->simulated())
+    setup.params.collect_unknown_keys(&errors);
+  else
+    setup.params.collect_errors(&errors);
   if (open_devices || hardware->simulated())
     errors.run(robot.edp.where, [&] { hardware->configure(setup); });
   else

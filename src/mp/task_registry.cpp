@@ -1,6 +1,8 @@
 // The name -> factory registry of MP tasks, and the robots and virtual sensors of an MP task.
 #include <fmt/format.h>
 
+#include <optional>
+
 #include "../core/registry.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/ecp/virtual_sensor.hpp"
@@ -37,13 +39,26 @@ std::vector<ConfigError> mp::check_mp_task(const std::string& name, const TaskCo
                                            const SourceLocation& where) {
   ConfigErrorList errors;
   MpTaskFactory factory;
-  if (!errors.run(name_where, [&] { factory = mp_registry().get(name); })) return errors.errors();
-  // A copy of the arguments that collects every unknown key instead of throwing at the first.
+  std::string checked_as = name;
+  if (!errors.run(name_where, [&] { factory = mp_registry().get(name); })) {
+    // A name near a known one (the error suggests it): the arguments are checked against that
+    // task, so that their own mistakes show in the same run.
+    const std::optional<std::string> near = mp_registry().nearest(name);
+    if (!near) return errors.errors();
+    checked_as = *near;
+    factory = mp_registry().get(checked_as);
+  }
+  // A copy of the arguments that collects every unknown key and every optional argument of
+  // another type instead of throwing at the first.
+  ConfigErrorList argument_errors;
   Params args = context.args;
-  args.collect_unknown_keys(&errors);
+  args.collect_errors(&argument_errors);
   TaskContext built{context.robots, context.reporter, args, context.config, context.bus};
-  errors.run(where, [&] { (void)factory(built); });
+  argument_errors.run(where, [&] { (void)factory(built); });
   args.collect_unknown_keys(nullptr);
+  errors.add(checked_as == name ? argument_errors.errors()
+                                : noted(argument_errors.errors(),
+                                        fmt::format("(checked as MP task '{}')", checked_as)));
   return errors.errors();
 }
 

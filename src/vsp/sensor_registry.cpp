@@ -1,4 +1,8 @@
 // Registry of VSP sensor plugins.
+#include <fmt/format.h>
+
+#include <optional>
+
 #include "../core/registry.hpp"
 #include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
@@ -27,7 +31,18 @@ std::unique_ptr<SensorPlugin> make_sensor(const VspConfig& vsp) {
   try {
     return make_sensor(vsp.plugin);
   } catch (const ConfigError& e) {
-    throw e.at(vsp.plugin_where.known() ? vsp.plugin_where : vsp.where);
+    ConfigErrorList errors;
+    errors.add(e, vsp.plugin_where.known() ? vsp.plugin_where : vsp.where);
+    // A name near a known plugin (the error suggests it): the parameters are checked against
+    // that plugin, so that their own mistakes show in the same run.
+    if (const std::optional<std::string> near = registry().nearest(vsp.plugin)) {
+      ConfigErrorList parameter_errors;
+      parameter_errors.run(vsp.where, [&] { configure_sensor(*make_sensor(*near), vsp); });
+      errors.add(
+          noted(parameter_errors.errors(), fmt::format("(checked as sensor plugin '{}')", *near)));
+    }
+    errors.throw_if_any();
+    throw;  // not reached: `errors` holds at least `e`
   }
 }
 
@@ -37,7 +52,9 @@ void configure_sensor(SensorPlugin& plugin, const VspConfig& vsp) {
   setup.name = vsp.name;
   setup.sources = vsp.sources;
   setup.params = vsp.params;
-  setup.params.collect_unknown_keys(&errors);  // every unknown key, and the other checks too
+  // Every unknown key and optional parameter of another type, and the other checks too (a
+  // sensor plugin's configure() reads its parameters, it opens no device).
+  setup.params.collect_errors(&errors);
   errors.run(vsp.where, [&] { plugin.configure(setup); });
   setup.params.collect_unknown_keys(nullptr);
   errors.throw_if_any();

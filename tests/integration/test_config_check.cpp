@@ -96,8 +96,8 @@ BrokenConfig write_broken_config() {
       "servo_period_sm = 2.0",  // unknown key of the schema
       "[robot.edp.params]",
       "gravity_compensaton = true",  // unknown key of the plugin
-      "[robot.ecp]",
-      "task = \"visit_joint_posez\"",  // unknown ECP task
+      "[robot.ecp]  # second's",
+      "task = \"visit_joint_posez\"",  // unknown ECP task, checked as visit_joint_poses
       "",
       "[[robot]]",
       "name = \"third\"",
@@ -128,12 +128,18 @@ TEST(ConfigCheck, ReportsEveryMistakeOfTheFileWithItsLineAndExits2) {
       {"servo_period_sm", "unknown key 'servo_period_sm' in [robot.edp] (allowed: "},
       {"gravity_compensaton", "unknown key 'gravity_compensaton' in [robot.edp.params]"},
       {"visit_joint_posez", "unknown ECP task 'visit_joint_posez' (known: "},
+      // Checked as the task its name suggests, which needs its poses.
+      {"second's", "missing required key 'poses' (checked as ECP task 'visit_joint_poses')"},
       {"no_such_robot", "robot model folder '" + irb6 + "/no_such_robot' not found"},
   };
   for (const auto& [marker, message] : expected) {
     const std::string line = f + ":" + std::to_string(c.line_of(marker)) + ": error: " + message;
     EXPECT_NE(out.find(line), std::string::npos) << "expected: " << line << "\n" << out;
   }
+  // Each unknown name a letter away from a known one: the known one suggested.
+  for (const char* suggestion : {"; did you mean 'force_torque'?", "; did you mean 'mujoco'?",
+                                 "; did you mean 'visit_joint_poses'?"})
+    EXPECT_NE(out.find(suggestion), std::string::npos) << suggestion << "\n" << out;
   EXPECT_NE(out.find(std::to_string(expected.size()) + " errors; nothing started"),
             std::string::npos)
       << "each error once, nothing else\n"
@@ -150,6 +156,123 @@ TEST(ConfigCheck, ReportsEveryMistakeOfTheFileWithItsLineAndExits2) {
       << ecp_out;
   EXPECT_NE(ecp_out.find("pose 1 has 4 joint values"), std::string::npos) << ecp_out;
   fs::remove_all(c.file.parent_path());
+}
+
+TEST(ConfigCheck, EveryArgumentMistakeOfATaskAndTheArgumentsOfAMistypedTaskName) {
+  // Type errors mixed with unknown, missing and out-of-range arguments in one task's arguments:
+  // a type error does not end the check of the others. A task or plugin name a letter or two
+  // away from a known one gets that name suggested and its arguments checked against it.
+  BrokenConfig c;
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-check-args-" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  c.file = dir / "arguments.toml";
+  const std::string irb6 = (kSource / "robots/irb6").string();
+  c.lines = {
+      "[system]",
+      "name = \"arguments\"",
+      "[mp]",
+      "task = \"tool_pth\"",  // unknown MP task, near tool_path
+      "[mp.args]",
+      "robot = \"irb6\"",
+      "path = [[0.8, 0.0, 0.3], [0.8, 0.1]]",  // point 2 without z
+      "speed = \"slow\"",                      // not a number
+      "motion_step = 10",                      // misspelt
+      "[[robot]]",
+      "name = \"irb6\"",
+      "model = \"" + irb6 + "\"",
+      "[robot.edp]",
+      "plugin = \"mujoco\"",
+      "[robot.ecp]",
+      "task = \"visit_joint_poses\"",
+      "[robot.ecp.args]",
+      "poses = [[0.0, -1.5708, 0.0, 0.0, 0.0], [9.0, -1.5708, 0.0, 0.0, 0.0]]",  // 9 rad
+      "velocity_scale = \"fast\"",                                               // not a number
+      "acceleration_scale = 1.5",                                                // beyond 1
+      "motion_steps = 2.5",                                                      // not an integer
+      "wait_input = 40",           // no such input line
+      "wait_timeout = \"never\"",  // not a number
+      "outputs_at_end = \"0x1\"",  // a string, not an integer
+      "speeed = 0.1",              // misspelt
+      "[[robot]]",
+      "name = \"arm2\"",
+      "model = \"" + irb6 + "\"",
+      "[robot.edp]",
+      "plugin = \"mujoco\"",
+      "[robot.ecp]",
+      "task = \"engarve\"",                    // unknown ECP task, near engrave
+      "[robot.ecp.args]  # without 'origin'",  // engrave's required argument
+      "text = \"MRROC\"",
+      "letter_height = \"4 cm\"",  // not a number
+      "speed = -0.06",             // below zero
+      "[[robot]]",
+      "name = \"arm3\"",
+      "model = \"" + irb6 + "\"",
+      "[robot.edp]",
+      "plugin = \"mujocoo\"",  // unknown hardware plugin, near mujoco
+      "[robot.edp.params]",
+      "gravity_compensaton = true",  // misspelt, found checked as mujoco
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+      "[[vsp]]",
+      "name = \"wrist\"",
+      "plugin = \"force_torqe\"",  // unknown sensor plugin, near force_torque
+      "sources = [\"wrist_ft\"]",
+      "[vsp.params]",
+      "filter_hx = 5",  // misspelt filter_hz
+  };
+  c.write();
+  const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  const std::string as_tool_path = " (checked as MP task 'tool_path')";
+  const std::string as_engrave = " (checked as ECP task 'engrave')";
+  const std::vector<std::pair<std::string, std::string>> expected = {
+      {"tool_pth", "unknown MP task 'tool_pth' (known: "},
+      {"tool_pth", "; did you mean 'tool_path'?"},
+      {"path = ", "every 'path' point is [x, y, z] (m); point 2 has 2 values" + as_tool_path},
+      {"speed = \"slow\"", "'speed' must be a number, not \"slow\"" + as_tool_path},
+      {"motion_step = ", "unknown key 'motion_step' in [mp.args]" + as_tool_path},
+      {"poses = ", "joint 0 (column) pose 2 9.000000 rad exceeds upper limit"},
+      {"velocity_scale", "'velocity_scale' must be a number, not \"fast\""},
+      {"acceleration_scale", "acceleration_scale 1.5 is outside (0, 1]"},
+      {"motion_steps", "'motion_steps' must be an integer, not 2.5"},
+      {"wait_input = ", "'wait_input' = 40 is not a binary input line (0..31)"},
+      {"wait_timeout", "'wait_timeout' must be a number, not \"never\""},
+      {"outputs_at_end", "'outputs_at_end' must be an integer, not \"0x1\""},
+      {"speeed", "unknown key 'speeed' in [robot.ecp.args]"},
+      {"engarve", "unknown ECP task 'engarve' (known: "},
+      {"engarve", "; did you mean 'engrave'?"},
+      {"without 'origin'", "missing required key 'origin'" + as_engrave},
+      {"letter_height", "'letter_height' must be a number, not \"4 cm\"" + as_engrave},
+      {"speed = -0.06", "'speed' = -0.06 m/s must be > 0 m/s" + as_engrave},
+      {"mujocoo", "unknown hardware plugin 'mujocoo' (known: "},
+      {"mujocoo", "; did you mean 'mujoco'?"},
+      {"gravity_compensaton",
+       "unknown key 'gravity_compensaton' in [robot.edp.params] (checked "
+       "as hardware plugin 'mujoco')"},
+      {"force_torqe", "unknown sensor plugin 'force_torqe' (known: "},
+      {"force_torqe", "; did you mean 'force_torque'?"},
+      {"filter_hx",
+       "unknown key 'filter_hx' in [vsp.params] (checked as sensor plugin "
+       "'force_torque')"},
+  };
+  for (const auto& [marker, message] : expected) {
+    const std::string at = c.file.string() + ":" + std::to_string(c.line_of(marker)) + ": error: ";
+    // The message on the line of its mistake (a suggestion ends the unknown name's line).
+    bool found = false;
+    for (std::size_t from = out.find(at); from != std::string::npos && !found;
+         from = out.find(at, from + 1)) {
+      const std::string line = out.substr(from, out.find('\n', from) - from);
+      found = line.find(message) != std::string::npos;
+    }
+    EXPECT_TRUE(found) << "expected at " << at << ": " << message << "\n" << out;
+  }
+  // Four of the expectations are the suggestions, on the lines of the unknown names.
+  EXPECT_NE(out.find(std::to_string(expected.size() - 4) + " errors; nothing started"),
+            std::string::npos)
+      << "each error once, nothing else\n"
+      << out;
+  fs::remove_all(dir);
 }
 
 TEST(ConfigCheck, ReachesRealDevicePluginParametersTheSetsVspNamesAndTheMpTasksPoses) {

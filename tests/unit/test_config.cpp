@@ -5,8 +5,10 @@
 #include <fstream>
 #include <regex>
 
+#include "mrroc/config/check.hpp"
 #include "mrroc/config/process_set.hpp"
 #include "mrroc/core/error.hpp"
+#include "mrroc/core/nearest_name.hpp"
 #include "mrroc/edp/arm_kinematics.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
@@ -287,7 +289,7 @@ TEST(ConfigError, ParamsErrorKeepsItsLocationThroughTheRethrow) {
       throw e.at(table);
     }
   } catch (const ConfigError& e) {
-    EXPECT_STREQ(e.what(), "command:2: error: 'label' must be a string");
+    EXPECT_STREQ(e.what(), "command:2: error: 'label' must be a string, not 3");
     EXPECT_EQ(e.where().file, "command");
     EXPECT_EQ(e.where().line, 2);
   }
@@ -497,3 +499,103 @@ TEST_F(ConfigTest, ConsoleHostsAreNamesOrAddressesWithoutPorts) {
         << e.what();
   }
 }
+
+namespace {
+
+TEST(NearestName, SuggestsTheKnownNameATypingMistakeAway) {
+  const std::vector<std::string> tasks = {"engrave", "follow_mp", "grasp_part",
+                                          "visit_joint_poses"};
+  EXPECT_EQ(nearest_name("engarve", tasks), "engrave");                      // two letters swapped
+  EXPECT_EQ(nearest_name("visit_joint_posez", tasks), "visit_joint_poses");  // one replaced
+  EXPECT_EQ(nearest_name("folow_mp", tasks), "follow_mp");                   // one left out
+  EXPECT_EQ(nearest_name("grasp_parts", tasks), "grasp_part");               // one too many
+  EXPECT_EQ(nearest_name("Engrave", tasks), "engrave");                      // case is one edit
+  EXPECT_EQ(nearest_name("engrave", tasks), "engrave");                      // a known name: itself
+}
+
+TEST(NearestName, NothingForAnEmptyNameNoKnownNamesOrAFarName) {
+  const std::vector<std::string> tasks = {"engrave", "follow_mp", "visit_joint_poses"};
+  EXPECT_EQ(nearest_name("", tasks), std::nullopt);
+  EXPECT_EQ(nearest_name("engarve", {}), std::nullopt);
+  EXPECT_EQ(nearest_name("", {}), std::nullopt);
+  EXPECT_EQ(nearest_name("", {""}), std::nullopt);
+  EXPECT_EQ(nearest_name("polish", tasks), std::nullopt);
+  EXPECT_EQ(nearest_name("visit_cartesian_poses", tasks), std::nullopt);
+  // Three edits are too many for a name of 7 letters (at most 7 / 3 = 2).
+  EXPECT_EQ(nearest_name("enxxave", tasks), "engrave");
+  EXPECT_EQ(nearest_name("exxxave", tasks), std::nullopt);
+  // A short name is never replaced whole: "ab" is not a typing mistake of "xy".
+  EXPECT_EQ(nearest_name("a", {"b"}), std::nullopt);
+  EXPECT_EQ(nearest_name("ab", {"xy"}), std::nullopt);
+  EXPECT_EQ(nearest_name("ab", {"ax"}), "ax");
+  // Equally near: the first in the order given.
+  EXPECT_EQ(nearest_name("cat", {"bat", "car"}), "bat");
+  EXPECT_EQ(nearest_name("cat", {"car", "bat"}), "car");
+}
+
+TEST(NearestName, EditDistanceCountsEachEditOnce) {
+  EXPECT_EQ(edit_distance("", ""), 0U);
+  EXPECT_EQ(edit_distance("", "abc"), 3U);
+  EXPECT_EQ(edit_distance("abc", ""), 3U);
+  EXPECT_EQ(edit_distance("abc", "abc"), 0U);
+  EXPECT_EQ(edit_distance("abc", "acb"), 1U);  // a swap of neighbours
+  EXPECT_EQ(edit_distance("abc", "axc"), 1U);
+  EXPECT_EQ(edit_distance("kitten", "sitting"), 3U);
+  EXPECT_EQ(edit_distance("ca", "abc"), 3U);  // no substring edited twice (optimal alignment)
+}
+
+TEST(NearestName, AnUnknownNameOfARegistryNamesTheSuggestionOnlyWhenNear) {
+  RobotModel model;
+  model.name = "r";
+  model.folder = "/nowhere/robots/r";
+  model.kinematics = "irb7";
+  try {
+    (void)edp::make_arm_kinematics(model);
+    FAIL() << "an unknown kinematics solver was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(e.message().find("unknown kinematics solver 'irb7' (known: "), std::string::npos)
+        << e.what();
+    EXPECT_NE(e.message().find("; did you mean 'irb6'?"), std::string::npos) << e.what();
+  }
+  model.kinematics = "no_such_solver";
+  try {
+    (void)edp::make_arm_kinematics(model);
+    FAIL() << "an unknown kinematics solver was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.message().find("did you mean"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ConfigError, ACollectingCheckReportsEveryOptionalArgumentOfAnotherTypeOnceAndGoesOn) {
+  const Params args = params_from_toml(
+      "speed = \"fast\"\nsteps = 2.5\nlabel = 3\nflag = 1\nposes = \"home\"\nextra = 1\n",
+      "set.toml");
+  ConfigErrorList errors;
+  // Collecting unknown keys only (a plugin of real devices at start): a type error throws.
+  args.collect_unknown_keys(&errors);
+  EXPECT_THROW((void)args.get_double("speed", 0.5), ConfigError);
+  EXPECT_TRUE(errors.empty());
+  args.collect_errors(&errors);
+  // Optional: the default, the error kept (once, however often the task reads the key).
+  EXPECT_DOUBLE_EQ(args.get_double("speed", 0.5), 0.5);
+  EXPECT_DOUBLE_EQ(args.get_double("speed", 0.5), 0.5);
+  EXPECT_EQ(args.get_int("steps", 10), 10);
+  EXPECT_EQ(args.get_string("label", "x"), "x");
+  EXPECT_TRUE(args.get_bool("flag", true));
+  // Required: no value to go on with, so it throws (the task's own ConfigErrorList::run keeps it).
+  EXPECT_THROW((void)args.get_double_rows("poses"), ConfigError);
+  args.reject_unread("args");
+  args.collect_unknown_keys(nullptr);
+  std::string all;
+  for (const auto& e : errors.errors()) all += std::string(e.what()) + "\n";
+  EXPECT_EQ(all,
+            "set.toml:1: error: 'speed' must be a number, not \"fast\"\n"
+            "set.toml:2: error: 'steps' must be an integer, not 2.5\n"
+            "set.toml:3: error: 'label' must be a string, not 3\n"
+            "set.toml:4: error: 'flag' must be true or false, not 1\n"
+            "set.toml:6: error: unknown key 'extra' in [args]\n");
+  // Without the sink the same reads throw again.
+  EXPECT_THROW((void)args.get_double("speed", 0.5), ConfigError);
+}
+
+}  // namespace

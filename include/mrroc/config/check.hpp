@@ -67,4 +67,10 @@ class ConfigErrorList {
   std::vector<ConfigError> errors_;
 };
 
+/// `errors` with `note` appended to each message (after a space), at their own locations: e.g.
+/// "(checked as ECP task 'engrave')" for the errors of arguments checked against a suggested
+/// task.
+[[nodiscard]] std::vector<ConfigError> noted(const std::vector<ConfigError>& errors,
+                                             const std::string& note);
+
 }  // namespace mrroc

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
 #include <variant>
 #include <vector>
@@ -52,7 +53,9 @@ class Params {
   [[nodiscard]] std::vector<std::vector<double>> get_double_rows(const std::string& key) const;
   [[nodiscard]] std::vector<std::string> get_strings(const std::string& key) const;
 
-  /// Optional values with a default. @throws ConfigError when present with another type.
+  /// Optional values with a default. @throws ConfigError when present with another type; while
+  /// a check collects them (`collect_errors`), the error goes to its list instead (once per key)
+  /// and the default is returned, so that the check goes on with the other arguments.
   [[nodiscard]] double get_double(const std::string& key, double fallback) const;
   [[nodiscard]] std::int64_t get_int(const std::string& key, std::int64_t fallback) const;
   [[nodiscard]] bool get_bool(const std::string& key, bool fallback) const;
@@ -63,14 +66,29 @@ class Params {
   /// Keys present in the table but never read by any getter.
   [[nodiscard]] std::vector<std::string> unread_keys() const;
   /// @throws ConfigError naming the first unread key ("unknown key 'x' in [robot.edp.params]").
-  /// With a sink (`collect_unknown_keys`) it adds every unread key to it and returns.
+  /// With a sink (`collect_unknown_keys`, `collect_errors`) it adds every unread key to it and
+  /// returns.
   void reject_unread(const std::string& table_name) const;
 
   /// Makes `reject_unread` add every unknown key to `sink` instead of throwing at the first, so
   /// that a check reports them all and goes on with the other checks (null: throw, the
   /// default). A copy of the table does not collect: the sink belongs to the check that set it,
   /// and a copy kept beyond it (by a plugin, say) throws as usual.
-  void collect_unknown_keys(ConfigErrorList* sink) const { sink_.list = sink; }
+  void collect_unknown_keys(ConfigErrorList* sink) const {
+    sink_.list = sink;
+    sink_.type_errors = false;
+    sink_.reported.clear();
+  }
+  /// As `collect_unknown_keys`, and the optional getters add a value of another type to `sink`
+  /// and return their default, so that the check goes on with the other arguments. For code that
+  /// only checks (a task's constructor, a plugin's check(), a simulation's configure()), never
+  /// for code that opens devices: that would go on with a default the user did not choose. The
+  /// required getters throw as always (there is no value to go on with): a task that reads its
+  /// arguments one by one in `ConfigErrorList::run` gets the others checked too.
+  void collect_errors(ConfigErrorList* sink) const {
+    collect_unknown_keys(sink);
+    sink_.type_errors = sink != nullptr;
+  }
 
   [[nodiscard]] const std::map<std::string, ParamValue>& values() const { return values_; }
 
@@ -82,19 +100,26 @@ class Params {
   const Entry* find(const std::string& key) const;
   [[noreturn]] void type_error(const std::string& key, const char* expected) const;
   [[noreturn]] void missing(const std::string& key) const;
+  /// True when a check collects: `error` (of `key`) is added to its list, the first time only.
+  bool collected(const ConfigError& error, const std::string& key) const;
 
   SourceLocation location_;
   std::map<std::string, ParamValue> values_;
   std::map<std::string, SourceLocation> where_;
   std::map<std::string, std::vector<SourceLocation>> row_where_;
   mutable std::map<std::string, bool> read_;
-  /// The sink of `collect_unknown_keys`; a copy of it is null.
+  /// The sink of `collect_unknown_keys` or `collect_errors` (`type_errors`) and the keys of
+  /// another type it has; a copy is empty.
   struct Sink {
     ConfigErrorList* list = nullptr;
+    bool type_errors = false;
+    std::set<std::string> reported;
     Sink() = default;
     Sink(const Sink& /*other*/) noexcept {}
     Sink& operator=(const Sink& /*other*/) noexcept {
       list = nullptr;
+      type_errors = false;
+      reported.clear();
       return *this;
     }
     ~Sink() = default;

@@ -88,7 +88,8 @@ using RobotFactory = std::function<std::unique_ptr<Robot>(
 /// `robot`: the class of robot the task drives (empty: a plain Robot).
 void register_ecp_task(const std::string& name, EcpTaskFactory factory, RobotFactory robot = {});
 /// The robot the ECP shell makes for its configured task `task`: the class that task was
-/// registered with, else (also for an unknown name, reported by check_ecp_task) a plain Robot.
+/// registered with, else a plain Robot. For an unknown name (reported by check_ecp_task), that
+/// of the nearest known name, against which check_ecp_task checks the arguments.
 std::unique_ptr<Robot> make_task_robot(const std::string& task, comm::Bus& bus,
                                        const std::string& process, const std::string& robot,
                                        RobotModel model);
@@ -97,9 +98,15 @@ std::unique_ptr<EcpTask> make_ecp_task(const std::string& name, TaskContext& con
 
 /// What the ECP checks of its task before it reports ready, and what `mrroc-ecp --check-config`
 /// (run by `mrroc-launch --check`) checks: the task `name` is built once with `context` (no
-/// motion, no request). Returns every error found: an unknown name (at `name_where`), every
-/// unknown key of the arguments, and the first other error the task's constructor throws (types,
-/// ranges, poses against the limits), each at its own location, else at `where`.
+/// motion, no request). Returns every error found, each at its own location, else at `where`:
+/// an unknown name (at `name_where`, suggesting the nearest known one when one is near), every
+/// unknown key and every optional argument of another type (Params::collect_errors), and
+/// what the task's constructor throws (a required argument missing or of another type, ranges,
+/// poses against the limits). A task that checks each argument in its own
+/// `ConfigErrorList::run` and throws them together (ConfigErrors) gets every one reported, as
+/// the stock tasks do; one that throws at its first error gets that one. An unknown name near a
+/// known one has its arguments checked against that task, each such error noted "(checked as
+/// ECP task 'name')".
 std::vector<ConfigError> check_ecp_task(const std::string& name, const TaskContext& context,
                                         const SourceLocation& name_where,
                                         const SourceLocation& where);

@@ -192,7 +192,9 @@ std::vector<std::string> hardware_names();
 
 /// The hardware of `robot` as mrroc-edp makes it at start, and as `mrroc-edp --check-config`
 /// (run by `mrroc-launch --check`) checks it: the plugin named in [robot.edp] (unknown: an error
-/// at `plugin`), `lock_step` only for simulated hardware, then `configure()` with the robot's
+/// at `plugin`, suggesting the nearest known name when one is near, and the parameters' errors
+/// against that plugin, opening no device, each noted "(checked as hardware plugin 'name')"),
+/// `lock_step` only for simulated hardware, then `configure()` with the robot's
 /// setup (its [robot.edp.params], every unknown key reported, and the plugin's model files).
 /// With `open_devices` false (the check) a plugin that drives real devices (`simulated()`
 /// false) is made and its check() runs instead of configure(), which would open them.

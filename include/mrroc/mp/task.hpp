@@ -57,9 +57,13 @@ std::unique_ptr<MpTask> make_mp_task(const std::string& name, TaskContext& conte
 
 /// What the MP checks of its task before it reports ready, and what `mrroc-mp --check-config`
 /// (run by `mrroc-launch --check`) checks: the task `name` is built once with `context`.
-/// Returns every error found: an unknown name (at `name_where`), every unknown key of the
-/// arguments, and the first other error the constructor throws, at its own location, else at
-/// `where`.
+/// Returns every error found, each at its own location, else at `where`: an unknown name (at
+/// `name_where`, suggesting the nearest known one when one is near), every unknown key and
+/// every optional argument of another type (Params::collect_errors), and what the
+/// constructor throws (a required argument missing or of another type, ranges, poses). A task
+/// that checks each argument in its own `ConfigErrorList::run` and throws them together gets
+/// every one reported. An unknown name near a known one has its arguments checked against that
+/// task, each such error noted "(checked as MP task 'name')".
 std::vector<ConfigError> check_mp_task(const std::string& name, const TaskContext& context,
                                        const SourceLocation& name_where,
                                        const SourceLocation& where);

@@ -59,7 +59,9 @@ std::vector<std::string> sensor_names();
 
 /// The sensor plugin of a [[vsp]] as mrroc-vsp makes it at start, and as `mrroc-vsp
 /// --check-config` (run by `mrroc-launch --check`) checks it: made by its name (unknown: an error
-/// at `plugin`). @throws ConfigError.
+/// at `plugin`, suggesting the nearest known name when one is near, and the parameters'
+/// errors against that plugin, each noted "(checked as sensor plugin 'name')").
+/// @throws ConfigError, or ConfigErrors for an unknown name with its parameters' errors.
 std::unique_ptr<SensorPlugin> make_sensor(const VspConfig& vsp);
 /// Configures `plugin` with the VSP's name, sources and [vsp.params], every unknown key of the
 /// parameters reported. @throws ConfigError, or ConfigErrors with every error found.

@@ -27,6 +27,20 @@ double JointPosesGenerator::segment_duration(double distance, double max_velocit
                   std::sqrt(kPeakAcceleration * distance / max_acceleration));
 }
 
+std::vector<std::pair<std::string, std::string>> JointPosesOptions::out_of_range() const {
+  std::vector<std::pair<std::string, std::string>> bad;
+  if (!(velocity_scale > 0.0 && velocity_scale <= 1.0))
+    bad.emplace_back("velocity_scale",
+                     fmt::format("velocity_scale {} is outside (0, 1]", velocity_scale));
+  if (!(acceleration_scale > 0.0 && acceleration_scale <= 1.0))
+    bad.emplace_back("acceleration_scale",
+                     fmt::format("acceleration_scale {} is outside (0, 1]", acceleration_scale));
+  if (motion_steps < 2 || motion_steps > 1000)
+    bad.emplace_back("motion_steps",
+                     fmt::format("motion_steps {} is outside 2..1000", motion_steps));
+  return bad;
+}
+
 JointPosesGenerator::JointPosesGenerator(const RobotModel& model,
                                          std::vector<std::vector<double>> poses,
                                          JointPosesOptions options)
@@ -34,13 +48,7 @@ JointPosesGenerator::JointPosesGenerator(const RobotModel& model,
       kinematics_(edp::make_arm_kinematics(model)),
       poses_(std::move(poses)),
       options_(options) {
-  if (!(options_.velocity_scale > 0.0 && options_.velocity_scale <= 1.0))
-    throw Error(fmt::format("velocity_scale {} is outside (0, 1]", options_.velocity_scale));
-  if (!(options_.acceleration_scale > 0.0 && options_.acceleration_scale <= 1.0))
-    throw Error(
-        fmt::format("acceleration_scale {} is outside (0, 1]", options_.acceleration_scale));
-  if (options_.motion_steps < 2 || options_.motion_steps > 1000)
-    throw Error(fmt::format("motion_steps {} is outside 2..1000", options_.motion_steps));
+  if (const auto bad = options_.out_of_range(); !bad.empty()) throw Error(bad.front().second);
   for (std::size_t i = 0; i < poses_.size(); ++i)
     model_.check_joint_limits(poses_[i], fmt::format("pose {}", i + 1).c_str());
   for (std::size_t i = 1; i < poses_.size(); ++i)

@@ -4,6 +4,8 @@
 /// time scaling, so velocity and acceleration are continuous and zero at every pose.
 
 #include <memory>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "mrroc/core/time.hpp"
@@ -19,6 +21,11 @@ struct JointPosesOptions {
   double acceleration_scale = 0.5;  ///< fraction of the model's max joint acceleration (0..1]
   int motion_steps = 10;            ///< servo steps per macro-step (>= 2)
   double servo_period_s = kDefaultServoPeriodS;  ///< EDP servo period [s]
+
+  /// Every option outside its range, each as its name (the task argument's, e.g.
+  /// "velocity_scale") and why ("velocity_scale 2 is outside (0, 1]"); empty when all are in
+  /// range. The one check of these ranges: the generator throws the first.
+  [[nodiscard]] std::vector<std::pair<std::string, std::string>> out_of_range() const;
 };
 
 class JointPosesGenerator : public Generator {

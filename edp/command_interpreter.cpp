@@ -1,5 +1,7 @@
 #include "command_interpreter.hpp"
 
+#include "collision_guard.hpp"
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -430,6 +432,8 @@ void CommandInterpreter::check_path(const std::vector<double>& start,
     kinematics_.check_joint_limits(q, what.c_str());
     kinematics_.check_motor_limits(kinematics_.motors_from_joints(q), what.c_str());
   }
+  // The same line against the cell and the robot itself (collision_guard.hpp).
+  if (collision_ != nullptr) collision_->check_path(start, target, steps);
 }
 
 std::vector<double> CommandInterpreter::arm_values(const std::vector<double>& joints,

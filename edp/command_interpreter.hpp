@@ -48,6 +48,8 @@
 
 namespace mrroc::edp {
 
+class CollisionGuard;
+
 class CommandInterpreter {
  public:
   CommandInterpreter(ServoLoop& servo, const RobotModel& model, ArmKinematics& kinematics,
@@ -66,6 +68,9 @@ class CommandInterpreter {
   /// Set when the last execute() changed the owner (for the EDP's report).
   [[nodiscard]] bool owner_changed() const { return owner_changed_; }
   void set_owner_lease(double seconds) { owner_lease_s_ = seconds; }
+  /// Checks every SET ARM's path with `guard` too (null: no collision check); the guard must
+  /// outlive the interpreter.
+  void set_collision_guard(CollisionGuard* guard) { collision_ = guard; }
 
  private:
   enum class Due { nothing, arm_reading, synchro, get };
@@ -102,6 +107,7 @@ class CommandInterpreter {
   std::chrono::steady_clock::time_point owner_seen_{};
   double owner_lease_s_ = 2.0;
   bool owner_changed_ = false;
+  CollisionGuard* collision_ = nullptr;
 };
 
 }  // namespace mrroc::edp

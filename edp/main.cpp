@@ -6,6 +6,7 @@
 #include <mutex>
 #include <thread>
 
+#include "collision_guard.hpp"
 #include "command_interpreter.hpp"
 #include "estop_listener.hpp"
 #include "mrroc/comm/auth.hpp"
@@ -83,8 +84,12 @@ struct Prepared {
   mrroc::RobotModel model;
   std::unique_ptr<mrroc::edp::Hardware> hardware;
   std::unique_ptr<mrroc::edp::ArmKinematics> kinematics;
+  /// Null when the guard is off; `collision_text` says why, or what it guards.
+  std::unique_ptr<mrroc::edp::CollisionGuard> collision;
+  std::string collision_text;
 };
-Prepared prepare(const mrroc::RobotConfig& robot, bool open_devices) {
+Prepared prepare(const mrroc::RobotConfig& robot, const mrroc::CollisionConfig& collision,
+                 bool open_devices) {
   using namespace mrroc;
   Prepared p;
   p.model = load_robot_model(robot.model_dir);
@@ -94,6 +99,14 @@ Prepared prepare(const mrroc::RobotConfig& robot, bool open_devices) {
              [&] { p.hardware = edp::make_configured_hardware(robot, p.model, open_devices); });
   errors.run(SourceLocation::whole_file((robot.model_dir / "parameters.toml").string()),
              [&] { p.kinematics = edp::make_arm_kinematics(p.model); });
+  // The model the robot is simulated with (the mujoco plugin's `mjcf`), else its own.
+  errors.run(robot.edp.where, [&] {
+    const std::filesystem::path mjcf =
+        robot.edp.params.has("mjcf") ? robot.model_dir / robot.edp.params.get_string("mjcf")
+                                     : p.model.mjcf;
+    p.collision = edp::CollisionGuard::make(p.model, robot, collision, mjcf, p.collision_text);
+    if (p.collision) p.collision_text = p.collision->describe();
+  });
   errors.throw_if_any();
   return p;
 }
@@ -116,7 +129,7 @@ int check(const std::string& config_path, const std::string& robot_name) {
   std::string devices;
   if (!set.broken_process("edp/" + robot_name)) {
     errors.run(SourceLocation::whole_file(set.config.file.string()), [&] {
-      const Prepared p = prepare(set.config.robot(robot_name), false);
+      const Prepared p = prepare(set.config.robot(robot_name), set.config.collision, false);
       devices = devices_declaration(*p.hardware);
     });
   }
@@ -146,7 +159,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
   refuse_if_another_edp(bus, robot.name, config.file.string());
   Reporter reporter(bus, process, robot.name);
   try {
-    Prepared prepared = prepare(robot, true);
+    Prepared prepared = prepare(robot, config.collision, true);
     const RobotModel& model = prepared.model;
     const std::unique_ptr<edp::Hardware> hardware = std::move(prepared.hardware);
     const std::unique_ptr<edp::ArmKinematics> kinematics = std::move(prepared.kinematics);
@@ -178,6 +191,7 @@ int run(const std::string& config_path, const std::string& robot_name) {
                                reporter.report(Severity::warning, code, text);
                              });
     edp::CommandInterpreter interpreter(servo, model, *kinematics, robot.edp.servo_period_s);
+    interpreter.set_collision_guard(prepared.collision.get());
     // A request that took longer than kRequestDeadline to arrive is dropped, not executed: its
     // client has given up on it or re-sent it (every attempt carries its own send time).
     comm::ServerOptions server_options;
@@ -210,10 +224,12 @@ int run(const std::string& config_path, const std::string& robot_name) {
     reporter.info(fmt::format(
         "ready: plugin '{}', {} axes, kinematics '{}', servo period {:.3f} "
         "ms, {}, lookahead {} macro-step{}, communication {}, emergency "
-        "stop listener {}, {}; {}",
+        "stop listener {}, {}; {}; {}",
         hardware->name(), model.axes(), kinematics->name(), robot.edp.servo_period_s * 1e3,
         servo.timing().scheduling, robot.edp.lookahead, robot.edp.lookahead == 1 ? "" : "s",
-        scheduling, estop.scheduling(), memory, estop_text));
+        scheduling, estop.scheduling(), memory, estop_text,
+        prepared.collision ? prepared.collision_text
+                           : "collision guard " + prepared.collision_text));
     reporter.set_state(ProcessState::ready, devices_declaration(*hardware));
 
     bool hardware_fault_reported = false;

@@ -2,6 +2,8 @@
 
 #include "mrroc/config/check.hpp"
 
+#include "collision_reader.hpp"
+
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <netinet/in.h>
@@ -857,7 +859,7 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
   config.file = file;
   const Reader r(config.file, sink, broken);
   r.only_keys(root, "top level",
-              {"system", "srp", "emulator", "vsp", "mp", "robot", "ui", "launch"});
+              {"system", "srp", "emulator", "vsp", "mp", "robot", "ui", "launch", "collision"});
   r.guard([&] { r.system(root, config); });
   r.guard([&] { config.srp = r.srp(root.get("srp")); });
   r.guard([&] { config.ui = r.ui(root.get("ui")); });
@@ -867,6 +869,11 @@ ProcessSetConfig process_set_from_table(const toml::table& root, const fs::path&
   if (const toml::node* vsps = root.get("vsp")) r.guard([&] { config.vsps = r.vsps(*vsps); });
   if (!r.guard([&] { r.mp(root, config); })) r.mark_broken("mp");
   r.guard([&] { config.robots = r.robots(root); });
+  r.guard([&] {
+    std::vector<std::string> robot_names;
+    for (const RobotConfig& robot : config.robots) robot_names.push_back(robot.name);
+    config.collision = config_detail::read_collision(root.get("collision"), file, robot_names);
+  });
   r.guard([&] { check_hosts(config); });
   return config;
 }

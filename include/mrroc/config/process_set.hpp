@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "mrroc/config/collision.hpp"
 #include "mrroc/config/params.hpp"
 #include "mrroc/core/time.hpp"
 
@@ -213,6 +214,8 @@ struct ProcessSetConfig {
   std::optional<EmulatorConfig> emulator;  ///< started after the SRP, before the EDPs
   std::vector<RobotConfig> robots;
   std::vector<VspConfig> vsps;  ///< started after the emulator, before the EDPs
+  /// The collision guard of the EDPs ([collision]; defaults when the set has none).
+  CollisionConfig collision;
 
   /// @throws ConfigError when no robot has this name.
   [[nodiscard]] const RobotConfig& robot(const std::string& name) const;

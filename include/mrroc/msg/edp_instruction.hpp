@@ -107,11 +107,13 @@ inline constexpr int unauthenticated =
 inline constexpr int too_fast = 13;    ///< a macro-step would exceed a joint's velocity limit
 inline constexpr int too_abrupt = 14;  ///< a macro-step would exceed a joint's acceleration limit
 inline constexpr int not_owner = 15;   ///< another client drives this EDP
+/// a macro-step would bring a link closer than the clearance to the cell or the robot itself
+inline constexpr int collision = 16;
 }  // namespace error_code
 
 /// The class of each EDP error code (mrroc::ErrorClass): the one table the EDP answers with.
 /// non_fatal: the instruction was refused and nothing moved (a limit, not synchronised, a bad
-/// argument, too fast or abrupt, a QUERY out of order); fatal: the robot cannot go on as it is
+/// argument, too fast or abrupt, a collision, a QUERY out of order); fatal: the robot cannot go on as it is
 /// (a drive fault, an emergency stop, another owner); system: the link or message failed
 /// (malformed, not authentic).
 constexpr ErrorClass error_class_of(int code) {
@@ -125,7 +127,8 @@ constexpr ErrorClass error_class_of(int code) {
     case error_code::bad_argument:
     case error_code::not_supported:
     case error_code::too_fast:
-    case error_code::too_abrupt: return ErrorClass::non_fatal;
+    case error_code::too_abrupt:
+    case error_code::collision: return ErrorClass::non_fatal;
     case error_code::hardware_fault:
     case error_code::emergency_stop:
     case error_code::servo_overrun:

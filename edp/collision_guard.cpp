@@ -158,10 +158,10 @@ std::unique_ptr<CollisionGuard> CollisionGuard::make(const RobotModel& model,
                                                      std::string& why_not) {
   why_not.clear();
   if (!config.enabled) {
-    why_not = fmt::format("off ({}: [collision] enabled = false)", config.enabled_where.file);
-    if (config.enabled_where.line > 0)
-      why_not = fmt::format("off ({}:{}: [collision] enabled = false)", config.enabled_where.file,
-                            config.enabled_where.line);
+    why_not = config.enabled_where.line > 0
+                  ? fmt::format("off ({}:{}: [collision] enabled = false)",
+                                config.enabled_where.file, config.enabled_where.line)
+                  : fmt::format("off ({} has no [collision] section)", config.enabled_where.file);
     return nullptr;
   }
   if (mjcf.empty()) {

@@ -101,9 +101,9 @@ Prepared prepare(const mrroc::RobotConfig& robot, const mrroc::CollisionConfig& 
              [&] { p.kinematics = edp::make_arm_kinematics(p.model); });
   // The model the robot is simulated with (the mujoco plugin's `mjcf`), else its own.
   errors.run(robot.edp.where, [&] {
-    const std::filesystem::path mjcf =
-        robot.edp.params.has("mjcf") ? robot.model_dir / robot.edp.params.get_string("mjcf")
-                                     : p.model.mjcf;
+    const std::filesystem::path mjcf = robot.edp.params.has("mjcf")
+                                           ? robot.model_dir / robot.edp.params.get_string("mjcf")
+                                           : p.model.mjcf;
     p.collision = edp::CollisionGuard::make(p.model, robot, collision, mjcf, p.collision_text);
     if (p.collision) p.collision_text = p.collision->describe();
   });

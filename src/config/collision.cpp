@@ -144,6 +144,7 @@ CollisionConfig read_collision(const toml::node* node, const std::filesystem::pa
   const toml::table& t = *node->as_table();
   c.where = r.where(t);
   c.enabled_where = c.where;
+  c.enabled = true;  // a [collision] section turns the guard on
   r.only_keys(t, "collision", {"enabled", "clearance", "allow", "object"});
   if (const toml::node* enabled = t.get("enabled")) {
     if (!enabled->is_boolean()) r.fail(*enabled, "'enabled' must be true or false");

@@ -38,14 +38,14 @@ struct AllowedContact {
 };
 
 struct CollisionConfig {
-  /// The EDPs check every SET ARM against collisions (default on: a set without `[collision]`
-  /// gets self-collision guarding at the default clearance).
-  bool enabled = true;
+  /// The EDPs check every SET ARM against collisions: on when the set has a `[collision]`
+  /// section (unless it says `enabled = false`), off when it has none.
+  bool enabled = false;
   double clearance_m = kDefaultCollisionClearance;  ///< 0 < clearance <= kMaxCollisionClearance
   std::vector<CollisionObject> objects;
   std::vector<AllowedContact> allowed;
-  SourceLocation where;  ///< the [collision] table (file only when the set has none)
-  SourceLocation enabled_where;
+  SourceLocation where;          ///< the [collision] table (file only when the set has none)
+  SourceLocation enabled_where;  ///< its `enabled` key, else the table (file only: no table)
 };
 
 }  // namespace mrroc

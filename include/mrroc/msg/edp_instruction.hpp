@@ -113,8 +113,8 @@ inline constexpr int collision = 16;
 
 /// The class of each EDP error code (mrroc::ErrorClass): the one table the EDP answers with.
 /// non_fatal: the instruction was refused and nothing moved (a limit, not synchronised, a bad
-/// argument, too fast or abrupt, a collision, a QUERY out of order); fatal: the robot cannot go on as it is
-/// (a drive fault, an emergency stop, another owner); system: the link or message failed
+/// argument, too fast or abrupt, a collision, a QUERY out of order); fatal: the robot cannot go on
+/// as it is (a drive fault, an emergency stop, another owner); system: the link or message failed
 /// (malformed, not authentic).
 constexpr ErrorClass error_class_of(int code) {
   switch (code) {

@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include "mrroc/core/error.hpp"
@@ -295,11 +296,23 @@ CollisionGuard::CollisionGuard(const RobotModel& robot_model, const RobotConfig&
   }
 
   // Pairs of the robot's own links closer than the clearance at the synchronisation pose touch
-  // by design.
+  // by design. A fixed object that close is a mistake of the configuration (the robot could
+  // never be synchronised there without touching it): the first one is an error at the object,
+  // naming the allowed pair that would accept it.
   if (robot_model.synchro_joint_positions.size() == axes) {
     impl_->evaluate(robot_model.synchro_joint_positions, clearance_, impl_->start_pairs);
     for (const PairDistance& p : impl_->start_pairs) {
-      if (static_cast<std::size_t>(p.b) >= nbody) continue;
+      if (static_cast<std::size_t>(p.b) >= nbody) {
+        const CollisionObject& o = config.objects[static_cast<std::size_t>(p.b) - nbody];
+        const std::string link(mj_id2name(m, mjOBJ_BODY, p.a));
+        throw ConfigError(
+            o.where,
+            fmt::format("object '{}' is {} link '{}' of robot '{}' at its synchronisation pose "
+                        "(distance {:.4f} m, clearance {:g} m): move or resize the object, or "
+                        "allow the pair in [collision]: allow = [[\"{}/{}\", \"{}\"]]",
+                        o.name, p.distance < 0 ? "inside" : "within the clearance of", link,
+                        robot.name, p.distance, clearance_, robot.name, link, o.name));
+      }
       impl_->allow(p.a, p.b);
       impl_->default_pairs.push_back(
           fmt::format("{} - {} ({:.3f} m)", impl_->part_names[static_cast<std::size_t>(p.a)],
@@ -313,7 +326,7 @@ CollisionGuard::CollisionGuard(const RobotModel& robot_model, const RobotConfig&
 CollisionGuard::~CollisionGuard() = default;
 
 std::optional<Proximity> CollisionGuard::closest(std::span<const double> q) {
-  ++poses_checked_;
+  poses_checked_.fetch_add(1, std::memory_order_relaxed);
   impl_->evaluate(q, clearance_, impl_->step_pairs);
   if (impl_->step_pairs.empty()) return std::nullopt;
   const auto it = std::min_element(
@@ -335,8 +348,24 @@ int CollisionGuard::sample_stride(std::span<const double> start, std::span<const
 
 void CollisionGuard::check_path(std::span<const double> start, std::span<const double> target,
                                 int steps) {
+  // Timed with its refusal: the time and count go into statistics() however the check ends.
+  struct Timer {
+    CollisionGuard& guard;
+    std::chrono::steady_clock::time_point began = std::chrono::steady_clock::now();
+    bool refused = true;  // until the check ends normally
+    ~Timer() {
+      const long long ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::steady_clock::now() - began)
+                               .count();
+      guard.paths_.fetch_add(1, std::memory_order_relaxed);
+      if (refused) guard.refused_.fetch_add(1, std::memory_order_relaxed);
+      guard.path_ns_.fetch_add(ns, std::memory_order_relaxed);
+      if (ns > guard.max_path_ns_.load(std::memory_order_relaxed))
+        guard.max_path_ns_.store(ns, std::memory_order_relaxed);  // one writer: this thread
+    }
+  } timer{*this};
   Impl& p = *impl_;
-  ++poses_checked_;
+  poses_checked_.fetch_add(1, std::memory_order_relaxed);
   p.evaluate(start, clearance_, p.start_pairs);
   const int stride = sample_stride(start, target, steps);
   std::vector<double> q(target.size());
@@ -344,7 +373,7 @@ void CollisionGuard::check_path(std::span<const double> start, std::span<const d
     k = std::min(k, steps);
     const double s = static_cast<double>(k) / steps;
     for (std::size_t i = 0; i < q.size(); ++i) q[i] = start[i] + (target[i] - start[i]) * s;
-    ++poses_checked_;
+    poses_checked_.fetch_add(1, std::memory_order_relaxed);
     p.evaluate(q, clearance_, p.step_pairs);
     for (const PairDistance& pair : p.step_pairs) {
       const auto at_start =
@@ -371,6 +400,27 @@ void CollisionGuard::check_path(std::span<const double> start, std::span<const d
     }
     if (k == steps) break;
   }
+  timer.refused = false;
+}
+
+CollisionGuard::Statistics CollisionGuard::statistics() const {
+  Statistics s;
+  s.paths = paths_.load(std::memory_order_relaxed);
+  s.refused = refused_.load(std::memory_order_relaxed);
+  s.poses = poses_checked_.load(std::memory_order_relaxed);
+  if (s.paths > 0)
+    s.mean_us = static_cast<double>(path_ns_.load(std::memory_order_relaxed)) * 1e-3 /
+                static_cast<double>(s.paths);
+  s.max_us = static_cast<double>(max_path_ns_.load(std::memory_order_relaxed)) * 1e-3;
+  return s;
+}
+
+std::string CollisionGuard::statistics_text() const {
+  const Statistics s = statistics();
+  return fmt::format(
+      "collision guard: {} path{} checked ({} refused), {} poses, mean {:.1f} us, max {:.1f} us "
+      "per path",
+      s.paths, s.paths == 1 ? "" : "s", s.refused, s.poses, s.mean_us, s.max_us);
 }
 
 std::string CollisionGuard::describe() const {

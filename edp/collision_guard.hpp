@@ -22,7 +22,9 @@
 ///
 /// Units: m, rad. Not thread-safe: one guard per command thread.
 
+#include <atomic>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -44,8 +46,9 @@ class CollisionGuard {
   /// The guard of `robot` in the cell of `config`, or null (with `why_not` set) when the set
   /// turns it off or the robot's model cannot be guarded yet. `mjcf`: the model file the robot is
   /// simulated with (its `[robot.edp.params] mjcf`, else the robot's own).
-  /// @throws ConfigError at the `allow` entry naming a link this robot's model does not have, or
-  /// when the model cannot be loaded.
+  /// @throws ConfigError at the `allow` entry naming a link this robot's model does not have, at
+  /// a `[[collision.object]]` closer than the clearance to a link at the robot's synchronisation
+  /// pose (unless allowed), or when the model cannot be loaded.
   static std::unique_ptr<CollisionGuard> make(const RobotModel& model, const RobotConfig& robot,
                                               const CollisionConfig& config,
                                               const std::filesystem::path& mjcf,
@@ -82,15 +85,34 @@ class CollisionGuard {
   /// Per axis: the farthest any geometry moved by the joint reaches from its axis [m] (1 for a
   /// prismatic joint: m per m).
   [[nodiscard]] const std::vector<double>& reach() const { return reach_; }
-  /// Checked poses since construction (for the cost per macro-step).
-  [[nodiscard]] long poses_checked() const { return poses_checked_; }
+  /// Checked poses since construction (for the cost per macro-step). Any thread.
+  [[nodiscard]] long poses_checked() const {
+    return poses_checked_.load(std::memory_order_relaxed);
+  }
+
+  /// What `check_path` cost since construction, for the EDP's timing report. Any thread (the
+  /// figures are updated one by one, so a reading during a check may mix two checks).
+  struct Statistics {
+    long paths = 0;      ///< check_path calls, refused ones included
+    long refused = 0;    ///< of them
+    long poses = 0;      ///< poses checked, closest() included
+    double mean_us = 0;  ///< wall-clock time per check_path
+    double max_us = 0;
+  };
+  [[nodiscard]] Statistics statistics() const;
+  /// "collision guard: N paths checked (M refused), P poses, mean X us, max Y us per path".
+  [[nodiscard]] std::string statistics_text() const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
   double clearance_ = 0;
   std::vector<double> reach_;
-  long poses_checked_ = 0;
+  std::atomic<long> poses_checked_{0};
+  std::atomic<long> paths_{0};
+  std::atomic<long> refused_{0};
+  std::atomic<long long> path_ns_{0};
+  std::atomic<long long> max_path_ns_{0};
 };
 
 }  // namespace mrroc::edp

@@ -304,9 +304,11 @@ int run(const std::string& config_path, const std::string& robot_name) {
       const edp::TimingStats t = servo.timing();
       reporter.report(t.overruns > 0 ? Severity::warning : Severity::info, 0,
                       fmt::format("servo loop: {} cycles of {:.0f} us, lateness p50 {:.1f} us, "
-                                  "p99 {:.1f} us, max {:.1f} us, {} overruns",
+                                  "p99 {:.1f} us, max {:.1f} us, {} overruns{}",
                                   t.cycles, t.period_us, t.lateness_p50_us, t.lateness_p99_us,
-                                  t.lateness_max_us, t.overruns));
+                                  t.lateness_max_us, t.overruns,
+                                  prepared.collision ? "; " + prepared.collision->statistics_text()
+                                                     : std::string()));
     };
     // The robot's state goes out every kStatePeriod (console, recordings, plots); timing
     // statistics go to the SRP every kTimingReportPeriod and when the EDP stops; an overrun (a

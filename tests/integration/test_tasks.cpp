@@ -1,9 +1,12 @@
 // Test task plugin (a shared library loaded through `library = ...`): ECP and MP tasks that
 // exercise error handling and PAUSE/RESUME through real process sets.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <thread>
 
 #include "mrroc/ecp/errors.hpp"
@@ -170,6 +173,61 @@ class EdpSettings : public ecp::EcpTask {
   ecp::TaskContext& context_;
 };
 MRROC_REGISTER_ECP_TASK("edp_settings", EdpSettings);
+
+/// ECP task "single_set": synchronises, then sends one SET ARM JOINT to `target` [rad] in
+/// `motion_steps` servo steps (its reading after the motion). When the EDP refuses it, waits
+/// 0.3 s, reads the arm back and reports the refusal's code and text and how far the commanded and
+/// the measured joints moved since before the SET [rad], then rethrows the refusal (the ECP shell
+/// passes its code and class on to the MP). When it is accepted, reports where the robot ended.
+class SingleSet : public ecp::EcpTask {
+ public:
+  explicit SingleSet(ecp::TaskContext& context)
+      : context_(context),
+        target_(context.args.get_doubles("target")),
+        steps_(static_cast<int>(context.args.get_int("motion_steps"))) {
+    context.args.reject_unread("robot.ecp.args");
+  }
+  void main_task() override {
+    ecp::Robot& robot = context_.robot;
+    robot.synchronise();
+    const std::vector<double> before = robot.image().joints;
+    const std::vector<double> before_desired = robot.image().desired_joints;
+    edp::Instruction& c = robot.image().command;
+    c = edp::Instruction{};
+    c.type = edp::InstructionType::set;
+    c.set = edp::item::arm;
+    c.set_arm_type = edp::ArmRepresentation::joint;
+    c.motion_steps = steps_;
+    c.value_in_step_no = steps_ + 1;
+    c.arm = target_;
+    try {
+      robot.execute();
+    } catch (const ecp::EdpRefused& e) {
+      // Long enough for anything queued to have started moving (15 of the EDP's states).
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+      robot.read_state();
+      double moved = 0.0, commanded = 0.0;
+      for (std::size_t i = 0; i < before.size(); ++i) {
+        moved = std::max(moved, std::abs(robot.image().joints.at(i) - before[i]));
+        commanded =
+            std::max(commanded, std::abs(robot.image().desired_joints.at(i) - before_desired[i]));
+      }
+      context_.reporter.info(
+          fmt::format("SET refused with code {}: {}; commanded joints moved by "
+                      "at most {:.3e} rad, measured by at most {:.3e} rad",
+                      e.code(), e.what(), commanded, moved));
+      throw;
+    }
+    context_.reporter.info(
+        fmt::format("SET accepted: joints [{:.4f}] rad", fmt::join(robot.image().joints, ", ")));
+  }
+
+ private:
+  ecp::TaskContext& context_;
+  std::vector<double> target_;
+  int steps_;
+};
+MRROC_REGISTER_ECP_TASK("single_set", SingleSet);
 
 /// MP task "retry": runs the ECP sub-task "fail" until it succeeds; goes on after non-fatal
 /// errors, aborts on the others.

@@ -418,9 +418,10 @@ CollisionGuard::Statistics CollisionGuard::statistics() const {
 std::string CollisionGuard::statistics_text() const {
   const Statistics s = statistics();
   return fmt::format(
-      "collision guard: {} path{} checked ({} refused), {} poses, mean {:.1f} us, max {:.1f} us "
+      "collision guard: {} path{} checked, {} refusal{}, {} poses, mean {:.1f} us, max {:.1f} us "
       "per path",
-      s.paths, s.paths == 1 ? "" : "s", s.refused, s.poses, s.mean_us, s.max_us);
+      s.paths, s.paths == 1 ? "" : "s", s.refused, s.refused == 1 ? "" : "s", s.poses, s.mean_us,
+      s.max_us);
 }
 
 std::string CollisionGuard::describe() const {

@@ -100,7 +100,8 @@ class CollisionGuard {
     double max_us = 0;
   };
   [[nodiscard]] Statistics statistics() const;
-  /// "collision guard: N paths checked (M refused), P poses, mean X us, max Y us per path".
+  /// "collision guard: N paths checked, M refusals, P poses, mean X us, max Y us per path" (no
+  /// "refused": the tests and scripts that look for a refusal in a set's output search for it).
   [[nodiscard]] std::string statistics_text() const;
 
  private:

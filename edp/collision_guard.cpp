@@ -120,6 +120,11 @@ struct CollisionGuard::Impl {
   std::vector<std::string> default_pairs;  ///< allowed at the synchronisation pose
   int configured_pairs = 0;
   std::vector<PairDistance> start_pairs, step_pairs;
+  /// The target of the last path that passed and its pairs: the next macro-step starts there
+  /// (the interpreter's planned end), so its start need not be evaluated again.
+  std::vector<double> last_target;
+  std::vector<PairDistance> last_target_pairs;
+  std::vector<double> pose;  ///< the pose being checked
 
   [[nodiscard]] bool is_allowed(int a, int b) const {
     return allowed[static_cast<std::size_t>(a) * parts + static_cast<std::size_t>(b)] != 0;
@@ -321,6 +326,9 @@ CollisionGuard::CollisionGuard(const RobotModel& robot_model, const RobotConfig&
   }
   impl_->start_pairs.reserve(16);
   impl_->step_pairs.reserve(16);
+  impl_->last_target_pairs.reserve(16);
+  impl_->last_target.reserve(axes);
+  impl_->pose.resize(axes);
 }
 
 CollisionGuard::~CollisionGuard() = default;
@@ -365,10 +373,14 @@ void CollisionGuard::check_path(std::span<const double> start, std::span<const d
     }
   } timer{*this};
   Impl& p = *impl_;
-  poses_checked_.fetch_add(1, std::memory_order_relaxed);
-  p.evaluate(start, clearance_, p.start_pairs);
+  if (std::equal(start.begin(), start.end(), p.last_target.begin(), p.last_target.end())) {
+    p.start_pairs = p.last_target_pairs;  // where the last path that passed ended
+  } else {
+    poses_checked_.fetch_add(1, std::memory_order_relaxed);
+    p.evaluate(start, clearance_, p.start_pairs);
+  }
   const int stride = sample_stride(start, target, steps);
-  std::vector<double> q(target.size());
+  std::vector<double>& q = p.pose;
   for (int k = stride;; k += stride) {
     k = std::min(k, steps);
     const double s = static_cast<double>(k) / steps;
@@ -400,6 +412,8 @@ void CollisionGuard::check_path(std::span<const double> start, std::span<const d
     }
     if (k == steps) break;
   }
+  p.last_target.assign(target.begin(), target.end());
+  p.last_target_pairs = p.step_pairs;  // evaluated at k == steps: the target
   timer.refused = false;
 }
 

@@ -133,6 +133,33 @@ TEST(CollisionGuard, APathThroughABoxIsRefusedBeforeTheFirstStepThatTouchesIt) {
               guard.sample_stride(kSynchro, kTurned, kSteps));
 }
 
+TEST(CollisionGuard, TheSamePathInTenMacroStepsIsRefusedAtTheSameServoStep) {
+  // Each macro-step starts where the last one that passed ended (the guard reuses that pose's
+  // pairs instead of evaluating it again): the refusal falls on the same servo step of the whole
+  // path as when it is one macro-step.
+  Cell one(box_section(1.155));
+  const std::optional<CommandError> whole = refusal(*one.guard, kSynchro, kTurned, kSteps);
+  ASSERT_TRUE(whole.has_value());
+  std::smatch m;
+  const std::string whole_text = whole->what();
+  ASSERT_TRUE(std::regex_search(whole_text, m, std::regex(R"(at servo step (\d+) of 500)")));
+  const int step = std::stoi(m[1].str());
+
+  Cell cell(box_section(1.155));
+  const long poses_before = cell.guard->poses_checked();
+  int segment = 0;
+  std::optional<CommandError> e;
+  for (; segment < 10 && !e; ++segment)
+    e = refusal(*cell.guard, along(kSynchro, kTurned, 50 * segment, kSteps),
+                along(kSynchro, kTurned, 50 * (segment + 1), kSteps), 50);
+  ASSERT_TRUE(e.has_value());
+  const std::string text = e->what();
+  ASSERT_TRUE(std::regex_search(text, m, std::regex(R"(at servo step (\d+) of 50)"))) << text;
+  EXPECT_EQ(50 * (segment - 1) + std::stoi(m[1].str()), step) << text << " vs " << whole_text;
+  // The start of every macro-step but the first came from the one before.
+  EXPECT_EQ(cell.guard->poses_checked() - poses_before, 1 + step) << text;
+}
+
 TEST(CollisionGuard, APathBesideTheBoxWithItsClearancePasses) {
   // The box raised so that its bottom is 0.03 m above the top of the wrist link passing under
   // it (z 1.155 + its radius 0.05; the upper arm, thicker, ends before the box): 0.01 m more

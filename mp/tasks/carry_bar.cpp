@@ -232,19 +232,7 @@ class CarryBar : public MpTask {
         throw ConfigError(args.location_of("bar_length"),
                           fmt::format("'bar_length' = {} m must be > 0 m", bar_length_));
     });
-    errors.run(args.location_of("path"), [&] {
-      const auto rows = args.get_double_rows("path");
-      for (std::size_t i = 0; i < rows.size(); ++i)
-        if (rows[i].size() != 3)
-          throw ConfigError(args.location_of_row("path", i),
-                            fmt::format("every 'path' point is [x, y, z] (m); point {} has {} "
-                                        "values",
-                                        i + 1, rows[i].size()));
-      for (const auto& p : rows) path_.emplace_back(p[0], p[1], p[2]);
-      if (path_.size() < 2)
-        throw ConfigError(args.location_of("path"),
-                          fmt::format("'path' needs at least two points, it has {}", path_.size()));
-    });
+    errors.run(args.location_of("path"), [&] { path_ = read_path_points(args); });
     errors.run(args.location_of("speed"), [&] {
       speed_ = args.get_double("speed", 0.05);
       if (!(speed_ > 0.0 && speed_ <= 0.5))

@@ -2,13 +2,35 @@
 // A path of points cut into macro-steps, for the MP tasks that generate Cartesian paths
 // (carry_bar, tool_path): straight segments, each rest to rest with the quintic time law
 // s(t) = 10 t^3 - 15 t^4 + 6 t^5, whose peak speed is 1.875 times its mean.
+#include <fmt/format.h>
+
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <utility>
 #include <vector>
 
+#include "mrroc/config/params.hpp"
+#include "mrroc/core/error.hpp"
+
 namespace mrroc::mp {
+
+/// The task argument 'path': at least two points [x, y, z] (m). @throws ConfigError at the row
+/// or the key that is wrong.
+inline std::vector<Eigen::Vector3d> read_path_points(const Params& args) {
+  const auto rows = args.get_double_rows("path");
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    if (rows[i].size() != 3)
+      throw ConfigError(args.location_of_row("path", i),
+                        fmt::format("every 'path' point is [x, y, z] (m); point {} has {} values",
+                                    i + 1, rows[i].size()));
+  std::vector<Eigen::Vector3d> points;
+  for (const auto& p : rows) points.emplace_back(p[0], p[1], p[2]);
+  if (points.size() < 2)
+    throw ConfigError(args.location_of("path"),
+                      fmt::format("'path' needs at least two points, it has {}", points.size()));
+  return points;
+}
 
 class StraightPath {
  public:

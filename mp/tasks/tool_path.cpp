@@ -90,19 +90,8 @@ class ToolPath : public MpTask {
     ConfigErrorList errors;
     errors.run(args.location_of("robot"),
                [&] { robot_ = &context.robot(args.get_string("robot")); });
-    const bool have_path = errors.run(args.location_of("path"), [&] {
-      const auto rows = args.get_double_rows("path");
-      for (std::size_t i = 0; i < rows.size(); ++i)
-        if (rows[i].size() != 3)
-          throw ConfigError(args.location_of_row("path", i),
-                            fmt::format("every 'path' point is [x, y, z] (m); point {} has {} "
-                                        "values",
-                                        i + 1, rows[i].size()));
-      for (const auto& p : rows) path_.emplace_back(p[0], p[1], p[2]);
-      if (path_.size() < 2)
-        throw ConfigError(args.location_of("path"),
-                          fmt::format("'path' needs at least two points, it has {}", path_.size()));
-    });
+    const bool have_path =
+        errors.run(args.location_of("path"), [&] { path_ = read_path_points(args); });
     errors.run(args.location_of("rotation"), [&] {
       const std::vector<double> r = args.get_doubles("rotation", {0.0, 0.0, 0.0});
       if (r.size() != 3)

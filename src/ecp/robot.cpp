@@ -32,7 +32,12 @@ Robot::Robot(comm::Bus& bus, const std::string& process_name, const std::string&
       client_(bus, process_name, robot_name, options) {}
 
 edp::Reply Robot::exchange(const edp::Instruction& instruction) {
-  return client_.call(instruction);
+  try {
+    return client_.call(instruction);
+  } catch (const CallAbandoned& e) {
+    // request_stop() ended the wait: a STOP does not wait for a silent EDP's last attempts.
+    throw TaskStopped(std::string("task stopped on request (") + e.what() + ")");
+  }
 }
 
 void Robot::update_image(const edp::Reply& reply, std::uint8_t asked) {
@@ -86,6 +91,7 @@ void Robot::follow_settings(const edp::Instruction& sent) {
 
 void Robot::request_stop() {
   stop_.store(true);
+  client_.abandon();
   std::lock_guard lock(pause_mutex_);
   pause_cv_.notify_all();
 }

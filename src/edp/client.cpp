@@ -46,6 +46,8 @@ void Client::take_over_next() { impl_->take_over_next = true; }
 
 bool Client::take_over_due() const { return impl_->take_over_next; }
 
+void Client::abandon() { impl_->link.abandon(); }
+
 Reply Client::call(const Instruction& instruction) {
   Reply reply;
   try {
@@ -58,6 +60,9 @@ Reply Client::call(const Instruction& instruction) {
     }
   } catch (const TimeoutError&) {
     // Whatever the EDP did with it, the next instruction starts afresh.
+    impl_->take_over_next = true;
+    throw;
+  } catch (const CallAbandoned&) {
     impl_->take_over_next = true;
     throw;
   }

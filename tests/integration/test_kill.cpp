@@ -5,12 +5,16 @@
 //                      then exits; the task fails or the launcher stops the set (exit 1 or 4).
 //   EDP killed      -> every drive misses its master's heartbeat (0x1016) or SYNC (0x1006) and
 //                      quick-stops (0x6007 = 3, EMCY 0x8130 or 0x8100) 150 ms after the last
-//                      one (the can plugin's default on a virtual bus); the launcher stops the
-//                      set, exit 4.
+//                      one (the can plugin's default on a virtual bus); the EDP is made not
+//                      required here so that the emulator runs on: the ECP finds the EDP
+//                      silent and the task fails, exit 1.
 //   emulator killed -> the EDP finds its drives silent within 75 cycles (150 ms, the default on
 //                      a virtual bus) and holds; the task fails (exit 1). The emulator is made
 //                      not required here, so the launcher's own stop of the set cannot come
 //                      first.
+//                      With the EDP required (the stock config) the launcher stops the set
+//                      at once and the ECP stops waiting for the dead EDP on the MP's STOP:
+//                      every process ends within its grace period, exit 4.
 //   ECP killed      -> the EDP gets no next macro-step and ramps the arm down to standstill
 //                      within its acceleration limits (SRP: "no next macro-step from the ECP
 //                      in time"); the launcher stops the set, exit 4. Measured from the EDP's
@@ -45,12 +49,12 @@ using namespace mrroc::test;
 
 std::string demo() { return std::string(MRROC_SOURCE_DIR) + "/configs/demo-irb6-can.toml"; }
 
-/// demo-irb6-can.toml with its emulator not required (`required = false`): the launcher reports
-/// the emulator's end and lets the set go on, so what follows is the EDP's own reaction. With the
-/// emulator required the launcher starts stopping the set at once, and whether its stop reaches
-/// the EDP before the EDP's 150 ms silence detection depends on how fast the MP and the ECP end
-/// (85 ms in one CI run): the test then saw the launcher's stop, not the EDP's detection.
-std::string demo_emulator_not_required() {
+/// demo-irb6-can.toml with the process of `table` (e.g. "[emulator]") not required
+/// (`required = false`): the launcher reports that process' end and lets the set go on, so what
+/// follows is the other processes' own reaction. With it required the launcher starts stopping
+/// the set at once, and its stop can reach the EDP or the emulator before their 150 ms silence
+/// detection (85 ms after the kill in one CI run): the test would then see the launcher's stop.
+std::string demo_not_required(const std::string& table) {
   const std::string source = MRROC_SOURCE_DIR;
   std::ifstream in(demo());
   std::stringstream read;
@@ -63,11 +67,11 @@ std::string demo_emulator_not_required() {
   replace_all("\"scenes/", "\"" + source + "/configs/scenes/");
   replace_all("\"drives/", "\"" + source + "/configs/drives/");
   replace_all("\"../robots/", "\"" + source + "/robots/");
-  replace_all("[emulator]\n", "[emulator]\nrequired = false\n");
+  replace_all(table + "\n", table + "\nrequired = false\n");
   const std::string dir =
       std::string(::testing::TempDir()) + "mrroc-kill-" + std::to_string(::getpid());
   std::filesystem::create_directories(dir);
-  const std::string file = dir + "/demo-irb6-can-emu-not-required.toml";
+  const std::string file = dir + "/demo-irb6-can-not-required.toml";
   std::ofstream(file) << text;
   return file;
 }
@@ -75,14 +79,18 @@ std::string demo_emulator_not_required() {
 }  // namespace
 
 TEST(Kill, EdpKilledMidMotionDrivesQuickStopThroughTheirSupervision) {
-  const LaunchRun r =
-      launch_and_kill(demo(), "edp/irb6", "pose 1/3 reached", std::chrono::milliseconds(300));
+  // The EDP not required: the emulator goes on running, and its drives' reaction is what is seen
+  // (with the EDP required, the launcher stops the emulator about 60 ms after the kill).
+  const LaunchRun r = launch_and_kill(demo_not_required("[robot.edp]"), "edp/irb6",
+                                      "pose 1/3 reached", std::chrono::milliseconds(300));
   // The kill on the wall clock (the emulator reports its drives' reactions on it).
   const double killed_wall =
       std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() -
       std::chrono::duration<double>(Clock::now() - r.killed_at).count();
-  EXPECT_EQ(r.exit_code, 4) << r.output;
+  // The ECP finds its EDP silent (12 attempts of 250 ms) and the task fails.
+  EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_TRUE(has(r.output, "edp/irb6 ended while the task was running (code 137)")) << r.output;
+  EXPECT_TRUE(has(r.output, "not required: the set goes on")) << r.output;
   // Every drive of the arm lost its master's heartbeat (0x1016: 150 ms, the can plugin's
   // default on a virtual bus, whose drives are emulated on this shared host) or SYNC (as long)
   // and quick-stopped (0x6007 = 3) at its quick-stop deceleration.
@@ -108,6 +116,25 @@ TEST(Kill, EdpKilledMidMotionDrivesQuickStopThroughTheirSupervision) {
   expect_nothing_left();
 }
 
+TEST(Kill, EdpKilledTheSetStopsWithoutWaitingForTheSilentEdp) {
+  // The EDP required (the stock config): the launcher stops the set. The MP's STOP reaches the
+  // ECP while it waits for the dead EDP's reply; the ECP stops waiting at once (it does not
+  // spend its 12 attempts of 250 ms), so the MP and the ECP end on their own, within their
+  // grace period (3 s), and none of them is killed.
+  const LaunchRun r =
+      launch_and_kill(demo(), "edp/irb6", "pose 1/3 reached", std::chrono::milliseconds(300));
+  const double stopped_s = std::chrono::duration<double>(Clock::now() - r.killed_at).count();
+  std::printf("EDP killed: the set stopped %.2f s after the kill\n", stopped_s);
+  EXPECT_EQ(r.exit_code, 4) << r.output;
+  EXPECT_TRUE(has(r.output, "edp/irb6 ended while the task was running (code 137)")) << r.output;
+  EXPECT_FALSE(has(r.output, "killed mp after")) << r.output;
+  EXPECT_FALSE(has(r.output, "killed ecp/irb6 after")) << r.output;
+  EXPECT_TRUE(has(r.output, "mp exited with code")) << r.output;
+  EXPECT_TRUE(has(r.output, "ecp/irb6 exited with code 0")) << r.output;
+  EXPECT_LT(stopped_s, 3.0) << r.output;
+  expect_nothing_left();
+}
+
 TEST(Kill, EdpTerminatedMidMotionRampsDownBeforeItExits) {
   // SIGTERM, not SIGKILL: the EDP's own shutdown never stops a moving arm dead.
   const LaunchRun r = launch_and_kill(demo(), "edp/irb6", "pose 1/3 reached",
@@ -126,7 +153,7 @@ TEST(Kill, EdpTerminatedMidMotionRampsDownBeforeItExits) {
 }
 
 TEST(Kill, EmulatorKilledMidMotionTheEdpHolds) {
-  const LaunchRun r = launch_and_kill(demo_emulator_not_required(), "emu", "pose 1/3 reached",
+  const LaunchRun r = launch_and_kill(demo_not_required("[emulator]"), "emu", "pose 1/3 reached",
                                       std::chrono::milliseconds(300));
   // The set goes on without the emulator; the EDP's hold fails the task.
   EXPECT_EQ(r.exit_code, 1) << r.output;

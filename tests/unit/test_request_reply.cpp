@@ -171,6 +171,52 @@ TEST(RequestReply, TimeoutNamesPeerChannelAndAttempts) {
   EXPECT_EQ(client.stats().resends, 2U);
 }
 
+TEST(RequestReply, AnAbandonedCallEndsAtOnceAndTheNextCallIsAnswered) {
+  comm::Bus bus(test_url());
+  // Queue-mode server that does not answer the first request (a silent EDP).
+  comm::Server<Req, Rep> server(bus, "server", "t/cmd", "t/reply");
+  comm::ClientOptions options;
+  options.attempt_timeout = 250ms;
+  options.max_attempts = 12;  // 3 s of silence before a TimeoutError
+  comm::Client<Req, Rep> client(bus, "client", "EDP silent", "t/cmd", "t/reply", options);
+  bus.start();
+  client.abandon();  // no call in progress: nothing to abandon, the next call is not affected
+  std::thread stopper([&] {
+    ASSERT_TRUE(server.wait_request(2000ms));
+    std::this_thread::sleep_for(100ms);
+    client.abandon();
+  });
+  const auto started = std::chrono::steady_clock::now();
+  try {
+    client.call(request(1));
+    FAIL() << "expected CallAbandoned";
+  } catch (const CallAbandoned& e) {
+    const std::string text = e.what();
+    EXPECT_NE(text.find("EDP silent"), std::string::npos) << text;
+    EXPECT_NE(text.find("abandoned after"), std::string::npos) << text;
+  }
+  const auto waited = std::chrono::steady_clock::now() - started;
+  stopper.join();
+  // Ended by abandon() (100 ms after the request arrived), not by the 3 s of attempts.
+  EXPECT_LT(waited, 2000ms);
+  // The next call is a new request, answered as usual.
+  std::thread answerer([&] {
+    for (;;) {
+      auto in = server.wait_request(2000ms);
+      ASSERT_TRUE(in);
+      if (in->request.motion_steps != 2) continue;
+      Rep rep{};
+      rep.reply = Rep::ACKNOWLEDGE;
+      rep.error_code = 2;
+      in->responder.reply(rep);
+      return;
+    }
+  });
+  const Rep rep = client.call(request(2));
+  answerer.join();
+  EXPECT_EQ(rep.error_code, 2);
+}
+
 TEST(RequestReply, RepliesGoOnlyToTheirClient) {
   comm::Bus bus(test_url());
   EchoServer echo(bus);

@@ -27,6 +27,8 @@ class PlainClient {
 
   /// @throws TimeoutError, DecodeError (a reply that does not decode).
   PlainRep call(const PlainReq& request) { return decode(client_.call(encode(request))); }
+  /// Client::abandon: the call in progress throws CallAbandoned at once.
+  void abandon() { client_.abandon(); }
   [[nodiscard]] LinkStats stats() const { return client_.stats(); }
 
  private:

@@ -163,7 +163,8 @@ class Client {
   Client& operator=(const Client&) = delete;
 
   /// Sends `request` and returns the matching reply.
-  /// @throws TimeoutError after `max_attempts` attempts without any sign of life from the server.
+  /// @throws TimeoutError after `max_attempts` attempts without any sign of life from the server,
+  /// CallAbandoned when abandon() ended the wait.
   Rep call(Req request) {
     if (bus_.on_bus_thread())
       throw Error("request/reply call on '" + request_channel_ + "' from the bus thread");
@@ -173,6 +174,7 @@ class Client {
     waiting_seq_ = seq;
     reply_.reset();
     in_progress_ = false;
+    abandoned_ = false;
     request.header.utime = now_utime();
     request.header.sender = name_;
     request.header.recipient = "";
@@ -183,13 +185,23 @@ class Client {
     int silent_attempts = 1;
     const auto started = std::chrono::steady_clock::now();
     for (;;) {
-      const bool woke = cv_.wait_for(lock, options_.attempt_timeout,
-                                     [&] { return reply_.has_value() || in_progress_; });
+      const bool woke = cv_.wait_for(lock, options_.attempt_timeout, [&] {
+        return reply_.has_value() || in_progress_ || abandoned_;
+      });
       if (reply_) {
         waiting_seq_ = -1;
         Rep out = std::move(*reply_);
         reply_.reset();
         return out;
+      }
+      if (abandoned_) {
+        waiting_seq_ = -1;
+        abandoned_ = false;
+        const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(
+            std::chrono::steady_clock::now() - started);
+        throw CallAbandoned(fmt::format(
+            "request {} to {} on channel '{}' abandoned after {} ms without its reply", seq, peer_,
+            request_channel_, waited.count()));
       }
       if (woke && in_progress_) {
         in_progress_ = false;
@@ -211,6 +223,17 @@ class Client {
       request.header.utime = now_utime();
       send(lock, request);
     }
+  }
+
+  /// Ends the wait of the call in progress, if any, at once: it throws CallAbandoned, and its
+  /// reply, should it still come, is dropped as stale. A call that starts later is not affected.
+  /// For a stop that must not wait for a silent server's last attempts (an ECP told to STOP while
+  /// its EDP does not answer). Thread-safe.
+  void abandon() {
+    std::lock_guard lock(mutex_);
+    if (waiting_seq_ < 0) return;
+    abandoned_ = true;
+    cv_.notify_all();
   }
 
   [[nodiscard]] LinkStats stats() const {
@@ -276,6 +299,7 @@ class Client {
   std::int64_t waiting_seq_ = -1;
   std::optional<Rep> reply_;
   bool in_progress_ = false;
+  bool abandoned_ = false;
   LinkStats stats_;
 };
 

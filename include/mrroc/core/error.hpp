@@ -74,6 +74,13 @@ class TimeoutError : public Error {
   using Error::Error;
 };
 
+/// A request whose wait for the reply was ended on purpose (comm::Client::abandon), e.g. by a
+/// STOP: whatever the peer did with the request is unknown.
+class CallAbandoned : public Error {
+ public:
+  using Error::Error;
+};
+
 /// The class of an error, the same in every layer (EDP replies, ECP replies, the task API's
 /// exceptions), after MRROC++'s three:
 /// - non_fatal: this command or attempt failed and nothing else did; the caller may go on (retry

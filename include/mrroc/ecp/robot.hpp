@@ -78,7 +78,9 @@ class Robot {
   /// SYNCHRO + QUERY unless the EDP is already synchronised.
   void synchronise();
 
-  /// Makes Move/Wait throw TaskStopped at their next step (and ends a pause).
+  /// Makes Move/Wait throw TaskStopped at their next step (and ends a pause); an instruction
+  /// waiting for the EDP's reply stops waiting and throws TaskStopped at once (a STOP never waits
+  /// for a silent EDP's last attempts; the EDP itself ramps the arm down when its queue runs dry).
   void request_stop();
   void clear_stop() { stop_.store(false); }
   [[nodiscard]] bool stop_requested() const { return stop_.load(); }

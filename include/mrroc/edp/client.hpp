@@ -58,8 +58,11 @@ class Client {
   /// @throws Refused when the EDP answers an error (its code and text; the message names the
   /// robot and the instruction), TimeoutError when no attempt got an answer (the next
   /// instruction then takes the EDP over: whatever it did with this one, it starts afresh),
-  /// DecodeError for a reply that does not decode.
+  /// DecodeError for a reply that does not decode, CallAbandoned after abandon().
   Reply call(const Instruction& instruction);
+  /// Ends the wait of the call in progress at once (CallAbandoned; the next instruction then
+  /// takes the EDP over, as after a timeout). Thread-safe; a later call is not affected.
+  void abandon();
 
   /// The next instruction other than QUERY takes the EDP over (edp_instruction_t.take_over): the
   /// EDP then obeys this client only, and forgets a QUERY that was due. Set by the constructor

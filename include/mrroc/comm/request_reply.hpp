@@ -199,9 +199,9 @@ class Client {
         abandoned_ = false;
         const auto waited = std::chrono::duration_cast<std::chrono::milliseconds>(
             std::chrono::steady_clock::now() - started);
-        throw CallAbandoned(fmt::format(
-            "request {} to {} on channel '{}' abandoned after {} ms without its reply", seq, peer_,
-            request_channel_, waited.count()));
+        throw CallAbandoned(
+            fmt::format("request {} to {} on channel '{}' abandoned after {} ms without its reply",
+                        seq, peer_, request_channel_, waited.count()));
       }
       if (woke && in_progress_) {
         in_progress_ = false;

@@ -40,6 +40,9 @@ struct Robot::Links {
                }) {}
   comm::EcpClient command;  ///< START_TASK, NEXT_STATE, NEXT_POSE, END_MOTION
   comm::EcpClient control;  ///< STOP, PAUSE, RESUME (never queued behind a running task)
+  /// The ECP did not answer a STOP: while the stop lasts, commands to it are not sent (each
+  /// would wait its 12 attempts of 250 ms); cleared by the next answered command.
+  std::atomic<bool> silent_at_stop{false};
   std::mutex mutex;
   std::optional<RobotState> latest;  ///< the newest state of the EDP's broadcast
   comm::Subscriber<RobotState> states;
@@ -60,10 +63,30 @@ ecp::EcpReply Robot::checked(const ecp::EcpReply& reply) {
   return reply;
 }
 
+namespace {
+bool stopping();
+}  // namespace
+
+ecp::EcpReply Robot::command(const ecp::MpCommand& c) {
+  const auto silent = [this] {
+    return ecp::TaskStopped(fmt::format(
+        "MP stopped on request; ecp/{} did not answer its STOP, its reply is not awaited",
+        image_.name));
+  };
+  if (links_->silent_at_stop.load() && stopping()) throw silent();
+  try {
+    ecp::EcpReply reply = links_->command.call(c);
+    links_->silent_at_stop.store(false);
+    return reply;
+  } catch (const CallAbandoned&) {
+    throw silent();
+  }
+}
+
 void Robot::start_task() {
   ecp::MpCommand c;
   c.type = ecp::MpCommandType::start_task;
-  checked(links_->command.call(c));
+  checked(command(c));
 }
 
 void Robot::next_state(const std::string& state, const std::string& arguments) {
@@ -71,13 +94,13 @@ void Robot::next_state(const std::string& state, const std::string& arguments) {
   c.type = ecp::MpCommandType::next_state;
   c.state_name = state;
   c.arguments = arguments;
-  checked(links_->command.call(c));
+  checked(command(c));
 }
 
 void Robot::next_pose() {
   ecp::MpCommand c = image_.command;
   c.type = ecp::MpCommandType::next_pose;
-  const ecp::EcpReply r = checked(links_->command.call(c));
+  const ecp::EcpReply r = checked(command(c));
   image_.arm_type = r.arm_type;
   image_.arm = r.arm;
 }
@@ -85,7 +108,7 @@ void Robot::next_pose() {
 void Robot::end_motion() {
   ecp::MpCommand c;
   c.type = ecp::MpCommandType::end_motion;
-  checked(links_->command.call(c));
+  checked(command(c));
 }
 
 ecp::EcpReply Robot::control(ecp::MpCommandType type) {
@@ -112,7 +135,17 @@ RobotImage Robot::state_image() const {
   return image;
 }
 
-void Robot::stop() { control(ecp::MpCommandType::stop); }
+void Robot::stop() {
+  try {
+    control(ecp::MpCommandType::stop);
+  } catch (const TimeoutError&) {
+    // An ECP that does not answer its STOP will not answer the task's command either: end that
+    // wait now, and send it nothing more while the stop lasts.
+    links_->silent_at_stop.store(true);
+    links_->command.abandon();
+    throw;
+  }
+}
 void Robot::pause() { control(ecp::MpCommandType::pause); }
 void Robot::resume() { control(ecp::MpCommandType::resume); }
 

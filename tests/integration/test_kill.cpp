@@ -17,7 +17,8 @@
 //                      every process ends within its grace period, exit 4.
 //   ECP killed      -> the EDP gets no next macro-step and ramps the arm down to standstill
 //                      within its acceleration limits (SRP: "no next macro-step from the ECP
-//                      in time"); the launcher stops the set, exit 4. Measured from the EDP's
+//                      in time"); the launcher stops the set, exit 4 (the MP finds the ECP
+//                      silent at its STOP and ends without waiting for it). Measured from the EDP's
 //                      robot_state_t: standstill within the bound below.
 //   MP killed       -> the task has failed: launcher exit 1; every other process stops cleanly.
 // In every case no process is left behind and nothing else crashes.
@@ -176,6 +177,10 @@ TEST(Kill, EcpKilledMidMotionTheEdpRampsDown) {
   bus.stop();
   EXPECT_EQ(r.exit_code, 4) << r.output;
   EXPECT_TRUE(has(r.output, "ecp/irb6 ended while the task was running (code 137)")) << r.output;
+  // The MP's STOP finds the ECP silent (10 attempts of 100 ms) and the MP stops waiting for that
+  // ECP's reply: it ends by itself within its grace period (3 s), not killed at its end.
+  EXPECT_TRUE(has(r.output, "ecp/irb6 did not answer its STOP")) << r.output;
+  EXPECT_FALSE(has(r.output, "killed mp after")) << r.output;
   // The EDP noticed the missing macro-step and said so.
   EXPECT_TRUE(std::regex_search(r.output, std::regex("edp/irb6.*no next macro-step from the ECP "
                                                      "in time.*brought to a standstill")))

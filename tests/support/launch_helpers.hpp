@@ -59,25 +59,27 @@ inline LaunchRun launch_and_act(const std::string& config, const std::string& vi
   pid_t victim_pid = 0;
   const auto deadline = Clock::now() + std::chrono::seconds(60);
   bool triggered = false;
-  while (!victim.empty() && Clock::now() < deadline && !triggered) {
+  int status = 0;
+  bool ended = false;  // the launcher ended before the trigger: nothing to wait for
+  while (!victim.empty() && Clock::now() < deadline && !triggered && !ended) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ended = waitpid(pid, &status, WNOHANG) == pid;
     std::lock_guard lock(m);
     std::smatch match;
     if (victim_pid == 0 && std::regex_search(run.output, match, started))
       victim_pid = std::stoi(match[1]);
     triggered = victim_pid != 0 && run.output.find(trigger) != std::string::npos;
   }
-  if (triggered) {
+  if (triggered && !ended) {
     std::this_thread::sleep_for(delay);
     run.killed_at = Clock::now();
     act(victim_pid);
   }
   // A set that does not end is stopped (the launcher ends its processes on SIGINT) and its output
   // kept: a test that hangs says where, instead of being killed by ctest with nothing to show.
-  int status = 0;
   const auto give_up = Clock::now() + time_limit;
   bool stopped = false;
-  while (waitpid(pid, &status, WNOHANG) == 0) {
+  while (!ended && waitpid(pid, &status, WNOHANG) == 0) {
     if (!stopped && Clock::now() >= give_up) {
       stopped = true;
       kill(pid, SIGINT);

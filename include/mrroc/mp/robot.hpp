@@ -77,6 +77,10 @@ class Robot {
   void next_pose();
   /// Ends a series of NEXT_POSE: the ECP reads the robot's state into the image.
   void end_motion();
+  /// STOP to the ECP (on the control link). When the ECP does not answer it (TimeoutError after
+  /// 10 attempts of 100 ms), the task's command waiting for that ECP ends at once and further
+  /// commands to it throw ecp::TaskStopped while the stop lasts, instead of waiting for a silent
+  /// ECP (12 attempts of 250 ms each).
   void stop();
   void pause();
   void resume();
@@ -88,6 +92,7 @@ class Robot {
 
  private:
   ecp::EcpReply checked(const ecp::EcpReply& reply);
+  ecp::EcpReply command(const ecp::MpCommand& c);
   ecp::EcpReply control(ecp::MpCommandType type);
   RobotImage image_;
   struct Links;

@@ -109,6 +109,7 @@ class StateMachineTask : public MpTask {
     log.info(fmt::format("state machine '{}': initial state '{}'",
                          machine_.file.filename().string(), current));
     for (;;) {
+      if (task_stop_requested()) throw ecp::TaskStopped("task stopped on request");
       const MachineState& state = machine_.states.at(current);
       const Outcome outcome = run(state);
       const auto [next, why] = transition(state, outcome);

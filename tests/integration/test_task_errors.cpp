@@ -184,6 +184,43 @@ TEST_F(TaskErrors, AStateMachineGoesByTheClassOfAnEcpsError) {
   EXPECT_NE(r.output.find("deliberate fatal error, run 4"), std::string::npos) << r.output;
 }
 
+TEST_F(TaskErrors, AStateMachinesTimeoutStopsTheSubTaskAndGoesOn) {
+  // A sub-task longer than its state's timeout: its ECP gets STOP, the machine goes to
+  // `on_timeout`, and the next sub-task brings the column back to where it started.
+  const fs::path machine = dir_ / "timeout.fsm.toml";
+  std::ofstream(machine) << "initial = \"start\"\n"
+                            "[state.start]\n"
+                            "start_tasks = [\"irb6\"]\n"
+                            "next = \"far\"\n"
+                            "[state.far]\n"
+                            "robot = \"irb6\"\n"
+                            "subtask = \"visit_joint_poses\"\n"
+                            "args = { poses = [[1.5, -1.5708, 0.0, 0.0, 0.0]], velocity_scale "
+                            "= 0.2 }\n"
+                            "timeout = 0.5\n"
+                            "next = \"failed\"\n"
+                            "on_timeout = \"back\"\n"
+                            "[state.back]\n"
+                            "robot = \"irb6\"\n"
+                            "subtask = \"visit_joint_poses\"\n"
+                            "args = { poses = [[0.0, -1.5708, 0.0, 0.0, 0.0]] }\n"
+                            "next = \"home\"\n"
+                            "[state.home]\n"
+                            "wait = { robot = \"irb6\", joint = 0, above = -0.002, below = 0.002 "
+                            "}\n"
+                            "timeout = 1.0\n"
+                            "next = \"done\"\n";
+  const RunResult r =
+      launch(config("state_machine", "file = \"" + machine.string() + "\"", "follow_mp"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("state 'far' -> 'back' (state 'far' took longer than its timeout of "
+                          "0.5 s)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("state 'back' -> 'home' (succeeded)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("state 'home' -> 'done' (succeeded)"), std::string::npos) << r.output;
+}
+
 namespace {
 /// Times at which the EDP sent replies.
 class ReplyTimes {

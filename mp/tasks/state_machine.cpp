@@ -11,6 +11,7 @@
 #include <exception>
 #include <map>
 #include <mutex>
+#include <optional>
 
 #include "mrroc/config/check.hpp"
 #include "mrroc/ecp/robot_image.hpp"
@@ -111,8 +112,20 @@ class StateMachineTask : public MpTask {
     for (;;) {
       if (task_stop_requested()) throw ecp::TaskStopped("task stopped on request");
       const MachineState& state = machine_.states.at(current);
-      const Outcome outcome = run(state);
-      const auto [next, why] = transition(state, outcome);
+      Outcome outcome = run(state);
+      std::optional<std::pair<std::string, std::string>> chosen;
+      if (outcome.kind == Outcome::Kind::success) {
+        // A sensor that cannot be read for a 'when' condition is an error of the state.
+        try {
+          chosen = decide(state);
+        } catch (const ecp::TaskStopped&) {
+          throw;
+        } catch (...) {
+          outcome.kind = Outcome::Kind::error;
+          outcome.error_class = class_of(std::current_exception(), outcome.text);
+        }
+      }
+      const auto [next, why] = chosen ? *chosen : transition(state, outcome);
       if (outcome.kind == Outcome::Kind::success && !state.report.empty()) log.info(state.report);
       log.info(fmt::format("state '{}' -> '{}' ({})", state.name, next, why));
       if (next == kStateDone) return;
@@ -144,23 +157,27 @@ class StateMachineTask : public MpTask {
     return c.kind == StateCondition::Kind::sensor ? sensors_.at(c.sensor).get() : nullptr;
   }
 
-  /// The state after `state` ended with `outcome`, and why it was chosen.
+  /// The target of the first of `state`'s `when` conditions that holds now, and why; else the
+  /// success transition `next`.
+  std::pair<std::string, std::string> decide(const MachineState& state) {
+    for (const auto& [condition, to] : state.when) {
+      ConditionTest test(condition, context_.robots, sensor_of(condition));
+      const ImageList images = state_images();
+      if (ecp::VirtualSensor* s = sensor_of(condition)) {
+        s->initiate_reading();
+        s->get_reading();
+      }
+      if (test.check(images, ecp::SensorList{}))
+        return {to.target, fmt::format("{} holds{}", condition.describe(), test.seen())};
+    }
+    return {state.next.target, "succeeded"};
+  }
+
+  /// The state after `state` ended with `outcome` (not a success), and why it was chosen.
   std::pair<std::string, std::string> transition(const MachineState& state,
                                                  const Outcome& outcome) {
     switch (outcome.kind) {
-      case Outcome::Kind::success:
-        for (const auto& [condition, to] : state.when) {
-          ConditionTest test(condition, context_.robots, sensor_of(condition));
-          ImageList images = state_images();
-          ecp::SensorList sensors;
-          if (ecp::VirtualSensor* s = sensor_of(condition)) {
-            s->initiate_reading();
-            s->get_reading();
-          }
-          if (test.check(images, sensors))
-            return {to.target, fmt::format("{} holds{}", condition.describe(), test.seen())};
-        }
-        return {state.next.target, "succeeded"};
+      case Outcome::Kind::success: return decide(state);
       case Outcome::Kind::timeout:
         if (state.on_timeout) return {state.on_timeout->target, outcome.text};
         throw TimeoutError(outcome.text);

@@ -186,7 +186,8 @@ TEST_F(TaskErrors, AStateMachineGoesByTheClassOfAnEcpsError) {
 
 TEST_F(TaskErrors, AStateMachinesTimeoutStopsTheSubTaskAndGoesOn) {
   // A sub-task longer than its state's timeout: its ECP gets STOP, the machine goes to
-  // `on_timeout`, and the next sub-task brings the column back to where it started.
+  // `on_timeout`, and the next sub-task brings the column back to where it started; once it
+  // stands, a decision state ('when') finds it there.
   const fs::path machine = dir_ / "timeout.fsm.toml";
   std::ofstream(machine) << "initial = \"start\"\n"
                             "[state.start]\n"
@@ -206,10 +207,14 @@ TEST_F(TaskErrors, AStateMachinesTimeoutStopsTheSubTaskAndGoesOn) {
                             "args = { poses = [[0.0, -1.5708, 0.0, 0.0, 0.0]] }\n"
                             "next = \"home\"\n"
                             "[state.home]\n"
-                            "wait = { robot = \"irb6\", joint = 0, above = -0.002, below = 0.002 "
-                            "}\n"
+                            "wait = { robot = \"irb6\", moving = false }\n"
                             "timeout = 1.0\n"
-                            "next = \"done\"\n";
+                            "next = \"check\"\n"
+                            "[state.check]\n"
+                            "when = [{ robot = \"irb6\", joint = 0, above = -0.002, below = 0.002, "
+                            "next = \"done\" }]\n"
+                            "next = \"failed\"\n"
+                            "message = \"the column is not back at 0 rad\"\n";
   const RunResult r =
       launch(config("state_machine", "file = \"" + machine.string() + "\"", "follow_mp"));
   EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -218,7 +223,10 @@ TEST_F(TaskErrors, AStateMachinesTimeoutStopsTheSubTaskAndGoesOn) {
             std::string::npos)
       << r.output;
   EXPECT_NE(r.output.find("state 'back' -> 'home' (succeeded)"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("state 'home' -> 'done' (succeeded)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("state 'home' -> 'check' (succeeded)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("state 'check' -> 'done' (irb6 joint 0 in (-0.002, 0.002) holds"),
+            std::string::npos)
+      << r.output;
 }
 
 namespace {

@@ -634,6 +634,118 @@ TEST(ConfigCheck, TheReaderReportsEveryErrorOfEveryTableAndWhichProcessesTheyCon
   EXPECT_THROW((void)mrroc::parse_process_set(text, "/tmp/set.toml"), mrroc::ConfigError);
 }
 
+TEST(ConfigCheck, EveryMistakeOfAStateMachineFileAtItsLine) {
+  // The MP task state_machine reads and checks its file when it is built: --check reports every
+  // mistake of it, each at the file's own line, besides the config's.
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-check-fsm-" + std::to_string(getpid()));
+  fs::create_directories(dir / "tasks");
+  BrokenConfig m;
+  m.file = dir / "tasks/broken.fsm.toml";
+  m.lines = {
+      "initial = \"synchronise\"",
+      "[state.synchronise]",
+      "start_tasks = [\"irb6\", \"convayor\"]",  // unknown robot, near conveyor
+      "next = \"grip\"",
+      "[state.grip]",
+      "robot = \"irb6\"",
+      "subtask = \"set_output\"",  // unknown ECP task, near set_outputs
+      "args = { outputs = 1 }",
+      "next = \"place\"",
+      "[state.place]",
+      "robot = \"irb6\"",
+      "subtask = \"visit_joint_poses\"",
+      "args.poses = [[-0.9, -1.40, 0.10, 0.40, 0.0],",
+      "  [9.0, -1.35, 0.15, 0.60, 0.0]]",  // joint 0 beyond its limit
+      "args.velocity_scale = \"fast\"",    // not a number
+      "next = \"relase\"",                 // unknown state, near release
+      "[state.release]",
+      "robot = \"irb6\"",
+      "subtask = \"set_outputs\"",
+      "args = { outputs = 0 }",
+      "next = \"check\"",
+      "on_fatl = \"failed\"",  // unknown key, near on_fatal
+      "[state.check]",
+      "wait = { robot = \"conveyor\", joint = 3, above = 1.19 }",  // the conveyor has one joint
+      "timeout = 1.0",
+      "next = \"done\"",
+      "on_timeout = \"faild\"",  // unknown state, near failed
+      "[state.spare]",           // never reached
+      "delay = 1.0",
+      "next = \"done\"",
+  };
+  m.write();
+  BrokenConfig c;
+  c.file = dir / "fsm.toml";
+  c.lines = {
+      "[system]",
+      "name = \"fsm\"",
+      "[mp]",
+      "task = \"state_machine\"",
+      "[mp.args]",
+      "file = \"tasks/broken.fsm.toml\"",
+      "[[robot]]",
+      "name = \"irb6\"",
+      "model = \"" + (kSource / "robots/irb6").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"mujoco\"",
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+      "[[robot]]",
+      "name = \"conveyor\"",
+      "model = \"" + (kSource / "robots/conveyor").string() + "\"",
+      "[robot.edp]",
+      "plugin = \"mujoco\"",
+      "[robot.ecp]",
+      "task = \"follow_mp\"",
+  };
+  c.write();
+  const auto [code, out] = run(launcher() + " --check '" + c.file.string() + "'");
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(code, 2) << out;
+  const std::string f = m.file.string();
+  const std::vector<std::pair<std::string, std::string>> expected = {
+      {"convayor",
+       "unknown robot 'convayor' (the process set has: irb6, conveyor); did you mean "
+       "'conveyor'?"},
+      {"set_output\"", "unknown ECP task 'set_output' (known: "},
+      {"[9.0,", "joint 0 (column) pose 2 9.000000 rad exceeds upper limit"},
+      {"velocity_scale", "'velocity_scale'"},
+      {"relase",
+       "'next' of state 'place': 'relase' is no state of the machine; did you mean "
+       "'release'?"},
+      {"on_fatl", "unknown key 'on_fatl' in state 'release'; did you mean 'on_fatal'?"},
+      {"joint = 3", "robot 'conveyor' has no joint 3 (it has 1: 0..0)"},
+      {"faild",
+       "'on_timeout' of state 'check': 'faild' is no state of the machine; did you mean "
+       "'failed'?"},
+      {"[state.spare]", "state 'spare' is never reached from the initial state 'synchronise'"},
+  };
+  for (const auto& [marker, message] : expected) {
+    const std::string line = f + ":" + std::to_string(m.line_of(marker)) + ": error: " + message;
+    EXPECT_NE(out.find(line), std::string::npos) << "expected: " << line << "\n" << out;
+  }
+  EXPECT_NE(out.find("; did you mean 'set_outputs'?"), std::string::npos) << out;
+  EXPECT_NE(out.find(std::to_string(expected.size()) + " errors; nothing started"),
+            std::string::npos)
+      << "each error once, nothing else\n"
+      << out;
+
+  // No initial state, and a file that is missing: each named.
+  m.lines = {"[state.only]", "delay = 0.1", "next = \"done\""};
+  m.write();
+  const auto [code2, out2] = run(launcher() + " --check '" + c.file.string() + "'");
+  EXPECT_EQ(code2, 2) << out2;
+  EXPECT_NE(out2.find(f + ":1: error: missing key 'initial'"), std::string::npos) << out2;
+  fs::remove(m.file);
+  const auto [code3, out3] = run(launcher() + " --check '" + c.file.string() + "'");
+  EXPECT_EQ(code3, 2) << out3;
+  EXPECT_NE(out3.find(c.file.string() + ":" + std::to_string(c.line_of("file = ")) +
+                      ": error: state machine file '" + f + "' not found"),
+            std::string::npos)
+      << out3;
+  fs::remove_all(dir);
+}
+
 TEST(ConfigCheck, EveryStockConfigPasses) {
   int checked = 0;
   for (const auto& entry : fs::directory_iterator(kSource / "configs")) {

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <regex>
@@ -117,6 +119,79 @@ TEST(Cooperation, LooseConveyorStartsOnlyAfterThePlacement) {
   EXPECT_NE(r.output.find("outputs set to 0x1"), std::string::npos) << "gripper never closed";
   EXPECT_NEAR(final_joints.of("conveyor").at(0), config.mp.args.get_double("belt_target"), 2e-3);
   expect_near(final_joints.of("irb6"), config.mp.args.get_doubles("retreat"), 2e-3, "irb6");
+}
+
+TEST(Cooperation, LooseConveyorAsAStateMachineEndsAsTheCppTask) {
+  // The routine of place_on_conveyor written as data (MP task state_machine): the same order of
+  // events and the same final poses as the C++ task's arguments in loose-conveyor.toml.
+  const ProcessSetConfig cpp = load_process_set(kSource / "configs/loose-conveyor.toml");
+  const std::string file = (kSource / "configs/loose-conveyor-fsm.toml").string();
+  const ProcessSetConfig config = load_process_set(file);
+  comm::Bus bus(config.lcm_url);
+  FinalJoints final_joints(bus, {"irb6", "conveyor"});
+  bus.start();
+  const RunResult r = launch(file);
+  bus.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto placed = r.output.find("object placed on the conveyor by irb6");
+  std::smatch started;
+  const auto belt_task =
+      std::regex_search(r.output, started,
+                        std::regex("ecp/conveyor +info +task 'visit_joint_poses' started"))
+          ? static_cast<std::size_t>(started.position(0))
+          : std::string::npos;
+  const auto delivered = r.output.find("object delivered by conveyor");
+  ASSERT_NE(placed, std::string::npos) << r.output;
+  ASSERT_NE(belt_task, std::string::npos) << r.output;
+  ASSERT_NE(delivered, std::string::npos) << r.output;
+  EXPECT_LT(placed, belt_task);
+  EXPECT_LT(belt_task, delivered);
+  EXPECT_NE(r.output.find("state 'check_delivery' -> 'done'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("outputs set to 0x1"), std::string::npos) << "gripper never closed";
+  const std::vector<double> belt = final_joints.of("conveyor");
+  const std::vector<double> arm = final_joints.of("irb6");
+  ASSERT_EQ(belt.size(), 1U);
+  EXPECT_NEAR(belt.at(0), cpp.mp.args.get_double("belt_target"), 2e-3);
+  expect_near(arm, cpp.mp.args.get_doubles("retreat"), 2e-3, "irb6");
+  std::printf(
+      "state machine: conveyor at %.4f m (C++ task's target %.4f m), irb6 joint 1 at "
+      "%.4f rad\n",
+      belt.at(0), cpp.mp.args.get_double("belt_target"), arm.size() > 1 ? arm[1] : 0.0);
+}
+
+TEST(Cooperation, AStateMachineGoesToFailedWithItsMessageWhenTheConditionTimesOut) {
+  // The same machine with a belt target the conveyor does not reach by the check: the state
+  // check_delivery times out and the task fails with the state's message, the belt where the
+  // sub-task left it (0.6 m).
+  const fs::path dir = fs::temp_directory_path() / ("mrroc-fsm-" + std::to_string(::getpid()));
+  fs::create_directories(dir / "tasks");
+  std::ifstream in(kSource / "configs/tasks/loose-conveyor.fsm.toml");
+  std::string machine((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string target = "poses = [[1.2]]";
+  ASSERT_NE(machine.find(target), std::string::npos);
+  machine.replace(machine.find(target), target.size(), "poses = [[0.6]]");
+  std::ofstream(dir / "tasks/loose-conveyor.fsm.toml") << machine;
+  std::ifstream config_in(kSource / "configs/loose-conveyor-fsm.toml");
+  std::string text((std::istreambuf_iterator<char>(config_in)), std::istreambuf_iterator<char>());
+  for (const char* model : {"../robots/irb6", "../robots/conveyor"}) {
+    const std::string absolute = (kSource / "robots" / fs::path(model).filename()).string();
+    text.replace(text.find(model), std::string(model).size(), absolute);
+  }
+  const fs::path file = dir / "short-belt.toml";
+  std::ofstream(file) << text;
+  comm::Bus bus(load_process_set(file).lcm_url);
+  FinalJoints final_joints(bus, {"conveyor"});
+  bus.start();
+  const RunResult r = launch(file.string());
+  bus.stop();
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("object not delivered: the conveyor's belt is not within 2 mm of 1.2 m"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("state 'check_delivery' -> 'failed'"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("object delivered by conveyor"), std::string::npos) << r.output;
+  EXPECT_NEAR(final_joints.of("conveyor").at(0), 0.6, 2e-3);
+  fs::remove_all(dir);
 }
 
 TEST(Cooperation, TightTwoRobotsKeepTheBarRigid) {

@@ -151,6 +151,43 @@ TEST(Sensing, PickStartsWhenTheCameraSeesThePartInTheRegion) {
   expect_nothing_left();
 }
 
+TEST(Sensing, AStateMachineWaitsOnTheCamerasReading) {
+  // conveyor-pick.toml with the MP task state_machine: the belt's ECP runs its task (the part
+  // stops at x = 0.40 m), then a state waits until the camera VSP sees the part in the pick
+  // region; the value it saw is where the part stands.
+  const fs::path dir =
+      fs::temp_directory_path() / ("mrroc-sensing-fsm-" + std::to_string(getpid()));
+  fs::create_directories(dir / "tasks");
+  std::ofstream(dir / "tasks/seen.fsm.toml")
+      << "initial = \"belt\"\n"
+         "[state.belt]\n"
+         "start_tasks = [\"conveyor\"]\n"
+         "next = \"seen\"\n"
+         "[state.seen]\n"
+         "wait = { sensor = \"camera\", value = \"x\", above = 0.35, below = 0.45 }\n"
+         "timeout = 5.0\n"
+         "next = \"done\"\n"
+         "on_timeout = \"failed\"\n"
+         "message = \"the camera did not see the part in the pick region\"\n";
+  std::string text = slurp(config("conveyor-pick.toml"));
+  const std::string source = MRROC_SOURCE_DIR;
+  text = std::regex_replace(text, std::regex("task = \"start_and_wait\""),
+                            "task = \"state_machine\"\n[mp.args]\nfile = \"tasks/seen.fsm.toml\"");
+  text = std::regex_replace(text, std::regex("\"\\.\\./robots/"), "\"" + source + "/robots/");
+  text = std::regex_replace(text, std::regex("scene = \"scenes/"),
+                            "scene = \"" + source + "/configs/scenes/");
+  const fs::path file = dir / "pick-fsm.toml";
+  std::ofstream(file) << text;
+  const LaunchRun r = launch_and_kill(file.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const double x =
+      number(r.output, "camera value 'x' in \\(0\\.35, 0\\.45\\) holds \\(([-0-9.]+)\\)");
+  EXPECT_NEAR(x, 0.40, 0.01) << r.output;
+  EXPECT_TRUE(has(r.output, "state 'seen' -> 'done' (succeeded)")) << r.output;
+  expect_nothing_left();
+  fs::remove_all(dir);
+}
+
 TEST(Sensing, DeadVspStopsTheSet) {
   const LaunchRun r = launch_and_kill(config("sensing-touch.toml"), "vsp/wrist_force", "zeroed",
                                       std::chrono::milliseconds(500));

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <mutex>
 #include <regex>
 #include <string>
@@ -136,6 +137,96 @@ TEST_F(TaskErrors, FatalErrorAbortsTheTask) {
   EXPECT_EQ(r.output.find("retrying"), std::string::npos) << r.output;
   // Nothing crashed: every process ended by itself when the set was stopped.
   EXPECT_EQ(r.output.find("killed"), std::string::npos) << r.output;
+}
+
+TEST_F(TaskErrors, AStateMachineGoesByTheClassOfAnEcpsError) {
+  // The MP task state_machine with the test library's ECP task "fail" (its ECP fails the first
+  // `times` runs of it in the process): two non-fatal errors lead to a pause and a new attempt,
+  // the third attempt succeeds; then a fatal error leads to 'failed' with the state's message.
+  const fs::path machine = dir_ / "retry.fsm.toml";
+  std::ofstream(machine) << "initial = \"start\"\n"
+                            "[state.start]\n"
+                            "start_tasks = [\"irb6\"]\n"
+                            "next = \"attempt\"\n"
+                            "[state.attempt]\n"
+                            "robot = \"irb6\"\n"
+                            "subtask = \"fail\"\n"
+                            "args = { class = \"non_fatal\", times = 2 }\n"
+                            "next = \"give_up\"\n"
+                            "on_non_fatal = \"pause\"\n"
+                            "on_error = \"failed\"\n"
+                            "[state.pause]\n"
+                            "delay = 0.2\n"
+                            "report = \"a new attempt after a non-fatal error\"\n"
+                            "next = \"attempt\"\n"
+                            "[state.give_up]\n"
+                            "robot = \"irb6\"\n"
+                            "subtask = \"fail\"\n"
+                            "args = { class = \"fatal\", times = 9 }\n"
+                            "next = \"done\"\n"
+                            "on_fatal = \"failed\"\n"
+                            "message = \"gave up on a fatal error\"\n";
+  const RunResult r =
+      launch(config("state_machine", "file = \"" + machine.string() + "\"", "follow_mp"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  const std::regex to_pause(
+      "state 'attempt' -> 'pause' \\(non-fatal error: [^\\n]*deliberate "
+      "non_fatal error, run [12]");
+  const auto pauses = std::distance(
+      std::sregex_iterator(r.output.begin(), r.output.end(), to_pause), std::sregex_iterator());
+  EXPECT_EQ(pauses, 2) << r.output;
+  EXPECT_NE(r.output.find("a new attempt after a non-fatal error"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("state 'attempt' -> 'give_up' (succeeded)"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("state 'give_up' -> 'failed' (fatal error: "), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("gave up on a fatal error ("), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("deliberate fatal error, run 4"), std::string::npos) << r.output;
+}
+
+TEST_F(TaskErrors, AStateMachinesTimeoutStopsTheSubTaskAndGoesOn) {
+  // A sub-task longer than its state's timeout: its ECP gets STOP, the machine goes to
+  // `on_timeout`, and the next sub-task brings the column back to where it started; once it
+  // stands, a decision state ('when') finds it there.
+  const fs::path machine = dir_ / "timeout.fsm.toml";
+  std::ofstream(machine) << "initial = \"start\"\n"
+                            "[state.start]\n"
+                            "start_tasks = [\"irb6\"]\n"
+                            "next = \"far\"\n"
+                            "[state.far]\n"
+                            "robot = \"irb6\"\n"
+                            "subtask = \"visit_joint_poses\"\n"
+                            "args = { poses = [[1.5, -1.5708, 0.0, 0.0, 0.0]], velocity_scale "
+                            "= 0.2 }\n"
+                            "timeout = 0.5\n"
+                            "next = \"failed\"\n"
+                            "on_timeout = \"back\"\n"
+                            "[state.back]\n"
+                            "robot = \"irb6\"\n"
+                            "subtask = \"visit_joint_poses\"\n"
+                            "args = { poses = [[0.0, -1.5708, 0.0, 0.0, 0.0]] }\n"
+                            "next = \"home\"\n"
+                            "[state.home]\n"
+                            "wait = { robot = \"irb6\", moving = false }\n"
+                            "timeout = 1.0\n"
+                            "next = \"check\"\n"
+                            "[state.check]\n"
+                            "when = [{ robot = \"irb6\", joint = 0, above = -0.002, below = 0.002, "
+                            "next = \"done\" }]\n"
+                            "next = \"failed\"\n"
+                            "message = \"the column is not back at 0 rad\"\n";
+  const RunResult r =
+      launch(config("state_machine", "file = \"" + machine.string() + "\"", "follow_mp"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("state 'far' -> 'back' (state 'far' took longer than its timeout of "
+                          "0.5 s)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("state 'back' -> 'home' (succeeded)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("state 'home' -> 'check' (succeeded)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("state 'check' -> 'done' (irb6 joint 0 in (-0.002, 0.002) holds"),
+            std::string::npos)
+      << r.output;
 }
 
 namespace {

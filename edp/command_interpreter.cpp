@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/edp/path_check.hpp"
 #include "mrroc/kinematics/pose.hpp"
 
 namespace mrroc::edp {
@@ -423,15 +424,9 @@ std::vector<double> CommandInterpreter::unsynchronised_target(const Instruction&
 
 void CommandInterpreter::check_path(const std::vector<double>& start,
                                     const std::vector<double>& target, int steps) const {
-  kinematics_.check_joint_limits(target, "target");
-  std::vector<double> q(target.size());
-  for (int k = 1; k <= steps; ++k) {
-    const double s = static_cast<double>(k) / steps;
-    for (std::size_t i = 0; i < q.size(); ++i) q[i] = start[i] + (target[i] - start[i]) * s;
-    const std::string what = fmt::format("step {} of {}", k, steps);
-    kinematics_.check_joint_limits(q, what.c_str());
-    kinematics_.check_motor_limits(kinematics_.motors_from_joints(q), what.c_str());
-  }
+  // The target, then every interpolation step, against the joint and motor limits (the ECP's
+  // planned motions check their macro-steps with the same function).
+  check_straight_path(kinematics_, start, target, steps, "step");
   // The same line against the cell and the robot itself (collision_guard.hpp).
   if (collision_ != nullptr) collision_->check_path(start, target, steps);
 }

@@ -62,6 +62,18 @@ inline double blend_position(double p0, double p1, double v0, double v1, double 
   return pm + 0.5 * (vm + (vm + (v1 - vm) * r / half)) * r;
 }
 
+/// The two uniform accelerations of a macro-step of duration T from p0 (velocity v0) to p1
+/// (velocity v1): in its first half and in its second half [unit/s^2].
+struct BlendAccelerations {
+  double first = 0.0;
+  double second = 0.0;
+};
+inline BlendAccelerations blend_accelerations(double p0, double p1, double v0, double v1,
+                                              double duration_s) {
+  const double u = (p1 - p0) / duration_s;
+  return {(4.0 * u - 3.0 * v0 - v1) / duration_s, (v0 + 3.0 * v1 - 4.0 * u) / duration_s};
+}
+
 /// Shortest rest-to-rest macro-step (in servo steps) that moves `distance` within the velocity
 /// and acceleration limits: T >= max(2 sqrt(|d| / a), 2 |d| / v).
 int shortest_rest_to_rest_steps(double distance, double max_velocity, double max_acceleration,

@@ -577,15 +577,24 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
     return 1.0;
   }
   // The planned velocity and acceleration (the commanded ones without the warp) of the last
-  // cycles bound the top rate and how fast it may change.
+  // cycles, and the planned acceleration of the servo steps this cycle will take, bound the top
+  // rate and how fast it may change. Not the last cycle's acceleration alone: a blend's
+  // acceleration jumps half way through a macro-step and where two meet (0.16 to 0.54 rad/s^2
+  // where a plan speeds up harder), and a rise sized from the acceleration before the jump took
+  // a step of the column to 3.08 rad/s^2 against its limit of 3 (test_edp_catch_up.cpp).
   double top = kMaxWarp;
   double up = kMaxWarp;
   double down = kMaxWarp;
   bool hard = false;  // a planned acceleration, now or queued, leaves too little room
   for (std::size_t i = 0; i < axes_; ++i) {
     const double v = commanded_velocity_[i] / rate;
-    const double share =
+    // Both per cycle at the last rate: a planned acceleration a changes the velocity between two
+    // cycles by a * rate * period.
+    const double last =
         std::abs(v - warp_velocity_[i] / previous_rate_) / period_s_ / model_.max_acceleration[i];
+    const double ahead =
+        planned_acceleration_ahead(i, 1.0 + kMaxWarp) * rate / model_.max_acceleration[i];
+    const double share = std::max(last, ahead);
     hard = hard || share > kWarpPlannedAccelerationShare;
     if (share > 1e-9) top = std::min(top, std::sqrt(0.8 * kWarpAccelerationShare / share) - 1.0);
     if (std::abs(v) > 1e-9) {
@@ -631,6 +640,38 @@ double ServoLoop::catch_up_advance(std::int64_t missed) {
   lag_steps_ -= warp_;
   if (warp_ <= 0.0 && lag_steps_ < 0.0) lag_steps_ = 0.0;
   return 1.0 + warp_;
+}
+
+double ServoLoop::planned_acceleration_ahead(std::size_t i, double reach) const {
+  if (!current_) return 0.0;
+  const MacroStep& m = *current_;
+  const auto steps = static_cast<double>(m.steps);
+  const BlendAccelerations a = blend_accelerations(m.start[i], m.target[i], m.start_velocity[i],
+                                                   m.end_velocity[i], steps * period_s_);
+  const double end = m.progress + reach;
+  double out = 0.0;
+  if (m.progress < 0.5 * steps) out = std::abs(a.first);
+  if (end > 0.5 * steps) out = std::max(out, std::abs(a.second));
+  if (end > steps && !queue_.empty()) {
+    // The successor's end velocity is chosen only when it starts (plan_blend): here the one
+    // plan_blend prefers, the mean of its own and its successor's mean velocities.
+    const MacroStep& next = queue_.front();
+    const double duration = static_cast<double>(next.steps) * period_s_;
+    const double mean = (next.target[i] - m.target[i]) / duration;
+    double v1 = 0.0;
+    if (next.promises_successor()) {
+      v1 = mean;
+      if (queue_.size() > 1) {
+        const MacroStep& after = queue_.at(1);
+        v1 = 0.5 * (mean + (after.target[i] - next.target[i]) /
+                               (static_cast<double>(after.steps) * period_s_));
+      }
+    }
+    const BlendAccelerations b =
+        blend_accelerations(m.target[i], next.target[i], m.end_velocity[i], v1, duration);
+    out = std::max({out, std::abs(b.first), std::abs(b.second)});
+  }
+  return out;
 }
 
 bool ServoLoop::start_next_macro_step(bool mid_cycle) {

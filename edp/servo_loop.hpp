@@ -277,6 +277,9 @@ class ServoLoop {
   void motion_cycle(double advance);
   /// The servo steps this cycle advances the motion (see "Catch-up" in docs/edp.md).
   double catch_up_advance(std::int64_t missed);
+  /// The largest planned acceleration of axis i [unit/s^2] in the next `reach` servo steps of
+  /// the motion (its macro-step's halves and, past its end, its successor's).
+  [[nodiscard]] double planned_acceleration_ahead(std::size_t i, double reach) const;
   /// Starts the macro-step at the queue's front, or refuses it with the queue behind it (false).
   /// `mid_cycle`: this cycle already advanced the motion up to where it starts (the rest of a
   /// catch-up's advance), so a refusal of a moving robot starts the ramp in the next cycle.

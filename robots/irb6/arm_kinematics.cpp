@@ -26,25 +26,41 @@ class Irb6ArmKinematics : public edp::ArmKinematics {
     const JointPosition q = robots::irb6::joints_from_motors(axes_from_values(m, "motors"));
     return {q.begin(), q.end()};
   }
+  void motors_from_joints(std::span<const double> q, std::span<double> m) const override {
+    const MotorPosition motors = robots::irb6::motors_from_joints(axes_from_values(q, "joints"));
+    if (m.size() != kAxes) (void)axes_from_values(m, "motors");  // throws: the wrong size
+    std::copy(motors.begin(), motors.end(), m.begin());
+  }
   void check_motor_limits(std::span<const double> m, const char* what) const override {
     robots::irb6::check_motor_limits(axes_from_values(m, what), what);
   }
   void check_joint_limits(std::span<const double> q, const char* what) const override {
-    model_.check_joint_limits({q.begin(), q.end()}, what);
+    model_.check_joint_limits(q, what);
     robots::irb6::check_joint_limits(axes_from_values(q, what), what);
+  }
+  LimitViolation joint_limit_violation(std::span<const double> q) const noexcept override {
+    if (const LimitViolation v = model_.joint_limit_violation(q)) return v;
+    if (q.size() != kAxes)
+      return {LimitKind::invalid, 0, static_cast<double>(q.size()), static_cast<double>(kAxes)};
+    JointPosition joints{};
+    std::copy(q.begin(), q.end(), joints.begin());
+    return robots::irb6::joint_limit_violation(joints);
+  }
+  LimitViolation motor_limit_violation(std::span<const double> m) const noexcept override {
+    if (m.size() != kAxes)
+      return {LimitKind::invalid, 0, static_cast<double>(m.size()), static_cast<double>(kAxes)};
+    MotorPosition motors{};
+    std::copy(m.begin(), m.end(), motors.begin());
+    return robots::irb6::motor_limit_violation(motors);
   }
 
   bool within_limits(std::span<const double> q) const noexcept override {
     if (q.size() != kAxes) return false;
     JointPosition joints{};
     std::copy(q.begin(), q.end(), joints.begin());
-    try {  // the checks throw (and allocate) only for a position outside a limit
-      robots::irb6::check_joint_limits(joints, "position");
-      robots::irb6::check_motor_limits(robots::irb6::motors_from_joints(joints), "position");
-    } catch (...) {
-      return false;
-    }
-    return true;
+    // Inside the joint and linkage limits, motors_from_joints does not throw.
+    return !robots::irb6::joint_limit_violation(joints) &&
+           !robots::irb6::motor_limit_violation(robots::irb6::motors_from_joints(joints));
   }
   bool cartesian() const override { return true; }
   Eigen::Isometry3d forward(std::span<const double> q) const override {

@@ -335,34 +335,64 @@ MotorPosition motors_from_joints(const JointPosition& joints) {
   return m;
 }
 
-void check_joint_limits(const JointPosition& q, const char* what) {
+LimitViolation joint_limit_violation(const JointPosition& q) noexcept {
   for (std::size_t i = 0; i < kAxes; ++i) {
-    if (!std::isfinite(q[i]))
+    if (!std::isfinite(q[i])) return {LimitKind::invalid, i, q[i], 0.0};
+    if (q[i] > kJointUpperLimits[i]) return {LimitKind::joint, i, q[i], kJointUpperLimits[i]};
+    if (q[i] < kJointLowerLimits[i]) return {LimitKind::joint, i, q[i], kJointLowerLimits[i]};
+  }
+  const double fed[2] = {q[1], q[1] + q[2] + kHalfPi};
+  const ScrewLinkage* linkage[2] = {&kLowerArmScrew, &kUpperArmScrew};
+  for (std::size_t k = 0; k < 2; ++k) {
+    if (fed[k] < linkage[k]->min_angle)
+      return {LimitKind::linkage, k + 1, fed[k], linkage[k]->min_angle};
+    if (fed[k] > linkage[k]->max_angle)
+      return {LimitKind::linkage, k + 1, fed[k], linkage[k]->max_angle};
+  }
+  return {};
+}
+
+void check_joint_limits(const JointPosition& q, const char* what) {
+  const LimitViolation v = joint_limit_violation(q);
+  const std::size_t i = v.axis;
+  switch (v.kind) {
+    case LimitKind::none: return;
+    case LimitKind::invalid:
       bad_argument(
           fmt::format("joint {} ({}) {} {} is not a finite number", i, kJointNames[i], what, q[i]));
-    if (q[i] > kJointUpperLimits[i])
-      out_of_limits(fmt::format("joint {} ({}) {} {:.6f} rad exceeds upper limit {:.6f} rad", i,
-                                kJointNames[i], what, q[i], kJointUpperLimits[i]));
-    if (q[i] < kJointLowerLimits[i])
-      out_of_limits(fmt::format("joint {} ({}) {} {:.6f} rad is below lower limit {:.6f} rad", i,
-                                kJointNames[i], what, q[i], kJointLowerLimits[i]));
+    case LimitKind::linkage: {
+      const Screw& screw = i == 1 ? lower_screw() : upper_screw();
+      out_of_limits(
+          fmt::format("joint {} ({}) {}: {} = {:.6f} rad {} the {} linkage limit {:.6f} rad",
+                      screw.axis, kJointNames[screw.axis], what, screw.fed_angle, v.value,
+                      v.above() ? "exceeds" : "is below", screw.name, v.limit));
+    }
+    default:
+      out_of_limits(
+          fmt::format("joint {} ({}) {} {:.6f} rad {} {:.6f} rad", i, kJointNames[i], what, q[i],
+                      v.above() ? "exceeds upper limit" : "is below lower limit", v.limit));
   }
-  check_linkage(lower_screw(), q[1], what);
-  check_linkage(upper_screw(), q[1] + q[2] + kHalfPi, what);
+}
+
+LimitViolation motor_limit_violation(const MotorPosition& m) noexcept {
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    if (!std::isfinite(m[i])) return {LimitKind::invalid, i, m[i], 0.0};
+    if (m[i] > kMotorUpperLimits[i]) return {LimitKind::motor, i, m[i], kMotorUpperLimits[i]};
+    if (m[i] < kMotorLowerLimits[i]) return {LimitKind::motor, i, m[i], kMotorLowerLimits[i]};
+  }
+  return {};
 }
 
 void check_motor_limits(const MotorPosition& m, const char* what) {
-  for (std::size_t i = 0; i < kAxes; ++i) {
-    if (!std::isfinite(m[i]))
-      bad_argument(
-          fmt::format("motor {} ({}) {} {} is not a finite number", i, kJointNames[i], what, m[i]));
-    if (m[i] > kMotorUpperLimits[i])
-      out_of_limits(fmt::format("motor {} ({}) {} {} rad exceeds upper limit {} rad", i,
-                                kJointNames[i], what, number(m[i]), number(kMotorUpperLimits[i])));
-    if (m[i] < kMotorLowerLimits[i])
-      out_of_limits(fmt::format("motor {} ({}) {} {} rad is below lower limit {} rad", i,
-                                kJointNames[i], what, number(m[i]), number(kMotorLowerLimits[i])));
-  }
+  const LimitViolation v = motor_limit_violation(m);
+  const std::size_t i = v.axis;
+  if (v.kind == LimitKind::none) return;
+  if (v.kind == LimitKind::invalid)
+    bad_argument(
+        fmt::format("motor {} ({}) {} {} is not a finite number", i, kJointNames[i], what, m[i]));
+  out_of_limits(
+      fmt::format("motor {} ({}) {} {} rad {} {} rad", i, kJointNames[i], what, number(m[i]),
+                  v.above() ? "exceeds upper limit" : "is below lower limit", number(v.limit)));
 }
 
 std::vector<Irb6Geometry> kinematic_models(const RobotModel& model) {

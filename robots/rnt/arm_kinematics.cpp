@@ -45,25 +45,39 @@ class RntArmKinematics : public edp::ArmKinematics {
     const JointPosition q = rnt::joints_from_motors(axes_of(m, "motors"));
     return {q.begin(), q.end()};
   }
+  void motors_from_joints(std::span<const double> q, std::span<double> m) const override {
+    const MotorPosition motors = rnt::motors_from_joints(axes_of(q, "joints"));
+    if (m.size() != kAxes) (void)axes_of(m, "motors");  // throws: the wrong size
+    std::copy(motors.begin(), motors.end(), m.begin());
+  }
   void check_motor_limits(std::span<const double> m, const char* what) const override {
     rnt::check_motor_limits(axes_of(m, what), what);
   }
   void check_joint_limits(std::span<const double> q, const char* what) const override {
-    model_.check_joint_limits({q.begin(), q.end()}, what);
+    model_.check_joint_limits(q, what);
     rnt::check_limits(axes_of(q, what), what);  // adds the parallelogram's q1 + q2 range
+  }
+  LimitViolation joint_limit_violation(std::span<const double> q) const noexcept override {
+    if (const LimitViolation v = model_.joint_limit_violation(q)) return v;
+    if (q.size() != kAxes)
+      return {LimitKind::invalid, 0, static_cast<double>(q.size()), static_cast<double>(kAxes)};
+    JointPosition joints{};
+    std::copy(q.begin(), q.end(), joints.begin());
+    return rnt::limit_violation(joints);
+  }
+  LimitViolation motor_limit_violation(std::span<const double> m) const noexcept override {
+    if (m.size() != kAxes)
+      return {LimitKind::invalid, 0, static_cast<double>(m.size()), static_cast<double>(kAxes)};
+    MotorPosition motors{};
+    std::copy(m.begin(), m.end(), motors.begin());
+    return rnt::motor_limit_violation(motors);
   }
 
   bool within_limits(std::span<const double> q) const noexcept override {
     if (q.size() != kAxes) return false;
     JointPosition joints{};
     std::copy(q.begin(), q.end(), joints.begin());
-    try {  // the checks throw (and allocate) only for a position outside a limit
-      rnt::check_limits(joints, "position");
-      rnt::check_motor_limits(rnt::motors_from_joints(joints), "position");
-    } catch (...) {
-      return false;
-    }
-    return true;
+    return !rnt::limit_violation(joints);  // the joint, motor and parallelogram limits
   }
   bool cartesian() const override { return true; }
   Eigen::Isometry3d forward(std::span<const double> q) const override {

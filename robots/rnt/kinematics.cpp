@@ -71,28 +71,49 @@ JointPosition joints_from_motors(const MotorPosition& motors) {
   return joints_from_actuators(a);
 }
 
-void check_motor_limits(const MotorPosition& m, const char* what) {
-  check_finite(m, "motor", what);
+LimitViolation motor_limit_violation(const MotorPosition& m) noexcept {
+  for (std::size_t i = 0; i < kAxes; ++i)
+    if (!std::isfinite(m[i])) return {LimitKind::invalid, i, m[i], 0.0};
   for (std::size_t i = 0; i < kAxes; ++i) {
-    if (m[i] > kMotorUpperLimits[i])
-      out_of_limits(fmt::format("motor {} ({}) {} {} rad exceeds upper limit {} rad", i,
-                                kJointNames[i], what, number(m[i]), number(kMotorUpperLimits[i])));
-    if (m[i] < kMotorLowerLimits[i])
-      out_of_limits(fmt::format("motor {} ({}) {} {} rad is below lower limit {} rad", i,
-                                kJointNames[i], what, number(m[i]), number(kMotorLowerLimits[i])));
+    if (m[i] > kMotorUpperLimits[i]) return {LimitKind::motor, i, m[i], kMotorUpperLimits[i]};
+    if (m[i] < kMotorLowerLimits[i]) return {LimitKind::motor, i, m[i], kMotorLowerLimits[i]};
   }
+  return {};
+}
+
+void check_motor_limits(const MotorPosition& m, const char* what) {
+  const LimitViolation v = motor_limit_violation(m);
+  const std::size_t i = v.axis;
+  if (v.kind == LimitKind::none) return;
+  if (v.kind == LimitKind::invalid)
+    bad_argument(
+        fmt::format("motor {} ({}) {} {} is not a finite number", i, kJointNames[i], what, m[i]));
+  out_of_limits(
+      fmt::format("motor {} ({}) {} {} rad {} {} rad", i, kJointNames[i], what, number(m[i]),
+                  v.above() ? "exceeds upper limit" : "is below lower limit", number(v.limit)));
+}
+
+LimitViolation limit_violation(const JointPosition& q) noexcept {
+  for (std::size_t i = 0; i < kAxes; ++i)
+    if (!std::isfinite(q[i])) return {LimitKind::invalid, i, q[i], 0.0};
+  for (std::size_t i = 0; i < kAxes; ++i) {
+    if (q[i] > kJointUpperLimits[i]) return {LimitKind::joint, i, q[i], kJointUpperLimits[i]};
+    if (q[i] < kJointLowerLimits[i]) return {LimitKind::joint, i, q[i], kJointLowerLimits[i]};
+  }
+  return motor_limit_violation(motors_from_joints(q));  // finite: does not throw
 }
 
 void check_limits(const JointPosition& q, const char* what) {
-  check_finite(q, "joint", what);
-  for (std::size_t i = 0; i < kAxes; ++i) {
-    if (q[i] > kJointUpperLimits[i])
-      out_of_limits(fmt::format("joint {} ({}) {} {:.6f} rad exceeds upper limit {:.6f} rad", i,
-                                kJointNames[i], what, q[i], kJointUpperLimits[i]));
-    if (q[i] < kJointLowerLimits[i])
-      out_of_limits(fmt::format("joint {} ({}) {} {:.6f} rad is below lower limit {:.6f} rad", i,
-                                kJointNames[i], what, q[i], kJointLowerLimits[i]));
-  }
+  const LimitViolation v = limit_violation(q);
+  const std::size_t j = v.axis;
+  if (v.kind == LimitKind::none) return;
+  if (v.kind == LimitKind::invalid)
+    bad_argument(
+        fmt::format("joint {} ({}) {} {} is not a finite number", j, kJointNames[j], what, q[j]));
+  if (v.kind == LimitKind::joint)
+    out_of_limits(fmt::format("joint {} ({}) {} {:.6f} rad {} {:.6f} rad", j, kJointNames[j], what,
+                              q[j], v.above() ? "exceeds upper limit" : "is below lower limit",
+                              v.limit));
   const MotorPosition m = motors_from_joints(q);
   try {
     check_motor_limits(m, what);

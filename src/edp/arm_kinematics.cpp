@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <utility>
@@ -28,17 +29,27 @@ class DirectDriveKinematics : public ArmKinematics {
   std::vector<double> joints_from_motors(std::span<const double> m) const override {
     return {m.begin(), m.end()};
   }
+  void motors_from_joints(std::span<const double> q, std::span<double> m) const override {
+    if (m.size() != q.size())
+      throw CommandError(error_code::bad_argument,
+                         fmt::format("room for {} motor values, robot '{}' has {} joint values",
+                                     m.size(), model_.name, q.size()));
+    std::copy(q.begin(), q.end(), m.begin());
+  }
   void check_motor_limits(std::span<const double> m, const char* what) const override {
-    model_.check_joint_limits({m.begin(), m.end()}, what);
+    model_.check_joint_limits(m, what);
   }
   void check_joint_limits(std::span<const double> q, const char* what) const override {
-    model_.check_joint_limits({q.begin(), q.end()}, what);
+    model_.check_joint_limits(q, what);
+  }
+  LimitViolation joint_limit_violation(std::span<const double> q) const noexcept override {
+    return model_.joint_limit_violation(q);
+  }
+  LimitViolation motor_limit_violation(std::span<const double> m) const noexcept override {
+    return model_.joint_limit_violation(m);
   }
   bool within_limits(std::span<const double> q) const noexcept override {
-    if (q.size() != model_.axes()) return false;
-    for (std::size_t i = 0; i < q.size(); ++i)
-      if (!(q[i] >= model_.lower_limits[i] && q[i] <= model_.upper_limits[i])) return false;
-    return true;
+    return !model_.joint_limit_violation(q);
   }
 
  protected:

@@ -17,27 +17,36 @@ namespace mrroc {
 
 namespace fs = std::filesystem;
 
-void RobotModel::check_joint_limits(const std::vector<double>& q, const char* what) const {
+LimitViolation RobotModel::joint_limit_violation(std::span<const double> q) const noexcept {
   if (q.size() != axes())
+    return {LimitKind::invalid, 0, static_cast<double>(q.size()), static_cast<double>(axes())};
+  for (std::size_t i = 0; i < q.size(); ++i) {
+    if (!std::isfinite(q[i])) return {LimitKind::invalid, i, q[i], 0.0};
+    if (q[i] > upper_limits[i]) return {LimitKind::joint, i, q[i], upper_limits[i]};
+    if (q[i] < lower_limits[i]) return {LimitKind::joint, i, q[i], lower_limits[i]};
+  }
+  return {};
+}
+
+void RobotModel::check_joint_limits(std::span<const double> q, const char* what) const {
+  const LimitViolation v = joint_limit_violation(q);
+  if (!v) return;
+  const std::size_t i = v.axis;
+  if (v.kind == LimitKind::invalid && q.size() != axes())
     throw CommandError(edp::error_code::bad_argument,
                        fmt::format("{} has {} joint values, robot '{}' has {} axes", what, q.size(),
                                    name, axes()));
-  for (std::size_t i = 0; i < q.size(); ++i) {
-    if (!std::isfinite(q[i]))
-      throw CommandError(
-          edp::error_code::bad_argument,
-          fmt::format("joint {} ({}) {} {} is not a finite number", i, joint_names[i], what, q[i]));
-    if (q[i] > upper_limits[i])
-      throw CommandError(
-          edp::error_code::out_of_limits,
-          fmt::format("joint {} ({}) {} {:.6f} {} exceeds upper limit {:.6f} {}", i, joint_names[i],
-                      what, q[i], unit(i), upper_limits[i], unit(i)));
-    if (q[i] < lower_limits[i])
-      throw CommandError(
-          edp::error_code::out_of_limits,
-          fmt::format("joint {} ({}) {} {:.6f} {} is below lower limit {:.6f} {}", i,
-                      joint_names[i], what, q[i], unit(i), lower_limits[i], unit(i)));
-  }
+  if (v.kind == LimitKind::invalid)
+    throw CommandError(
+        edp::error_code::bad_argument,
+        fmt::format("joint {} ({}) {} {} is not a finite number", i, joint_names[i], what, q[i]));
+  if (v.above())
+    throw CommandError(edp::error_code::out_of_limits,
+                       fmt::format("joint {} ({}) {} {:.6f} {} exceeds upper limit {:.6f} {}", i,
+                                   joint_names[i], what, q[i], unit(i), v.limit, unit(i)));
+  throw CommandError(edp::error_code::out_of_limits,
+                     fmt::format("joint {} ({}) {} {:.6f} {} is below lower limit {:.6f} {}", i,
+                                 joint_names[i], what, q[i], unit(i), v.limit, unit(i)));
 }
 
 namespace {

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "mrroc/robot/limit_violation.hpp"
 #include "mrroc/robot/robot_model.hpp"
 
 namespace mrroc::edp {
@@ -27,10 +28,22 @@ class ArmKinematics {
   /// Motor shaft angles [rad] from joint coordinates, and back.
   [[nodiscard]] virtual std::vector<double> motors_from_joints(std::span<const double> q) const = 0;
   [[nodiscard]] virtual std::vector<double> joints_from_motors(std::span<const double> m) const = 0;
+  /// The motor shaft angles [rad] of joints `q`, written into `m` (as many values as axes):
+  /// allocation-free for a `q` that passes joint_limit_violation. @throws CommandError as the
+  /// other overload does (bad_argument also for an `m` of the wrong size).
+  virtual void motors_from_joints(std::span<const double> q, std::span<double> m) const = 0;
   /// @throws CommandError (out_of_limits) naming motor, value, unit and limit.
   virtual void check_motor_limits(std::span<const double> m, const char* what) const = 0;
   /// Joint limits including any the linkage adds. @throws CommandError (out_of_limits).
   virtual void check_joint_limits(std::span<const double> q, const char* what) const = 0;
+  /// The checks of check_joint_limits and check_motor_limits as values: the first limit `q` (or
+  /// `m`) leaves, in the order those report them, or LimitKind::none. Allocation-free; the text
+  /// of a refusal comes from check_joint_limits / check_motor_limits, called only on a failure
+  /// (edp::check_straight_path does that).
+  [[nodiscard]] virtual LimitViolation joint_limit_violation(
+      std::span<const double> q) const noexcept = 0;
+  [[nodiscard]] virtual LimitViolation motor_limit_violation(
+      std::span<const double> m) const noexcept = 0;
   /// True when `q` is inside every joint, linkage and motor limit. Thread-safe; used by the
   /// servo loop's stopping ramp, so it does not allocate for a `q` inside the limits.
   [[nodiscard]] virtual bool within_limits(std::span<const double> q) const noexcept = 0;

@@ -26,6 +26,8 @@
 
 #include <Eigen/Geometry>
 
+#include "mrroc/robot/limit_violation.hpp"
+
 namespace mrroc {
 struct RobotModel;
 }  // namespace mrroc
@@ -127,12 +129,19 @@ MotorPosition motors_from_joints(const JointPosition& joints);
 ///   limit -0.785398 rad"; (code bad_argument) for a value that is not finite.
 void check_joint_limits(const JointPosition& joints, const char* what = "target");
 
+/// The checks of `check_joint_limits` as a value: the first value that is not finite, joint
+/// limit (kind joint) or linkage range (kind linkage, axis 1 or 2, value the fed angle q1 or
+/// q1 + q2 + pi/2) left. Allocation-free.
+LimitViolation joint_limit_violation(const JointPosition& joints) noexcept;
+
 /// Checks `kMotorLowerLimits` / `kMotorUpperLimits`.
 /// @throws CommandError (code edp::error_code::out_of_limits) such as
 ///   "motor 2 (upper_arm) position 101.2 rad exceeds upper limit 100.0 rad" or
 ///   "motor 0 (column) position -471.5 rad is below lower limit -470.0 rad"; (code bad_argument)
 ///   for a value that is not finite.
 void check_motor_limits(const MotorPosition& motors, const char* what = "position");
+/// The checks of `check_motor_limits` as a value (kind motor, or invalid). Allocation-free.
+LimitViolation motor_limit_violation(const MotorPosition& motors) noexcept;
 
 /// Link lengths [m] of a kinematic model. They come from the robot's parameters.toml
 /// (`kinematic_models`); robots/irb6/parameters.toml gives d1 0.70, a2 0.455, a3 0.67, d5 0.19

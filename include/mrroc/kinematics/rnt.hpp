@@ -21,6 +21,8 @@
 #include <cstddef>
 #include <numbers>
 
+#include "mrroc/robot/limit_violation.hpp"
+
 namespace mrroc::robots::rnt {
 
 inline constexpr std::size_t kAxes = 6;
@@ -103,6 +105,8 @@ JointPosition joints_from_motors(const MotorPosition& motors);
 ///   "motor 0 (waist) position -451.0 rad is below lower limit -450.0 rad"; (code bad_argument)
 ///   for a value that is not finite.
 void check_motor_limits(const MotorPosition& motors, const char* what = "position");
+/// The checks of `check_motor_limits` as a value (kind motor, or invalid). Allocation-free.
+LimitViolation motor_limit_violation(const MotorPosition& motors) noexcept;
 
 /// Checks the joint limits, then the motor limits of `motors_from_joints(joints)` (which adds the
 /// parallelogram's limit on the absolute forearm pitch q1 + q2).
@@ -112,5 +116,8 @@ void check_motor_limits(const MotorPosition& motors, const char* what = "positio
 ///   shoulder + elbow = 2.000000 rad, limit 1.906250 rad)"; (code bad_argument) for a value
 ///   that is not finite.
 void check_limits(const JointPosition& joints, const char* what = "target");
+/// The checks of `check_limits` as a value: the first value that is not finite, joint limit
+/// (kind joint) or motor limit (kind motor, the parallelogram's included) left. Allocation-free.
+LimitViolation limit_violation(const JointPosition& joints) noexcept;
 
 }  // namespace mrroc::robots::rnt

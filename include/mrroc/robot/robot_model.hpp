@@ -11,6 +11,8 @@
 #include <string_view>
 #include <vector>
 
+#include "mrroc/robot/limit_violation.hpp"
+
 namespace mrroc {
 
 /// The file of a robot model folder that describes the robot (robots/<name>/parameters.toml).
@@ -59,8 +61,12 @@ struct RobotModel {
   }
 
   /// Checks one joint vector. @throws CommandError (code out_of_limits) such as
-  /// "joint 2 (upper_arm) target 0.81 rad exceeds upper limit 0.70 rad".
-  void check_joint_limits(const std::vector<double>& q, const char* what = "target") const;
+  /// "joint 2 (upper_arm) target 0.81 rad exceeds upper limit 0.70 rad"; (code bad_argument) for
+  /// the wrong number of values or one that is not a finite number.
+  void check_joint_limits(std::span<const double> q, const char* what = "target") const;
+  /// The same check as a value (the first joint outside its limits, in the order
+  /// check_joint_limits reports them); allocation-free.
+  [[nodiscard]] LimitViolation joint_limit_violation(std::span<const double> q) const noexcept;
 };
 
 /// The link lengths [m] that kinematics solver `solver` takes from [robot.kinematics] (and

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "mrroc/core/error.hpp"
+#include "mrroc/edp/path_check.hpp"
 
 namespace mrroc::ecp {
 
@@ -137,17 +138,9 @@ namespace detail {
 
 void check_macro_step_path(const edp::ArmKinematics& kinematics, const std::vector<double>& from,
                            const std::vector<double>& to, int motion_steps) {
-  // The same checks, on the same interpolation steps, as the EDP's command interpreter: a plan
-  // that passes here is not refused there (for the same kinematic model and tool).
-  kinematics.check_joint_limits(to, "target");
-  std::vector<double> q(to.size());
-  for (int k = 1; k <= motion_steps; ++k) {
-    const double s = static_cast<double>(k) / motion_steps;
-    for (std::size_t i = 0; i < q.size(); ++i) q[i] = from[i] + (to[i] - from[i]) * s;
-    const std::string what = fmt::format("servo step {} of {}", k, motion_steps);
-    kinematics.check_joint_limits(q, what.c_str());
-    kinematics.check_motor_limits(kinematics.motors_from_joints(q), what.c_str());
-  }
+  // The EDP's command interpreter checks with the same function: a plan that passes here is not
+  // refused there (for the same kinematic model and tool).
+  edp::check_straight_path(kinematics, from, to, motion_steps, "servo step");
 }
 
 JointRates joint_rates(const std::vector<double>& before,

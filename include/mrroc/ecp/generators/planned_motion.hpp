@@ -112,9 +112,11 @@ class PlannedMotionGenerator : public Generator {
 
 namespace detail {
 
-/// Checks what the EDP checks for one macro-step from `from` to `to` (joints [rad]): the target's
-/// joint and linkage limits, and the joint and motor limits of every one of the `motion_steps`
-/// joint-space interpolation steps. @throws CommandError (out_of_limits) naming the axis.
+/// Checks what the EDP checks for one macro-step from `from` to `to` (joints [rad]), with the
+/// same function (edp::check_straight_path): the target's joint and linkage limits, and the joint
+/// and motor limits of every one of the `motion_steps` joint-space interpolation steps (a failing
+/// one named "servo step k of N"); allocation-free while it passes.
+/// @throws CommandError (out_of_limits) naming the axis.
 void check_macro_step_path(const edp::ArmKinematics& kinematics, const std::vector<double>& from,
                            const std::vector<double>& to, int motion_steps);
 

@@ -668,6 +668,10 @@ void Cia402Master::sdo_write_bytes(std::uint8_t node, std::uint16_t index, std::
   } while (at < data.size());
 }
 
+void Cia402Master::nmt_own_nodes(canopen::NmtCommand command) noexcept {
+  for (const MasterAxis& a : axes_) (void)bus_.send(canopen::nmt_frame(command, a.node));
+}
+
 void Cia402Master::wait_boot_up(std::size_t i) {
   const std::uint8_t n = axes_[i].node;
   (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::reset_communication, n));
@@ -873,10 +877,11 @@ void Cia402Master::bring_up(std::chrono::milliseconds timeout) {
   quick_stopping_ = false;
   fault_[0] = '\0';
   std::fill(velocities_.begin(), velocities_.end(), 0);
-  // Configure every drive over SDO (pre-operational: no PDOs yet).
-  (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::enter_pre_operational, 0));
+  // Configure every drive over SDO (pre-operational: no PDOs yet). Only this master's own nodes
+  // are addressed: other drives on the bus (another robot's) keep their NMT state.
+  nmt_own_nodes(canopen::NmtCommand::enter_pre_operational);
   for (std::size_t i = 0; i < axes_.size(); ++i) configure_drive(i);
-  (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::start, 0));
+  nmt_own_nodes(canopen::NmtCommand::start);
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   // Step the drives to operation enabled, holding them where they are.
   const auto period = std::chrono::duration<double>(options_.period_s);
@@ -968,12 +973,30 @@ void Cia402Master::home(const std::atomic<bool>& stop) {
                                  : std::string(fault_));
   };
   const auto hex_text = [](std::uint32_t v, int digits) { return hex(v, digits); };
+  // The drives whose homing has not ended yet (every homing drive before the start and after
+  // the last has attained its home).
+  std::vector<std::uint8_t> done(axes_.size(), 0);
+  const auto still_homing = [&] {
+    std::vector<std::size_t> out;
+    for (const std::size_t i : homing)
+      if (done[i] == 0U) out.push_back(i);
+    return out.empty() ? homing : out;
+  };
+  // Ends the homing, naming the first drive still homing and the others after it.
+  const auto fail_still_homing = [&](const std::string& why) {
+    const std::vector<std::size_t> still = still_homing();
+    std::string text = why;
+    for (std::size_t k = 1; k < still.size(); ++k)
+      text += (k == 1 ? "; still homing too: node " : ", node ") +
+              std::to_string(axes_[still[k]].node) + " (axis '" + axes_[still[k]].name + "')";
+    return fail(still.front(), text);
+  };
   // One cycle, then: the stop, or a fault the cycle found, ends the homing.
   const auto cycle_checked = [&] {
     homing_cycle(false);
     if (stop.load(std::memory_order_relaxed))
-      throw fail(homing.front(), "stopped by the emergency stop (quick stop)");
-    if (faulted_) throw fail(homing.front(), "a fault while homing");
+      throw fail_still_homing("stopped by the emergency stop (quick stop)");
+    if (faulted_) throw fail_still_homing("a fault while homing");
   };
   // An SDO write, read back, with a cycle after each transfer.
   const auto sdo_checked = [&](std::size_t i, std::uint16_t index, std::uint8_t sub,
@@ -1060,7 +1083,6 @@ void Cia402Master::home(const std::atomic<bool>& stop) {
   // from an earlier homing until it starts again).
   const std::uint64_t start_cycle = cycle_;
   std::vector<std::uint8_t> attained_before(axes_.size(), 0);
-  std::vector<std::uint8_t> done(axes_.size(), 0);
   for (const std::size_t i : homing) {
     attained_before[i] = (status_[i].statusword & sw::kHomingAttained) != 0U ? 1 : 0;
     controlword_override_[i] = cw::kEnableOperation | cw::kHomingStart;
@@ -1137,7 +1159,7 @@ void Cia402Master::shut_down() noexcept {
     cycle_once(canopen::controlword::kDisableVoltage, held_);
   } catch (...) {
   }
-  (void)bus_.send(canopen::nmt_frame(canopen::NmtCommand::enter_pre_operational, 0));
+  nmt_own_nodes(canopen::NmtCommand::enter_pre_operational);
 }
 
 }  // namespace mrroc::can

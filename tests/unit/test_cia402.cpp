@@ -349,6 +349,62 @@ TEST(Cia402Master, BringsDrivesUpStreamsPositionsAndReadsThemBack) {
   master.shut_down();
 }
 
+// A bus shared with another robot's drives (another EDP's master, or a device of its own): the
+// master's NMT commands address its own nodes one by one, never all nodes (node id 0), so a
+// drive that is not its own keeps its NMT state through the master's bring-up and shut-down.
+TEST(Cia402Master, SendsNmtOnlyToItsOwnNodesAndLeavesAnotherDriveOnTheBusAsItIs) {
+  MemoryHub hub;
+  DriveRack rack(hub, 3);  // nodes 1 and 2 for the master; node 3 another robot's
+  Bus& owner = hub.add();  // node 3's own master, here only its NMT start
+  Bus& watch = hub.add();
+  const auto nmt_state = [&](std::size_t i) {
+    return rack.with([&](auto& drives, auto&) { return drives[i]->nmt_state(); });
+  };
+  const auto wait_for = [&](std::size_t i, co::NmtState state) {
+    for (int k = 0; k < 500 && nmt_state(i) != state; ++k) std::this_thread::sleep_for(2ms);
+    return nmt_state(i);
+  };
+  ASSERT_EQ(owner.send(co::nmt_frame(co::NmtCommand::start, 3)), SendResult::sent);
+  ASSERT_EQ(wait_for(2, co::NmtState::operational), co::NmtState::operational);
+  Received r;
+  while (watch.receive(r, 0ns)) {
+  }
+
+  Cia402Master master(hub.add(), axes(2), rack_options());
+  master.bring_up(2000ms);
+  EXPECT_EQ(nmt_state(0), co::NmtState::operational);
+  EXPECT_EQ(nmt_state(1), co::NmtState::operational);
+  EXPECT_EQ(nmt_state(2), co::NmtState::operational);
+  run_cycles(master, 20, [](int) { return std::vector<double>{0.0, 0.0}; });
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  master.shut_down();
+  EXPECT_EQ(wait_for(0, co::NmtState::pre_operational), co::NmtState::pre_operational);
+  EXPECT_EQ(wait_for(1, co::NmtState::pre_operational), co::NmtState::pre_operational);
+  EXPECT_EQ(nmt_state(2), co::NmtState::operational);
+  rack.with([](auto& drives, auto&) {
+    EXPECT_EQ(drives[2]->state(), co::DriveState::switch_on_disabled);  // never addressed
+    return 0;
+  });
+
+  // Every NMT command the master sent, in order: pre-operational to each of its nodes, then,
+  // drive by drive, reset communication (and its configuration), start to each, and
+  // pre-operational to each at the shut-down.
+  std::vector<std::pair<co::NmtCommand, int>> sent;
+  while (watch.receive(r, 0ns))
+    if (r.frame.can_id == co::kNmtId && r.frame.len == 2)
+      sent.emplace_back(static_cast<co::NmtCommand>(r.frame.data[0]), r.frame.data[1]);
+  using C = co::NmtCommand;
+  const std::vector<std::pair<co::NmtCommand, int>> expected = {{C::enter_pre_operational, 1},
+                                                                {C::enter_pre_operational, 2},
+                                                                {C::reset_communication, 1},
+                                                                {C::reset_communication, 2},
+                                                                {C::start, 1},
+                                                                {C::start, 2},
+                                                                {C::enter_pre_operational, 1},
+                                                                {C::enter_pre_operational, 2}};
+  EXPECT_EQ(sent, expected);
+}
+
 TEST(Cia402Master, DigitalLinesTravelBothWaysAndLostOutputsAreRefreshed) {
   MemoryHub hub;
   DriveRack rack(hub, 2);
@@ -2127,6 +2183,39 @@ TEST(Cia402Master, AnEmergencyStopDuringHomingQuickStopsTheDrive) {
   EXPECT_LT(*stood, at_stop + 0.25 * 0.03 + 0.0063);
   std::printf("stopped %.1f mrad after the emergency stop\n", (*stood - at_stop) * 1000.0);
   EXPECT_TRUE(master.faulted());
+}
+
+// An emergency stop names the drive still homing, not the first homing one, whose home was
+// attained already.
+TEST(Cia402Master, AnEmergencyStopDuringHomingNamesTheDriveStillHoming) {
+  MemoryHub hub;
+  DriveRack rack(hub, 2, {drive_file("emu-pp-split.eds"), drive_file("emu-pp-split.eds")});
+  // Node 1: method 37 (home where it stands, at once). Node 2: method 20 from 0.3 rad, up
+  // towards the switch at 0.5 rad.
+  Cia402Master master(hub.add(),
+                      homing_axes({homing_row(37, 0.0, 0.0, 1.0, 0.0, 5.0),
+                                   homing_row(20, 0.5, 0.25, 4.0, 0.0, 5.0)}),
+                      rack_options());
+  master.bring_up(2000ms);
+  std::atomic<bool> stop{false};
+  std::string what;
+  std::thread homing([&] { what = homing_error(master, stop); });
+  const auto until = std::chrono::steady_clock::now() + 10s;
+  double at_stop = 0.0;
+  while (std::chrono::steady_clock::now() < until) {
+    at_stop = rack.with([](auto&, auto& positions) { return positions[1]; });
+    if (at_stop > 0.32) break;
+    std::this_thread::sleep_for(1ms);
+  }
+  stop = true;
+  homing.join();
+  ASSERT_GT(at_stop, 0.32) << what;
+  EXPECT_EQ(what.find("drive node 2 (axis 'axis1') on memory:test: homing by method 20 failed "
+                      "after "),
+            0U)
+      << what;
+  EXPECT_NE(what.find("stopped by the emergency stop (quick stop)"), std::string::npos) << what;
+  EXPECT_EQ(what.find("still homing too"), std::string::npos) << what;
 }
 
 }  // namespace

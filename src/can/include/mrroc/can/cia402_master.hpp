@@ -12,8 +12,9 @@
 /// position or cyclic synchronous velocity), the interpolation period (= the cycle), the
 /// following-error window and time, the quick-stop deceleration and the heartbeat time, where the
 /// drive has them; the config's own SDO writes; a drive in fault is reset. Then it starts the nodes
-/// (NMT) and steps the drives through shutdown -> switch on -> enable operation with the target
-/// held at each drive's actual position, so nothing moves.
+/// (NMT, each by its node id: never all nodes, so other drives on the bus keep their state) and
+/// steps the drives through shutdown -> switch on -> enable operation with the target held at each
+/// drive's actual position, so nothing moves.
 ///
 /// Supervision (CiA 301/402): the master produces its own heartbeat (COB-ID 0x700 + `master_node`,
 /// every `master_heartbeat_ms`, from `send` and while waiting for SDO answers) and bring-up makes
@@ -141,7 +142,8 @@ class Cia402Master {
   /// @throws mrroc::HardwareError naming the drive (bus, node, axis), the method and the time since
   /// the homing began, on statusword bit 13 (homing error), on the drive's `timeout_s`, on an SDO
   /// abort (a method the drive does not have: no motion), on a fault while homing (EMCY, fault
-  /// state, silence, bus-off: its text, as every fault's), and on `stop`. Then `faulted()` is
+  /// state, silence, bus-off: its text, as every fault's), and on `stop` (these two name the first
+  /// drive still homing, and the others still homing after the text). Then `faulted()` is
   /// true with the same text: the drives are quick-stopped and held, and a new `bring_up` (the
   /// EDP's SYNCHRO after a fault) is needed.
   void home(const std::atomic<bool>& stop);
@@ -155,7 +157,8 @@ class Cia402Master {
   /// the end of the controller's run: the drives hold their outputs otherwise). The lines given
   /// to `set_outputs` are kept and written again by the next bring-up. Never throws.
   void switch_outputs_off() noexcept;
-  /// Disables the drives (brakes on) and sends them to NMT pre-operational. Never throws.
+  /// Disables the drives (brakes on) and sends them to NMT pre-operational (each of its own
+  /// nodes, none other). Never throws.
   void shut_down() noexcept;
 
   /// Drains the bus; updates every drive's status; detects faults.
@@ -226,6 +229,10 @@ class Cia402Master {
   void configure_drive(std::size_t axis);
   void configure_pdo(std::size_t axis, const PdoPlan& pdo);
   void wait_boot_up(std::size_t axis);
+  /// Sends `command` to each of this master's nodes, one NMT frame per node id in the axes'
+  /// order: never to all nodes (node id 0), since the bus may carry other drives (another
+  /// robot's, another master's).
+  void nmt_own_nodes(canopen::NmtCommand command) noexcept;
   /// Writes and reads back; @throws naming the object and both values when they differ.
   void write_checked(std::size_t axis, std::uint16_t index, std::uint8_t sub, std::uint32_t value,
                      std::uint8_t size);

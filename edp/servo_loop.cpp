@@ -124,7 +124,74 @@ void ServoLoop::start() {
     hardware_.read_device(std::span(device_sample_.data(), device_.reply.size()));
     latest_.device = device_sample_;
   }
+  start_recovery_thread();
   thread_ = std::thread([this] { run(); });
+}
+
+void ServoLoop::start_recovery_thread() {
+  recovery_quit_ = false;
+  recovery_job_ = 0;
+  recovery_done_ = 0;
+  recovery_number_ = 0;
+  recovery_in_flight_ = kNoRecovery;
+  recovery_thread_ = std::thread([this] { run_recovery(); });
+}
+
+void ServoLoop::run_recovery() {
+  // Below the servo thread (SCHED_FIFO 80) and above the EDP's communication: a plugin keeps its
+  // devices supervised during a homing (the CAN master's SYNC and heartbeat), which a busy host
+  // must not hold up; where SCHED_FIFO is refused, the thread runs as it was started.
+  sched_param sp{};
+  sp.sched_priority = kRecoveryPriority;
+  (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  std::uint64_t ended = 0;
+  for (;;) {
+    const std::uint32_t seen = recovery_wake_.value();
+    const std::uint64_t posted = recovery_job_.load(std::memory_order_acquire);
+    if (posted / 4 != ended) {
+      const auto job = static_cast<int>(posted % 4);
+      recovery_failure_[0] = '\0';
+      try {
+        if (job == kResetRecovery) {
+          hardware_.deactivate();
+          hardware_.activate();
+        } else {
+          hardware_.home_axes();
+        }
+      } catch (const std::exception& e) {
+        // A reset that fails stays faulted (the next read() says why); a homing's text names the
+        // axis, the method and the time (Hardware::home_axes).
+        std::snprintf(recovery_failure_, sizeof recovery_failure_, "%s", e.what());
+      } catch (...) {
+        std::snprintf(recovery_failure_, sizeof recovery_failure_, "%s",
+                      job == kResetRecovery ? "plugin threw in activate(): unknown exception"
+                                            : "plugin threw in home_axes(): unknown exception");
+      }
+      ended = posted / 4;
+      recovery_done_.store(ended, std::memory_order_release);
+      changed_.notify();  // a lock-step or stepped loop waits for it
+      continue;
+    }
+    if (recovery_quit_.load(std::memory_order_acquire)) return;
+    recovery_wake_.wait_for(seen, std::chrono::milliseconds(100));
+  }
+}
+
+void ServoLoop::post_recovery(bool reset) {
+  recovery_in_flight_ = reset ? kResetRecovery : kHomingRecovery;
+  ++recovery_number_;
+  recovery_job_.store(recovery_number_ * 4 + static_cast<std::uint64_t>(recovery_in_flight_),
+                      std::memory_order_release);
+  recovery_wake_.notify();
+}
+
+bool ServoLoop::recovery_ended(bool wait) {
+  for (;;) {
+    const std::uint32_t seen = changed_.value();
+    if (recovery_done_.load(std::memory_order_acquire) == recovery_number_) return true;
+    if (!wait) return false;
+    changed_.wait_for(seen, std::chrono::milliseconds(10));
+  }
 }
 
 void ServoLoop::start_stepped() {
@@ -138,19 +205,24 @@ void ServoLoop::start_stepped() {
     hardware_.read_device(std::span(device_sample_.data(), device_.reply.size()));
     latest_.device = device_sample_;
   }
+  stepped_ = true;
+  start_recovery_thread();
   running_ = true;
 }
 
 void ServoLoop::step(std::int64_t missed_periods) {
   const auto period_ns = static_cast<std::int64_t>(std::llround(period_s_ * 1e9));
   cycle(missed_periods * period_ns, period_ns, keeps_time_ ? missed_periods : std::int64_t{0});
-  blocked_ = false;  // the caller keeps the time
 }
 
 void ServoLoop::stop() {
   if (!running_.exchange(false)) return;
   changed_.notify();  // wakes a lock-step loop waiting for work or a successor
   if (thread_.joinable()) thread_.join();
+  // A recovery in flight ends first (an emergency stop ends a homing early).
+  recovery_quit_.store(true, std::memory_order_release);
+  recovery_wake_.notify();
+  if (recovery_thread_.joinable()) recovery_thread_.join();
   hardware_.deactivate();
   changed_.notify();
 }
@@ -183,15 +255,6 @@ void ServoLoop::run() {
     const std::int64_t late_ns = woke - deadline;
     cycle(late_ns, period_ns, keeps_time_ ? late_ns / period_ns : std::int64_t{0});
     clock_gettime(CLOCK_MONOTONIC, &now);
-    if (blocked_) {
-      // The cycle ran a recovery that blocks (a bring-up after a fault, the hardware's own
-      // homing): the robot stood still meanwhile, so the periods it took are not a lateness
-      // to report or make up. The clock starts again from here.
-      blocked_ = false;
-      work_ns_ = 0;
-      deadline = to_ns(now) + period_ns;
-      continue;
-    }
     work_ns_ = to_ns(now) - woke;  // recorded with the next cycle
     deadline += period_ns;
     // After an overrun, skip the periods already missed instead of running a burst of cycles.
@@ -215,13 +278,6 @@ void ServoLoop::run() {
         ++caught_up_total_;
       }
       clock_gettime(CLOCK_MONOTONIC, &now);
-      if (blocked_) {  // as after the cycle above
-        blocked_ = false;
-        owed_cycles_ = 0;
-        work_ns_ = 0;
-        deadline = to_ns(now) + period_ns;
-        break;
-      }
       work_ns_ = to_ns(now) - start;
     }
   }
@@ -271,7 +327,6 @@ void ServoLoop::run_lock_step() {
     });
     if (!running_.load(std::memory_order_relaxed)) break;
     cycle(0, 1, 0);
-    blocked_ = false;  // no deadlines in lock-step
   }
 }
 
@@ -318,38 +373,34 @@ void ServoLoop::cycle(std::int64_t late_ns, std::int64_t period_ns, std::int64_t
   };
   bool reset = false;
   bool home = false;
-  lock_timed();
-  reset = reset_pending_;
-  home = homing_pending_ && !reset && !faulted_ && !emergency_stop_ && mode_ == Mode::synchronising;
-  if (home) {
-    homing_pending_ = false;
-    homing_running_ = true;
-  }
-  mutex_.unlock();
-  if (reset) {
-    blocked_ = true;
-    try {
-      hardware_.deactivate();
-      hardware_.activate();
-    } catch (...) {
-      // Stays faulted: read() below reports why.
+  // 0. A reset after a fault (deactivate(), activate(): a bring-up) and the hardware's own homing
+  // at SYNCHRO block for up to seconds: they run on the recovery thread, never on this one. No
+  // plugin call is made from here while one runs (the robot is held by a fault, or stands while
+  // it synchronises); in real time the cycles go on meanwhile without the plugin, in lock-step
+  // and stepped loops the cycle waits for it. The cycle after it reads the result.
+  if (recovery_in_flight_ == kNoRecovery) {
+    lock_timed();
+    reset = reset_pending_;
+    home =
+        homing_pending_ && !reset && !faulted_ && !emergency_stop_ && mode_ == Mode::synchronising;
+    if (home) {
+      homing_pending_ = false;
+      homing_running_ = true;
     }
+    mutex_.unlock();
+    if (reset || home) post_recovery(reset);
   }
-  // SYNCHRO of hardware that homes axes itself: the homing blocks this thread (the plugin keeps
-  // its devices supervised meanwhile, and an emergency stop reaches it through
-  // Hardware::emergency_stop), then the synchroniser starts from the positions read below.
   char homing_failure[sizeof fault_] = {};
-  if (home) {
-    blocked_ = true;
-    try {
-      hardware_.home_axes();
-    } catch (const std::exception& e) {
-      // The plugin's text names the axis, the method and the time (Hardware::home_axes).
-      std::snprintf(homing_failure, sizeof homing_failure, "%s", e.what());
-    } catch (...) {
-      std::snprintf(homing_failure, sizeof homing_failure,
-                    "plugin threw in home_axes(): unknown exception");
-    }
+  if (recovery_in_flight_ != kNoRecovery) {
+    const bool wait = lock_step_ || stepped_;
+    if (!recovery_ended(wait)) return;  // real time: the next cycle looks again
+    reset = recovery_in_flight_ == kResetRecovery;
+    home = recovery_in_flight_ == kHomingRecovery;
+    // A reset that failed stays faulted: read() below reports why. A homing's failure names the
+    // axis, the method and the time (Hardware::home_axes); the synchroniser starts from the
+    // positions read below.
+    if (home) std::snprintf(homing_failure, sizeof homing_failure, "%s", recovery_failure_);
+    recovery_in_flight_ = kNoRecovery;
   }
   // 1. Sample, without the lock. A plugin must not throw here; if it does, the loop holds the
   // robot and reports it as a fault.
@@ -860,8 +911,9 @@ void ServoLoop::emergency_stop() {
       // a robot at rest ends the ramp in the next cycle.
       mode_ = Mode::stopping;
     } else if (homing_running_) {
-      // The hardware's homing runs on the servo thread: the quick stop (hardware_.emergency_stop
-      // above) ends it, and the cycle after it reports how (finish_homing); SYNCHRO waits for it.
+      // The hardware's homing runs on the recovery thread: the quick stop
+      // (hardware_.emergency_stop above) ends it, and the cycle after it reports how
+      // (finish_homing); SYNCHRO waits for it.
     } else if (mode_ != Mode::hold) {
       synchroniser_.abandon();  // a synchronisation search is simply abandoned (it is slow)
       homing_pending_ = false;

@@ -253,6 +253,16 @@ class ServoLoop {
 
   void run();
   void run_lock_step();
+  /// The recovery thread: runs each job the servo thread posts (Hardware::deactivate() and
+  /// activate() for a reset, Hardware::home_axes() for a homing), one at a time.
+  void run_recovery();
+  /// Servo thread: posts the recovery the cycle needs (a reset, a homing) to the recovery thread.
+  void post_recovery(bool reset);
+  /// Servo thread: whether the recovery posted has ended, waiting for it when `wait` (lock-step
+  /// and stepped loops: no cycle without it; real time: the loop goes on without the plugin).
+  bool recovery_ended(bool wait);
+  /// Starts the recovery thread (start(), start_stepped()).
+  void start_recovery_thread();
   [[nodiscard]] TimingStats timing_stats(const std::vector<float>& sorted) const;
   /// Lock-step: something for the next cycle to do (mutex_ held).
   [[nodiscard]] bool has_work() const;
@@ -349,11 +359,25 @@ class ServoLoop {
   bool hold_at_measured_ = false;  ///< after an emergency stop: hold at the measured joints
   bool reset_pending_ = false;
   bool homing_pending_ = false;   ///< SYNCHRO: the next cycle calls Hardware::home_axes()
-  bool homing_running_ = false;   ///< the servo thread is inside Hardware::home_axes()
+  bool homing_running_ = false;   ///< the recovery thread is inside Hardware::home_axes()
   std::uint32_t homed_axes_ = 0;  ///< Hardware::self_homing_axes(), constant after construction
-  /// Servo thread only: the last cycle ran a blocking recovery (reset, homing); run() restarts
-  /// its clock after it.
-  bool blocked_ = false;
+  /// Recovery off the servo thread: the job the servo thread posted (kNoRecovery when none is
+  /// in flight; servo thread only); the handshake: recovery_job_ holds the job and its number
+  /// (job + 4 * number), recovery_done_ the number of the last job ended; the failure text is
+  /// written by the recovery thread before recovery_done_, read by the servo thread after.
+  static constexpr int kRecoveryPriority = 70;  ///< SCHED_FIFO, below the servo thread's 80
+  bool stepped_ = false;                        ///< start_stepped(): the caller steps the loop
+  static constexpr int kNoRecovery = 0;
+  static constexpr int kResetRecovery = 1;
+  static constexpr int kHomingRecovery = 2;
+  int recovery_in_flight_ = kNoRecovery;
+  std::thread recovery_thread_;
+  std::atomic<std::uint64_t> recovery_job_{0};
+  std::atomic<std::uint64_t> recovery_done_{0};
+  std::uint64_t recovery_number_ = 0;  ///< servo thread: the number of the last job posted
+  std::atomic<bool> recovery_quit_{false};
+  Wakeup recovery_wake_;
+  char recovery_failure_[256] = {};
   std::int64_t lost_successors_ = 0;
   std::int64_t planned_stops_ = 0;
   std::uint64_t waived_upto_ = 0;       ///< macro-steps up to this id need no successor

@@ -3,10 +3,13 @@
 // robot, refuse motion, and are reset by SYNCHRO.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <optional>
 #include <thread>
+#include <vector>
 
 #include "command_interpreter.hpp"
 #include "edp_parts.hpp"
@@ -388,6 +391,107 @@ TEST_P(PluginFaults, FaultHoldsRefusesAndSynchroResets) {
 }
 
 INSTANTIATE_TEST_SUITE_P(StatusAndException, PluginFaults, ::testing::Values("status", "throw"));
+
+/// Axes that follow their setpoints exactly and home themselves; a reset's activate() and the
+/// homing each take 300 ms and note the thread they run on, and every cycle call made while one
+/// of them runs is counted.
+class SlowRecovery final : public Hardware {
+ public:
+  explicit SlowRecovery(std::vector<double> home)
+      : positions_(home.size(), 0.0), home_(std::move(home)) {}
+  [[nodiscard]] std::string name() const override { return "slow-recovery"; }
+  [[nodiscard]] std::size_t axis_count() const override { return positions_.size(); }
+  void configure(const HardwareSetup&) override {}
+  void activate() override {
+    if (activations_++ > 0) recover();  // the first is the EDP's start
+    fail = false;
+  }
+  void deactivate() override {}
+  CycleStatus read(std::span<AxisFeedback> out) override {
+    if (recovering_.load()) ++calls_during_recovery;
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = {positions_[i], 0.0, false};
+    return fail.load() ? CycleStatus::fault : CycleStatus::ok;
+  }
+  CycleStatus write(std::span<const double> setpoints) override {
+    if (recovering_.load()) ++calls_during_recovery;
+    std::copy(setpoints.begin(), setpoints.end(), positions_.begin());
+    return CycleStatus::ok;
+  }
+  [[nodiscard]] std::uint32_t self_homing_axes() const override {
+    return (1U << positions_.size()) - 1U;
+  }
+  void home_axes() override {
+    recover();
+    positions_ = home_;  // every axis at its home point, which is its synchronisation position
+  }
+  [[nodiscard]] std::string fault_text() const override { return "injected drive fault"; }
+  [[nodiscard]] std::vector<std::thread::id> recovery_threads() const {
+    std::lock_guard lock(mutex_);
+    return recovery_threads_;
+  }
+
+  std::atomic<bool> fail{false};
+  std::atomic<int> calls_during_recovery{0};
+
+ private:
+  void recover() {
+    {
+      std::lock_guard lock(mutex_);
+      recovery_threads_.push_back(std::this_thread::get_id());
+    }
+    recovering_ = true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    recovering_ = false;
+  }
+
+  std::vector<double> positions_;
+  std::vector<double> home_;
+  int activations_ = 0;
+  std::atomic<bool> recovering_{false};
+  mutable std::mutex mutex_;
+  std::vector<std::thread::id> recovery_threads_;
+};
+
+// The hardware's own homing at SYNCHRO and the reset after a fault block for as long as the
+// devices take (SDO transfers, a homing run): they run on the EDP's recovery thread, never on the
+// real-time servo thread, and no read() or write() is made while one runs.
+TEST(EdpRecovery, AHomingAndAResetRunOffTheServoThreadAndNoCycleCallsThePluginMeanwhile) {
+  const RobotModel model = test::stock_model("irb6");
+  SlowRecovery hw(model.synchro_joint_positions);
+  ServoLoop servo(hw, model, kPeriod);
+  servo.start();
+  const std::thread::id servo_thread = servo.servo_thread_id();
+  // SYNCHRO by the hardware's homing.
+  auto t0 = std::chrono::steady_clock::now();
+  servo.begin_synchronisation();
+  ASSERT_TRUE(servo.wait_synchronised(5.0)) << servo.fault_text();
+  const double homing_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // A fault, then its reset (SYNCHRO while faulted).
+  hw.fail = true;
+  for (int i = 0; i < 500 && !servo.faulted(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  ASSERT_TRUE(servo.faulted());
+  t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(servo.reset_fault(2.0)) << servo.fault_text();
+  const double reset_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // The loop reads again after it.
+  const std::int64_t cycle = servo.latest().cycle;
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_GT(servo.latest().cycle, cycle + 5);
+  servo.stop();
+  std::printf("homing %.3f s, reset %.3f s\n", homing_s, reset_s);
+  EXPECT_GE(homing_s, 0.3);
+  EXPECT_GE(reset_s, 0.3);
+  const auto threads = hw.recovery_threads();
+  ASSERT_EQ(threads.size(), 2U);
+  for (const auto& t : threads) {
+    EXPECT_NE(t, servo_thread) << "a recovery ran on the servo thread";
+    EXPECT_NE(t, std::this_thread::get_id());
+  }
+  EXPECT_EQ(hw.calls_during_recovery.load(), 0) << "read() or write() while a recovery ran";
+}
 
 TEST(EdpSafety, StoppingRampNeverLeavesALimit) {
   Edp edp("mujoco");

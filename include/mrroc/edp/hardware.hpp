@@ -11,7 +11,10 @@
 /// Lifecycle (called by the EDP, never concurrently):
 ///   configure(params) -> activate() -> { read(); write(); }* -> deactivate()
 /// `read` and `write` are called once per servo cycle from the servo thread; they must not
-/// allocate, block on the network, or throw (they report through `CycleStatus`).
+/// allocate, block on the network, or throw (they report through `CycleStatus`). The calls that
+/// may block for long (the reset after a fault: `deactivate` then `activate`; `home_axes`) come
+/// from the EDP's recovery thread, never from the servo thread, and no cycle call is made while
+/// one runs.
 
 #include <cstddef>
 #include <cstdint>
@@ -155,12 +158,13 @@ class Hardware {
   /// none: SYNCHRO searches every axis' switch.
   [[nodiscard]] virtual std::uint32_t self_homing_axes() const { return 0; }
   /// Homes the axes of self_homing_axes(), all at once, holding the others where they stand.
-  /// Called by the servo loop at SYNCHRO (only when self_homing_axes() is not 0), from the servo
-  /// thread between two cycles, never concurrently with read() and write(): it blocks for as long
-  /// as the homing takes (the servo cycle pauses meanwhile; the plugin keeps its devices
-  /// supervised itself) and must end soon after emergency_stop(true), which may come from another
-  /// thread meanwhile. After it the next read() returns the new raw positions. After activate().
-  /// The default homes nothing and throws: a plugin that names self-homing axes implements it.
+  /// Called by the servo loop at SYNCHRO (only when self_homing_axes() is not 0), from the EDP's
+  /// recovery thread (SCHED_FIFO 70 where allowed), never from the servo thread and never
+  /// concurrently with read() and write(): it blocks for as long as the homing takes (the servo
+  /// cycles make no plugin call meanwhile; the plugin keeps its devices supervised itself) and
+  /// must end soon after emergency_stop(true), which may come from another thread meanwhile. After
+  /// it the next read() returns the new raw positions. After activate(). The default homes nothing
+  /// and throws: a plugin that names self-homing axes implements it.
   /// @throws HardwareError naming the axis or device, what failed and after how long; the plugin
   /// then holds its axes still and reports a fault (read()) until the next activate().
   virtual void home_axes();

@@ -64,7 +64,7 @@ class Reader {
   /// Fails at `node` unless `path` exists (as a folder or a regular file, if asked); a path the
   /// system cannot even look up (name too long, no permission) fails with the system's reason.
   void require_path(const toml::node& node, const fs::path& path, Kind kind,
-                    const std::string& what) const {
+                    const std::string& what, const std::string& how_to_make = {}) const {
     std::error_code ec;
     const fs::file_status status = fs::status(path, ec);
     if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory)
@@ -72,7 +72,7 @@ class Reader {
     const bool found = kind == Kind::folder ? fs::is_directory(status)
                        : kind == Kind::file ? fs::is_regular_file(status)
                                             : fs::exists(status);
-    if (!found) fail(node, fmt::format("{} '{}' not found", what, path.string()));
+    if (!found) fail(node, fmt::format("{} '{}' not found{}", what, path.string(), how_to_make));
   }
 
   /// Rejects keys of `table` not in `allowed`.
@@ -345,7 +345,10 @@ class Reader {
     set_path(t, "auth_key_file", "system", config.auth_key_file);
     if (!config.auth_key_file.empty())
       require_path(*t.get("auth_key_file"), config.auth_key_file, Kind::file,
-                   "authentication key file");
+                   "authentication key file",
+                   fmt::format(" (make it once: openssl rand -hex 32 > '{0}'; chmod 600 '{0}'; "
+                               "the same file on every computer of the set)",
+                               config.auth_key_file.string()));
   }
 
   /// [srp] (optional: `node` null).

@@ -227,13 +227,16 @@ TEST_F(TwoHosts, TheDemoRunsAcrossTwoNamespaces) {
   fs::remove_all(dir);
 }
 
-// Host "b" reached through ssh: the launcher quotes the command line, puts "--" before the
-// host, stops a process by closing its input, and the remote side sends the stop signal. There
-// is no ssh server here: a stand-in named ssh takes the words ssh would and runs the command
-// line as sshd does (sh -c, in a session of its own), inside namespace "b", its input that of
-// the connection. The EDP, started in "b", ends on SIGTERM (its status says finished) and is
-// gone when the launcher has ended.
-TEST_F(TwoHosts, AProcessOnAnSshHostStopsOnTheStopSignal) {
+// The shipped example of a set on two computers (configs/multi-host/two-computers.toml), set up
+// as its comment tells a user: the key made beside it, the robot computer's address changed (here
+// namespace "b"). Its host "cell" is reached through ssh: the launcher quotes the command line,
+// puts "--" before the host, stops a process by closing its input, and the remote side sends the
+// stop signal. There is no ssh server here: a stand-in named ssh, put in front of the config's
+// default command, takes the words ssh would and runs the command line as sshd does (sh -c, in a
+// session of its own), inside namespace "b", its input that of the connection. The EDP, started
+// in "b", ends on SIGTERM (its status says finished) and is gone when the launcher has ended.
+// Without its key the example is refused by --check, naming the file.
+TEST_F(TwoHosts, TheShippedTwoComputerExampleRunsWithItsKeyOverSsh) {
   const fs::path dir = temp_dir("multihost-ssh");
   const fs::path ssh = dir / "ssh";
   std::ofstream(ssh) << "#!/bin/sh\n"
@@ -241,17 +244,27 @@ TEST_F(TwoHosts, AProcessOnAnSshHostStopsOnTheStopSignal) {
                         "while [ \"$1\" != \"--\" ]; do shift; done\n"
                         "exec setsid -w ip netns exec \"$2\" sh -c \"$3\"\n";
   fs::permissions(ssh, fs::perms::owner_all);
-  fs::path config = write_config(dir, "multihost.toml", "");
-  write_key(dir / "set.key");
-  std::string text = slurp(config);
-  text.replace(text.find("\"mrroc-a\""), 9, "\"" + a_ + "\"");
-  const std::string b_host =
-      "command = [\"ip\", \"netns\", \"exec\", \"{host}\"]\naddress = \"mrroc-b\"\nquote = false\n";
-  ASSERT_NE(text.find(b_host), std::string::npos);
-  text.replace(text.find(b_host), b_host.size(),
-               "command = [\"" + ssh.string() + "\", \"{host}\"]\naddress = \"" + b_ + "\"\n");
-  text.replace(text.find("[ui]\nweb = true"), 15, "[ui]\nweb = false");
+  std::string text = slurp(kSource / "configs/multi-host/two-computers.toml");
+  auto replace = [&](const std::string& from, const std::string& to) {
+    const auto at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  };
+  replace("\"../../robots/irb6\"", "\"" + (kSource / "robots/irb6").string() + "\"");
+  replace("address = \"cell-pc\"", "address = \"" + b_ + "\"\ncommand = [\"" + ssh.string() +
+                                       "\", \"-o\", \"BatchMode=yes\", \"{host}\"]");
+  const fs::path config = dir / "two-computers.toml";
   std::ofstream(config) << text;
+
+  // Without its key: refused, naming the file.
+  const auto [no_key_code, no_key] = run({launcher(), "--check", config.string()});
+  EXPECT_EQ(no_key_code, 2) << no_key;
+  EXPECT_TRUE(has(no_key, (dir / "set.key").string())) << no_key;
+  EXPECT_TRUE(has(no_key, "openssl rand -hex 32")) << no_key;
+  write_key(dir / "set.key");
+  const auto [check_code, plan] = run({launcher(), "--check", config.string()});
+  EXPECT_EQ(check_code, 0) << plan;
+  EXPECT_FALSE(has(plan, "warning:")) << plan;
 
   Background launch({"ip", "netns", "exec", a_, launcher(), config.string()});
   ASSERT_TRUE(launch.wait_for("task running", 60s)) << launch.output();

@@ -114,18 +114,24 @@ void ServoLoop::set_lookahead(int depth) {
 
 void ServoLoop::start() {
   if (running_.exchange(true)) return;
+  activate_and_read();
+  start_recovery_thread();
+  thread_ = std::thread([this] { run(); });
+}
+
+void ServoLoop::activate_and_read() {
   hardware_.activate();
   if (hardware_.read(std::span(feedback_.data(), axes_)) != CycleStatus::ok)
     throw HardwareError("hardware plugin '" + hardware_.name() +
                         "' failed its first read: " + hardware_.fault_text());
   for (std::size_t i = 0; i < axes_; ++i) desired_[i] = feedback_[i].position;
+  // The inputs and the device as they are before the first cycle (a GET INPUTS or GET DEVICE
+  // may come before it).
+  latest_.inputs = hardware_.read_inputs();
   if (!device_.reply.empty()) {
-    // The device as it is before the first cycle (a GET DEVICE may come before it).
     hardware_.read_device(std::span(device_sample_.data(), device_.reply.size()));
     latest_.device = device_sample_;
   }
-  start_recovery_thread();
-  thread_ = std::thread([this] { run(); });
 }
 
 void ServoLoop::start_recovery_thread() {
@@ -196,15 +202,7 @@ bool ServoLoop::recovery_ended(bool wait) {
 
 void ServoLoop::start_stepped() {
   if (running_.load()) return;
-  hardware_.activate();
-  if (hardware_.read(std::span(feedback_.data(), axes_)) != CycleStatus::ok)
-    throw HardwareError("hardware plugin '" + hardware_.name() +
-                        "' failed its first read: " + hardware_.fault_text());
-  for (std::size_t i = 0; i < axes_; ++i) desired_[i] = feedback_[i].position;
-  if (!device_.reply.empty()) {
-    hardware_.read_device(std::span(device_sample_.data(), device_.reply.size()));
-    latest_.device = device_sample_;
-  }
+  activate_and_read();
   stepped_ = true;
   start_recovery_thread();
   running_ = true;

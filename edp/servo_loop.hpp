@@ -261,6 +261,9 @@ class ServoLoop {
   /// Servo thread: whether the recovery posted has ended, waiting for it when `wait` (lock-step
   /// and stepped loops: no cycle without it; real time: the loop goes on without the plugin).
   bool recovery_ended(bool wait);
+  /// start(), start_stepped(): activates the hardware and takes its first reading (axes,
+  /// inputs, device) before any cycle. @throws HardwareError when that read fails.
+  void activate_and_read();
   /// Starts the recovery thread (start(), start_stepped()).
   void start_recovery_thread();
   [[nodiscard]] TimingStats timing_stats(const std::vector<float>& sorted) const;

@@ -425,6 +425,8 @@ class SlowRecovery final : public Hardware {
     positions_ = home_;  // every axis at its home point, which is its synchronisation position
   }
   [[nodiscard]] std::string fault_text() const override { return "injected drive fault"; }
+  [[nodiscard]] bool binary_io() const override { return true; }
+  [[nodiscard]] std::uint32_t read_inputs() const override { return 0xA5U; }
   [[nodiscard]] std::vector<std::thread::id> recovery_threads() const {
     std::lock_guard lock(mutex_);
     return recovery_threads_;
@@ -491,6 +493,17 @@ TEST(EdpRecovery, AHomingAndAResetRunOffTheServoThreadAndNoCycleCallsThePluginMe
     EXPECT_NE(t, std::this_thread::get_id());
   }
   EXPECT_EQ(hw.calls_during_recovery.load(), 0) << "read() or write() while a recovery ran";
+}
+
+// The first reading, taken when the loop starts, has the inputs too: a GET INPUTS that comes
+// before the first cycle gets them, not 0.
+TEST(EdpRecovery, TheFirstReadingBeforeAnyCycleHasTheInputs) {
+  const RobotModel model = test::stock_model("irb6");
+  SlowRecovery hw(model.synchro_joint_positions);
+  ServoLoop servo(hw, model, kPeriod);
+  servo.start_stepped();
+  EXPECT_EQ(servo.latest().inputs, 0xA5U);
+  servo.stop();
 }
 
 TEST(EdpSafety, StoppingRampNeverLeavesALimit) {

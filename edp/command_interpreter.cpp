@@ -29,8 +29,14 @@ std::string refused_under_stop(const Instruction& in) {
   } else {
     for (auto [bit, name] : {std::pair{item::arm, "ARM"}, std::pair{item::device, "DEVICE"},
                              std::pair{item::outputs, "OUTPUTS"}, std::pair{item::servo, "SERVO"}})
-      if ((in.set & bit) != 0) what += (what.empty() ? "" : "+") + std::string(name);
-    what = to_string(in.type) + std::string(" ") + what;
+      if ((in.set & bit) != 0) {
+        // Appended piece by piece: GCC 12's -O3 warns (-Wstringop-overflow, -Wrestrict) about
+        // the temporaries of `literal + std::string` here, a false positive.
+        if (!what.empty()) what += '+';
+        what += name;
+      }
+    what.insert(0, " ");
+    what.insert(0, to_string(in.type));
   }
   return fmt::format(
       "{} refused: emergency stop engaged ({}release it first, e.g. mrroc-ui "

@@ -100,7 +100,10 @@ bool program_exists(const std::string& program) {
 
 std::string quoted_command(const std::vector<std::string>& argv) {
   std::string line;
-  for (const auto& w : argv) line += (line.empty() ? "" : " ") + launch::shell_quote(w);
+  for (const auto& w : argv) {  // piece by piece: GCC 12's -O3 warns about `"" + std::string`
+    if (!line.empty()) line += ' ';
+    line += launch::shell_quote(w);
+  }
   return line;
 }
 

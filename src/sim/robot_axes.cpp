@@ -26,8 +26,14 @@ bool outside(const mjModel* m, int joint, double value, double slack = 0.0) {
 }
 
 std::string range_text(const mjModel* m, int joint) {
-  return "[" + format_number(m->jnt_range[2 * joint]) + ", " +
-         format_number(m->jnt_range[2 * joint + 1]) + "]";
+  // Appended piece by piece: GCC 12's -O3 warns (-Wstringop-overflow) about `"[" + std::string`,
+  // a false positive.
+  std::string text(1, '[');
+  text += format_number(m->jnt_range[2 * joint]);
+  text += ", ";
+  text += format_number(m->jnt_range[2 * joint + 1]);
+  text += ']';
+  return text;
 }
 
 /// Errors of the power-on pose: the configuration's when it was given, else the model's.

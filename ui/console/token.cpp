@@ -46,7 +46,10 @@ TokenFile::TokenFile(std::filesystem::path file, std::string token)
   std::error_code ec;
   if (!dir.empty()) std::filesystem::create_directories(dir, ec);
   if (ec) throw fail(ec.message());
-  std::string temp = (dir / ("." + file_.filename().string() + ".XXXXXX")).string();
+  std::string name(1, '.');  // piece by piece: GCC 12's -O3 warns about `"." + std::string`
+  name += file_.filename().string();
+  name += ".XXXXXX";
+  std::string temp = (dir / name).string();
   const int fd = ::mkostemp(temp.data(), O_CLOEXEC);  // mode 0600
   if (fd < 0) throw fail(std::strerror(errno));
   const std::string line = token_ + "\n";

@@ -159,6 +159,7 @@ TEST(RequestReply, TimeoutNamesPeerChannelAndAttempts) {
   comm::Client<Req, Rep> client(bus, "client", "EDP nowhere", "nobody/cmd", "nobody/reply",
                                 options);
   bus.start();
+  testing::internal::CaptureStderr();
   try {
     client.call(request(1));
     FAIL() << "expected a TimeoutError";
@@ -169,6 +170,16 @@ TEST(RequestReply, TimeoutNamesPeerChannelAndAttempts) {
     EXPECT_NE(text.find("3 attempts of 20 ms"), std::string::npos) << text;
   }
   EXPECT_EQ(client.stats().resends, 2U);
+  // The first re-send is said on standard error (one line a second at most: the second, 20 ms
+  // later, is not).
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("client: no reply from EDP nowhere on channel 'nobody/cmd' to request "),
+            std::string::npos)
+      << said;
+  EXPECT_NE(said.find("within 20 ms: sent again (attempt 2; 1 re-sends since the last such note)"),
+            std::string::npos)
+      << said;
+  EXPECT_EQ(said.find("attempt 3"), std::string::npos) << said;
 }
 
 TEST(RequestReply, AnAbandonedCallEndsAtOnceAndTheNextCallIsAnswered) {

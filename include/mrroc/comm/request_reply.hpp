@@ -21,6 +21,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <cstdio>
 #include <deque>
 #include <functional>
 #include <map>
@@ -220,6 +221,7 @@ class Client {
       }
       ++silent_attempts;
       ++stats_.resends;
+      note_resend(seq, silent_attempts);
       request.header.utime = now_utime();
       send(lock, request);
     }
@@ -301,6 +303,27 @@ class Client {
   bool in_progress_ = false;
   bool abandoned_ = false;
   LinkStats stats_;
+  /// Re-sends are said on standard error (the launcher's output, with the process' name in
+  /// front), at most one line a second per client with the count since the last: a request or
+  /// reply lost on the way delays a call by a whole attempt, which is what stops a robot whose
+  /// lookahead is shorter than that.
+  std::chrono::steady_clock::time_point last_resend_note_{};
+  std::uint64_t resends_noted_ = 0;
+
+  void note_resend(std::int64_t seq, int attempt) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_resend_note_ < std::chrono::seconds(1)) return;
+    const std::uint64_t since = stats_.resends - resends_noted_;
+    std::fprintf(stderr,
+                 "%s: no reply from %s on channel '%s' to request %lld within %lld ms: sent again "
+                 "(attempt %d; %llu re-sends since the last such note)\n",
+                 name_.c_str(), peer_.c_str(), request_channel_.c_str(),
+                 static_cast<long long>(seq),
+                 static_cast<long long>(options_.attempt_timeout.count()), attempt,
+                 static_cast<unsigned long long>(since));
+    last_resend_note_ = now;
+    resends_noted_ = stats_.resends;
+  }
 };
 
 /// The serving side of a link.

@@ -213,9 +213,7 @@ TEST(LaunchRestart, AnEdpWhosePluginDoesNotDeclareSimulatedHardwareIsHeld) {
   const fs::path dir = temp_dir("undeclared");
   std::string text = slurp(kSource / "tests/operator/configs/long-irb6.toml");
   auto replace = [&](const std::string& what, const std::string& with) {
-    const auto at = text.find(what);
-    ASSERT_NE(at, std::string::npos) << what;
-    text.replace(at, what.size(), with);
+    replace_once(text, what, with);
   };
   replace("\"../../../robots/irb6\"", "\"" + (kSource / "robots/irb6").string() + "\"");
   replace("task = \"start_and_wait\"", "task = \"start_and_wait\"\nstart = \"operator\"");

@@ -246,9 +246,7 @@ TEST_F(TwoHosts, TheShippedTwoComputerExampleRunsWithItsKeyOverSsh) {
   fs::permissions(ssh, fs::perms::owner_all);
   std::string text = slurp(kSource / "configs/multi-host/two-computers.toml");
   auto replace = [&](const std::string& from, const std::string& to) {
-    const auto at = text.find(from);
-    ASSERT_NE(at, std::string::npos) << from;
-    text.replace(at, from.size(), to);
+    replace_once(text, from, to);
   };
   replace("\"../../robots/irb6\"", "\"" + (kSource / "robots/irb6").string() + "\"");
   replace("address = \"cell-pc\"", "address = \"" + b_ + "\"\ncommand = [\"" + ssh.string() +

@@ -211,6 +211,13 @@ inline fs::path temp_dir(const std::string& what) {
   return dir;
 }
 
+/// Replaces the first `what` in `text` with `with`; a test failure when `text` has no `what`.
+inline void replace_once(std::string& text, const std::string& what, const std::string& with) {
+  const auto at = text.find(what);
+  ASSERT_NE(at, std::string::npos) << what;
+  text.replace(at, what.size(), with);
+}
+
 inline bool has(const std::string& s, const std::string& what) {
   return s.find(what) != std::string::npos;
 }

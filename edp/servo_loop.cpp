@@ -146,10 +146,13 @@ void ServoLoop::start_recovery_thread() {
 void ServoLoop::run_recovery() {
   // Below the servo thread (SCHED_FIFO 80) and above the EDP's communication: a plugin keeps its
   // devices supervised during a homing (the CAN master's SYNC and heartbeat), which a busy host
-  // must not hold up; where SCHED_FIFO is refused, the thread runs as it was started.
-  sched_param sp{};
-  sp.sched_priority = kRecoveryPriority;
-  (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  // must not hold up; where SCHED_FIFO is refused, the thread runs as it was started. In
+  // lock-step (simulated time) it runs as it was started too, as the servo thread does.
+  if (!lock_step_) {
+    sched_param sp{};
+    sp.sched_priority = kRecoveryPriority;
+    (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  }
   std::uint64_t ended = 0;
   for (;;) {
     const std::uint32_t seen = recovery_wake_.value();
@@ -226,19 +229,26 @@ void ServoLoop::stop() {
 }
 
 void ServoLoop::run() {
+  if (lock_step_) {
+    // Simulated time has no deadline, and a loop whose cycles run back to back at SCHED_FIFO 80
+    // would keep a core from every other process of the host (the rest of its own process set
+    // included) for as long as it has work: a lock-step loop runs as it was started.
+    {
+      std::lock_guard lock(mutex_);
+      std::snprintf(scheduling_, sizeof scheduling_, "%s",
+                    "SCHED_OTHER, lock-step (simulated time: no real-time priority)");
+    }
+    run_lock_step();
+    return;
+  }
   sched_param sp{};
   sp.sched_priority = 80;
   const bool fifo = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
   if (!fifo) prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
   {
     std::lock_guard lock(mutex_);
-    std::snprintf(scheduling_, sizeof scheduling_, "%s%s",
-                  fifo ? "SCHED_FIFO 80" : "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)",
-                  lock_step_ ? ", lock-step" : "");
-  }
-  if (lock_step_) {
-    run_lock_step();
-    return;
+    std::snprintf(scheduling_, sizeof scheduling_, "%s",
+                  fifo ? "SCHED_FIFO 80" : "SCHED_OTHER, timer slack 1 ns (SCHED_FIFO refused)");
   }
   const auto period_ns = static_cast<std::int64_t>(std::llround(period_s_ * 1e9));
   timespec now{};

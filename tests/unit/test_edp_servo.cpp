@@ -700,6 +700,9 @@ TEST_F(EdpLockStepTest, SimulatedTimeWaitsForALateSuccessor) {
   EXPECT_TRUE(hardware_->simulated());
   ASSERT_EQ(synchronise().type, ReplyType::data);
   EXPECT_NE(servo_->timing().scheduling.find("lock-step"), std::string::npos);
+  // Cycles back to back at a real-time priority would keep a core from the rest of the host.
+  EXPECT_NE(servo_->timing().scheduling.find("SCHED_OTHER"), std::string::npos);
+  EXPECT_EQ(test::threads_with_real_time_policy(), 0);
   constexpr int kSteps = 10;
   constexpr int kSegments = 12;
   constexpr int kRamp = 60;

@@ -10,9 +10,13 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <future>
 #include <mutex>
 #include <thread>
+
+#include <pthread.h>
+#include <sched.h>
 
 #include "command_interpreter.hpp"
 #include "edp_parts.hpp"
@@ -81,6 +85,35 @@ class ClockedHardware final : public Hardware {
   std::atomic<int> stall_ms_{0};
 };
 
+/// The calling thread at SCHED_FIFO `priority` (below the servo thread's 80) while it lives,
+/// where the system allows it. The stall tests time their client to a few milliseconds (the
+/// paper's depth 1 leaves 6 ms between a reading and the end of its macro-step): the client is
+/// then not held up by whatever else the host runs, so that the only silence the servo loop sees
+/// is the stall the test makes. An EDP's command thread runs so with `priority` in its config.
+class ClientPriority {
+ public:
+  explicit ClientPriority(int priority) {
+    if (pthread_getschedparam(pthread_self(), &policy_, &param_) != 0) return;
+    sched_param sp{};
+    sp.sched_priority = priority;
+    raised_ = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
+    if (!raised_)
+      std::fprintf(stderr,
+                   "note: the client runs SCHED_OTHER (SCHED_FIFO refused): a busy host may "
+                   "hold it longer than the lookahead's margin\n");
+  }
+  ~ClientPriority() {
+    if (raised_) (void)pthread_setschedparam(pthread_self(), policy_, &param_);
+  }
+  ClientPriority(const ClientPriority&) = delete;
+  ClientPriority& operator=(const ClientPriority&) = delete;
+
+ private:
+  int policy_ = SCHED_OTHER;
+  sched_param param_{};
+  bool raised_ = false;
+};
+
 class Lookahead : public ::testing::Test {
  protected:
   void start(int depth, bool keeps_time = false) {
@@ -139,6 +172,7 @@ class Lookahead : public ::testing::Test {
   /// client stalls `stall_ms` before cruise macro-step `stall_at`. Stops at the first refusal.
   /// `off` counts the servo steps of the cruise but its last macro-step.
   StallRun run_with_stall(int segments, int stall_at, int stall_ms) {
+    const ClientPriority client(50);
     constexpr int kSteps = 10;
     constexpr int kRamp = 60;
     const std::int64_t from = servo_->latest().cycle;

@@ -10,13 +10,9 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
-#include <cstdio>
 #include <future>
 #include <mutex>
 #include <thread>
-
-#include <pthread.h>
-#include <sched.h>
 
 #include "command_interpreter.hpp"
 #include "edp_parts.hpp"
@@ -32,6 +28,19 @@ using namespace mrroc::edp;
 namespace {
 
 constexpr double kPeriod = 0.002;
+
+// A build instrumented by AddressSanitizer or ThreadSanitizer (scripts/test's later stages).
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr bool kInstrumented = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+constexpr bool kInstrumented = true;
+#else
+constexpr bool kInstrumented = false;
+#endif
+#else
+constexpr bool kInstrumented = false;
+#endif
 
 TEST(MacroStepQueue, KeepsOrderWrapsAroundAndKnowsWhenFull) {
   MacroStepQueue q;
@@ -83,35 +92,6 @@ class ClockedHardware final : public Hardware {
  private:
   std::unique_ptr<Hardware> inner_;
   std::atomic<int> stall_ms_{0};
-};
-
-/// The calling thread at SCHED_FIFO `priority` (below the servo thread's 80) while it lives,
-/// where the system allows it. The stall tests time their client to a few milliseconds (the
-/// paper's depth 1 leaves 6 ms between a reading and the end of its macro-step): the client is
-/// then not held up by whatever else the host runs, so that the only silence the servo loop sees
-/// is the stall the test makes. An EDP's command thread runs so with `priority` in its config.
-class ClientPriority {
- public:
-  explicit ClientPriority(int priority) {
-    if (pthread_getschedparam(pthread_self(), &policy_, &param_) != 0) return;
-    sched_param sp{};
-    sp.sched_priority = priority;
-    raised_ = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
-    if (!raised_)
-      std::fprintf(stderr,
-                   "note: the client runs SCHED_OTHER (SCHED_FIFO refused): a busy host may "
-                   "hold it longer than the lookahead's margin\n");
-  }
-  ~ClientPriority() {
-    if (raised_) (void)pthread_setschedparam(pthread_self(), policy_, &param_);
-  }
-  ClientPriority(const ClientPriority&) = delete;
-  ClientPriority& operator=(const ClientPriority&) = delete;
-
- private:
-  int policy_ = SCHED_OTHER;
-  sched_param param_{};
-  bool raised_ = false;
 };
 
 class Lookahead : public ::testing::Test {
@@ -172,7 +152,6 @@ class Lookahead : public ::testing::Test {
   /// client stalls `stall_ms` before cruise macro-step `stall_at`. Stops at the first refusal.
   /// `off` counts the servo steps of the cruise but its last macro-step.
   StallRun run_with_stall(int segments, int stall_at, int stall_ms) {
-    const ClientPriority client(50);
     constexpr int kSteps = 10;
     constexpr int kRamp = 60;
     const std::int64_t from = servo_->latest().cycle;
@@ -221,6 +200,13 @@ TEST_F(Lookahead, WithTheSingleSuccessorTheSameStallStopsTheRobot) {
   // The paper's depth 1: 60 ms of client silence is longer than the 6 ms its reading leaves.
   // The robot ramps down; the plan's next macro-steps, which assume it kept its 0.1 rad/s, are
   // then too abrupt from where the ramp left it (refused, the robot holds).
+  if (kInstrumented)
+    GTEST_SKIP()
+        << "a real-time case: the paper's depth 1 leaves the client 6 ms per macro-step, "
+           "which an instrumented build's SET (5-20 times slower) does not keep on a "
+           "shared host (it ran dry at macro-step 16 under ASan, 8 under TSan, before "
+           "the stall at 20); it runs in the uninstrumented build, and the lost-successor "
+           "path runs under the sanitizers in EdpSafety.LostEcpBringsTheRobotToAStandstill";
   start(1);
   const StallRun run = run_with_stall(40, 20, 60);
   EXPECT_GT(run.off, 0);

@@ -16,6 +16,7 @@
 
 #include "motion_blend.hpp"
 #include "mrroc/core/error.hpp"
+#include "mrroc/core/process.hpp"
 #include "mrroc/msg/edp_instruction.hpp"
 #include "stopping_ramp.hpp"
 
@@ -233,10 +234,13 @@ void ServoLoop::run() {
     // Simulated time has no deadline, and a loop whose cycles run back to back at SCHED_FIFO 80
     // would keep a core from every other process of the host (the rest of its own process set
     // included) for as long as it has work: a lock-step loop runs as it was started.
+    const std::string policy = apply_priority(0);  // changes nothing: names the policy in force
     {
       std::lock_guard lock(mutex_);
-      std::snprintf(scheduling_, sizeof scheduling_, "%s",
-                    "SCHED_OTHER, lock-step (simulated time: no real-time priority)");
+      std::snprintf(scheduling_, sizeof scheduling_,
+                    "%s, lock-step (simulated time: no real-time "
+                    "priority of its own)",
+                    policy.c_str());
     }
     run_lock_step();
     return;

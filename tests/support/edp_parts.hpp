@@ -2,14 +2,13 @@
 // The parts of an EDP as the EDP unit tests build them (no LCM): a robot's model, its hardware
 // plugin configured for the servo period, its kinematics; the tests then build the servo loop
 // and command interpreter on them, each with the options it examines.
+#include <sched.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -88,22 +87,12 @@ inline RobotModel stock_model(const std::string& name) {
   return load_robot_model((std::filesystem::path(MRROC_SOURCE_DIR) / "robots" / name).string());
 }
 
-/// How many threads of this process run at a real-time policy (SCHED_FIFO or SCHED_RR), read
-/// from /proc/self/task/*/stat (field 41, after the command name in parentheses).
+/// How many threads of this process run at a real-time policy (SCHED_FIFO or SCHED_RR).
 inline int threads_with_real_time_policy() {
   int count = 0;
   for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
-    std::ifstream in(task.path() / "stat");
-    std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const auto close = stat.rfind(')');
-    if (close == std::string::npos) continue;
-    std::istringstream fields(stat.substr(close + 2));
-    std::string field;
-    // Fields 3..41 follow the name: the 39th of them is the policy.
-    for (int i = 3; i <= 41 && fields >> field; ++i) {
-    }
-    const int policy = std::atoi(field.c_str());
-    if (policy == 1 || policy == 2) ++count;
+    const int policy = sched_getscheduler(std::atoi(task.path().filename().c_str()));
+    if (policy == SCHED_FIFO || policy == SCHED_RR) ++count;
   }
   return count;
 }

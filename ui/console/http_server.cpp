@@ -375,16 +375,31 @@ class ConsoleServer::Reserved {
   /// Serves the whole stop `e` on a thread of its own; false when none is free.
   bool dispatch(Entry& e) {
     ConsoleServer& server = server_;
+    // Counted before the thread starts: it may answer the stop before this thread goes on, and
+    // whoever reads the counts after the answer must find the stop in them.
+    count_dispatch(false);
     // The bytes are copied: `e` keeps them when no thread is free.
     if (!stops_.try_start([&server, sock = e.sock, bytes = e.bytes]() mutable {
           server.serve_stop(sock, std::move(bytes));
-        }))
+        })) {
+      count_dispatch(true);
       return false;
+    }
     e.gone = true;
-    std::lock_guard lock(server_.shared_->mutex);
-    --server_.shared_->counts.waiting;
-    ++server_.shared_->counts.reserved_stops;
     return true;
+  }
+
+  /// Moves a stop from waiting to served on the reserved path (`back`: undoes that).
+  void count_dispatch(bool back) {
+    std::lock_guard lock(server_.shared_->mutex);
+    ServerCounts& c = server_.shared_->counts;
+    if (back) {
+      ++c.waiting;
+      --c.reserved_stops;
+    } else {
+      --c.waiting;
+      ++c.reserved_stops;
+    }
   }
 
   /// Makes room for one more: refuses the oldest entry of the address with the most entries

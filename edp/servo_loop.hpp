@@ -207,7 +207,9 @@ class ServoLoop {
   [[nodiscard]] std::int64_t planned_stops() const;
   /// After a fault: the servo thread deactivates and re-activates the plugin, clears the fault,
   /// forgets the synchronisation (the position reference is lost) and holds where the axes are.
-  /// Waits up to `timeout_s` for that; returns false if the fault persists.
+  /// Waits until the plugin's re-activation ended and a cycle read its result, at most
+  /// `timeout_s` (a safety net against a plugin that never returns: the plugin bounds its own
+  /// bring-up, e.g. the CAN plugin by `bring_up_timeout_s`); returns false if the fault persists.
   bool reset_fault(double timeout_s);
 
   /// Binary outputs to write from the next cycle on; false (nothing changed) while the emergency

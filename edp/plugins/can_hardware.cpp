@@ -187,10 +187,9 @@ class CanHardware final : public Hardware {
     master_ = std::make_unique<can::Cia402Master>(*bus_, std::move(axes), options);
     a_.resize(n);
     q_.resize(n);
-    a_sampled_.resize(n);
     a_velocity_.resize(n);
     q_velocity_.resize(n);
-    sample_cycle_.assign(axes_, 0);
+    fresh_from_.assign(axes_, 0);
     target_a_.assign(axes_, 0.0);
     first_read_ = true;
   }
@@ -213,22 +212,23 @@ class CanHardware final : public Hardware {
     for (std::size_t i = 0; i < axes_; ++i)
       a_(static_cast<Eigen::Index>(i)) = master_->status(i).position;
     q_.noalias() = inverse_ * a_;
-    // Velocity from each drive's last two TPDOs and the cycles between them: a TPDO that comes
-    // a cycle late (a drive, or an emulator on a busy host) leaves the estimate as it was, not 0
-    // (a standstill that did not happen), and the one after it is not read as twice the speed.
+    // Velocity from each drive's last two TPDOs with its position and the cycles between them
+    // (the master keeps both): a TPDO that comes a cycle late (a drive, or an emulator on a busy
+    // host) leaves the estimate as it was, not 0 (a standstill that did not happen), the one after
+    // it is not read as twice the speed, and after a homing, during which this plugin reads
+    // nothing, it is the drive's speed now, not the mean over the homing.
     for (std::size_t i = 0; i < axes_; ++i) {
       const auto k = static_cast<Eigen::Index>(i);
-      const std::uint64_t at = master_->status(i).last_tpdo_cycle;
-      if (first_read_) {
+      const can::DriveStatus& s = master_->status(i);
+      if (first_read_) fresh_from_[i] = s.last_tpdo_cycle;  // nothing before it counts
+      if (s.previous_tpdo_cycle == 0 || s.previous_tpdo_cycle < fresh_from_[i] ||
+          s.last_tpdo_cycle <= s.previous_tpdo_cycle) {
         a_velocity_(k) = 0.0;
-      } else if (at != sample_cycle_[i]) {
-        a_velocity_(k) =
-            (a_(k) - a_sampled_(k)) / (static_cast<double>(at - sample_cycle_[i]) * period_s_);
       } else {
-        continue;  // no new TPDO from this drive in this cycle
+        a_velocity_(k) =
+            (s.position - s.previous_position) /
+            (static_cast<double>(s.last_tpdo_cycle - s.previous_tpdo_cycle) * period_s_);
       }
-      a_sampled_(k) = a_(k);
-      sample_cycle_[i] = at;
     }
     q_velocity_.noalias() = inverse_ * a_velocity_;
     for (std::size_t i = 0; i < axes_; ++i) {
@@ -714,10 +714,11 @@ class CanHardware final : public Hardware {
   Eigen::MatrixXd inverse_;
   Eigen::VectorXd a_;
   Eigen::VectorXd q_;
-  Eigen::VectorXd a_sampled_;   ///< each drive's position in its last TPDO used for velocity
   Eigen::VectorXd a_velocity_;  ///< drive velocities [units/s] from their last two TPDOs
   Eigen::VectorXd q_velocity_;  ///< joint velocities [rad/s]
-  std::vector<std::uint64_t> sample_cycle_;  ///< the master's cycle of each a_sampled_
+  /// Per drive, the master's cycle of its last TPDO at the first read after an activation or a
+  /// homing: velocities come from TPDO pairs after it only (a reference may have jumped).
+  std::vector<std::uint64_t> fresh_from_;
   std::vector<double> target_a_;
   std::chrono::milliseconds timeout_{5000};
   double period_s_ = kDefaultServoPeriodS;

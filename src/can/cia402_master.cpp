@@ -235,6 +235,7 @@ void Cia402Master::decode_tpdo(std::size_t i, std::size_t k, const can_frame& fr
   for (unsigned b = 0; b < frame.len && b < 8; ++b)
     data |= static_cast<std::uint64_t>(frame.data[b]) << (8U * b);
   DriveStatus& s = status_[i];
+  const double position_before = s.position;
   bool position = false;
   bool statusword = false;
   std::uint16_t sw = 0;
@@ -266,6 +267,12 @@ void Cia402Master::decode_tpdo(std::size_t i, std::size_t k, const can_frame& fr
       case Role::torque: s.torque_actual = static_cast<std::int16_t>(value); break;
       default: break;  // mapped by the config, not used by the servo loop
     }
+  }
+  if (position && s.last_tpdo_cycle != cycle_) {
+    // The one before, for a velocity from the last two whoever reads them (a second position in
+    // the same cycle replaces the first and keeps the pair's older end).
+    s.previous_position = position_before;
+    s.previous_tpdo_cycle = s.last_tpdo_cycle;
   }
   if (position) s.last_tpdo_cycle = cycle_;
   if (statusword) on_statusword(i, sw);

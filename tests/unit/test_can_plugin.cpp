@@ -497,16 +497,32 @@ class CanEdp {
   std::unique_ptr<edp::CommandInterpreter> interpreter_;
 };
 
-/// Waits until `edp`'s robot stands still (no motion planned, and no measured joint moving
-/// faster than 1 mrad/s), at most `timeout`.
+/// Waits until `edp`'s robot stands still, at most `timeout`: no motion planned, no measured
+/// joint faster than 1 mrad/s, and no joint moved by more than 20 urad in the last 100 ms. The
+/// velocity alone cannot tell: it is the difference of the drives' last two positions, 10 urad
+/// (1 count) apart at the least, so below 5 mrad/s it reads 0 in most cycles, as it does while
+/// an axis settles onto its held position after a quick stop's ramp.
 bool wait_still(const CanEdp& edp, std::chrono::milliseconds timeout) {
+  constexpr double kSettled = 2e-5;  // [rad] over kWindow
+  constexpr auto kWindow = 100ms;
+  constexpr auto kSample = 10ms;
   const auto until = std::chrono::steady_clock::now() + timeout;
+  std::vector<double> from;  // the joints at the start of the current still window
+  auto since = std::chrono::steady_clock::now();
   while (std::chrono::steady_clock::now() < until) {
     const edp::Reading r = edp.servo_->latest();
+    const auto now = std::chrono::steady_clock::now();
     bool still = edp.servo_->stopped();
     for (std::size_t i = 0; i < 5; ++i) still = still && std::abs(r.velocities[i]) < 1e-3;
-    if (still) return true;
-    std::this_thread::sleep_for(10ms);
+    for (std::size_t i = 0; still && !from.empty() && i < 5; ++i)
+      still = std::abs(r.joints[i] - from[i]) <= kSettled;
+    if (!still || from.empty()) {
+      from.assign(r.joints.begin(), r.joints.begin() + 5);
+      since = now;
+    } else if (now - since >= kWindow) {
+      return true;
+    }
+    std::this_thread::sleep_for(kSample);
   }
   return false;
 }
@@ -651,10 +667,13 @@ TEST(CanPlugin, AnEmergencyStopMidHomingFailsSynchroAndALaterSynchroHomesAgain) 
       << r.error_text;
   // Quick-stopped from the crawl and held.
   ASSERT_TRUE(wait_still(edp, 1s));
+  const edp::Reading still = edp.servo_->latest();
   const std::vector<double> stopped = edp.joints();
   std::this_thread::sleep_for(300ms);
   const std::vector<double> held = edp.joints();
-  for (std::size_t i = 0; i < 5; ++i) EXPECT_NEAR(held[i], stopped[i], 1e-4) << "axis " << i;
+  for (std::size_t i = 0; i < 5; ++i)
+    EXPECT_NEAR(held[i], stopped[i], 1e-4)
+        << "axis " << i << ": at rest by its velocity " << still.velocities[i] << " rad/s";
   // Refused while the stop is engaged; after the release a SYNCHRO resets the fault and homes
   // the drives again.
   EXPECT_EQ(edp.synchronise().error_code, edp::error_code::emergency_stop);

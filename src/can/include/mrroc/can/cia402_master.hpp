@@ -109,6 +109,12 @@ struct DriveStatus {
   std::uint8_t input_lines = 0;  ///< the drive's 8 digital input lines (bit k = line k)
   /// cycle number of the last TPDO with the position (and the inputs, sampled with it)
   std::uint64_t last_tpdo_cycle = 0;
+  /// The position [units] of the TPDO before the last one with it, and that TPDO's cycle (0:
+  /// none yet): with the last, a velocity over the drive's last two samples, however many cycles
+  /// passed between them and whether or not anyone read status() in between (a homing, a late
+  /// TPDO).
+  double previous_position = 0.0;
+  std::uint64_t previous_tpdo_cycle = 0;
   std::uint64_t last_statusword_cycle = 0;  ///< cycle number of the last TPDO with the statusword
   std::uint16_t last_emcy = 0;
   /// 0x606C velocity actual value [units/s], where a TPDO maps it (else 0).

@@ -17,7 +17,7 @@ namespace mrroc::edp {
 
 namespace {
 constexpr double kSynchroTimeout = 60.0;  // longest synchronisation [s]
-constexpr double kResetTimeoutS = 60.0;   // longest re-activation after a fault [s]
+constexpr double kResetTimeout = 60.0;    // longest re-activation after a fault [s]
 /// What a SET may not change while the emergency stop is engaged: motion, the device, the binary
 /// outputs (they hold their safe state) and the servo settings.
 constexpr std::uint8_t kRefusedUnderStop = item::arm | item::device | item::outputs | item::servo;
@@ -141,9 +141,9 @@ Reply CommandInterpreter::accept(const Instruction& in) {
       // Reset: the servo loop powers the drives again; the position reference is found anew.
       // A bring-up takes as long as the plugin's devices need (the CAN plugin resets, configures
       // and enables every drive, bounded by its `bring_up_timeout_s`): the reply waits for it
-      // to end, whatever the host's load; kResetTimeoutS only guards against a plugin that never
+      // to end, whatever the host's load; kResetTimeout only guards against a plugin that never
       // returns.
-      if (!servo_.reset_fault(kResetTimeoutS))
+      if (!servo_.reset_fault(kResetTimeout))
         throw CommandError(error_code::hardware_fault,
                            "SYNCHRO refused: the fault could not be reset: " + servo_.fault_text());
     }

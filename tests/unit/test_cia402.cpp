@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <climits>
 #include <cmath>
 #include <condition_variable>
@@ -21,6 +22,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "mrroc/can/canopen.hpp"
@@ -135,8 +137,9 @@ TEST(Canopen, BusLoadMatchesTheFrameArithmetic) {
   EXPECT_LT(co::cyclic_bus_load(6, 0.002, 1e6, 0.0).load_nominal, co::kRecommendedMaxLoad);
 }
 
-/// An in-memory bus: every node sees every other node's frames (a stand-in for the real buses,
-/// which test_can_bus.cpp tests).
+/// An in-memory bus: every node sees every other node's frames, stamped with the time the sender
+/// put them on the bus, as the virtual bus does (a stand-in for the real buses, which
+/// test_can_bus.cpp tests).
 class MemoryHub {
  public:
   class Node final : public Bus {
@@ -151,7 +154,8 @@ class MemoryHub {
     bool receive(Received& out, std::chrono::nanoseconds timeout) noexcept override {
       std::unique_lock lock(mutex_);
       if (!cv_.wait_for(lock, timeout, [&] { return !queue_.empty(); })) return false;
-      out.frame = queue_.front();
+      out.frame = queue_.front().first;
+      out.timestamp_ns = queue_.front().second;
       queue_.pop_front();
       ++stats_.received;
       return true;
@@ -160,10 +164,10 @@ class MemoryHub {
     void receive_error_frames(bool) override {}
     [[nodiscard]] BusStats stats() const noexcept override { return stats_; }
     [[nodiscard]] std::string last_error() const override { return {}; }
-    void push(const can_frame& f) {
+    void push(const can_frame& f, std::int64_t stamp) {
       {
         std::lock_guard lock(mutex_);
-        queue_.push_back(f);
+        queue_.emplace_back(f, stamp);
       }
       cv_.notify_all();
     }
@@ -172,7 +176,7 @@ class MemoryHub {
     MemoryHub& hub_;
     std::mutex mutex_;
     std::condition_variable cv_;
-    std::deque<can_frame> queue_;
+    std::deque<std::pair<can_frame, std::int64_t>> queue_;
     BusStats stats_;
   };
 
@@ -182,9 +186,12 @@ class MemoryHub {
     return *nodes_.back();
   }
   void broadcast(const Node* from, const can_frame& f) {
+    const std::int64_t stamp = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count();
     std::lock_guard lock(mutex_);
     for (auto& n : nodes_)
-      if (n.get() != from) n->push(f);
+      if (n.get() != from) n->push(f, stamp);
   }
 
  private:
@@ -586,40 +593,6 @@ TEST(Cia402Master, SilentDriveIsDetectedWithinTheConfiguredCycles) {
       << master.fault_text();
 }
 
-TEST(Cia402Master, QuickStopDeceleratesAndReleaseReenablesWhereTheAxisStands) {
-  MemoryHub hub;
-  DriveRack rack(hub, 1);
-  std::vector<MasterAxis> a = axes(1);
-  a[0].quick_stop_deceleration = 2.0;
-  Cia402Master master(hub.add(), a, rack_options());
-  master.bring_up(2000ms);
-  // Ramp up to 1 rad/s, then quick-stop: v^2 / (2 a) = 0.25 rad of braking distance.
-  double target = 0.0;
-  run_cycles(master, 50, [&](int k) {
-    target += 0.002 * std::min(1.0, (k + 1) / 25.0);
-    return std::vector<double>{target};
-  });
-  const double at_stop = master.status(0).position;
-  run_cycles(
-      master, 400, [&](int) { return std::vector<double>{target}; }, true);
-  rack.with([](auto& drives, auto&) {
-    EXPECT_EQ(drives[0]->state(), co::DriveState::quick_stop_active);
-    return 0;
-  });
-  const double stopped = master.status(0).position;
-  EXPECT_GT(stopped - at_stop, 0.15);
-  EXPECT_LT(stopped - at_stop, 0.35);
-  EXPECT_FALSE(master.faulted()) << master.fault_text();
-  // Release: the drive is re-enabled at its actual position and holds there.
-  run_cycles(master, 20, [&](int) { return std::vector<double>{stopped}; });
-  EXPECT_FALSE(master.faulted()) << master.fault_text();
-  rack.with([](auto& drives, auto&) {
-    EXPECT_EQ(drives[0]->state(), co::DriveState::operation_enabled);
-    return 0;
-  });
-  EXPECT_NEAR(master.status(0).position, stopped, 1e-4);
-}
-
 TEST(Cia402Master, StaleQuickStopTpdosAfterReleaseAreNoFaultButALaterOneIs) {
   MemoryHub hub;
   DriveRack rack(hub, 1);
@@ -848,21 +821,54 @@ TEST(Cia402Master, BringUpConfiguresTheSupervisionAndSendsItsHeartbeat) {
     EXPECT_EQ(master.sdo_read(n, co::od::kAbortConnectionOption, 0), 3U);
     EXPECT_EQ(master.sdo_read(n, co::od::kQuickStopOption, 0), 6U);
   }
-  // Its heartbeat, every 10 ms, while it cycles.
+  // Its heartbeat, every 10 ms, while it cycles. Judged by the bus' time stamps: the master
+  // sends a heartbeat after the SYNC of the first cycle at or after it is due, so two
+  // heartbeats are at most 10 ms plus the longest gap between two of its cycles (SYNCs) plus
+  // the second heartbeat's delay after its own SYNC apart, whatever the host's load; after a
+  // late cycle its grid restarts, so there is never a burst.
   Received r;
   while (spy.receive(r, 0ms)) {
   }
   run_cycles(master, 50, [](int) { return std::vector<double>{0.0, 0.3}; });
-  int heartbeats = 0;
+  std::vector<std::int64_t> heartbeats;
+  std::vector<std::int64_t> syncs;
   while (spy.receive(r, 0ms)) {
     if (r.frame.can_id == co::heartbeat_id(0x7F)) {
-      ++heartbeats;
+      heartbeats.push_back(r.timestamp_ns);
       EXPECT_EQ(r.frame.len, 1);
       EXPECT_EQ(r.frame.data[0], static_cast<std::uint8_t>(co::NmtState::operational));
+    } else if (r.frame.can_id == co::sync_frame().can_id) {
+      syncs.push_back(r.timestamp_ns);
     }
   }
-  EXPECT_GE(heartbeats, 9);  // 100 ms of cycles
-  EXPECT_LE(heartbeats, 12);
+  ASSERT_EQ(syncs.size(), 50U);
+  ASSERT_GE(heartbeats.size(), 2U);
+  const double span_ms = static_cast<double>(syncs.back() - syncs.front()) * 1e-6;
+  EXPECT_LE(static_cast<double>(heartbeats.size()), span_ms / 10.0 + 2.0)
+      << "a burst of heartbeats in " << span_ms << " ms";
+  for (std::size_t h = 1; h < heartbeats.size(); ++h) {
+    std::int64_t longest_gap = 0;
+    std::int64_t own_sync = heartbeats[h - 1];
+    for (std::size_t s = 1; s < syncs.size(); ++s) {
+      if (syncs[s] > heartbeats[h - 1] && syncs[s - 1] < heartbeats[h])
+        longest_gap = std::max(longest_gap, syncs[s] - syncs[s - 1]);
+      if (syncs[s] <= heartbeats[h]) own_sync = std::max(own_sync, syncs[s]);
+    }
+    const double interval_ms = static_cast<double>(heartbeats[h] - heartbeats[h - 1]) * 1e-6;
+    const double bound_ms =
+        10.0 + static_cast<double>(longest_gap + (heartbeats[h] - own_sync)) * 1e-6;
+    EXPECT_LE(interval_ms, bound_ms + 0.1)
+        << "heartbeat " << h << ": the longest gap between cycles was "
+        << static_cast<double>(longest_gap) * 1e-6 << " ms, the heartbeat came "
+        << static_cast<double>(heartbeats[h] - own_sync) * 1e-6 << " ms after its SYNC";
+  }
+  // The cycles ran in about 100 ms: if none was late, that is 9 to 11 heartbeats.
+  std::int64_t longest_cycle_gap = 0;
+  for (std::size_t s = 1; s < syncs.size(); ++s)
+    longest_cycle_gap = std::max(longest_cycle_gap, syncs[s] - syncs[s - 1]);
+  if (longest_cycle_gap < 3'000'000) {
+    EXPECT_GE(heartbeats.size(), 9U);
+  }
   EXPECT_FALSE(master.faulted()) << master.fault_text();
   // The master stops (killed): every drive quick-stops within the consumer time.
   const double stopped = rack.now();
@@ -1149,6 +1155,38 @@ PdoRequest pdo_row(bool receive, int number, std::uint32_t cob_id, std::uint8_t 
   for (const std::uint32_t e : entries) r.entries.push_back(PdoEntry::from_raw(e));
   r.where = {"cell.toml", 30 + number};
   return r;
+}
+
+TEST(Cia402Master, QuickStopDeceleratesAndReleaseReenablesWhereTheAxisStands) {
+  // In lock-step: the ramp is the drive's, in simulated time. (On a drive thread beside this
+  // one a late cycle of this thread is a late SYNC, which holds a drive in cyclic synchronous
+  // position, and a quick stop after it ramps from standstill.)
+  const std::vector files{drive_file("emu-csp.eds")};
+  LockstepBus bus(files);
+  std::vector<MasterAxis> a = planned_axes(files);
+  a[0].quick_stop_deceleration = 2.0;
+  Cia402Master master(bus, a, rack_options());
+  master.bring_up(2000ms);
+  // Ramp up to 1 rad/s, then quick-stop: v^2 / (2 a) = 0.25 rad of braking distance.
+  double target = master.status(0).position;
+  run_cycles(master, 50, [&](int k) {
+    target += 0.002 * std::min(1.0, (k + 1) / 25.0);
+    return std::vector<double>{target};
+  });
+  const double at_stop = master.status(0).position;
+  run_cycles(
+      master, 400, [&](int) { return std::vector<double>{target}; }, true);
+  EXPECT_EQ(master.status(0).state, co::DriveState::quick_stop_active);
+  const double stopped = master.status(0).position;
+  EXPECT_NEAR(stopped - at_stop, 0.25, 0.01);
+  EXPECT_NEAR(bus.position(0), stopped, 1e-4);
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  // Release: the drive is re-enabled at its actual position and holds there.
+  run_cycles(master, 20, [&](int) { return std::vector<double>{stopped}; });
+  EXPECT_FALSE(master.faulted()) << master.fault_text();
+  EXPECT_EQ(master.status(0).state, co::DriveState::operation_enabled);
+  EXPECT_NEAR(master.status(0).position, stopped, 1e-4);
+  EXPECT_NEAR(bus.position(0), stopped, 1e-4);
 }
 
 TEST(Cia402Master, DrivesWithThePdoMappingTheConfigChooses) {

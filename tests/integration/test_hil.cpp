@@ -410,7 +410,20 @@ TEST_F(Hil, TaskWaitsForTheLightBarrierOnADriveInputThenSetsADriveOutput) {
     if (it->max_speed > 1e-3) arrival = it;
   int still = 0;
   for (auto it = moving_from; it != arrival; ++it)
-    if (it->max_speed <= 1e-3) ++still;
+    if (it->max_speed <= 1e-3) {
+      ++still;
+      // Whether the arm stood (its measured joints the same as one state before) or only its
+      // measured velocity read 0.
+      double moved = 0.0;
+      const auto before = std::prev(it);
+      for (std::size_t j = 0; j < it->q.size() && j < before->q.size(); ++j)
+        moved = std::max(moved, std::abs(it->q[j] - before->q[j]));
+      std::printf(
+          "  still by its velocity: state at servo step %lld, %lld steps after the one "
+          "before; its joints moved up to %.6f rad since\n",
+          static_cast<long long>(it->servo_step),
+          static_cast<long long>(it->servo_step - before->servo_step), moved);
+    }
   const double travel_s = std::chrono::duration<double>(arrival->at - moving_from->at).count();
   std::printf(
       "arm: measured moving %.0f ms after its commanded departure, then %.2f s in motion, %d "

@@ -411,18 +411,21 @@ TEST_F(Hil, TaskWaitsForTheLightBarrierOnADriveInputThenSetsADriveOutput) {
   int still = 0;
   for (auto it = moving_from; it != arrival; ++it)
     if (it->max_speed <= 1e-3) {
-      ++still;
       // Whether the arm stood (its measured joints the same as one state before) or only its
-      // measured velocity read 0.
+      // measured velocity read 0, and whether the servo loop overran meanwhile (printed, to tell
+      // the cause of a failure).
       double moved = 0.0;
       const auto before = std::prev(it);
       for (std::size_t j = 0; j < it->q.size() && j < before->q.size(); ++j)
         moved = std::max(moved, std::abs(it->q[j] - before->q[j]));
+      const std::int64_t overran = it->overruns - before->overruns;
+      ++still;
       std::printf(
           "  still by its velocity: state at servo step %lld, %lld steps after the one "
-          "before; its joints moved up to %.6f rad since\n",
+          "before; its joints moved up to %.6f rad since; servo overruns since: %lld\n",
           static_cast<long long>(it->servo_step),
-          static_cast<long long>(it->servo_step - before->servo_step), moved);
+          static_cast<long long>(it->servo_step - before->servo_step), moved,
+          static_cast<long long>(overran));
     }
   const double travel_s = std::chrono::duration<double>(arrival->at - moving_from->at).count();
   std::printf(
@@ -433,7 +436,7 @@ TEST_F(Hil, TaskWaitsForTheLightBarrierOnADriveInputThenSetsADriveOutput) {
       still, motion.states, motion.worst_velocity_share * 100,
       motion.worst_acceleration_share * 100);
   EXPECT_GT(travel_s, 1.0) << "the move to the part";
-  EXPECT_EQ(still, 0) << "states of the arm standing still on its way to the part";
+  EXPECT_EQ(still, 0) << "states of the arm standing still on its way to the part\n" << r.output;
   const auto& last = arm_states.back().q_desired;
   ASSERT_EQ(last.size(), pose.size());
   for (std::size_t j = 0; j < last.size(); ++j) EXPECT_NEAR(last[j], pose[j], 1e-3) << j;

@@ -61,7 +61,8 @@ class StateWatch {
     bool moving = false;
     double max_speed = 0;  ///< fastest measured joint [rad/s]
     std::vector<double> q_desired;
-    std::vector<double> q;  ///< measured joints
+    std::vector<double> q;      ///< measured joints
+    std::int64_t overruns = 0;  ///< the servo loop's overruns since it started
   };
   std::vector<Sample> history() const {
     std::lock_guard lock(mutex_);
@@ -99,7 +100,7 @@ class StateWatch {
     self->last_ = s;
     ++self->count_;
     self->history_.push_back({Clock::now(), s.servo_step, s.synchronised != 0, s.moving != 0,
-                              max_speed(s), s.q_desired, s.q});
+                              max_speed(s), s.q_desired, s.q, s.overruns});
   }
   comm::Bus& bus_;
   mrroc::comm::Subscription* sub_ = nullptr;

@@ -25,7 +25,10 @@ namespace mrroc::ecp {
 
 namespace {
 
-/// Records the measured joints after every exchange of the wrapped generator.
+/// Records the measured joints after every exchange of the wrapped generator, and is the wrapped
+/// generator in everything else: its resume() too, or a late macro-step (the EDP's ramp to rest,
+/// then its refusal of the planned continuation) would end the engraving instead of re-planning
+/// it from where the cutter stands.
 class Recording : public Generator {
  public:
   Recording(Generator& inner, std::vector<std::vector<double>>& samples)
@@ -37,10 +40,18 @@ class Recording : public Generator {
     samples_.push_back(robot.joints);
     return inner_.next_step(robot, sensors);
   }
+  bool resume(RobotImage& robot, const SensorList& sensors) override {
+    samples_.push_back(robot.joints);
+    const bool resumed = inner_.resume(robot, sensors);
+    if (resumed) ++resumes_;
+    return resumed;
+  }
+  [[nodiscard]] int resumes() const { return resumes_; }
 
  private:
   Generator& inner_;
   std::vector<std::vector<double>>& samples_;
+  int resumes_ = 0;
 };
 
 double distance_to_segment(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
@@ -164,7 +175,12 @@ class Engrave : public EcpTask {
       CartesianPathGenerator generator(robot.model(), segments, options);
       Recording recording(generator, samples);
       Move(robot, {}, recording);
-      context_.reporter.info(fmt::format("letter '{}' engraved", c));
+      context_.reporter.info(
+          fmt::format("letter '{}' engraved{}", c,
+                      recording.resumes() > 0
+                          ? fmt::format("; resumed from rest {} time(s) after a late macro-step",
+                                        recording.resumes())
+                          : ""));
     }
 
     // Wherever the cutter is in the wood (below half the depth), its tip must lie on an

@@ -15,12 +15,15 @@
 #include <mutex>
 #include <regex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "mrroc/comm/bus.hpp"
 #include "mrroc/comm/codec.hpp"
 #include "mrroc/comm/sync_annotations.hpp"
 #include "mrroc/config/process_set.hpp"
+#include "mrroc/robot/robot_model.hpp"
+#include "state_watch.hpp"
 
 namespace fs = std::filesystem;
 using namespace mrroc;
@@ -224,4 +227,46 @@ TEST(Cooperation, RntEngravesMrrocOnTheStrokes) {
   EXPECT_LT(std::stod(m[3]), 0.5);
   std::printf("engraving: %s strokes, %s samples, within %s mm\n", m[1].str().c_str(),
               m[2].str().c_str(), m[3].str().c_str());
+}
+
+TEST(Cooperation, AnEngravingWhoseEcpIsHeld400MsResumesOnItsStrokes) {
+  // The ECP stopped (SIGSTOP) for 400 ms while it engraves the R: longer than the EDP's
+  // lookahead of 8 macro-steps (160 ms), so the EDP brings the cutter to rest within the limits
+  // and then refuses the planned continuation as too fast from there. The task's generator
+  // re-plans from where the cutter stands (Move's resume): the engraving goes on, stays on its
+  // strokes, and the motion stays within the limits throughout.
+  const std::string file = (kSource / "configs/engrave-rnt.toml").string();
+  const ProcessSetConfig config = load_process_set(file);
+  const RobotModel model = load_robot_model(config.robots.at(0).model_dir);
+  comm::Bus bus(config.lcm_url);
+  mrroc::test::StateWatch states(bus, "rnt");
+  bus.start();
+  const RunResult r = mrroc::test::launch_and_act(
+      file, "ecp/rnt", "letter 'M' engraved", std::chrono::milliseconds(300), [](pid_t pid) {
+        kill(pid, SIGSTOP);
+        std::this_thread::sleep_for(std::chrono::milliseconds(400));
+        kill(pid, SIGCONT);
+      });
+  bus.stop();
+  ASSERT_NE(r.killed_at, mrroc::test::Clock::time_point{}) << "the ECP was never stopped\n"
+                                                           << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(mrroc::test::has(r.output, "no next macro-step from the ECP in time")) << r.output;
+  EXPECT_TRUE(std::regex_search(
+      r.output, std::regex("letter '[MRROC]' engraved; resumed from rest [0-9]+ time")))
+      << r.output;
+  const std::regex report(
+      "engraved 'MRROC': ([0-9]+) strokes, ([0-9]+) cutting samples, cutter tip within ([0-9.]+) "
+      "mm of the strokes");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, report)) << r.output;
+  EXPECT_LT(std::stod(m[3]), 0.5);
+  const mrroc::test::MotionCheck motion = mrroc::test::check_commanded_motion(
+      states.history(), model, config.robots.at(0).edp.servo_period_s);
+  EXPECT_GT(motion.states, 200);
+  std::printf(
+      "engraving with its ECP held 400 ms: within %s mm of the strokes; velocity up to %.0f %%, "
+      "acceleration up to %.0f %% of the limits over %d states\n",
+      m[3].str().c_str(), motion.worst_velocity_share * 100, motion.worst_acceleration_share * 100,
+      motion.states);
 }

@@ -298,15 +298,7 @@ class Emulator {
   }
 
   void dispatch(Port& port, const can::Received& r) {
-    // In real time a frame comes within the step that ends at the physics' next deadline: its
-    // drives see it at the time it was sent (a SYNC latches their encoders then), not at the
-    // step's start. A frame without a time stamp, or in lock-step, comes at the world's time.
-    double now = world_.time();
-    if (step_start_ns_ != 0 && r.timestamp_ns != 0)
-      now += std::clamp(
-          static_cast<double>(r.timestamp_ns - realtime_minus_monotonic_ns_ - step_start_ns_) *
-              1e-9,
-          0.0, world_.timestep());
+    const double now = world_.time();
     if (!r.is_error() && (r.frame.can_id & CAN_SFF_MASK) == co::kSyncId) ++port.syncs;
     for (Drive* d : port.drives) {
       if (robots_[d->robot].off) continue;
@@ -470,11 +462,9 @@ class Emulator {
     std::int64_t deadline = now_ns();
     can::Received r;
     while (!done()) {
-      step_start_ns_ = deadline;
       deadline += step_ns;
       for (;;) {
         const std::int64_t offset = clock_ns(CLOCK_REALTIME) - now_ns();
-        realtime_minus_monotonic_ns_ = offset;
         drain_until(deadline, offset);
         const std::int64_t left = deadline - now_ns();
         if (left <= 0) break;
@@ -539,10 +529,6 @@ class Emulator {
   bool world_fault_reported_ = false;
   std::vector<bool> grips_reported_;  ///< per grasp: its engagement was printed
   std::uint64_t steps_ = 0;
-  /// Real time: the CLOCK_MONOTONIC time the world's present state stands for (0 in lock-step),
-  /// and CLOCK_REALTIME minus CLOCK_MONOTONIC (frames are stamped by the realtime clock).
-  std::int64_t step_start_ns_ = 0;
-  std::int64_t realtime_minus_monotonic_ns_ = 0;
 };
 
 void real_time_priority() {

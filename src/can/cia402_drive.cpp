@@ -201,7 +201,6 @@ void Cia402Drive::power_on(const AxisSample& sample, double now_s) {
   quick_stop_option_ = canopen::quick_stop_option::kRampThenHold;
   comm_error_ = 0;
   last_update_s_ = last_sync_s_ = now_s;
-  update_interval_s_ = 0.0;
   state_ = DriveState::switch_on_disabled;
   nmt_ = NmtState::pre_operational;
   send(canopen::heartbeat_frame(config_.node, NmtState::boot_up));
@@ -413,24 +412,12 @@ void Cia402Drive::on_sync(double now_s) {
     segment_start_s_ = now_s;
     demand_velocity_ = (to_ - previous) / config_.interpolation_period_s;
   }
-  // The encoder is latched at the SYNC, as a drive synchronised to it does: the owner may hand
-  // the drive its SYNCs between two samples of the axis (a physics step), and two SYNCs that come
-  // within one of them (the master's cycle jitter) must not report one position twice, which a
-  // master reads as the axis standing still mid-motion.
-  latch_s_ = now_s;
   for (ActivePdo& p : tpdos_) {
     if (p.transmission == transmission::kSyncAcyclic)
       send_tpdo(p, now_s, true);
     else if (p.transmission <= 240 && ++p.syncs % p.transmission == 0)
       send_tpdo(p, now_s, false);
   }
-  latch_s_ = -1.0;
-}
-
-double Cia402Drive::position_actual() const noexcept {
-  if (latch_s_ <= last_update_s_) return sample_.position;
-  return sample_.position +
-         sample_.velocity * std::min(latch_s_ - last_update_s_, update_interval_s_);
 }
 
 void Cia402Drive::apply_rpdo(const ActivePdo& p, const can_frame& frame, double now_s) {
@@ -540,7 +527,7 @@ std::uint64_t Cia402Drive::read_object(std::uint16_t index, std::uint8_t sub) co
     case od::kStatusword: return statusword();
     case od::kModesOfOperation:
     case od::kModesDisplay: return static_cast<std::uint8_t>(mode_);
-    case od::kPositionActual: return static_cast<std::uint32_t>(counts(position_actual()));
+    case od::kPositionActual: return static_cast<std::uint32_t>(counts(sample_.position));
     case od::kVelocityActual:
       return static_cast<std::uint32_t>(static_cast<std::int32_t>(std::clamp(
           std::round(sample_.velocity * config_.counts_per_unit), -2147483648.0, 2147483647.0)));
@@ -938,7 +925,6 @@ void Cia402Drive::on_frame(const can_frame& frame, double now_s) {
 void Cia402Drive::update(const AxisSample& sample, double now_s) {
   const double dt = std::max(0.0, now_s - last_update_s_);
   last_update_s_ = now_s;
-  update_interval_s_ = dt;
   sample_ = sample;
   if (silent_) return;
   if (heartbeat_ms_ != 0 && now_s >= next_heartbeat_s_) {

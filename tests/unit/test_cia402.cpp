@@ -938,47 +938,6 @@ TEST(Cia402Drive, SdoServerAnswersAndRefuses) {
   EXPECT_THROW(master.sdo_write(1, co::od::kModesOfOperation, 0, 1, 1), HardwareError);  // range
 }
 
-TEST(Cia402Drive, LatchesItsEncoderAtTheSyncNotAtTheAxisLastSample) {
-  // The emulator samples an axis once per physics step (1 ms) and hands the drive each SYNC at
-  // the time it was sent. Two SYNCs within one step (a master cycle late, the next on time)
-  // must report the positions of their own times: one position twice reads as a standstill.
-  DriveConfig config;
-  config.node = 1;
-  std::vector<can_frame> sent;
-  Cia402Drive drive(config, [&](const can_frame& f) { sent.push_back(f); });
-  const auto sample = [](double position, double velocity) {
-    return AxisSample{position, velocity, 0.0, false, 0};
-  };
-  drive.power_on(sample(0.5, 0.0), 0.0);
-  drive.on_frame(co::nmt_frame(co::NmtCommand::start, 1), 0.0);
-  // The axis at 0.5 rad moving at 0.2 rad/s, sampled at t = 1 ms (one step after the last).
-  drive.update(sample(0.5, 0.0), 0.001);
-  drive.update(sample(0.5, 0.2), 0.002);
-  const auto position_at_sync = [&](double t) -> std::optional<double> {
-    sent.clear();
-    drive.on_frame(co::sync_frame(), t);
-    for (const can_frame& f : sent)
-      if (f.can_id == co::tpdo1_id(1) && f.len >= 4) {  // emu-csp.eds: 0x6064 first
-        std::int32_t counts = 0;
-        for (int b = 0; b < 4; ++b)
-          counts |= static_cast<std::int32_t>(static_cast<std::uint32_t>(f.data[b]) << (8 * b));
-        return counts / config.counts_per_unit;
-      }
-    return std::nullopt;
-  };
-  const auto early = position_at_sync(0.0021);
-  const auto late = position_at_sync(0.0029);
-  ASSERT_TRUE(early && late) << "no TPDO1 with the position at a SYNC";
-  // (The encoder counts from where the drive was powered on: 0.5 rad reads 0.)
-  EXPECT_NEAR(*early, 0.2 * 0.0001, 1.5e-5);
-  EXPECT_NEAR(*late, 0.2 * 0.0009, 1.5e-5);
-  EXPECT_GT(*late - *early, 0.00015) << "two SYNCs of one physics step read one position";
-  // Carried forward by at most one sampling interval: an owner that stalled does not make it up.
-  const auto stale = position_at_sync(0.0502);
-  ASSERT_TRUE(stale);
-  EXPECT_NEAR(*stale, 0.2 * 0.001, 1.5e-5);
-}
-
 std::shared_ptr<const eds::Dictionary> drive_file(const std::string& name) {
   return std::make_shared<eds::Dictionary>(
       eds::Dictionary::load(std::string(MRROC_SOURCE_DIR) + "/configs/drives/" + name));

@@ -27,8 +27,7 @@
 ///    length), 0x05040005 more than kMaxSegmentedBytes.
 ///  - PDOs as their communication and mapping objects say (any number, any mapping of up to 64
 ///    bits): RPDOs of transmission type 0..240 take effect at the next SYNC, 254/255 at once;
-///    TPDOs of type 1..240 are sampled and sent every n-th SYNC (0x6064 latched at the SYNC's
-///    time: the last sample carried there by its velocity), type 0 at a SYNC when their data
+///    TPDOs of type 1..240 are sampled and sent every n-th SYNC, type 0 at a SYNC when their data
 ///    changed, 254/255 when their data changed (no sooner than the inhibit time, sub 3) and when
 ///    the event timer (sub 5) runs out.
 ///  - CiA 402 device control (transitions 2-12, 15, 16). Modes that move the axis: 8 (cyclic
@@ -198,9 +197,6 @@ class Cia402Drive {
   void communication_error(std::uint16_t code, double now_s);
   void reset_communication_objects() noexcept;
   [[nodiscard]] double position_of(std::int32_t counts) const noexcept;
-  /// 0x6064: the axis where the encoder is read: at a SYNC, the sample carried to the SYNC's
-  /// time by its velocity (at most one update interval).
-  [[nodiscard]] double position_actual() const noexcept;
   /// Homing (mode 6): starts the method in 0x6098 (controlword bit 4 rising).
   void start_homing(double now_s);
   /// One physics step of the homing motion (operation enabled, mode 6).
@@ -289,9 +285,6 @@ class Cia402Drive {
   double demand_ = 0.0;
   double demand_velocity_ = 0.0;
   double last_update_s_ = 0.0;
-  double update_interval_s_ = 0.0;  ///< between the last two update()s
-  /// While a SYNC's TPDOs are sampled: the SYNC's time (the encoder latched then); else -1.
-  double latch_s_ = -1.0;
   double last_sync_s_ = 0.0;
   double following_error_since_s_ = -1.0;
   double over_current_since_s_ = -1.0;

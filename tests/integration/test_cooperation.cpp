@@ -213,15 +213,20 @@ TEST(Cooperation, TightTwoRobotsKeepTheBarRigid) {
   EXPECT_GT(std::stoi(m[1]), 100) << "the MP must generate the trajectory macro-step by macro-step";
 }
 
+/// The engrave task's last report: strokes, cutting samples, cutter tip's distance [mm].
+const std::regex& engraving_report() {
+  static const std::regex report(
+      "engraved 'MRROC': ([0-9]+) strokes, ([0-9]+) cutting samples, cutter tip within ([0-9.]+) "
+      "mm of the strokes");
+  return report;
+}
+
 TEST(Cooperation, RntEngravesMrrocOnTheStrokes) {
   const std::string file = (kSource / "configs/engrave-rnt.toml").string();
   const RunResult r = launch(file);
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  const std::regex report(
-      "engraved 'MRROC': ([0-9]+) strokes, ([0-9]+) cutting samples, cutter tip within ([0-9.]+) "
-      "mm of the strokes");
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.output, m, report)) << r.output;
+  ASSERT_TRUE(std::regex_search(r.output, m, engraving_report())) << r.output;
   EXPECT_GT(std::stoi(m[1]), 30);
   EXPECT_GT(std::stoi(m[2]), 200) << "too few samples in the wood to judge the engraving";
   EXPECT_LT(std::stod(m[3]), 0.5);
@@ -255,11 +260,8 @@ TEST(Cooperation, AnEngravingWhoseEcpIsHeld400MsResumesOnItsStrokes) {
   EXPECT_TRUE(std::regex_search(
       r.output, std::regex("letter '[MRROC]' engraved; resumed from rest [0-9]+ time")))
       << r.output;
-  const std::regex report(
-      "engraved 'MRROC': ([0-9]+) strokes, ([0-9]+) cutting samples, cutter tip within ([0-9.]+) "
-      "mm of the strokes");
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.output, m, report)) << r.output;
+  ASSERT_TRUE(std::regex_search(r.output, m, engraving_report())) << r.output;
   EXPECT_LT(std::stod(m[3]), 0.5);
   const mrroc::test::MotionCheck motion = mrroc::test::check_commanded_motion(
       states.history(), model, config.robots.at(0).edp.servo_period_s);
